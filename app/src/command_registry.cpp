@@ -1,0 +1,70 @@
+#include "command_registry.hpp"
+
+#include "cli_common.hpp"
+#include "robocal_version.hpp"
+
+#include <fmt/core.h>
+
+#include <exception>
+#include <map>
+
+namespace robocal::app {
+
+// Each command file defines one of these.
+CommandSpec version_command();
+
+const std::vector<CommandSpec>& all_commands() {
+  static const std::vector<CommandSpec> commands = {
+      version_command(),
+  };
+  return commands;
+}
+
+int run_cli(int argc, const char* const* argv) {
+  CLI::App cli{
+      "robocal measures a robot's end-effector with cameras and identifies the robot's real\n"
+      "geometry (serial arms and parallel robots: Delta, linear delta, Gantry-Tau, cable robots).\n"
+      "\n"
+      "Run `robocal <command> --help` for what each command does and its options.\n"
+      "Exit codes: 0 ok, 1 result not acceptable, 2 bad command line, 3 bad input file,\n"
+      "4 internal error.",
+      "robocal"};
+  cli.set_version_flag("--version", std::string("robocal ") + kVersion);
+  cli.require_subcommand(1);
+  cli.fallthrough(false);
+
+  std::map<const CLI::App*, CommandAction> actions;
+  for (const CommandSpec& spec : all_commands()) {
+    CLI::App* sub = cli.add_subcommand(spec.name, spec.summary);
+    actions[sub] = spec.install(*sub);
+  }
+
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return cli.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return cli.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return cli.exit(e);
+  } catch (const CLI::ParseError& e) {
+    cli.exit(e);
+    return kExitUsage;
+  }
+
+  for (const CLI::App* sub : cli.get_subcommands()) {
+    try {
+      return actions.at(sub)();
+    } catch (const InputError& e) {
+      fmt::print(stderr, "error: {}\n", e.what());
+      return kExitBadInput;
+    } catch (const std::exception& e) {
+      fmt::print(stderr, "internal error: {}\n(please report this with the command you ran)\n",
+                 e.what());
+      return kExitInternal;
+    }
+  }
+  return kExitUsage;
+}
+
+}  // namespace robocal::app
