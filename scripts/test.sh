@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# The README's test command: installs what is missing, builds everything (release) and runs the
+# whole test suite (unit, integration, end-to-end). Benchmarks are built but not run.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/bootstrap.sh
+bash scripts/build.sh release
+ctest --preset release "$@"
