@@ -1,0 +1,111 @@
+#include "robocal/vision/camera_io.hpp"
+
+#include "yaml_util.hpp"
+
+#include <fstream>
+#include <sstream>
+
+namespace robocal::vision {
+
+namespace detail {
+
+std::string read_text_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FileFormatError(path.string() + ": cannot open file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void write_text_file_atomic(const std::filesystem::path& path, const std::string& text) {
+  std::filesystem::path tmp = path;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw FileFormatError(tmp.string() + ": cannot write file");
+    out << text;
+    if (!out.flush()) throw FileFormatError(tmp.string() + ": write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw FileFormatError(path.string() + ": cannot rename temporary file: " + ec.message());
+}
+
+}  // namespace detail
+
+CameraModel parse_camera_yaml(const std::string& text, const std::string& source) {
+  const detail::YamlContext ctx{source};
+  const YAML::Node root = detail::load_yaml_text(text, source);
+  if (!root || !root.IsMap()) ctx.fail("a camera file must be a YAML mapping (model, width, ...)");
+  ctx.reject_unknown_keys(root, {"model", "width", "height", "fx", "fy", "cx", "cy", "distortion",
+                                 "pixel_convention", "name", "calibration"});
+  CameraModel cam;
+  const YAML::Node model = ctx.require(root, "model");
+  const auto kind = kind_from_name(ctx.to_string(model, "model"));
+  if (!kind)
+    ctx.fail(model, "unknown camera model '" + model.Scalar() +
+                        "' (expected pinhole_radtan, pinhole_rational or fisheye_kb4)");
+  cam.kind = *kind;
+  if (const YAML::Node conv = root["pixel_convention"]) {
+    if (ctx.to_string(conv, "pixel_convention") != "opencv_center")
+      ctx.fail(conv,
+               "pixel_convention must be 'opencv_center' ((0,0) = centre of the top-left "
+               "pixel); convert other conventions before writing the file");
+  }
+  const YAML::Node w = ctx.require(root, "width");
+  const YAML::Node h = ctx.require(root, "height");
+  cam.width = ctx.to_int(w, "width");
+  cam.height = ctx.to_int(h, "height");
+  if (cam.width <= 0) ctx.fail(w, "width must be positive");
+  if (cam.height <= 0) ctx.fail(h, "height must be positive");
+  const int n_dist = num_params(cam.kind) - 4;
+  cam.params.assign(static_cast<size_t>(n_dist + 4), 0.0);
+  const char* names[4] = {"fx", "fy", "cx", "cy"};
+  for (int i = 0; i < 4; ++i) {
+    const YAML::Node n = ctx.require(root, names[i]);
+    const double v = ctx.to_double(n, names[i]);
+    if (!std::isfinite(v)) ctx.fail(n, std::string(names[i]) + " must be finite");
+    if (i < 2 && !(v > 0.0)) ctx.fail(n, std::string(names[i]) + " must be positive");
+    cam.params[static_cast<size_t>(i)] = v;
+  }
+  const YAML::Node dist = ctx.require(root, "distortion");
+  const std::vector<double> d = ctx.to_doubles(dist, "distortion");
+  if (static_cast<int>(d.size()) != n_dist)
+    ctx.fail(dist, std::string(kind_name(cam.kind)) + " needs " + std::to_string(n_dist) +
+                       " distortion coefficients, got " + std::to_string(d.size()));
+  for (size_t i = 0; i < d.size(); ++i) {
+    if (!std::isfinite(d[i])) ctx.fail(dist, "distortion coefficients must be finite");
+    cam.params[i + 4] = d[i];
+  }
+  return cam;
+}
+
+CameraModel load_camera_file(const std::filesystem::path& path) {
+  return parse_camera_yaml(detail::read_text_file(path), path.string());
+}
+
+std::string camera_to_yaml(const CameraModel& camera, const std::string& name) {
+  std::ostringstream out;
+  out.precision(17);
+  out << "# robocal camera model\n";
+  out << "# pixel convention: OpenCV, (0,0) = centre of the top-left pixel\n";
+  if (!name.empty()) out << "name: \"" << name << "\"\n";
+  out << "model: " << kind_name(camera.kind) << "\n";
+  out << "pixel_convention: opencv_center\n";
+  out << "width: " << camera.width << "\n";
+  out << "height: " << camera.height << "\n";
+  const char* names[4] = {"fx", "fy", "cx", "cy"};
+  for (size_t i = 0; i < 4 && i < camera.params.size(); ++i)
+    out << names[i] << ": " << camera.params[i] << "\n";
+  out << "distortion: [";
+  for (size_t i = 4; i < camera.params.size(); ++i) out << (i > 4 ? ", " : "") << camera.params[i];
+  out << "]\n";
+  return out.str();
+}
+
+void save_camera_file(const CameraModel& camera, const std::filesystem::path& path,
+                      const std::string& name) {
+  detail::write_text_file_atomic(path, camera_to_yaml(camera, name));
+}
+
+}  // namespace robocal::vision
