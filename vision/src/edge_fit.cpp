@@ -249,9 +249,13 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
   result.corners = corners;
   double blur = options.max_blur_px;
   for (int pass = 0; pass < 2; ++pass) {
-    const double keep_off = 0.5 + 2.5 * blur;  // px a neighbouring edge's blur reaches
-    const double inner = std::max(1.5, inner_cell - keep_off);
-    const double outer = std::max(1.5, outer_cell - keep_off);
+    // Pass 1 only needs the blur and a rough line: most of a cell, some contamination accepted.
+    // Pass 2 keeps 2.5 sigma (+ half a pixel) away from the data bits and neighbouring edges.
+    const double keep_off = pass == 0 ? std::max(2.0, 0.2 * side) : 0.5 + 2.5 * blur;
+    const double inner = pass == 0 ? std::max(2.0, 0.8 * inner_cell)
+                                   : std::max(2.0, inner_cell - keep_off);
+    const double outer = pass == 0 ? std::max(2.0, 0.8 * outer_cell)
+                                   : std::max(2.0, outer_cell - keep_off);
     std::array<EdgeLineFit, 4> edges;
     for (int i = 0; i < 4; ++i) {
       const auto samples = quad_edge_samples(gray, result.corners, i, inner, outer, keep_off);
