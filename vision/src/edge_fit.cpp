@@ -242,6 +242,9 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
   }
   const double inner_cell = options.inner_band_fraction * side;
   const double outer_cell = options.outer_band_fraction * side;
+  // The step model needs a uniform border at least a few pixels deep on both sides; narrower
+  // borders put the data bits inside the fitted band and would pull the line.
+  if (std::min(inner_cell, outer_cell) < options.min_border_px) return std::nullopt;
 
   // Two passes: the first, with a conservative band, measures the blur; the second widens the
   // band as far as that blur allows without seeing the data bits or the neighbouring edges.
@@ -252,10 +255,10 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
     // Pass 1 only needs the blur and a rough line: most of a cell, some contamination accepted.
     // Pass 2 keeps 2.5 sigma (+ half a pixel) away from the data bits and neighbouring edges.
     const double keep_off = pass == 0 ? std::max(2.0, 0.2 * side) : 0.5 + 2.5 * blur;
-    const double inner = pass == 0 ? std::max(2.0, 0.8 * inner_cell)
-                                   : std::max(2.0, inner_cell - keep_off);
-    const double outer = pass == 0 ? std::max(2.0, 0.8 * outer_cell)
-                                   : std::max(2.0, outer_cell - keep_off);
+    const double inner =
+        pass == 0 ? std::max(2.0, 0.8 * inner_cell) : std::max(2.0, inner_cell - keep_off);
+    const double outer =
+        pass == 0 ? std::max(2.0, 0.8 * outer_cell) : std::max(2.0, outer_cell - keep_off);
     std::array<EdgeLineFit, 4> edges;
     for (int i = 0; i < 4; ++i) {
       const auto samples = quad_edge_samples(gray, result.corners, i, inner, outer, keep_off);

@@ -62,6 +62,8 @@ struct QuadRefineOptions {
   /// Largest edge blur the band layout allows for (px); sets how far from the neighbouring edges
   /// and from the data bits samples are taken.
   double max_blur_px = 1.6;
+  /// Quads whose border band (side x fraction) is thinner than this are not refined (px).
+  double min_border_px = 3.0;
   /// Refined corners that move more than this from the initial ones are rejected (px).
   double max_shift_px = 2.0;
 };
