@@ -87,6 +87,65 @@ inline std::pair<Eigen::Matrix3d, Eigen::Vector3d> look_at_pose(const SyntheticC
   return {r, t};
 }
 
+/// Renders a planar reflectance function refl(x, y) in [0,1] (board units) seen through the
+/// homography board -> image.
+template <typename Reflectance>
+cv::Mat render_planar(const SyntheticCamera& cam, const Eigen::Matrix3d& h,
+                      const SyntheticImageOptions& opt, Reflectance&& refl) {
+  const Eigen::Matrix3d hinv = h.inverse();
+  auto to_board = [&](double u, double v) {
+    const Eigen::Vector3d q = hinv * Eigen::Vector3d(u, v, 1.0);
+    return Eigen::Vector2d(q.x() / q.z(), q.y() / q.z());
+  };
+  // Reflectance at pixel corners decides which pixels need supersampling.
+  cv::Mat corner_val(cam.height + 1, cam.width + 1, CV_64F);
+  for (int y = 0; y <= cam.height; ++y)
+    for (int x = 0; x <= cam.width; ++x) {
+      const Eigen::Vector2d b = to_board(x - 0.5, y - 0.5);
+      corner_val.at<double>(y, x) = refl(b.x(), b.y());
+    }
+  cv::Mat img(cam.height, cam.width, CV_64F);
+  const int s = opt.supersample;
+  for (int y = 0; y < cam.height; ++y) {
+    for (int x = 0; x < cam.width; ++x) {
+      const double a = corner_val.at<double>(y, x);
+      const double b = corner_val.at<double>(y, x + 1);
+      const double c = corner_val.at<double>(y + 1, x);
+      const double d = corner_val.at<double>(y + 1, x + 1);
+      double value = a;
+      // Edges thinner than a pixel do not occur (cells are several px), so equal corners mean a
+      // uniform pixel... except near a cell boundary crossing the pixel twice; sample the centre
+      // as a cheap check.
+      const Eigen::Vector2d bc = to_board(x, y);
+      if (a != b || a != c || a != d || a != refl(bc.x(), bc.y())) {
+        double sum = 0.0;
+        for (int j = 0; j < s; ++j)
+          for (int i = 0; i < s; ++i) {
+            const Eigen::Vector2d p = to_board(x - 0.5 + (i + 0.5) / s, y - 0.5 + (j + 0.5) / s);
+            sum += refl(p.x(), p.y());
+          }
+        value = sum / (s * s);
+      }
+      img.at<double>(y, x) = opt.black + (opt.white - opt.black) * value;
+    }
+  }
+  if (opt.blur_sigma > 0.0) {
+    const int k = 2 * static_cast<int>(std::ceil(4.0 * opt.blur_sigma)) + 1;
+    cv::GaussianBlur(img, img, cv::Size(k, k), opt.blur_sigma, opt.blur_sigma,
+                     cv::BORDER_REPLICATE);
+  }
+  std::mt19937 rng(opt.seed);
+  std::normal_distribution<double> noise(0.0, opt.noise_sigma > 0 ? opt.noise_sigma : 1.0);
+  cv::Mat out(cam.height, cam.width, CV_8UC1);
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      double v = img.at<double>(y, x);
+      if (opt.noise_sigma > 0.0) v += noise(rng);
+      out.at<unsigned char>(y, x) = cv::saturate_cast<unsigned char>(std::lround(v));
+    }
+  return out;
+}
+
 /// Tag36h11 grid renderer. Returns the 8-bit image; fills `truth` with every tag fully inside.
 class TagGridRenderer {
  public:
@@ -153,57 +212,7 @@ class TagGridRenderer {
   cv::Mat render_function(const SyntheticCamera& cam, const Eigen::Matrix3d& h,
                           const SyntheticImageOptions& opt, Reflectance&& refl,
                           std::vector<SyntheticTag>* truth) const {
-    const Eigen::Matrix3d hinv = h.inverse();
-    auto to_board = [&](double u, double v) {
-      const Eigen::Vector3d q = hinv * Eigen::Vector3d(u, v, 1.0);
-      return Eigen::Vector2d(q.x() / q.z(), q.y() / q.z());
-    };
-    // Reflectance at pixel corners decides which pixels need supersampling.
-    cv::Mat corner_val(cam.height + 1, cam.width + 1, CV_64F);
-    for (int y = 0; y <= cam.height; ++y)
-      for (int x = 0; x <= cam.width; ++x) {
-        const Eigen::Vector2d b = to_board(x - 0.5, y - 0.5);
-        corner_val.at<double>(y, x) = refl(b.x(), b.y());
-      }
-    cv::Mat img(cam.height, cam.width, CV_64F);
-    const int s = opt.supersample;
-    for (int y = 0; y < cam.height; ++y) {
-      for (int x = 0; x < cam.width; ++x) {
-        const double a = corner_val.at<double>(y, x);
-        const double b = corner_val.at<double>(y, x + 1);
-        const double c = corner_val.at<double>(y + 1, x);
-        const double d = corner_val.at<double>(y + 1, x + 1);
-        double value = a;
-        // Edges thinner than a pixel do not occur (cells are several px), so equal corners mean a
-        // uniform pixel... except near a cell boundary crossing the pixel twice; sample the centre
-        // as a cheap check.
-        const Eigen::Vector2d bc = to_board(x, y);
-        if (a != b || a != c || a != d || a != refl(bc.x(), bc.y())) {
-          double sum = 0.0;
-          for (int j = 0; j < s; ++j)
-            for (int i = 0; i < s; ++i) {
-              const Eigen::Vector2d p = to_board(x - 0.5 + (i + 0.5) / s, y - 0.5 + (j + 0.5) / s);
-              sum += refl(p.x(), p.y());
-            }
-          value = sum / (s * s);
-        }
-        img.at<double>(y, x) = opt.black + (opt.white - opt.black) * value;
-      }
-    }
-    if (opt.blur_sigma > 0.0) {
-      const int k = 2 * static_cast<int>(std::ceil(4.0 * opt.blur_sigma)) + 1;
-      cv::GaussianBlur(img, img, cv::Size(k, k), opt.blur_sigma, opt.blur_sigma,
-                       cv::BORDER_REPLICATE);
-    }
-    std::mt19937 rng(opt.seed);
-    std::normal_distribution<double> noise(0.0, opt.noise_sigma > 0 ? opt.noise_sigma : 1.0);
-    cv::Mat out(cam.height, cam.width, CV_8UC1);
-    for (int y = 0; y < cam.height; ++y)
-      for (int x = 0; x < cam.width; ++x) {
-        double v = img.at<double>(y, x);
-        if (opt.noise_sigma > 0.0) v += noise(rng);
-        out.at<unsigned char>(y, x) = cv::saturate_cast<unsigned char>(std::lround(v));
-      }
+    cv::Mat out = render_planar(cam, h, opt, refl);
     if (truth != nullptr) {
       truth->clear();
       for (int k = 0; k < grid_.cols * grid_.rows; ++k) {
