@@ -76,3 +76,59 @@ inline Eigen::MatrixXd stacked_jacobian(const Eigen::VectorXd& a,
 }
 
 }  // namespace robocal::calib::testing
+
+#include "robocal/calib/identification.hpp"
+
+namespace robocal::calib::testing {
+
+// The planar arm as a FramePredictor: measured frame at the tool point, yawed with the arm.
+// Poses with |q2| > 3 rad are declared unsolvable (stands in for a closure that fails).
+class PlanarPredictor : public FramePredictor {
+ public:
+  std::size_t parameter_count() const override { return kPlanarCount; }
+  std::vector<std::string> parameter_names() const override { return planar_names(); }
+  bool predict(const Eigen::VectorXd& a, const Eigen::VectorXd& q, int /*slot*/, bool with_jacobian,
+               FramePrediction& out, std::string& why) const override {
+    if (q.size() != 2) {
+      why = "expected 2 actuator readings";
+      return false;
+    }
+    if (std::abs(q(1)) > 3.0) {
+      why = "joint 2 beyond its range";
+      return false;
+    }
+    const Eigen::Vector3d p = planar_position<double>(a.data(), q(0), q(1));
+    const double yaw = a(kYaw) + q(0) + a(kO1) + q(1) + a(kO2);
+    out.pose = Eigen::Isometry3d::Identity();
+    out.pose.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    out.pose.translation() = p;
+    if (with_jacobian) {
+      out.jacobian.setZero(6, kPlanarCount);
+      out.jacobian.topRows<3>() = planar_jacobian(a, q(0), q(1));
+      out.jacobian(5, kYaw) = out.jacobian(5, kO1) = out.jacobian(5, kO2) = 1.0;
+    }
+    return true;
+  }
+};
+
+inline std::vector<Eigen::VectorXd> planar_actuators(int count, unsigned seed) {
+  std::vector<Eigen::VectorXd> out;
+  for (const auto& s : planar_poses(count, -2.0, 2.0, seed))
+    out.push_back(Eigen::Vector2d(s.q1, s.q2));
+  return out;
+}
+
+inline Eigen::VectorXd planar_truth() {
+  Eigen::VectorXd t = planar_nominal();
+  t(kBx) += 3e-3;
+  t(kBy) -= 2e-3;
+  t(kBz) += 1e-3;
+  t(kO1) += 0.01;
+  t(kO2) -= 0.02;
+  t(kL1) += 2e-3;
+  t(kL2) -= 1.5e-3;
+  t(kToolLen) += 1e-3;  // redundant with link 2: only the sum is identifiable
+  return t;
+}
+
+}  // namespace robocal::calib::testing
