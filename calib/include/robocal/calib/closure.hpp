@@ -1,0 +1,99 @@
+#pragma once
+// Closure solver: forward kinematics of closed-loop mechanisms. Given actuator readings, find the
+// passive joints that close every loop (damped Gauss-Newton / Levenberg-Marquardt with the exact
+// analytic constraint Jacobian), warm-started from the previous solution, or cold-started from a
+// closed-form seed (rotary Delta, linear delta, Gantry-Tau) so the intended assembly mode is kept.
+#include "robocal/calib/mechanism.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace robocal::calib {
+
+enum class SolveStatus : std::uint8_t {
+  kConverged,       // residual <= tolerance
+  kSingular,        // converged but the constraint Jacobian is rank deficient (singular pose)
+  kNotConverged,    // iteration limit reached; residual reported
+  kNoSolution,      // stalled with a residual far from zero (loop cannot close / unreachable)
+  kInvalidInput,    // NaN/inf or wrong vector sizes
+};
+
+const char* to_string(SolveStatus status);
+
+struct ClosureOptions {
+  int max_iterations = 50;
+  double tolerance = 1e-12;  // max |residual| (m, rad) accepted as closed
+  // Compute the SVD of the constraint Jacobian at the solution (rank, sigma_min/max). Costs
+  // ~10-20 us on the Delta; off for the hot path.
+  bool diagnose = false;
+  double rank_tolerance = 1e-9;  // relative singular value below which a direction is lost
+};
+
+struct ClosureResult {
+  SolveStatus status = SolveStatus::kInvalidInput;
+  Eigen::VectorXd passive;  // passive joint values (Mechanism::passive order)
+  double residual = 0.0;    // max |v| at the returned state
+  int iterations = 0;
+  // Diagnostics (filled when options.diagnose, else rank = -1).
+  int rank = -1;            // numerical rank of dv/dtheta
+  int unknowns = 0;         // number of passive joints
+  int equations = 0;        // constraint rows
+  double sigma_min = 0.0, sigma_max = 0.0;
+  bool ok() const { return status == SolveStatus::kConverged; }
+};
+
+// Reusable solver: caches the parameter-dependent fixed transforms and a preallocated workspace,
+// so solve() does no heap allocation for mechanisms up to kMaxUnknowns passive joints.
+class ClosureSolver {
+ public:
+  ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params,
+                ClosureOptions options = {});
+
+  // Solve for the passive joints. `seed` = previous passive solution (warm start); empty ->
+  // closed-form seed when the model has one, else the home configuration.
+  ClosureResult solve(const Eigen::VectorXd& actuator_readings,
+                      const Eigen::VectorXd& seed = Eigen::VectorXd()) const;
+
+  // Passive seed from the closed form (or home) for these readings; empty if none applies.
+  Eigen::VectorXd closed_form_seed(const Eigen::VectorXd& actuator_readings) const;
+
+  const Mechanism& model() const;
+  const Eigen::VectorXd& params() const;
+  const ClosureOptions& options() const;
+
+  ClosureSolver(const ClosureSolver& other);
+  ClosureSolver& operator=(const ClosureSolver& other);
+  ClosureSolver(ClosureSolver&&) noexcept;
+  ClosureSolver& operator=(ClosureSolver&&) noexcept;
+  ~ClosureSolver();
+
+  // Implementation state (cached transforms + workspace); solve() reuses it, so one
+  // ClosureSolver must not be used from two threads at once (copy it instead).
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// One-shot convenience: solve the closure at `params`.
+ClosureResult solve_closure(const Mechanism& model, const Eigen::VectorXd& params,
+                            const Eigen::VectorXd& actuator_readings,
+                            const Eigen::VectorXd& seed = Eigen::VectorXd(),
+                            const ClosureOptions& options = {});
+
+// Forward kinematics in one call: solve the closure, then the frame pose.
+struct ForwardResult {
+  ClosureResult closure;
+  JointState state;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+ForwardResult forward_kinematics(const Mechanism& model, const Eigen::VectorXd& params,
+                                 const Eigen::VectorXd& actuator_readings, int frame,
+                                 const Eigen::VectorXd& seed = Eigen::VectorXd(),
+                                 const ClosureOptions& options = {});
+
+}  // namespace robocal::calib

@@ -1,0 +1,48 @@
+#pragma once
+// Inverse kinematics ("implementation"): actuator readings that bring the task frame to a target
+// in the robot's task coordinates (Mechanism::task): position (3-DOF translational robots), full
+// pose (serial arms; least squares for robots with fewer DOF), or one joint value (four-bar
+// output angle). Generic for any model, including calibrated ones: unknowns are the actuated and
+// passive joints, equations are the closure residual plus the task residual, solved by damped
+// Gauss-Newton with exact Jacobians. Seeds: warm start, closed form (Delta, linear delta,
+// Gantry-Tau), or home.
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/mechanism.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace robocal::calib {
+
+// A target in task coordinates. Which fields count depends on Mechanism::task.type:
+// kPosition -> pose.translation(); kPose -> pose; kJoint -> joint_value.
+struct TaskTarget {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  double joint_value = 0.0;
+};
+
+struct IkOptions {
+  int max_iterations = 100;
+  double tolerance = 1e-12;  // max |residual| (closure + task rows; m, rad)
+  bool respect_limits = false;  // report kNoSolution when the answer violates joint limits
+};
+
+struct IkSeed {
+  Eigen::VectorXd actuator_q;  // actuated joint values (joint units); empty -> closed form/home
+  Eigen::VectorXd passive;     // passive joint values; empty -> closed form/home
+};
+
+struct IkResult {
+  SolveStatus status = SolveStatus::kInvalidInput;
+  Eigen::VectorXd actuator_readings;  // encoder units (inverse encoder model applied)
+  Eigen::VectorXd actuator_q;         // joint units
+  Eigen::VectorXd passive;
+  double residual = 0.0;  // max |closure or task residual|
+  int iterations = 0;
+  bool ok() const { return status == SolveStatus::kConverged; }
+};
+
+IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const TaskTarget& target,
+                  const IkSeed& seed = {}, const IkOptions& options = {});
+
+}  // namespace robocal::calib

@@ -1,0 +1,37 @@
+#pragma once
+// Robot description files (YAML; format in testdata/robots/README.md) -> Mechanism.
+// Every error names the file, the line and the problem (RobotFileError).
+#include "robocal/calib/mechanism.hpp"
+
+#include <Eigen/Core>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace robocal::calib {
+
+class RobotFileError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Reads and validates a robot file.
+Mechanism load_robot_file(const std::string& path);
+// Same from text; `source` names it in messages.
+Mechanism parse_robot_yaml(const std::string& text, const std::string& source);
+
+// Evaluates a numeric expression: numbers, + - * / ^, parentheses, pi, sqrt(), sin(), cos(),
+// deg(x) (degrees -> rad). Throws std::invalid_argument with the problem.
+double evaluate_expression(const std::string& text);
+
+// Parses "NAME=VALUE" (VALUE an expression) and sets params[index of NAME]. Throws
+// RobotFileError naming the model's file and the unknown parameter (with close matches).
+void apply_parameter_override(const Mechanism& model, Eigen::VectorXd& params,
+                              const std::string& assignment);
+
+// The elementary-op expansion of each convention, as parameter keys (for docs and tools):
+// e.g. "mcpc" revolute -> Rx(a1) Ry(a2) Tx(d1) Ty(d2) Tz(d3) Rz(a3 + q).
+std::string describe_convention(const std::string& convention, JointType joint);
+
+}  // namespace robocal::calib

@@ -1,0 +1,188 @@
+#include "robocal/calib/closure.hpp"
+
+#include "robocal/calib/closed_form.hpp"
+#include "robocal/calib/kinematics.hpp"
+#include "tree_evaluator.hpp"
+
+#include <Eigen/SVD>
+
+namespace robocal::calib {
+
+const char* to_string(SolveStatus status) {
+  switch (status) {
+    case SolveStatus::kConverged: return "converged";
+    case SolveStatus::kSingular: return "singular";
+    case SolveStatus::kNotConverged: return "not_converged";
+    case SolveStatus::kNoSolution: return "no_solution";
+    case SolveStatus::kInvalidInput: return "invalid_input";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// Closure rows (and optionally rows pinning the tool position) as a function of the passive
+// joints; actuated joint values are already in q.
+struct ClosureSystem {
+  detail::TreeEvaluator* ev;
+  Eigen::VectorXd* q;
+  const Mechanism* m;
+  int pin_frame = -1;  // >= 0: append 3 rows p_frame - pin_target
+  Eigen::Vector3d pin_target = Eigen::Vector3d::Zero();
+
+  Eigen::Index rows() const { return ev->rows() + (pin_frame >= 0 ? 3 : 0); }
+
+  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+    for (Eigen::Index j = 0; j < x.size(); ++j) (*q)[m->passive[static_cast<std::size_t>(j)]] = x[j];
+    ev->update(*q);
+    const int mc = ev->rows();
+    ev->closure_residual(r.data());
+    if (pin_frame >= 0) r.segment<3>(mc) = ev->pose(pin_frame).p - pin_target;
+    if (!J) return;
+    for (Eigen::Index j = 0; j < x.size(); ++j) {
+      const int b = m->passive[static_cast<std::size_t>(j)];
+      ev->closure_column(b, 1.0, J->col(j).data());
+      if (pin_frame >= 0) {
+        if (detail::in_subtree(*m, b, pin_frame)) {
+          Eigen::Vector3d w, v;
+          ev->joint_twist(b, w, v);
+          J->col(j).segment<3>(mc) = w.cross(ev->pose(pin_frame).p) + v;
+        } else {
+          J->col(j).segment<3>(mc).setZero();
+        }
+      }
+    }
+  }
+};
+
+}  // namespace
+
+struct ClosureSolver::Impl {
+  const Mechanism* model;
+  Eigen::VectorXd params;
+  ClosureOptions options;
+  detail::TreeEvaluator ev;
+  detail::LmWorkspace ws, pin_ws;
+  Eigen::VectorXd q;
+
+  Impl(const Mechanism& m, const Eigen::VectorXd& p, const ClosureOptions& o)
+      : model(&m), params(p), options(o), ev(m, p),
+        q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))) {
+    ws.resize(m.constraint_rows(), static_cast<Eigen::Index>(m.passive.size()));
+  }
+
+  bool set_actuators(const Eigen::VectorXd& readings) {
+    if (readings.size() != static_cast<Eigen::Index>(model->actuated.size()) ||
+        !readings.allFinite())
+      return false;
+    for (std::size_t i = 0; i < model->actuated.size(); ++i) {
+      const Body& b = model->bodies[model->actuated[i]];
+      q[model->actuated[i]] = params[b.encoder_scale_param] *
+                                  readings[static_cast<Eigen::Index>(i)] +
+                              params[b.encoder_offset_param];
+    }
+    return true;
+  }
+
+  Eigen::VectorXd seed() {
+    Eigen::VectorXd x = model->home_passive();
+    if (model->closed_form.kind == ClosedFormKind::kNone || model->passive.empty()) return x;
+    Eigen::VectorXd qa(static_cast<Eigen::Index>(model->actuated.size()));
+    for (std::size_t i = 0; i < model->actuated.size(); ++i) {
+      const Body& b = model->bodies[model->actuated[i]];
+      // Closed forms use the total joint angle (joint op parameter + q).
+      qa[static_cast<Eigen::Index>(i)] =
+          detail::op_value(b.ops[b.joint_op], params, q[model->actuated[i]]);
+    }
+    const auto T = closed_form_forward(model->closed_form, qa);
+    if (!T) return x;
+    ClosureSystem pinned{&ev, &q, model, model->task.frame, *T};
+    pin_ws.resize(pinned.rows(), x.size());
+    detail::levenberg_marquardt(pinned, x, pin_ws, 50, 1e-10, 0.5);
+    return x;
+  }
+};
+
+ClosureSolver::ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params,
+                             ClosureOptions options)
+    : impl_(std::make_unique<Impl>(model, params, options)) {}
+ClosureSolver::ClosureSolver(const ClosureSolver& other)
+    : impl_(std::make_unique<Impl>(*other.impl_)) {}
+ClosureSolver& ClosureSolver::operator=(const ClosureSolver& other) {
+  if (this != &other) impl_ = std::make_unique<Impl>(*other.impl_);
+  return *this;
+}
+ClosureSolver::ClosureSolver(ClosureSolver&&) noexcept = default;
+ClosureSolver& ClosureSolver::operator=(ClosureSolver&&) noexcept = default;
+ClosureSolver::~ClosureSolver() = default;
+
+const Mechanism& ClosureSolver::model() const { return *impl_->model; }
+const Eigen::VectorXd& ClosureSolver::params() const { return impl_->params; }
+const ClosureOptions& ClosureSolver::options() const { return impl_->options; }
+
+Eigen::VectorXd ClosureSolver::closed_form_seed(const Eigen::VectorXd& actuator_readings) const {
+  if (!impl_->set_actuators(actuator_readings)) return {};
+  return impl_->seed();
+}
+
+ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
+                                   const Eigen::VectorXd& seed) const {
+  Impl& s = *impl_;
+  const Mechanism& m = *s.model;
+  ClosureResult result;
+  const auto n = static_cast<Eigen::Index>(m.passive.size());
+  result.unknowns = static_cast<int>(n);
+  result.equations = m.constraint_rows();
+  if (!s.set_actuators(actuator_readings) || (seed.size() != 0 && seed.size() != n) ||
+      !seed.allFinite() || !s.params.allFinite()) {
+    result.status = SolveStatus::kInvalidInput;
+    return result;
+  }
+  result.passive = seed.size() == n ? seed : s.seed();
+  ClosureSystem sys{&s.ev, &s.q, &m};
+  const detail::LmOutcome lm = detail::levenberg_marquardt(
+      sys, result.passive, s.ws, s.options.max_iterations, s.options.tolerance, 0.5);
+  result.residual = lm.residual;
+  result.iterations = lm.iterations;
+  if (lm.converged) {
+    result.status = SolveStatus::kConverged;
+  } else if (!std::isfinite(lm.residual)) {
+    result.status = SolveStatus::kNoSolution;
+  } else if (lm.stalled && lm.residual > 1e-6) {
+    result.status = SolveStatus::kNoSolution;
+  } else {
+    result.status = SolveStatus::kNotConverged;
+  }
+  if (s.options.diagnose && n > 0 && result.equations > 0) {
+    sys.evaluate(result.passive, s.ws.r, &s.ws.J);
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(s.ws.J);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    result.sigma_max = sv[0];
+    result.sigma_min = sv.size() >= n ? sv[sv.size() - 1] : 0.0;
+    result.rank = 0;
+    for (Eigen::Index i = 0; i < sv.size(); ++i)
+      if (sv[i] > s.options.rank_tolerance * std::max(sv[0], 1e-300)) ++result.rank;
+    if (result.status == SolveStatus::kConverged && result.rank < n)
+      result.status = SolveStatus::kSingular;
+  }
+  return result;
+}
+
+ClosureResult solve_closure(const Mechanism& model, const Eigen::VectorXd& params,
+                            const Eigen::VectorXd& actuator_readings, const Eigen::VectorXd& seed,
+                            const ClosureOptions& options) {
+  return ClosureSolver(model, params, options).solve(actuator_readings, seed);
+}
+
+ForwardResult forward_kinematics(const Mechanism& model, const Eigen::VectorXd& params,
+                                 const Eigen::VectorXd& actuator_readings, int frame,
+                                 const Eigen::VectorXd& seed, const ClosureOptions& options) {
+  ForwardResult out;
+  out.closure = solve_closure(model, params, actuator_readings, seed, options);
+  if (out.closure.status == SolveStatus::kInvalidInput) return out;
+  out.state = make_joint_state(model, params, actuator_readings, out.closure.passive);
+  out.pose = frame_pose(model, params, out.state, frame);
+  return out;
+}
+
+}  // namespace robocal::calib

@@ -1,0 +1,687 @@
+// YAML robot description -> Mechanism. The loader is the only place that knows the file format;
+// every error names file, line and problem.
+#include "robocal/calib/robot_file.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace robocal::calib {
+namespace {
+
+struct OpSpec {
+  OpKind kind;
+  const char* key;  // parameter key, nullptr = constant 0
+  bool joint;
+};
+
+struct ConventionSpec {
+  std::vector<OpSpec> ops;
+  std::vector<std::string> default_fixed;  // keys fixed by default (redundant in this convention)
+};
+
+[[noreturn]] void fail(const std::string& source, const YAML::Node& node, const std::string& what) {
+  std::ostringstream msg;
+  msg << source;
+  if (node.IsDefined() && node.Mark().line >= 0) msg << ":" << node.Mark().line + 1;
+  msg << ": " << what;
+  throw RobotFileError(msg.str());
+}
+
+int line_of(const YAML::Node& node) {
+  return node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 0;
+}
+
+// The expansion of every convention into elementary ops (see README.md).
+ConventionSpec convention_spec(const std::string& convention, JointType joint,
+                               const std::string& rotation_order, const std::string& axis) {
+  using K = OpKind;
+  const bool rev = joint == JointType::kRevolute;
+  const bool pri = joint == JointType::kPrismatic;
+  if (convention == "mcpc") {
+    if (pri)
+      return {{{K::kRotX, "a1", false},
+               {K::kRotY, "a2", false},
+               {K::kTransX, "d1", false},
+               {K::kTransY, "d2", false},
+               {K::kRotZ, "a3", false},
+               {K::kTransZ, "d3", true}},
+              {"a3", "d1", "d2"}};
+    return {{{K::kRotX, "a1", false},
+             {K::kRotY, "a2", false},
+             {K::kTransX, "d1", false},
+             {K::kTransY, "d2", false},
+             {K::kTransZ, "d3", false},
+             {K::kRotZ, "a3", rev}},
+            rev ? std::vector<std::string>{"d3"} : std::vector<std::string>{}};
+  }
+  if (convention == "dh") {
+    return {{{K::kRotZ, "theta", rev},
+             {K::kTransZ, "d", pri},
+             {K::kTransX, "a", false},
+             {K::kRotX, "alpha", false}},
+            {}};
+  }
+  if (convention == "mdh") {
+    return {{{K::kRotX, "alpha", false},
+             {K::kTransX, "a", false},
+             {K::kRotZ, "theta", rev},
+             {K::kTransZ, "d", pri}},
+            {}};
+  }
+  if (convention == "hayati") {
+    return {{{K::kRotZ, "theta", rev},
+             {K::kTransX, "a", false},
+             {K::kRotX, "alpha", false},
+             {K::kRotY, "beta", false}},
+            {}};
+  }
+  // xyz_rpy
+  ConventionSpec spec;
+  spec.ops = {{K::kTransX, "x", false}, {K::kTransY, "y", false}, {K::kTransZ, "z", false}};
+  if (rotation_order == "xyz") {
+    spec.ops.push_back({K::kRotX, "roll", false});
+    spec.ops.push_back({K::kRotY, "pitch", false});
+    spec.ops.push_back({K::kRotZ, "yaw", false});
+  } else {
+    spec.ops.push_back({K::kRotZ, "yaw", false});
+    spec.ops.push_back({K::kRotY, "pitch", false});
+    spec.ops.push_back({K::kRotX, "roll", false});
+  }
+  if (rev || pri) {
+    const char a = axis.back();
+    K kind = K::kRotZ;
+    if (rev) kind = a == 'x' ? K::kRotX : (a == 'y' ? K::kRotY : K::kRotZ);
+    if (pri) kind = a == 'x' ? K::kTransX : (a == 'y' ? K::kTransY : K::kTransZ);
+    spec.ops.push_back({kind, nullptr, true});
+  }
+  return spec;
+}
+
+const std::set<std::string> kConventions = {"mcpc", "dh", "mdh", "hayati", "xyz_rpy"};
+
+double number(const std::string& source, const YAML::Node& node, const std::string& what) {
+  if (!node.IsScalar()) fail(source, node, what + " must be a number or an expression");
+  try {
+    return evaluate_expression(node.Scalar());
+  } catch (const std::invalid_argument& e) {
+    fail(source, node, what + ": " + e.what());
+  }
+}
+
+std::string text(const std::string& source, const YAML::Node& node, const std::string& what) {
+  if (!node.IsScalar()) fail(source, node, what + " must be a text value");
+  return node.Scalar();
+}
+
+Eigen::Vector3d vec3(const std::string& source, const YAML::Node& node, const std::string& what) {
+  if (!node.IsSequence() || node.size() != 3) fail(source, node, what + " must be [x, y, z]");
+  return {number(source, node[0], what), number(source, node[1], what),
+          number(source, node[2], what)};
+}
+
+void check_keys(const std::string& source, const YAML::Node& map, const std::string& what,
+                const std::set<std::string>& allowed) {
+  if (!map.IsMap()) fail(source, map, what + " must be a mapping");
+  for (const auto& kv : map) {
+    const std::string key = kv.first.Scalar();
+    if (!allowed.count(key)) {
+      std::string list;
+      for (const auto& a : allowed) {
+        if (!list.empty()) list += ", ";
+        list += a;
+      }
+      fail(source, kv.first, "unknown key '" + key + "' in " + what + " (allowed: " + list + ")");
+    }
+  }
+}
+
+std::vector<std::string> string_list(const std::string& source, const YAML::Node& node,
+                                     const std::string& what) {
+  std::vector<std::string> out;
+  if (!node.IsDefined()) return out;
+  if (!node.IsSequence()) fail(source, node, what + " must be a list");
+  for (const auto& item : node) out.push_back(text(source, item, what));
+  return out;
+}
+
+struct RawBody {
+  YAML::Node node;
+  std::string name, parent;
+};
+
+double default_sigma(const std::map<std::string, double>& sigma, ParamUnit unit) {
+  switch (unit) {
+    case ParamUnit::kLength: return sigma.at("length");
+    case ParamUnit::kAngle: return sigma.at("angle");
+    case ParamUnit::kScale: return sigma.at("scale");
+  }
+  return 1.0;
+}
+
+Mechanism parse(const YAML::Node& root, const std::string& source) {
+  if (!root.IsMap()) fail(source, root, "a robot file must be a YAML mapping");
+  check_keys(source, root, "robot file",
+             {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool",
+              "task", "closed_form", "bodies", "closures", "rods"});
+  Mechanism m;
+  m.source = source;
+  if (!root["robot"]) fail(source, root, "missing 'robot' (the robot's name)");
+  m.name = text(source, root["robot"], "robot");
+  if (root["description"]) m.description = text(source, root["description"], "description");
+
+  std::string default_order = "xyz";
+  if (root["rotation_order"]) {
+    default_order = text(source, root["rotation_order"], "rotation_order");
+    if (default_order != "xyz" && default_order != "zyx")
+      fail(source, root["rotation_order"], "rotation_order must be xyz or zyx");
+  }
+  std::map<std::string, double> sigma_defaults = {
+      {"length", 1e-3}, {"angle", 1e-2}, {"scale", 1e-3}};
+  if (const YAML::Node s = root["sigma_defaults"]) {
+    check_keys(source, s, "sigma_defaults", {"length", "angle", "scale"});
+    for (const auto& kv : s) {
+      const double v = number(source, kv.second, "sigma_defaults." + kv.first.Scalar());
+      if (v <= 0) fail(source, kv.second, "sigma must be > 0");
+      sigma_defaults[kv.first.Scalar()] = v;
+    }
+  }
+
+  // --- bodies: names, predecessors, topological (pre-order) sort, cycle detection
+  const YAML::Node bodies = root["bodies"];
+  if (!bodies || !bodies.IsSequence() || bodies.size() == 0)
+    fail(source, bodies ? bodies : root, "'bodies' must be a non-empty list");
+  std::vector<RawBody> raw;
+  std::map<std::string, int> raw_index;
+  for (const auto& b : bodies) {
+    check_keys(source, b, "body",
+               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed",
+                "sigma", "encoder", "limits", "cone", "home", "collision", "rotation_order",
+                "axis"});
+    if (!b["name"]) fail(source, b, "body without 'name'");
+    RawBody r{b, text(source, b["name"], "name"), "world"};
+    if (r.name == "world") fail(source, b["name"], "'world' is the root frame, not a body name");
+    if (raw_index.count(r.name)) fail(source, b["name"], "duplicate body name '" + r.name + "'");
+    if (b["parent"]) r.parent = text(source, b["parent"], "parent");
+    raw_index[r.name] = static_cast<int>(raw.size());
+    raw.push_back(r);
+  }
+  for (const RawBody& r : raw)
+    if (r.parent != "world" && !raw_index.count(r.parent))
+      fail(source, r.node["parent"],
+           "body '" + r.name + "': unknown predecessor '" + r.parent + "'");
+  // Pre-order DFS from the world; bodies never reached sit on a cycle.
+  std::vector<std::vector<int>> children(raw.size());
+  std::vector<int> roots;
+  for (int i = 0; i < static_cast<int>(raw.size()); ++i) {
+    if (raw[i].parent == "world")
+      roots.push_back(i);
+    else
+      children[raw_index[raw[i].parent]].push_back(i);
+  }
+  std::vector<int> order;  // order[new] = raw index
+  std::function<void(int)> visit = [&](int i) {
+    order.push_back(i);
+    for (int c : children[i]) visit(c);
+  };
+  for (int r : roots) visit(r);
+  if (order.size() != raw.size()) {
+    std::vector<bool> seen(raw.size(), false);
+    for (int i : order) seen[i] = true;
+    for (std::size_t i = 0; i < raw.size(); ++i)
+      if (!seen[i])
+        fail(source, raw[i].node["parent"],
+             "body '" + raw[i].name + "' is on a cycle of predecessors (never reaches 'world')");
+  }
+  std::vector<int> new_index(raw.size());
+  for (int k = 0; k < static_cast<int>(order.size()); ++k) new_index[order[k]] = k;
+  m.bodies.resize(raw.size());
+
+  // --- per body: joint, convention, parameters (created in file order)
+  for (int ri = 0; ri < static_cast<int>(raw.size()); ++ri) {
+    const YAML::Node& b = raw[ri].node;
+    const int bi = new_index[ri];
+    Body& body = m.bodies[bi];
+    body.name = raw[ri].name;
+    body.line = line_of(b);
+    body.parent = raw[ri].parent == "world" ? -1 : new_index[raw_index[raw[ri].parent]];
+    const std::string joint = b["joint"] ? text(source, b["joint"], "joint") : "fixed";
+    bool cut = false;
+    if (joint == "revolute") {
+      body.joint = JointType::kRevolute;
+    } else if (joint == "prismatic") {
+      body.joint = JointType::kPrismatic;
+    } else if (joint == "fixed") {
+      body.joint = JointType::kFixed;
+    } else if (joint == "spherical") {
+      body.joint = JointType::kFixed;
+      cut = true;
+    } else {
+      fail(source, b["joint"],
+           "body '" + body.name + "': joint must be revolute, prismatic, fixed or spherical");
+    }
+    const bool moving = body.joint != JointType::kFixed;
+    body.role = cut ? JointRole::kCut : (moving ? JointRole::kPassive : JointRole::kAuxiliary);
+    if (b["role"]) {
+      const std::string role = text(source, b["role"], "role");
+      if (!moving) fail(source, b["role"], "body '" + body.name + "': a " + joint +
+                                               " joint has no role (only moving joints do)");
+      if (role == "actuated") {
+        body.role = JointRole::kActuated;
+      } else if (role != "passive") {
+        fail(source, b["role"], "role must be actuated or passive");
+      }
+    }
+    if (!b["convention"]) fail(source, b, "body '" + body.name + "': missing 'convention'");
+    body.convention = text(source, b["convention"], "convention");
+    if (!kConventions.count(body.convention))
+      fail(source, b["convention"],
+           "body '" + body.name + "': unknown convention '" + body.convention +
+               "' (mcpc, dh, mdh (Craig's modified DH), hayati, xyz_rpy)");
+    if (body.convention == "hayati" && body.joint == JointType::kPrismatic)
+      fail(source, b["joint"], "body '" + body.name + "': hayati is for revolute joints");
+    std::string order_text = default_order;
+    if (b["rotation_order"]) {
+      order_text = text(source, b["rotation_order"], "rotation_order");
+      if (order_text != "xyz" && order_text != "zyx")
+        fail(source, b["rotation_order"], "rotation_order must be xyz or zyx");
+    }
+    std::string axis = "z";
+    double sign = 1.0;
+    if (b["axis"]) {
+      if (body.convention != "xyz_rpy")
+        fail(source, b["axis"], "'axis' is only for xyz_rpy bodies (others move about z)");
+      axis = text(source, b["axis"], "axis");
+      static const std::set<std::string> axes = {"x", "y", "z", "-x", "-y", "-z"};
+      if (!axes.count(axis)) fail(source, b["axis"], "axis must be x, y, z, -x, -y or -z");
+      if (axis[0] == '-') sign = -1.0;
+    }
+    const ConventionSpec spec = convention_spec(body.convention, body.joint, order_text, axis);
+    std::set<std::string> keys;
+    for (const OpSpec& op : spec.ops)
+      if (op.key) keys.insert(op.key);
+
+    std::map<std::string, double> values;
+    std::map<std::string, int> lines;
+    if (const YAML::Node p = b["params"]) {
+      check_keys(source, p, "params of body '" + body.name + "' (" + body.convention + ")", keys);
+      for (const auto& kv : p) {
+        values[kv.first.Scalar()] = number(source, kv.second, body.name + "." + kv.first.Scalar());
+        lines[kv.first.Scalar()] = line_of(kv.second);
+      }
+    }
+    std::set<std::string> fixed(spec.default_fixed.begin(), spec.default_fixed.end());
+    for (const std::string& k : string_list(source, b["fixed"], "fixed")) {
+      if (!keys.count(k) && k != "encoder_offset" && k != "encoder_scale")
+        fail(source, b["fixed"], "body '" + body.name + "': 'fixed' names unknown parameter '" +
+                                     k + "'");
+      fixed.insert(k);
+    }
+    std::set<std::string> freed;
+    for (const std::string& k : string_list(source, b["free"], "free")) {
+      if (!keys.count(k) && k != "encoder_offset" && k != "encoder_scale")
+        fail(source, b["free"],
+             "body '" + body.name + "': 'free' names unknown parameter '" + k + "'");
+      freed.insert(k);
+      fixed.erase(k);
+    }
+    std::map<std::string, double> sigmas;
+    if (const YAML::Node s = b["sigma"]) {
+      if (!s.IsMap()) fail(source, s, "sigma must be a mapping NAME: value");
+      for (const auto& kv : s) {
+        const std::string k = kv.first.Scalar();
+        if (!keys.count(k) && k != "encoder_offset" && k != "encoder_scale")
+          fail(source, kv.first, "body '" + body.name + "': sigma for unknown parameter '" + k +
+                                     "'");
+        const double v = number(source, kv.second, "sigma");
+        if (v <= 0) fail(source, kv.second, "sigma must be > 0");
+        sigmas[k] = v;
+      }
+    }
+    auto add_param = [&](const std::string& key, ParamUnit unit, ParamGroup group, double value,
+                         bool is_free, int line) {
+      Parameter prm;
+      prm.name = body.name + "." + key;
+      prm.value = value;
+      prm.free = is_free;
+      prm.unit = unit;
+      prm.group = group;
+      prm.body = bi;
+      prm.line = line;
+      prm.sigma = sigmas.count(key) ? sigmas[key] : default_sigma(sigma_defaults, unit);
+      m.parameters.push_back(prm);
+      return static_cast<int>(m.parameters.size()) - 1;
+    };
+    const ParamGroup geom_group =
+        moving ? ParamGroup::kJointGeometry : ParamGroup::kFrame;
+    for (const OpSpec& op : spec.ops) {
+      ElementaryOp e;
+      e.kind = op.kind;
+      e.joint = op.joint;
+      e.sign = op.joint ? sign : 1.0;
+      if (op.key) {
+        const bool angle = op.kind == OpKind::kRotX || op.kind == OpKind::kRotY ||
+                           op.kind == OpKind::kRotZ;
+        const double v = values.count(op.key) ? values[op.key] : 0.0;
+        e.param = add_param(op.key, angle ? ParamUnit::kAngle : ParamUnit::kLength, geom_group,
+                            v, !fixed.count(op.key),
+                            lines.count(op.key) ? lines[op.key] : body.line);
+      }
+      if (op.joint) body.joint_op = static_cast<int>(body.ops.size());
+      body.ops.push_back(e);
+    }
+    if (body.role == JointRole::kActuated) {
+      double scale = 1.0, offset = 0.0;
+      if (const YAML::Node enc = b["encoder"]) {
+        check_keys(source, enc, "encoder", {"scale", "offset"});
+        if (enc["scale"]) scale = number(source, enc["scale"], "encoder.scale");
+        if (enc["offset"]) offset = number(source, enc["offset"], "encoder.offset");
+        if (scale == 0.0) fail(source, enc["scale"], "encoder scale must not be 0");
+      }
+      const ParamUnit joint_unit =
+          body.joint == JointType::kRevolute ? ParamUnit::kAngle : ParamUnit::kLength;
+      body.encoder_offset_param =
+          add_param("encoder_offset", joint_unit, ParamGroup::kEncoderOffset, offset,
+                    freed.count("encoder_offset") > 0, body.line);
+      body.encoder_scale_param = add_param("encoder_scale", ParamUnit::kScale,
+                                           ParamGroup::kEncoderScale, scale,
+                                           freed.count("encoder_scale") > 0, body.line);
+    } else if (b["encoder"]) {
+      fail(source, b["encoder"], "body '" + body.name + "': only actuated joints have an encoder");
+    }
+    if (const YAML::Node lim = b["limits"]) {
+      if (!lim.IsSequence() || lim.size() != 2)
+        fail(source, lim, "limits must be [lower, upper]");
+      body.limits.lower = number(source, lim[0], "limits");
+      body.limits.upper = number(source, lim[1], "limits");
+      if (body.limits.lower > body.limits.upper)
+        fail(source, lim, "limits: lower > upper");
+    }
+    if (b["cone"]) body.limits.cone = number(source, b["cone"], "cone");
+    if (b["home"]) {
+      if (!moving) fail(source, b["home"], "home is only for moving joints");
+      body.home = number(source, b["home"], "home");
+    }
+    if (const YAML::Node col = b["collision"]) {
+      if (!col.IsSequence()) fail(source, col, "collision must be a list of shapes");
+      for (const auto& s : col) {
+        CollisionShape shape;
+        if (s["capsule"]) {
+          const YAML::Node c = s["capsule"];
+          check_keys(source, c, "capsule", {"a", "b", "radius"});
+          shape.kind = ShapeKind::kCapsule;
+          shape.a = vec3(source, c["a"], "capsule.a");
+          shape.b = vec3(source, c["b"], "capsule.b");
+          shape.radius = number(source, c["radius"], "capsule.radius");
+          if (shape.radius <= 0) fail(source, c["radius"], "capsule radius must be > 0");
+        } else if (s["box"]) {
+          const YAML::Node c = s["box"];
+          check_keys(source, c, "box", {"center", "size", "rpy"});
+          shape.kind = ShapeKind::kBox;
+          shape.a = vec3(source, c["center"], "box.center");
+          shape.half_size = 0.5 * vec3(source, c["size"], "box.size");
+          if ((shape.half_size.array() <= 0).any())
+            fail(source, c["size"], "box sizes must be > 0");
+          if (c["rpy"]) {
+            const Eigen::Vector3d rpy = vec3(source, c["rpy"], "box.rpy");
+            shape.rotation = (Eigen::AngleAxisd(rpy.z(), Eigen::Vector3d::UnitZ()) *
+                              Eigen::AngleAxisd(rpy.y(), Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(rpy.x(), Eigen::Vector3d::UnitX()))
+                                 .toRotationMatrix();
+          }
+        } else {
+          fail(source, s, "collision shape must be {capsule: ...} or {box: ...}");
+        }
+        body.collision.push_back(shape);
+      }
+    }
+  }
+  // Subtree intervals and joint lists (in sorted order; actuated in file order below).
+  for (int i = static_cast<int>(m.bodies.size()) - 1; i >= 0; --i) {
+    Body& b = m.bodies[i];
+    if (b.subtree_end < i + 1) b.subtree_end = i + 1;
+    if (b.parent >= 0)
+      m.bodies[b.parent].subtree_end = std::max(m.bodies[b.parent].subtree_end, b.subtree_end);
+  }
+  for (int ri = 0; ri < static_cast<int>(raw.size()); ++ri) {
+    const int bi = new_index[ri];
+    Body& b = m.bodies[bi];
+    if (b.role == JointRole::kActuated) {
+      b.actuator = static_cast<int>(m.actuated.size());
+      m.actuated.push_back(bi);
+    }
+  }
+  for (int bi = 0; bi < static_cast<int>(m.bodies.size()); ++bi) {
+    Body& b = m.bodies[bi];
+    if (b.role == JointRole::kPassive) {
+      b.passive = static_cast<int>(m.passive.size());
+      m.passive.push_back(bi);
+    }
+  }
+
+  // --- closures and rods
+  auto body_ref = [&](const YAML::Node& n, const std::string& what) {
+    if (!n) fail(source, n, what + " missing");
+    const std::string name = text(source, n, what);
+    const int i = m.body_index(name);
+    if (i < 0) fail(source, n, what + " names a missing body '" + name + "'");
+    return i;
+  };
+  std::set<std::string> closure_names;
+  if (const YAML::Node cl = root["closures"]) {
+    if (!cl.IsSequence()) fail(source, cl, "closures must be a list");
+    for (const auto& c : cl) {
+      check_keys(source, c, "closure", {"name", "type", "a", "b"});
+      Closure closure;
+      closure.line = line_of(c);
+      closure.name = c["name"] ? text(source, c["name"], "name")
+                               : "closure" + std::to_string(m.closures.size() + 1);
+      if (!c["a"]) fail(source, c, "closure '" + closure.name + "': missing 'a'");
+      if (!c["b"]) fail(source, c, "closure '" + closure.name + "': missing 'b'");
+      closure.body_a = body_ref(c["a"], "closure '" + closure.name + "': a");
+      closure.body_b = body_ref(c["b"], "closure '" + closure.name + "': b");
+      const std::string type = c["type"] ? text(source, c["type"], "type") : "position";
+      if (type == "position") {
+        closure.type = ClosureType::kPosition;
+      } else if (type == "pose") {
+        closure.type = ClosureType::kPose;
+      } else if (type == "position_axis") {
+        closure.type = ClosureType::kPositionAxis;
+      } else {
+        fail(source, c["type"], "closure type must be position, pose or position_axis");
+      }
+      if (closure.body_a == closure.body_b)
+        fail(source, c, "closure '" + closure.name + "' joins a body to itself");
+      if (!closure_names.insert(closure.name).second)
+        fail(source, c, "duplicate closure name '" + closure.name + "'");
+      m.closures.push_back(closure);
+    }
+  }
+  if (const YAML::Node rods = root["rods"]) {
+    if (!rods.IsSequence()) fail(source, rods, "rods must be a list");
+    for (const auto& r : rods) {
+      check_keys(source, r, "rod", {"name", "a", "b", "length", "sigma", "free"});
+      Closure closure;
+      closure.line = line_of(r);
+      closure.type = ClosureType::kDistance;
+      if (!r["name"]) fail(source, r, "rod without 'name'");
+      closure.name = text(source, r["name"], "name");
+      if (!r["a"] || !r["b"]) fail(source, r, "rod '" + closure.name + "' needs 'a' and 'b'");
+      closure.body_a = body_ref(r["a"], "rod '" + closure.name + "': a");
+      closure.body_b = body_ref(r["b"], "rod '" + closure.name + "': b");
+      if (!r["length"]) fail(source, r, "rod '" + closure.name + "' needs 'length'");
+      if (!closure_names.insert(closure.name).second ||
+          m.body_index(closure.name) >= 0)
+        fail(source, r, "rod name '" + closure.name + "' is already used");
+      Parameter prm;
+      prm.name = closure.name + ".length";
+      prm.value = number(source, r["length"], prm.name);
+      if (prm.value <= 0) fail(source, r["length"], "rod length must be > 0");
+      prm.unit = ParamUnit::kLength;
+      prm.group = ParamGroup::kRodLength;
+      prm.closure = static_cast<int>(m.closures.size());
+      prm.line = line_of(r["length"]);
+      prm.sigma = r["sigma"] ? number(source, r["sigma"], "sigma") : sigma_defaults["length"];
+      prm.free = r["free"] ? r["free"].as<bool>(true) : true;
+      closure.length_param = static_cast<int>(m.parameters.size());
+      m.parameters.push_back(prm);
+      m.closures.push_back(closure);
+    }
+  }
+  for (const Body& b : m.bodies) {
+    if (b.role != JointRole::kCut) continue;
+    const bool used = std::any_of(m.closures.begin(), m.closures.end(), [&](const Closure& c) {
+      return m.bodies[c.body_a].name == b.name || m.bodies[c.body_b].name == b.name;
+    });
+    if (!used)
+      throw RobotFileError(source + ":" + std::to_string(b.line) + ": spherical body '" + b.name +
+                           "' is not an end of any closure (a cut joint must close a loop)");
+  }
+
+  // --- tool frame and task
+  if (root["tool"]) {
+    m.tool = body_ref(root["tool"], "tool");
+  } else {
+    m.tool = m.body_index("tool");
+    if (m.tool < 0) m.tool = static_cast<int>(m.bodies.size()) - 1;
+  }
+  m.task.frame = m.tool;
+  m.task.type = TaskType::kPose;
+  if (const YAML::Node t = root["task"]) {
+    check_keys(source, t, "task", {"type", "frame", "joint"});
+    const std::string type = t["type"] ? text(source, t["type"], "task.type") : "pose";
+    if (type == "position") {
+      m.task.type = TaskType::kPosition;
+    } else if (type == "pose") {
+      m.task.type = TaskType::kPose;
+    } else if (type == "joint") {
+      m.task.type = TaskType::kJoint;
+      m.task.joint = body_ref(t["joint"], "task.joint");
+      if (m.bodies[m.task.joint].joint == JointType::kFixed)
+        fail(source, t["joint"], "task.joint must be a moving joint");
+    } else {
+      fail(source, t["type"], "task.type must be position, pose or joint");
+    }
+    if (t["frame"]) m.task.frame = body_ref(t["frame"], "task.frame");
+  }
+
+  // --- closed form (seeds)
+  if (const YAML::Node cf = root["closed_form"]) {
+    check_keys(source, cf, "closed_form",
+               {"type", "base_radius", "upper_arm", "rod", "plate_radius", "arm_angles",
+                "rail_origins", "rail_directions", "platform_offsets", "link_lengths", "branch"});
+    const std::string type = text(source, cf["type"], "closed_form.type");
+    ClosedFormSpec& s = m.closed_form;
+    auto need = [&](const char* key) {
+      if (!cf[key]) fail(source, cf, std::string("closed_form needs '") + key + "'");
+      return cf[key];
+    };
+    auto vec3_list = [&](const char* key) {
+      std::vector<Eigen::Vector3d> out;
+      const YAML::Node n = need(key);
+      if (!n.IsSequence() || n.size() != 3) fail(source, n, std::string(key) + ": three [x,y,z]");
+      for (const auto& v : n) out.push_back(vec3(source, v, key));
+      return out;
+    };
+    if (m.actuated.size() != 3) fail(source, cf, "closed forms are for three actuators");
+    if (type == "rotary_delta") {
+      s.kind = ClosedFormKind::kRotaryDelta;
+      s.base_radius = number(source, need("base_radius"), "base_radius");
+      s.upper_arm = number(source, need("upper_arm"), "upper_arm");
+      s.rod = number(source, need("rod"), "rod");
+      s.plate_radius = number(source, need("plate_radius"), "plate_radius");
+      const YAML::Node a = need("arm_angles");
+      if (!a.IsSequence() || a.size() != 3) fail(source, a, "arm_angles: three angles");
+      for (const auto& v : a) s.arm_angles.push_back(number(source, v, "arm_angles"));
+    } else if (type == "rails") {
+      s.kind = ClosedFormKind::kLinearDelta;
+      s.rail_origin = vec3_list("rail_origins");
+      s.rail_direction = vec3_list("rail_directions");
+      s.platform_offset = vec3_list("platform_offsets");
+      const YAML::Node l = need("link_lengths");
+      if (!l.IsSequence() || l.size() != 3) fail(source, l, "link_lengths: three lengths");
+      for (const auto& v : l) s.link_length.push_back(number(source, v, "link_lengths"));
+      if (cf["branch"]) {
+        const YAML::Node br = cf["branch"];
+        check_keys(source, br, "branch", {"direction", "sign"});
+        s.branch_direction = vec3(source, br["direction"], "branch.direction").normalized();
+        s.branch_sign = number(source, br["sign"], "branch.sign") < 0 ? -1.0 : 1.0;
+      }
+    } else {
+      fail(source, cf["type"], "closed_form.type must be rotary_delta or rails");
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+Mechanism parse_robot_yaml(const std::string& text_in, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text_in);
+  } catch (const YAML::Exception& e) {
+    throw RobotFileError(source + ":" + std::to_string(e.mark.line + 1) +
+                         ": malformed YAML: " + e.msg);
+  }
+  try {
+    return parse(root, source);
+  } catch (const YAML::Exception& e) {
+    throw RobotFileError(source + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+  }
+}
+
+Mechanism load_robot_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw RobotFileError(path + ": cannot open robot file");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return parse_robot_yaml(buffer.str(), path);
+}
+
+void apply_parameter_override(const Mechanism& model, Eigen::VectorXd& params,
+                              const std::string& assignment) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos)
+    throw RobotFileError("--set " + assignment + ": expected NAME=VALUE");
+  const std::string name = assignment.substr(0, eq);
+  const int index = model.parameter_index(name);
+  if (index < 0) {
+    std::string hint;
+    const std::string prefix = name.substr(0, name.find('.'));
+    int shown = 0;
+    for (const Parameter& p : model.parameters)
+      if (p.name.rfind(prefix + ".", 0) == 0 && shown++ < 8) hint += " " + p.name;
+    throw RobotFileError(model.source + ": --set " + assignment + ": no parameter named '" + name +
+                         "' in robot '" + model.name + "'" +
+                         (hint.empty() ? "" : " (parameters of '" + prefix + "':" + hint + ")"));
+  }
+  try {
+    params[index] = evaluate_expression(assignment.substr(eq + 1));
+  } catch (const std::invalid_argument& e) {
+    throw RobotFileError(model.source + ": --set " + assignment + ": " + e.what());
+  }
+}
+
+std::string describe_convention(const std::string& convention, JointType joint) {
+  const ConventionSpec spec = convention_spec(convention, joint, "xyz", "z");
+  std::string out;
+  for (const OpSpec& op : spec.ops) {
+    static const char* names[] = {"Rx", "Ry", "Rz", "Tx", "Ty", "Tz"};
+    if (!out.empty()) out += ' ';
+    out += names[static_cast<int>(op.kind)];
+    out += '(';
+    if (op.key) out += op.key;
+    if (op.joint) out += op.key ? " + q" : "q";
+    out += ")";
+  }
+  return out;
+}
+
+}  // namespace robocal::calib
