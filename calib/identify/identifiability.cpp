@@ -1,0 +1,209 @@
+#include "robocal/calib/identifiability.hpp"
+
+#include <fmt/core.h>
+#include <Eigen/Dense>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace robocal::calib {
+
+bool IdentifiabilityReport::is_identifiable(std::size_t parameter) const {
+  return std::binary_search(identifiable.begin(), identifiable.end(), parameter);
+}
+
+namespace {
+
+// The triangular factor of a QR of the scaled Jacobian has the same column geometry (inner
+// products, singular values) as the Jacobian itself but at most p rows: every later step works
+// on it, so the analysis costs O(rows·p²) once and then O(p³).
+Eigen::MatrixXd compress_rows(const Eigen::MatrixXd& scaled) {
+  if (scaled.rows() <= scaled.cols()) return scaled;
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(scaled);
+  return qr.matrixQR().topRows(scaled.cols()).triangularView<Eigen::Upper>();
+}
+
+std::string join_combination(const std::vector<std::string>& names,
+                             const std::vector<std::size_t>& partners,
+                             const std::vector<double>& coefficients) {
+  std::string text;
+  const std::size_t shown = std::min<std::size_t>(partners.size(), 6);
+  for (std::size_t i = 0; i < shown; ++i) {
+    if (i > 0) text += i + 1 == shown && shown == partners.size() ? " and " : ", ";
+    text += fmt::format("{:+.3g} x {}", coefficients[i], names[partners[i]]);
+  }
+  if (shown < partners.size()) text += fmt::format(" and {} more", partners.size() - shown);
+  return text;
+}
+
+}  // namespace
+
+IdentifiabilityReport analyze_identifiability(const Eigen::MatrixXd& J,
+                                              const std::vector<std::string>& names,
+                                              const IdentifiabilityOptions& options,
+                                              const std::vector<int>& preference) {
+  const auto p = static_cast<std::size_t>(J.cols());
+  if (names.size() != p)
+    throw std::invalid_argument(fmt::format(
+        "identifiability: {} parameter names for a Jacobian with {} columns", names.size(), p));
+  if (!preference.empty() && preference.size() != p)
+    throw std::invalid_argument("identifiability: preference must have one entry per parameter");
+  if (!J.allFinite())
+    throw std::invalid_argument("identifiability: the Jacobian contains NaN or infinite values");
+
+  IdentifiabilityReport report;
+  report.names = names;
+  report.rows = static_cast<std::size_t>(J.rows());
+  report.underdetermined = report.rows < p;
+  report.column_norms = J.colwise().norm().transpose();
+  if (p == 0) return report;
+
+  const double largest = report.column_norms.maxCoeff();
+  Eigen::MatrixXd scaled = J;
+  std::vector<bool> has_effect(p, false);
+  for (std::size_t j = 0; j < p; ++j) {
+    const double n = report.column_norms(static_cast<Eigen::Index>(j));
+    has_effect[j] = largest > 0.0 && n > options.no_effect_tolerance * largest;
+    if (has_effect[j])
+      scaled.col(static_cast<Eigen::Index>(j)) /= n;
+    else
+      scaled.col(static_cast<Eigen::Index>(j)).setZero();
+  }
+  const Eigen::MatrixXd R = compress_rows(scaled);
+  report.singular_values = Eigen::JacobiSVD<Eigen::MatrixXd>(R).singularValues();
+
+  // Visiting order: preference first, then the pivot order of a column-pivoted QR.
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> pivoted(R);
+  std::vector<std::size_t> pivot_rank(p);
+  for (Eigen::Index k = 0; k < pivoted.colsPermutation().indices().size(); ++k)
+    pivot_rank[static_cast<std::size_t>(pivoted.colsPermutation().indices()(k))] =
+        static_cast<std::size_t>(k);
+  std::vector<std::size_t> order(p);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const int pa = preference.empty() ? 0 : preference[a];
+    const int pb = preference.empty() ? 0 : preference[b];
+    if (pa != pb) return pa < pb;
+    return pivot_rank[a] < pivot_rank[b];
+  });
+
+  // Greedy base set by modified Gram-Schmidt (applied twice for orthogonality).
+  std::vector<Eigen::VectorXd> basis;
+  std::vector<bool> kept(p, false);
+  for (std::size_t j : order) {
+    if (!has_effect[j]) continue;
+    Eigen::VectorXd r = R.col(static_cast<Eigen::Index>(j));
+    for (int pass = 0; pass < 2; ++pass)
+      for (const auto& q : basis) r -= q.dot(r) * q;
+    const double outside = r.norm();
+    if (outside > options.rank_tolerance) {
+      basis.push_back(r / outside);
+      kept[j] = true;
+    }
+  }
+  for (std::size_t j = 0; j < p; ++j) {
+    if (kept[j])
+      report.identifiable.push_back(j);
+    else
+      report.redundant.push_back(j);
+    if (!has_effect[j]) report.no_effect.push_back(j);
+  }
+  report.rank = report.identifiable.size();
+
+  Eigen::MatrixXd R_base(R.rows(), static_cast<Eigen::Index>(report.rank));
+  for (std::size_t k = 0; k < report.rank; ++k)
+    R_base.col(static_cast<Eigen::Index>(k)) =
+        R.col(static_cast<Eigen::Index>(report.identifiable[k]));
+
+  // Redundant parameters expressed through the base set.
+  if (report.rank > 0) {
+    const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> base_solver(R_base);
+    for (std::size_t f : report.redundant) {
+      if (!has_effect[f]) continue;
+      const Eigen::VectorXd target = R.col(static_cast<Eigen::Index>(f));
+      const Eigen::VectorXd c = base_solver.solve(target);
+      Redundancy red;
+      red.parameter = f;
+      red.residual = (R_base * c - target).norm();
+      std::vector<std::size_t> idx(report.rank);
+      std::iota(idx.begin(), idx.end(), std::size_t{0});
+      std::sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) {
+        return std::abs(c(static_cast<Eigen::Index>(a))) >
+               std::abs(c(static_cast<Eigen::Index>(b)));
+      });
+      for (std::size_t k : idx) {
+        const double ck = c(static_cast<Eigen::Index>(k));
+        if (std::abs(ck) < options.involvement_threshold) break;
+        const std::size_t s = report.identifiable[k];
+        red.partners.push_back(s);
+        red.coefficients.push_back(ck * report.column_norms(static_cast<Eigen::Index>(f)) /
+                                   report.column_norms(static_cast<Eigen::Index>(s)));
+      }
+      if (red.partners.empty()) {
+        red.explanation = fmt::format(
+            "{} is a combination of many small contributions of other parameters with this "
+            "data; it is held at its nominal value",
+            names[f]);
+      } else {
+        red.explanation = fmt::format(
+            "{} moves the measurements the same way as {} with this data; they cannot be told "
+            "apart, so {} is held at its nominal value and only their combination is identified",
+            names[f], join_combination(names, red.partners, red.coefficients), names[f]);
+      }
+      report.redundancies.push_back(std::move(red));
+    }
+  }
+
+  // Weak directions among the identifiable parameters.
+  if (report.rank > 0) {
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(R_base, Eigen::ComputeFullV);
+    const Eigen::VectorXd& s = svd.singularValues();
+    const Eigen::Index last = std::min<Eigen::Index>(s.size(), R_base.cols()) - 1;
+    report.condition_number = s(last) > 0.0 ? s(0) / s(last) : INFINITY;
+    for (Eigen::Index i = 0; i <= last; ++i) {
+      const double rel = s(i) / s(0);
+      if (rel >= options.ill_conditioning_ratio) continue;
+      IllConditionedDirection dir;
+      dir.relative_singular_value = rel;
+      const Eigen::VectorXd v = svd.matrixV().col(i);
+      dir.direction.assign(p, 0.0);
+      for (std::size_t k = 0; k < report.rank; ++k)
+        dir.direction[report.identifiable[k]] = v(static_cast<Eigen::Index>(k));
+      std::vector<std::size_t> idx(report.rank);
+      std::iota(idx.begin(), idx.end(), std::size_t{0});
+      std::sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) {
+        return std::abs(v(static_cast<Eigen::Index>(a))) >
+               std::abs(v(static_cast<Eigen::Index>(b)));
+      });
+      dir.first = report.identifiable[idx[0]];
+      dir.second = report.identifiable[idx.size() > 1 ? idx[1] : idx[0]];
+      dir.explanation = fmt::format(
+          "{} and {} are barely separated by this data (relative singular value {:.2g}, "
+          "condition {:.3g}): they move the measurements almost the same way, so their estimates "
+          "are strongly correlated and sensitive to noise; add poses that separate them or fix one",
+          names[dir.first], names[dir.second], rel, 1.0 / rel);
+      report.ill_conditioned.push_back(std::move(dir));
+    }
+  }
+
+  report.messages.push_back(fmt::format(
+      "{} candidate parameters, {} measurement equations: {} identifiable, {} held at nominal "
+      "(rank tolerance {:.1g} on the column-scaled Jacobian), condition number {:.3g}",
+      p, report.rows, report.rank, report.redundant.size(), options.rank_tolerance,
+      report.condition_number));
+  if (report.underdetermined)
+    report.messages.push_back(fmt::format(
+        "underdetermined: only {} measurement equations for {} candidate parameters; add poses",
+        report.rows, p));
+  for (std::size_t j : report.no_effect)
+    report.messages.push_back(fmt::format(
+        "{} has no effect on any measurement with this data; held at nominal", names[j]));
+  for (const auto& red : report.redundancies) report.messages.push_back(red.explanation);
+  for (const auto& dir : report.ill_conditioned) report.messages.push_back(dir.explanation);
+  return report;
+}
+
+}  // namespace robocal::calib

@@ -1,0 +1,731 @@
+#include "robocal/calib/identification.hpp"
+
+#include <ceres/ceres.h>
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <set>
+#include <stdexcept>
+
+namespace robocal::calib {
+
+const char* to_string(IdentificationStatus status) {
+  switch (status) {
+    case IdentificationStatus::kConverged:
+      return "converged";
+    case IdentificationStatus::kNotConverged:
+      return "not_converged";
+    case IdentificationStatus::kDiverged:
+      return "diverged";
+    case IdentificationStatus::kInvalidInput:
+      return "invalid_input";
+  }
+  return "unknown";
+}
+
+namespace {
+
+int residual_count(const Observation& obs) {
+  return std::visit([](const auto& o) { return std::decay_t<decltype(o)>::kResiduals; }, obs);
+}
+
+// Whitened residuals of all observations of one pose; the model's frame Jacobian is chained with
+// each observation's exact twist Jacobian, so the block Jacobian is exact (closure included).
+class PoseCost final : public ceres::CostFunction {
+ public:
+  PoseCost(const FramePredictor& model, const PoseMeasurement& pose, int slot)
+      : model_(model), pose_(pose), slot_(slot) {
+    int rows = 0;
+    for (const auto& obs : pose.observations) rows += residual_count(obs);
+    set_num_residuals(rows);
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(model.parameter_count()));
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const auto P = static_cast<Eigen::Index>(model_.parameter_count());
+    const Eigen::VectorXd params = Eigen::Map<const Eigen::VectorXd>(parameters[0], P);
+    const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+    FramePrediction pred;
+    std::string why;
+    if (!model_.predict(params, pose_.actuators, slot_, want_jacobian, pred, why)) return false;
+    int row = 0;
+    for (const auto& obs : pose_.observations) {
+      std::visit(
+          [&](const auto& o) {
+            using O = std::decay_t<decltype(o)>;
+            Eigen::Matrix<double, O::kResiduals, 1> r;
+            const auto Jo = residual_and_twist_jacobian(o, pred.pose, r);
+            for (int i = 0; i < O::kResiduals; ++i) residuals[row + i] = r(i);
+            if (want_jacobian) {
+              Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
+                  jacobians[0], num_residuals(), P);
+              J.middleRows(row, O::kResiduals) = Jo * pred.jacobian;
+            }
+            row += O::kResiduals;
+          },
+          obs);
+    }
+    return true;
+  }
+
+ private:
+  const FramePredictor& model_;
+  const PoseMeasurement& pose_;
+  int slot_;
+};
+
+class DistanceCost final : public ceres::CostFunction {
+ public:
+  DistanceCost(const FramePredictor& model, const PoseMeasurement& a, int slot_a,
+               const PoseMeasurement& b, int slot_b, const DistanceObservation& obs)
+      : model_(model), a_(a), b_(b), slot_a_(slot_a), slot_b_(slot_b), obs_(obs) {
+    set_num_residuals(1);
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(model.parameter_count()));
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const auto P = static_cast<Eigen::Index>(model_.parameter_count());
+    const Eigen::VectorXd params = Eigen::Map<const Eigen::VectorXd>(parameters[0], P);
+    const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+    FramePrediction pa;
+    FramePrediction pb;
+    std::string why;
+    if (!model_.predict(params, a_.actuators, slot_a_, want_jacobian, pa, why)) return false;
+    if (!model_.predict(params, b_.actuators, slot_b_, want_jacobian, pb, why)) return false;
+    Eigen::Matrix<double, 1, 1> r;
+    const auto Jo = residual_and_twist_jacobian(obs_, pa.pose, pb.pose, r);
+    residuals[0] = r(0);
+    if (want_jacobian) {
+      Eigen::Map<Eigen::Matrix<double, 1, Eigen::Dynamic>> J(jacobians[0], P);
+      J = Jo.leftCols<6>() * pa.jacobian + Jo.rightCols<6>() * pb.jacobian;
+    }
+    return true;
+  }
+
+ private:
+  const FramePredictor& model_;
+  const PoseMeasurement& a_;
+  const PoseMeasurement& b_;
+  int slot_a_;
+  int slot_b_;
+  DistanceObservation obs_;
+};
+
+// (a_i − nominal_i)/σ_i for the estimated parameters that have a tolerance (MAP prior).
+class PriorCost final : public ceres::CostFunction {
+ public:
+  PriorCost(Eigen::VectorXd nominal, std::vector<std::pair<std::size_t, double>> terms)
+      : nominal_(std::move(nominal)), terms_(std::move(terms)) {
+    set_num_residuals(static_cast<int>(terms_.size()));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(nominal_.size()));
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const auto P = nominal_.size();
+    for (std::size_t k = 0; k < terms_.size(); ++k) {
+      const auto [i, s] = terms_[k];
+      residuals[k] = (parameters[0][i] - nominal_(static_cast<Eigen::Index>(i))) / s;
+    }
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
+          jacobians[0], static_cast<Eigen::Index>(terms_.size()), P);
+      J.setZero();
+      for (std::size_t k = 0; k < terms_.size(); ++k)
+        J(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(terms_[k].first)) =
+            1.0 / terms_[k].second;
+    }
+    return true;
+  }
+
+ private:
+  Eigen::VectorXd nominal_;
+  std::vector<std::pair<std::size_t, double>> terms_;
+};
+
+bool finite_observation(const Observation& obs) {
+  return std::visit(
+      [](const auto& o) {
+        using O = std::decay_t<decltype(o)>;
+        if constexpr (std::is_same_v<O, PoseObservation>)
+          return o.measured_position.allFinite() && o.measured_rotation.allFinite() &&
+                 o.weight.allFinite();
+        else if constexpr (std::is_same_v<O, PointObservation>)
+          return o.measured.allFinite() && o.weight.allFinite();
+        else
+          return std::isfinite(o.measured_height) && std::isfinite(o.offset) &&
+                 o.normal.allFinite() && std::isfinite(o.sigma) && o.sigma > 0.0;
+      },
+      obs);
+}
+
+std::optional<Eigen::Vector3d> observed_position(const Observation& obs) {
+  if (const auto* p = std::get_if<PointObservation>(&obs)) return p->measured;
+  if (const auto* p = std::get_if<PoseObservation>(&obs)) return p->measured_position;
+  return std::nullopt;
+}
+
+double spread(const std::vector<Eigen::Vector3d>& pts) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) c += p;
+  c /= static_cast<double>(pts.size());
+  double s = 0.0;
+  for (const auto& p : pts) s += (p - c).squaredNorm();
+  return std::sqrt(s / static_cast<double>(pts.size()));
+}
+
+// The assembled least-squares problem over the accepted poses (cost functions owned here so
+// they can be evaluated outside Ceres for Jacobians and diagnostics).
+struct Assembly {
+  std::vector<const PoseMeasurement*> poses;
+  std::vector<std::unique_ptr<ceres::CostFunction>> pose_costs;
+  std::vector<std::unique_ptr<ceres::CostFunction>> distance_costs;
+  std::vector<std::string> distance_labels;
+  int rows = 0;
+};
+
+// Evaluates every block at `params`: stacked whitened residuals and Jacobian (rows × P), and the
+// row range of each pose block. Returns false when some pose cannot be solved.
+bool evaluate_all(const Assembly& as, const Eigen::VectorXd& params, bool with_jacobian,
+                  Eigen::VectorXd& r, Eigen::MatrixXd& J,
+                  std::vector<std::pair<int, int>>* pose_rows = nullptr) {
+  const auto P = params.size();
+  r.resize(as.rows);
+  if (with_jacobian) J.resize(as.rows, P);
+  const double* blocks[] = {params.data()};
+  int row = 0;
+  auto run = [&](const ceres::CostFunction& cost) {
+    const int m = cost.num_residuals();
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> Jb(m, P);
+    double* jac[] = {Jb.data()};
+    if (!cost.Evaluate(blocks, r.data() + row, with_jacobian ? jac : nullptr)) return false;
+    if (with_jacobian) J.middleRows(row, m) = Jb;
+    row += m;
+    return true;
+  };
+  for (const auto& c : as.pose_costs) {
+    const int start = row;
+    if (!run(*c)) return false;
+    if (pose_rows) pose_rows->push_back({start, row - start});
+  }
+  for (const auto& c : as.distance_costs)
+    if (!run(*c)) return false;
+  return true;
+}
+
+ErrorStatistics finish(std::vector<double> pos, std::vector<double> ori) {
+  ErrorStatistics s;
+  s.poses = pos.size();
+  for (double e : pos) {
+    s.position_rms += e * e;
+    s.position_max = std::max(s.position_max, e);
+  }
+  for (double e : ori) {
+    s.orientation_rms += e * e;
+    s.orientation_max = std::max(s.orientation_max, e);
+  }
+  if (!pos.empty()) s.position_rms = std::sqrt(s.position_rms / static_cast<double>(pos.size()));
+  if (!ori.empty())
+    s.orientation_rms = std::sqrt(s.orientation_rms / static_cast<double>(ori.size()));
+  return s;
+}
+
+}  // namespace
+
+IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                              const Measurements& measurements, const SolveOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  IdentificationResult result;
+  const std::size_t P = model.parameter_count();
+  result.names = model.parameter_names();
+  result.nominal = nominal;
+  result.estimate = nominal;
+  auto invalid = [&](std::string why) {
+    result.status = IdentificationStatus::kInvalidInput;
+    result.message = std::move(why);
+    return result;
+  };
+  if (static_cast<std::size_t>(nominal.size()) != P || !nominal.allFinite())
+    return invalid(fmt::format(
+        "nominal parameter vector has {} finite-checked entries, model has {}", nominal.size(), P));
+  auto check_size = [&](const auto& v, const char* what) {
+    if (!v.empty() && v.size() != P)
+      throw std::invalid_argument(fmt::format("{} must have one entry per parameter", what));
+  };
+  check_size(options.preference, "preference");
+  check_size(options.prior_sigma, "prior_sigma");
+  check_size(options.lower_bound, "lower_bound");
+  check_size(options.upper_bound, "upper_bound");
+  check_size(options.start_sigma, "start_sigma");
+
+  // 1. Input checks.
+  std::set<std::string> ids;
+  for (const auto& pose : measurements.poses)
+    if (!ids.insert(pose.id).second)
+      return invalid(fmt::format("pose id '{}' appears more than once", pose.id));
+
+  Assembly as;
+  std::map<std::string, int> slot_of;
+  std::vector<Eigen::Vector3d> measured_pts;
+  std::vector<Eigen::Vector3d> predicted_pts;
+  for (std::size_t k = 0; k < measurements.poses.size(); ++k) {
+    const PoseMeasurement& pose = measurements.poses[k];
+    if (!pose.actuators.allFinite()) {
+      result.excluded.push_back({pose.id, "actuator readings are not finite (NaN or infinite)"});
+      continue;
+    }
+    if (!std::all_of(pose.observations.begin(), pose.observations.end(), finite_observation)) {
+      result.excluded.push_back(
+          {pose.id, "an observation is not finite or has non-positive noise"});
+      continue;
+    }
+    FramePrediction pred;
+    std::string why;
+    if (!model.predict(nominal, pose.actuators, static_cast<int>(k), false, pred, why)) {
+      result.excluded.push_back(
+          {pose.id, fmt::format("the nominal model cannot solve this pose: {}", why)});
+      continue;
+    }
+    slot_of[pose.id] = static_cast<int>(k);
+    as.poses.push_back(&pose);
+    if (!pose.observations.empty()) {
+      as.pose_costs.push_back(std::make_unique<PoseCost>(model, pose, static_cast<int>(k)));
+      as.rows += as.pose_costs.back()->num_residuals();
+    }
+    for (const auto& obs : pose.observations)
+      if (auto p = observed_position(obs)) {
+        measured_pts.push_back(*p);
+        predicted_pts.push_back(pred.pose.translation());
+      }
+  }
+  std::map<std::string, const PoseMeasurement*> by_id;
+  for (const auto* p : as.poses) by_id[p->id] = p;
+  for (const auto& d : measurements.distances) {
+    if (!by_id.count(d.first) || !by_id.count(d.second)) {
+      result.warnings.push_back(fmt::format(
+          "distance {}–{} ignored: one of its poses is missing or excluded", d.first, d.second));
+      continue;
+    }
+    as.distance_costs.push_back(std::make_unique<DistanceCost>(model, *by_id[d.first],
+                                                               slot_of[d.first], *by_id[d.second],
+                                                               slot_of[d.second], d.observation));
+    as.rows += 1;
+  }
+  if (measured_pts.size() >= 3) {
+    const double ratio = spread(measured_pts) / std::max(spread(predicted_pts), 1e-300);
+    if (ratio > 300.0 || ratio < 1.0 / 300.0)
+      return invalid(fmt::format(
+          "the measured positions spread {:.4g} times as far as the model predicts: units are "
+          "probably mismatched by 1000 (millimetres vs metres); convert the measurements to metres",
+          ratio));
+  }
+
+  // 2. Identifiability over the candidates.
+  std::vector<std::size_t> candidates = options.candidates;
+  if (candidates.empty())
+    for (std::size_t i = 0; i < P; ++i) candidates.push_back(i);
+  for (std::size_t c : candidates)
+    if (c >= P) throw std::invalid_argument("candidate parameter index out of range");
+  result.candidates = candidates;
+  const std::size_t poses_used = as.pose_costs.size();
+  const double rows_per_pose =
+      poses_used > 0 ? static_cast<double>(as.rows) / static_cast<double>(poses_used) : 1.0;
+  if (as.rows == 0) return invalid("no usable measurements (all poses excluded or empty)");
+
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  if (!evaluate_all(as, nominal, true, r, J))
+    return invalid("a pose failed to solve while assembling the Jacobian at the nominal model");
+  Eigen::MatrixXd Jc(J.rows(), static_cast<Eigen::Index>(candidates.size()));
+  std::vector<std::string> cand_names;
+  std::vector<int> cand_pref;
+  for (std::size_t k = 0; k < candidates.size(); ++k) {
+    Jc.col(static_cast<Eigen::Index>(k)) = J.col(static_cast<Eigen::Index>(candidates[k]));
+    cand_names.push_back(result.names[candidates[k]]);
+    if (!options.preference.empty()) cand_pref.push_back(options.preference[candidates[k]]);
+  }
+  std::size_t with_effect = 0;
+  {
+    const Eigen::VectorXd norms = Jc.colwise().norm();
+    const double top = norms.size() ? norms.maxCoeff() : 0.0;
+    for (Eigen::Index k = 0; k < norms.size(); ++k)
+      with_effect += norms(k) > options.identifiability.no_effect_tolerance * top ? 1 : 0;
+  }
+  const double needed_rows = options.min_equations_per_parameter * static_cast<double>(with_effect);
+  if (static_cast<double>(as.rows) < needed_rows) {
+    const auto needed_poses = static_cast<long>(std::ceil(needed_rows / rows_per_pose));
+    return invalid(fmt::format(
+        "too few poses: {} usable poses give {} measurement equations for {} free parameters; at "
+        "least {} poses are needed with these observations (several times more for a reliable "
+        "fit)",
+        poses_used, as.rows, with_effect, needed_poses));
+  }
+  result.identifiability =
+      analyze_identifiability(Jc, cand_names, options.identifiability, cand_pref);
+  for (std::size_t k : result.identifiability.identifiable)
+    result.estimated.push_back(candidates[k]);
+  if (result.estimated.empty()) return invalid("no identifiable parameter among the candidates");
+
+  // 3. Ceres problem over the full vector with the non-estimated entries held constant.
+  std::vector<int> held;
+  {
+    std::vector<bool> est(P, false);
+    for (std::size_t i : result.estimated) est[i] = true;
+    for (std::size_t i = 0; i < P; ++i)
+      if (!est[i]) held.push_back(static_cast<int>(i));
+  }
+  std::vector<std::pair<std::size_t, double>> prior_terms;
+  if (!options.prior_sigma.empty())
+    for (std::size_t i : result.estimated)
+      if (options.prior_sigma[i] > 0.0) prior_terms.push_back({i, options.prior_sigma[i]});
+
+  Eigen::VectorXd start = options.start.size() ? options.start : nominal;
+  if (static_cast<std::size_t>(start.size()) != P)
+    throw std::invalid_argument("start must have one entry per parameter");
+  {
+    Eigen::VectorXd r0;
+    Eigen::MatrixXd unused;
+    if (evaluate_all(as, start, false, r0, unused))
+      result.initial_cost = 0.5 * r0.squaredNorm();
+    else
+      result.initial_cost = INFINITY;
+  }
+
+  auto solve_from = [&](Eigen::VectorXd x, ceres::Solver::Summary& summary) {
+    ceres::Problem::Options popt;
+    popt.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    popt.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+    ceres::Problem problem(popt);
+    for (const auto& c : as.pose_costs) {
+      ceres::LossFunction* loss = nullptr;
+      if (options.robust_loss == RobustLoss::kHuber)
+        loss = new ceres::HuberLoss(options.robust_scale);
+      if (options.robust_loss == RobustLoss::kCauchy)
+        loss = new ceres::CauchyLoss(options.robust_scale);
+      problem.AddResidualBlock(c.get(), loss, x.data());
+    }
+    for (const auto& c : as.distance_costs) problem.AddResidualBlock(c.get(), nullptr, x.data());
+    std::unique_ptr<ceres::CostFunction> prior;
+    if (!prior_terms.empty()) {
+      prior = std::make_unique<PriorCost>(nominal, prior_terms);
+      problem.AddResidualBlock(prior.get(), nullptr, x.data());
+    }
+    if (!held.empty())
+      problem.SetManifold(x.data(), new ceres::SubsetManifold(static_cast<int>(P), held));
+    for (std::size_t i : result.estimated) {
+      if (!options.lower_bound.empty() && std::isfinite(options.lower_bound[i]))
+        problem.SetParameterLowerBound(x.data(), static_cast<int>(i), options.lower_bound[i]);
+      if (!options.upper_bound.empty() && std::isfinite(options.upper_bound[i]))
+        problem.SetParameterUpperBound(x.data(), static_cast<int>(i), options.upper_bound[i]);
+    }
+    ceres::Solver::Options sopt;
+    sopt.linear_solver_type = ceres::DENSE_QR;
+    sopt.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+    sopt.function_tolerance = options.function_tolerance;
+    sopt.gradient_tolerance = options.gradient_tolerance;
+    sopt.parameter_tolerance = options.parameter_tolerance;
+    sopt.max_num_iterations = options.max_iterations;
+    sopt.num_threads = 1;
+    ceres::Solve(sopt, &problem, &summary);
+    return x;
+  };
+
+  std::mt19937 rng(options.seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  Eigen::VectorXd best = nominal;
+  double best_cost = INFINITY;
+  bool best_usable = false;
+  ceres::Solver::Summary best_summary;
+  const int starts = 1 + std::max(0, options.multi_start);
+  for (int s = 0; s < starts; ++s) {
+    Eigen::VectorXd x0 = start;
+    if (s > 0) {
+      for (std::size_t i : result.estimated) {
+        const double sig = !options.start_sigma.empty()   ? options.start_sigma[i]
+                           : !options.prior_sigma.empty() ? options.prior_sigma[i]
+                                                          : 0.0;
+        x0(static_cast<Eigen::Index>(i)) += sig * n01(rng);
+      }
+    }
+    ceres::Solver::Summary summary;
+    const Eigen::VectorXd x = solve_from(x0, summary);
+    Eigen::VectorXd rx;
+    Eigen::MatrixXd unused;
+    const bool solvable = summary.IsSolutionUsable() && x.allFinite() &&
+                          evaluate_all(as, x, false, rx, unused) && rx.allFinite();
+    // Compare with the objective actually minimised (robust loss included).
+    const double cost = solvable ? summary.final_cost : INFINITY;
+    if (solvable && cost < best_cost) {
+      best = x;
+      best_cost = cost;
+      best_usable = true;
+      best_summary = summary;
+    }
+  }
+  result.starts_run = starts;
+  result.iterations = static_cast<int>(best_summary.iterations.size());
+
+  // 4. Divergence guard: keep the nominal model when the solve failed or made the fit worse.
+  Eigen::VectorXd rb;
+  Eigen::MatrixXd Jb;
+  std::vector<std::pair<int, int>> pose_rows;
+  const bool have_best = best_usable && evaluate_all(as, best, true, rb, Jb, &pose_rows);
+  if (!have_best) {
+    result.status = IdentificationStatus::kDiverged;
+    result.message =
+        fmt::format("the solve diverged or left a pose unsolvable ({}); the nominal model is kept",
+                    best_summary.message.empty() ? "no usable solution" : best_summary.message);
+    result.estimate = nominal;
+    result.solve_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return result;
+  }
+  result.final_cost = 0.5 * rb.squaredNorm();
+  if (options.robust_loss == RobustLoss::kNone && prior_terms.empty() &&
+      result.final_cost > result.initial_cost * (1.0 + 1e-9)) {
+    result.status = IdentificationStatus::kDiverged;
+    result.message =
+        fmt::format("the solve increased the cost ({:.6g} -> {:.6g}); the nominal model is kept",
+                    result.initial_cost, result.final_cost);
+    result.estimate = nominal;
+    return result;
+  }
+  result.estimate = best;
+  result.status = best_summary.termination_type == ceres::CONVERGENCE
+                      ? IdentificationStatus::kConverged
+                      : IdentificationStatus::kNotConverged;
+  result.message = fmt::format("{} parameters estimated from {} poses ({} equations): {}",
+                               result.estimated.size(), poses_used, as.rows, best_summary.message);
+
+  // 5. Diagnostics at the estimate.
+  std::vector<PoseResidual> per_pose;
+  std::size_t cost_index = 0;
+  for (const auto* pose : as.poses) {
+    if (pose->observations.empty()) continue;
+    const auto [start_row, count] = pose_rows[cost_index++];
+    PoseResidual pr;
+    pr.id = pose->id;
+    pr.whitened = rb.segment(start_row, count);
+    FramePrediction pred;
+    std::string why;
+    model.predict(best, pose->actuators, slot_of[pose->id], false, pred, why);
+    for (const auto& obs : pose->observations) {
+      if (auto p = observed_position(obs))
+        pr.position_error = std::max(pr.position_error, (pred.pose.translation() - *p).norm());
+      if (const auto* po = std::get_if<PoseObservation>(&obs))
+        pr.orientation_error =
+            Eigen::AngleAxisd(pred.pose.linear() * po->measured_rotation.transpose()).angle();
+      if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs))
+        pr.position_error = std::max(
+            pr.position_error,
+            std::abs(ph->normal.dot(pred.pose.translation()) - ph->offset - ph->measured_height));
+    }
+    per_pose.push_back(std::move(pr));
+  }
+  result.residuals = diagnose_residuals(per_pose, options.outliers);
+
+  // Covariance from the inlier rows (outliers flagged by the robust fit do not inform it).
+  std::vector<Eigen::Index> keep_rows;
+  for (std::size_t k = 0; k < pose_rows.size(); ++k) {
+    if (options.robust_loss != RobustLoss::kNone && result.residuals.poses[k].outlier) continue;
+    for (int i = 0; i < pose_rows[k].second; ++i) keep_rows.push_back(pose_rows[k].first + i);
+  }
+  for (Eigen::Index i = pose_rows.empty() ? 0 : pose_rows.back().first + pose_rows.back().second;
+       i < Jb.rows(); ++i)
+    keep_rows.push_back(i);
+  const auto n_est = static_cast<Eigen::Index>(result.estimated.size());
+  Eigen::MatrixXd Je(
+      static_cast<Eigen::Index>(keep_rows.size()) + static_cast<Eigen::Index>(prior_terms.size()),
+      n_est);
+  Eigen::VectorXd re(Je.rows());
+  Je.setZero();
+  for (std::size_t k = 0; k < keep_rows.size(); ++k) {
+    for (Eigen::Index c = 0; c < n_est; ++c)
+      Je(static_cast<Eigen::Index>(k), c) = Jb(
+          keep_rows[k], static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)]));
+    re(static_cast<Eigen::Index>(k)) = rb(keep_rows[k]);
+  }
+  for (std::size_t t = 0; t < prior_terms.size(); ++t) {
+    const auto row = static_cast<Eigen::Index>(keep_rows.size() + t);
+    const auto it =
+        std::find(result.estimated.begin(), result.estimated.end(), prior_terms[t].first);
+    Je(row, it - result.estimated.begin()) = 1.0 / prior_terms[t].second;
+    re(row) = (best(static_cast<Eigen::Index>(prior_terms[t].first)) -
+               nominal(static_cast<Eigen::Index>(prior_terms[t].first))) /
+              prior_terms[t].second;
+  }
+  std::vector<std::string> est_names;
+  for (std::size_t i : result.estimated) est_names.push_back(result.names[i]);
+  result.uncertainty = parameter_uncertainty(Je, est_names, options.covariance, re);
+  if (result.uncertainty.ok) {
+    std::vector<Eigen::MatrixXd> frame_jacobians;
+    for (const auto* pose : as.poses) {
+      FramePrediction pred;
+      std::string why;
+      if (!model.predict(best, pose->actuators, slot_of[pose->id], true, pred, why)) continue;
+      Eigen::MatrixXd Js(6, n_est);
+      for (Eigen::Index c = 0; c < n_est; ++c)
+        Js.col(c) = pred.jacobian.col(
+            static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)]));
+      frame_jacobians.push_back(std::move(Js));
+    }
+    result.predicted = predict_accuracy(frame_jacobians, result.uncertainty.covariance);
+  } else {
+    result.warnings.push_back("no covariance: " + result.uncertainty.message);
+  }
+  {
+    // Goodness of fit: ‖r‖² should be near the degrees of freedom when the model and the stated
+    // noise are right. Far above it means a local minimum, a wrong model or optimistic noise.
+    const double dof = std::max(1.0, static_cast<double>(as.rows) - static_cast<double>(n_est));
+    const double ratio = 2.0 * result.final_cost / dof;
+    if (ratio > 25.0)
+      result.warnings.push_back(fmt::format(
+          "the residuals are {:.3g} times larger than the stated measurement noise (reduced "
+          "chi-square {:.3g}): a local minimum (try multi-start), an unmodelled error or "
+          "optimistic noise",
+          std::sqrt(ratio), ratio));
+  }
+  if (result.residuals.outliers > 0)
+    result.warnings.push_back(
+        fmt::format("{} poses flagged as outliers", result.residuals.outliers));
+  result.solve_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
+}
+
+ErrorStatistics prediction_errors(const FramePredictor& model, const Eigen::VectorXd& params,
+                                  const std::vector<PoseMeasurement>& poses) {
+  std::vector<double> pos;
+  std::vector<double> ori;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const auto& pose = poses[k];
+    FramePrediction pred;
+    std::string why;
+    if (!pose.actuators.allFinite() ||
+        !model.predict(params, pose.actuators, static_cast<int>(k), false, pred, why))
+      continue;
+    for (const auto& obs : pose.observations) {
+      if (auto p = observed_position(obs)) pos.push_back((pred.pose.translation() - *p).norm());
+      if (const auto* po = std::get_if<PoseObservation>(&obs))
+        ori.push_back(
+            Eigen::AngleAxisd(pred.pose.linear() * po->measured_rotation.transpose()).angle());
+      if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs))
+        pos.push_back(
+            std::abs(ph->normal.dot(pred.pose.translation()) - ph->offset - ph->measured_height));
+    }
+  }
+  return finish(std::move(pos), std::move(ori));
+}
+
+ValidationReport validate(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                          const Eigen::VectorXd& estimate,
+                          const std::vector<PoseMeasurement>& held_out) {
+  return {prediction_errors(model, nominal, held_out),
+          prediction_errors(model, estimate, held_out)};
+}
+
+KFoldReport k_fold_validation(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                              const Measurements& measurements, int folds,
+                              const SolveOptions& options) {
+  if (folds < 2) throw std::invalid_argument("k-fold validation needs at least 2 folds");
+  KFoldReport report;
+  report.folds = folds;
+  std::vector<PoseMeasurement> all_held;
+  std::vector<PoseMeasurement> pooled_after_dummy;
+  std::vector<double> before_pos, before_ori, after_pos, after_ori;
+  for (int f = 0; f < folds; ++f) {
+    Measurements train;
+    std::vector<PoseMeasurement> held;
+    for (std::size_t k = 0; k < measurements.poses.size(); ++k)
+      (static_cast<int>(k % static_cast<std::size_t>(folds)) == f ? held : train.poses)
+          .push_back(measurements.poses[k]);
+    std::set<std::string> train_ids;
+    for (const auto& p : train.poses) train_ids.insert(p.id);
+    for (const auto& d : measurements.distances)
+      if (train_ids.count(d.first) && train_ids.count(d.second)) train.distances.push_back(d);
+    const auto fit = identify(model, nominal, train, options);
+    report.messages.push_back(
+        fmt::format("fold {}: {} ({})", f + 1, to_string(fit.status), fit.message));
+    report.per_fold.push_back(validate(model, nominal, fit.estimate, held));
+    // Pool the squared errors: recompute per pose for exact pooled RMS.
+    for (const auto& pose : held) {
+      const auto b = prediction_errors(model, nominal, {pose});
+      const auto a = prediction_errors(model, fit.estimate, {pose});
+      if (b.poses > 0) before_pos.push_back(b.position_rms);
+      if (a.poses > 0) after_pos.push_back(a.position_rms);
+      if (b.orientation_rms > 0) before_ori.push_back(b.orientation_rms);
+      if (a.orientation_rms > 0) after_ori.push_back(a.orientation_rms);
+    }
+  }
+  report.before = finish(before_pos, before_ori);
+  report.after = finish(after_pos, after_ori);
+  return report;
+}
+
+Eigen::VectorXd perturb_parameters(const Eigen::VectorXd& nominal, const Eigen::VectorXd& sigma,
+                                   std::mt19937& rng) {
+  if (sigma.size() != nominal.size())
+    throw std::invalid_argument("perturb_parameters: one sigma per parameter needed");
+  std::normal_distribution<double> n01(0.0, 1.0);
+  Eigen::VectorXd out = nominal;
+  for (Eigen::Index i = 0; i < out.size(); ++i)
+    if (sigma(i) > 0.0) out(i) += sigma(i) * n01(rng);
+  return out;
+}
+
+Measurements simulate_measurements(const FramePredictor& model, const Eigen::VectorXd& truth,
+                                   const std::vector<Eigen::VectorXd>& actuators,
+                                   const SimulationOptions& options, std::mt19937& rng) {
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const double noise = options.add_noise ? 1.0 : 0.0;
+  Measurements out;
+  for (std::size_t k = 0; k < actuators.size(); ++k) {
+    FramePrediction pred;
+    std::string why;
+    if (!model.predict(truth, actuators[k], static_cast<int>(k), false, pred, why)) continue;
+    PoseMeasurement m;
+    m.id = fmt::format("p{:04d}", k);
+    m.actuators = actuators[k];
+    if (options.actuator_sigma.size() == actuators[k].size())
+      for (Eigen::Index i = 0; i < m.actuators.size(); ++i)
+        m.actuators(i) += noise * options.actuator_sigma(i) * n01(rng);
+    const Eigen::Vector3d dp(n01(rng), n01(rng), n01(rng));
+    const Eigen::Vector3d p = pred.pose.translation() + noise * options.position_sigma * dp;
+    switch (options.kind) {
+      case SimulatedObservation::kPoint:
+        m.observations.push_back(PointObservation::with_sigma(p, options.position_sigma));
+        break;
+      case SimulatedObservation::kPose: {
+        const Eigen::Vector3d dphi =
+            noise * options.rotation_sigma * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
+        Eigen::Isometry3d T = pred.pose;
+        T.translation() = p;
+        if (dphi.norm() > 0)
+          T.linear() = Eigen::AngleAxisd(dphi.norm(), dphi.normalized()).toRotationMatrix() *
+                       pred.pose.linear();
+        m.observations.push_back(
+            PoseObservation::with_sigmas(T, options.position_sigma, options.rotation_sigma));
+        break;
+      }
+      case SimulatedObservation::kProbeHeight: {
+        ProbeHeightObservation ph;
+        ph.normal = options.plane_normal.normalized();
+        ph.offset = options.plane_offset;
+        ph.sigma = options.position_sigma;
+        ph.measured_height = ph.normal.dot(pred.pose.translation()) - ph.offset +
+                             noise * options.position_sigma * n01(rng);
+        m.observations.push_back(ph);
+        break;
+      }
+    }
+    out.poses.push_back(std::move(m));
+  }
+  return out;
+}
+
+}  // namespace robocal::calib

@@ -1,0 +1,221 @@
+#include "robocal/calib/uncertainty.hpp"
+
+#include <fmt/core.h>
+#include <Eigen/Dense>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace robocal::calib {
+
+ParameterUncertainty parameter_uncertainty(const Eigen::MatrixXd& whitened_jacobian,
+                                           const std::vector<std::string>& names,
+                                           const CovarianceOptions& options,
+                                           const Eigen::VectorXd& whitened_residuals) {
+  const Eigen::Index n = whitened_jacobian.cols();
+  const Eigen::Index m = whitened_jacobian.rows();
+  if (static_cast<Eigen::Index>(names.size()) != n)
+    throw std::invalid_argument("parameter_uncertainty: one name per Jacobian column needed");
+  ParameterUncertainty out;
+  out.names = names;
+  out.confidence = options.confidence;
+  if (!whitened_jacobian.allFinite()) {
+    out.message = "the Jacobian contains NaN or infinite values";
+    return out;
+  }
+  if (m < n) {
+    out.message = fmt::format("{} equations for {} parameters: no covariance exists", m, n);
+    return out;
+  }
+  // Column scaling makes the singularity test unit-free; the SVD gives a stable inverse.
+  Eigen::VectorXd norms = whitened_jacobian.colwise().norm().transpose();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    if (!(norms(j) > 0.0)) {
+      out.message = fmt::format("{} has no effect on the measurements: no covariance exists",
+                                names[static_cast<std::size_t>(j)]);
+      return out;
+    }
+  }
+  const Eigen::MatrixXd scaled = whitened_jacobian * norms.cwiseInverse().asDiagonal();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinV);
+  const Eigen::VectorXd& s = svd.singularValues();
+  if (n > 0 && s(n - 1) < options.singular_tolerance * s(0)) {
+    out.message = fmt::format(
+        "the normal matrix is singular (relative singular value {:.2g}): remove redundant "
+        "parameters before computing a covariance",
+        s(n - 1) / s(0));
+    return out;
+  }
+  const Eigen::MatrixXd V = svd.matrixV();
+  Eigen::MatrixXd cov_scaled = V * s.cwiseAbs2().cwiseInverse().asDiagonal() * V.transpose();
+  out.covariance =
+      norms.cwiseInverse().asDiagonal() * cov_scaled * norms.cwiseInverse().asDiagonal();
+
+  if (options.scale_by_residual_variance) {
+    if (whitened_residuals.size() != m)
+      throw std::invalid_argument("parameter_uncertainty: residuals needed for variance scaling");
+    if (m > n) out.variance_factor = whitened_residuals.squaredNorm() / static_cast<double>(m - n);
+    out.covariance *= out.variance_factor;
+  }
+  out.sigma = out.covariance.diagonal().cwiseSqrt();
+  out.correlation = out.sigma.cwiseInverse().asDiagonal() * out.covariance *
+                    out.sigma.cwiseInverse().asDiagonal();
+  out.quantile = normal_quantile(0.5 + 0.5 * options.confidence);
+  out.ci_half_width = out.quantile * out.sigma;
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = i + 1; j < n; ++j)
+      if (std::abs(out.correlation(i, j)) >= options.correlation_threshold)
+        out.strongly_correlated.push_back(
+            {static_cast<std::size_t>(i), static_cast<std::size_t>(j), out.correlation(i, j)});
+  std::sort(out.strongly_correlated.begin(), out.strongly_correlated.end(),
+            [](const CorrelatedPair& a, const CorrelatedPair& b) {
+              return std::abs(a.correlation) > std::abs(b.correlation);
+            });
+  out.ok = true;
+  out.message = fmt::format("covariance of {} parameters from {} equations (condition {:.3g})", n,
+                            m, n > 0 ? s(0) / s(n - 1) : 0.0);
+  return out;
+}
+
+Eigen::MatrixXd propagate_covariance(const Eigen::MatrixXd& output_jacobian,
+                                     const Eigen::MatrixXd& parameter_covariance) {
+  if (output_jacobian.cols() != parameter_covariance.rows())
+    throw std::invalid_argument("propagate_covariance: Jacobian columns != covariance size");
+  return output_jacobian * parameter_covariance * output_jacobian.transpose();
+}
+
+PredictedAccuracy predict_accuracy(const std::vector<Eigen::MatrixXd>& pose_jacobians,
+                                   const Eigen::MatrixXd& parameter_covariance) {
+  PredictedAccuracy out;
+  double sum_p = 0.0;
+  double sum_o = 0.0;
+  for (const auto& J : pose_jacobians) {
+    if (J.rows() != 3 && J.rows() != 6)
+      throw std::invalid_argument("predict_accuracy: pose Jacobians must have 3 or 6 rows");
+    const Eigen::MatrixXd C = propagate_covariance(J, parameter_covariance);
+    const double tp = C.topLeftCorner<3, 3>().trace();
+    const double to = J.rows() == 6 ? C.bottomRightCorner<3, 3>().trace() : 0.0;
+    out.position_rms.push_back(std::sqrt(std::max(tp, 0.0)));
+    out.orientation_rms.push_back(std::sqrt(std::max(to, 0.0)));
+    out.position_worst = std::max(out.position_worst, out.position_rms.back());
+    sum_p += tp;
+    sum_o += to;
+  }
+  if (!pose_jacobians.empty()) {
+    const auto k = static_cast<double>(pose_jacobians.size());
+    out.position_rms_overall = std::sqrt(std::max(sum_p / k, 0.0));
+    out.orientation_rms_overall = std::sqrt(std::max(sum_o / k, 0.0));
+  }
+  return out;
+}
+
+double normal_quantile(double probability) {
+  if (!(probability > 0.0 && probability < 1.0))
+    throw std::invalid_argument("normal_quantile: probability must be in (0, 1)");
+  // Bisection on the CDF written with erfc: exact to double precision, no tables needed.
+  double lo = -40.0;
+  double hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const double cdf = 0.5 * std::erfc(-mid / std::sqrt(2.0));
+    (cdf < probability ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+namespace {
+
+// Regularised lower incomplete gamma P(a, x): series below a + 1, continued fraction above
+// (the classical pair; both converge to double precision in < 200 terms for our arguments).
+double regularized_gamma_p(double a, double x) {
+  if (x <= 0.0) return 0.0;
+  const double log_prefactor = a * std::log(x) - x - std::lgamma(a);
+  if (x < a + 1.0) {
+    double term = 1.0 / a;
+    double sum = term;
+    for (int n = 1; n < 500; ++n) {
+      term *= x / (a + n);
+      sum += term;
+      if (std::abs(term) < 1e-17 * std::abs(sum)) break;
+    }
+    return sum * std::exp(log_prefactor);
+  }
+  // Lentz's continued fraction for Q(a, x).
+  const double tiny = 1e-300;
+  double b = x + 1.0 - a;
+  double c = 1.0 / tiny;
+  double d = 1.0 / b;
+  double h = d;
+  for (int i = 1; i < 500; ++i) {
+    const double an = -i * (i - a);
+    b += 2.0;
+    d = an * d + b;
+    if (std::abs(d) < tiny) d = tiny;
+    c = b + an / c;
+    if (std::abs(c) < tiny) c = tiny;
+    d = 1.0 / d;
+    const double delta = d * c;
+    h *= delta;
+    if (std::abs(delta - 1.0) < 1e-16) break;
+  }
+  return 1.0 - std::exp(log_prefactor) * h;
+}
+
+}  // namespace
+
+double chi_square_quantile(double probability, int dof) {
+  if (dof < 1) throw std::invalid_argument("chi_square_quantile: dof must be >= 1");
+  if (!(probability > 0.0 && probability < 1.0))
+    throw std::invalid_argument("chi_square_quantile: probability must be in (0, 1)");
+  const double a = 0.5 * dof;
+  double lo = 0.0;
+  double hi = dof + 20.0 * std::sqrt(2.0 * dof) + 100.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (regularized_gamma_p(a, 0.5 * mid) < probability ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residuals,
+                                       const OutlierOptions& options) {
+  ResidualDiagnostics out;
+  std::vector<double> magnitudes;
+  for (const auto& r : residuals)
+    for (Eigen::Index i = 0; i < r.whitened.size(); ++i)
+      magnitudes.push_back(std::abs(r.whitened(i)));
+  if (options.robust_scale && !magnitudes.empty()) {
+    auto mid = magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2);
+    std::nth_element(magnitudes.begin(), mid, magnitudes.end());
+    const double robust = 1.4826 * *mid;
+    if (robust > 0.0) out.scale = robust;
+  }
+  double sum_p = 0.0;
+  double sum_o = 0.0;
+  for (const auto& r : residuals) {
+    PoseResidualSummary s;
+    s.id = r.id;
+    s.dof = static_cast<int>(r.whitened.size());
+    s.chi_square = r.whitened.squaredNorm() / (out.scale * out.scale);
+    s.threshold = s.dof > 0 ? chi_square_quantile(1.0 - options.probability, s.dof) : 0.0;
+    s.outlier = s.dof > 0 && (!std::isfinite(s.chi_square) || s.chi_square > s.threshold);
+    s.position_error = r.position_error;
+    s.orientation_error = r.orientation_error;
+    out.outliers += s.outlier ? 1 : 0;
+    sum_p += r.position_error * r.position_error;
+    sum_o += r.orientation_error * r.orientation_error;
+    out.position_max = std::max(out.position_max, r.position_error);
+    out.orientation_max = std::max(out.orientation_max, r.orientation_error);
+    out.poses.push_back(std::move(s));
+  }
+  if (!residuals.empty()) {
+    const auto k = static_cast<double>(residuals.size());
+    out.position_rms = std::sqrt(sum_p / k);
+    out.orientation_rms = std::sqrt(sum_o / k);
+  }
+  return out;
+}
+
+}  // namespace robocal::calib

@@ -1,0 +1,210 @@
+#pragma once
+// Kinematic identification: find the parameter values (geometry, base and tool frames, actuator
+// offsets and scales — whatever the model exposes as named parameters) that best explain
+// measurements of the robot's measured frame, say how sure we are, and validate on poses the fit
+// did not see.
+//
+// The engine is written against FramePredictor, the one thing it needs from a mechanism model:
+// the pose of the measured frame for a pose's actuator readings and its exact derivative with
+// respect to every model parameter (for a parallel robot: closure solved per pose, derivative by
+// the implicit-function theorem). The adapter for the closed-loop mechanism model lives in
+// mechanism_predictor.hpp.
+//
+// Pipeline of identify():
+//  1. validate input (duplicate ids → error; non-finite readings or observations, poses whose
+//     closure cannot be solved at the nominal model → excluded with a reason; units off by 1000 →
+//     error; too few equations → error naming how many poses are needed);
+//  2. identifiability at the nominal model over the actual poses (identifiability.hpp): the free
+//     set is reduced to an identifiable base set, the rest held at nominal and reported;
+//  3. Ceres Levenberg–Marquardt on the whitened measurement residuals (maximum likelihood), with
+//     optional robust loss, bounds, priors from tolerances (MAP) and multi-start; deliberately
+//     tight tolerances (see SolveOptions);
+//  4. a diverged or unusable solve keeps the nominal model and says so;
+//  5. covariance, correlations, per-pose residuals with outlier flags, predicted accuracy.
+#include "robocal/calib/identifiability.hpp"
+#include "robocal/calib/observations.hpp"
+#include "robocal/calib/uncertainty.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <optional>
+#include <random>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace robocal::calib {
+
+// Pose of the measured frame in the world and d[p; φ]/d(parameters) (6 × parameter_count),
+// perturbation convention of observations.hpp: p' = p + δp, R' = exp([δφ]×) R.
+struct FramePrediction {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, Eigen::Dynamic> jacobian;
+};
+
+class FramePredictor {
+ public:
+  virtual ~FramePredictor() = default;
+  virtual std::size_t parameter_count() const = 0;
+  virtual std::vector<std::string> parameter_names() const = 0;
+  // Predicts the measured frame for `actuators` with parameter vector `params`. `slot` identifies
+  // the pose so an implementation may warm-start from its previous solution. When `with_jacobian`
+  // is false the jacobian may be left empty. Returns false (and says why) when the pose cannot be
+  // solved (closure fails, singular configuration).
+  virtual bool predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators, int slot,
+                       bool with_jacobian, FramePrediction& out, std::string& why) const = 0;
+};
+
+using Observation = std::variant<PoseObservation, PointObservation, ProbeHeightObservation>;
+
+// One measured pose: the actuator readings and what was observed of the measured frame there.
+struct PoseMeasurement {
+  std::string id;
+  Eigen::VectorXd actuators;
+  std::vector<Observation> observations;
+};
+
+// Distance between the measured frame at two poses (ball-bar, scale bar), by pose id.
+struct DistanceMeasurement {
+  std::string first;
+  std::string second;
+  DistanceObservation observation;
+};
+
+struct Measurements {
+  std::vector<PoseMeasurement> poses;
+  std::vector<DistanceMeasurement> distances;
+};
+
+enum class RobustLoss { kNone, kHuber, kCauchy };
+
+struct SolveOptions {
+  // Parameters the user allows to change (indices into the model's parameter vector). Empty =
+  // every parameter. The identifiability step may hold some of them at nominal.
+  std::vector<std::size_t> candidates;
+  // Base-set preference per parameter (lower = kept first among confounded ones); empty = none.
+  std::vector<int> preference;
+  IdentifiabilityOptions identifiability;
+  // Priors from tolerances: prior_sigma[i] > 0 adds (a_i − nominal_i)/σ_i (MAP). Empty = none.
+  std::vector<double> prior_sigma;
+  // Optional bounds per parameter (NaN = unbounded).
+  std::vector<double> lower_bound;
+  std::vector<double> upper_bound;
+  RobustLoss robust_loss = RobustLoss::kNone;
+  double robust_scale = 3.0;  // in whitened units (σ)
+  // Multi-start: extra starts perturbed by N(0, start_sigma_i) around the start values (uses
+  // prior_sigma when start_sigma is empty); the lowest final cost wins.
+  int multi_start = 0;
+  std::vector<double> start_sigma;
+  unsigned seed = 1;
+  // Start values (full vector); empty = nominal.
+  Eigen::VectorXd start;
+  // Tight by design: Ceres' defaults (function tolerance 1e-6) stop short of calibration-grade
+  // estimates.
+  double function_tolerance = 1e-15;
+  double gradient_tolerance = 1e-14;
+  double parameter_tolerance = 1e-13;
+  int max_iterations = 200;
+  // Minimum equations per free parameter before solving (1 = just determined).
+  double min_equations_per_parameter = 1.0;
+  CovarianceOptions covariance;
+  OutlierOptions outliers;
+};
+
+enum class IdentificationStatus {
+  kConverged,     // solved; result parameters updated
+  kNotConverged,  // usable but hit the iteration limit; result parameters updated
+  kDiverged,      // solve failed or worsened the fit: nominal kept
+  kInvalidInput,  // nothing solved (message says why)
+};
+const char* to_string(IdentificationStatus status);
+
+struct ExcludedPose {
+  std::string id;
+  std::string reason;
+};
+
+struct IdentificationResult {
+  IdentificationStatus status = IdentificationStatus::kInvalidInput;
+  std::string message;
+  std::vector<std::string> names;
+  Eigen::VectorXd nominal;
+  Eigen::VectorXd estimate;               // full parameter vector (nominal where not estimated)
+  std::vector<std::size_t> estimated;     // indices actually estimated (identifiable candidates)
+  IdentifiabilityReport identifiability;  // over the candidates (indices into `candidates`)
+  std::vector<std::size_t> candidates;
+  ParameterUncertainty uncertainty;  // over `estimated`, in that order
+  ResidualDiagnostics residuals;     // per pose, at the estimate
+  PredictedAccuracy predicted;       // at the measured poses, from the covariance
+  std::vector<ExcludedPose> excluded;
+  double initial_cost = 0.0;  // ½‖r‖² (whitened, without loss) at the start
+  double final_cost = 0.0;
+  int iterations = 0;
+  int starts_run = 1;
+  double solve_seconds = 0.0;
+  std::vector<std::string> warnings;
+};
+
+IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                              const Measurements& measurements, const SolveOptions& options = {});
+
+// Errors of a parameter vector against measured poses: position from point/pose observations,
+// orientation from pose observations.
+struct ErrorStatistics {
+  std::size_t poses = 0;
+  double position_rms = 0.0;
+  double position_max = 0.0;
+  double orientation_rms = 0.0;
+  double orientation_max = 0.0;
+};
+ErrorStatistics prediction_errors(const FramePredictor& model, const Eigen::VectorXd& params,
+                                  const std::vector<PoseMeasurement>& poses);
+
+struct ValidationReport {
+  ErrorStatistics before;  // nominal
+  ErrorStatistics after;   // estimate
+};
+ValidationReport validate(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                          const Eigen::VectorXd& estimate,
+                          const std::vector<PoseMeasurement>& held_out);
+
+// k-fold cross-validation: every fold is held out once and predicted by a model identified on the
+// others. Poses are assigned to folds round-robin in the given order.
+struct KFoldReport {
+  int folds = 0;
+  std::vector<ValidationReport> per_fold;
+  ErrorStatistics before;  // pooled over all held-out poses
+  ErrorStatistics after;
+  std::vector<std::string> messages;
+};
+KFoldReport k_fold_validation(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                              const Measurements& measurements, int folds,
+                              const SolveOptions& options = {});
+
+// ---- simulation ----------------------------------------------------------------------------
+
+// nominal + N(0, sigma_i) for each parameter (sigma 0 = unchanged).
+Eigen::VectorXd perturb_parameters(const Eigen::VectorXd& nominal, const Eigen::VectorXd& sigma,
+                                   std::mt19937& rng);
+
+enum class SimulatedObservation { kPose, kPoint, kProbeHeight };
+
+struct SimulationOptions {
+  SimulatedObservation kind = SimulatedObservation::kPoint;
+  double position_sigma = 20e-6;   // m
+  double rotation_sigma = 1e-4;    // rad (pose observations)
+  Eigen::VectorXd actuator_sigma;  // per actuator noise on the reported readings (empty = none)
+  bool add_noise = true;
+  // Probe plane for kProbeHeight: n·x = offset.
+  Eigen::Vector3d plane_normal = Eigen::Vector3d::UnitZ();
+  double plane_offset = 0.0;
+};
+
+// Measures the true robot at the true actuator values `actuators` and reports the (optionally
+// noisy) readings plus observations. Poses the true model cannot solve are skipped.
+Measurements simulate_measurements(const FramePredictor& model, const Eigen::VectorXd& truth,
+                                   const std::vector<Eigen::VectorXd>& actuators,
+                                   const SimulationOptions& options, std::mt19937& rng);
+
+}  // namespace robocal::calib

@@ -1,0 +1,112 @@
+#pragma once
+// Uncertainty and residual diagnostics of an identification, as pure functions over the whitened
+// identification Jacobian and residuals (rows already multiplied by the inverse square root of
+// each measurement's covariance, so unit-variance noise is assumed).
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace robocal::calib {
+
+struct CovarianceOptions {
+  double confidence = 0.95;            // two-sided confidence level of the reported intervals
+  double correlation_threshold = 0.9;  // |ρ| at or above this is reported as strongly correlated
+  // Scale the covariance by the a-posteriori variance factor rᵀr/(m−n) (use when the stated
+  // measurement noise is not trusted). Needs the residuals.
+  bool scale_by_residual_variance = false;
+  // Relative singular value (column-scaled) below which JᵀJ is called singular: redundant
+  // parameters must be removed (see identifiability.hpp) before a covariance exists.
+  double singular_tolerance = 1e-10;
+};
+
+struct CorrelatedPair {
+  std::size_t first = 0;
+  std::size_t second = 0;
+  double correlation = 0.0;
+};
+
+struct ParameterUncertainty {
+  bool ok = false;      // false when JᵀJ is singular (message says why)
+  std::string message;  // plain words
+  std::vector<std::string> names;
+  Eigen::MatrixXd covariance;   // (JᵀJ)⁻¹ [× variance factor]
+  Eigen::VectorXd sigma;        // sqrt of the diagonal
+  Eigen::MatrixXd correlation;  // covariance normalised by σ_i σ_j
+  double confidence = 0.95;
+  double quantile = 0.0;          // standard normal quantile used for the intervals
+  Eigen::VectorXd ci_half_width;  // quantile · σ
+  double variance_factor = 1.0;   // applied factor (1 unless scale_by_residual_variance)
+  std::vector<CorrelatedPair> strongly_correlated;  // sorted by |ρ| descending
+};
+
+// Covariance of the least-squares estimate from the whitened Jacobian at the solution.
+// `whitened_residuals` is only needed for scale_by_residual_variance.
+ParameterUncertainty parameter_uncertainty(const Eigen::MatrixXd& whitened_jacobian,
+                                           const std::vector<std::string>& names,
+                                           const CovarianceOptions& options = {},
+                                           const Eigen::VectorXd& whitened_residuals = {});
+
+// Covariance of a derived quantity y = f(params) with Jacobian J_y: J_y Σ J_yᵀ.
+Eigen::MatrixXd propagate_covariance(const Eigen::MatrixXd& output_jacobian,
+                                     const Eigen::MatrixXd& parameter_covariance);
+
+// Predicted end-effector accuracy over a set of poses. Each Jacobian has the frame position in its
+// first three rows (and, when 6 rows, the world-frame rotation vector in the last three) with one
+// column per estimated parameter.
+struct PredictedAccuracy {
+  std::vector<double> position_rms;     // per pose: sqrt(trace Σ_pp) = expected 3-D error RMS
+  std::vector<double> orientation_rms;  // per pose, rad (0 when only 3 rows)
+  double position_rms_overall = 0.0;    // sqrt(mean over poses of trace Σ_pp)
+  double position_worst = 0.0;
+  double orientation_rms_overall = 0.0;
+};
+PredictedAccuracy predict_accuracy(const std::vector<Eigen::MatrixXd>& pose_jacobians,
+                                   const Eigen::MatrixXd& parameter_covariance);
+
+// Standard normal quantile (inverse CDF) and the chi-square quantile, both by bisection on the
+// exact CDF (erfc, regularised incomplete gamma).
+double normal_quantile(double probability);
+double chi_square_quantile(double probability, int dof);
+
+// Residual of one pose (or one observation) after the fit.
+struct PoseResidual {
+  std::string id;
+  Eigen::VectorXd whitened;        // r / σ (unit variance when the noise model is right)
+  double position_error = 0.0;     // metres (Euclidean), for reporting
+  double orientation_error = 0.0;  // radians (angle), for reporting (0 if not observed)
+};
+
+struct OutlierOptions {
+  // A pose is an outlier when its normalised squared residual exceeds the chi-square quantile with
+  // its dimension at 1 − probability.
+  double probability = 1e-3;
+  // Normalise by a robust scale (1.4826 · median |whitened component|) instead of trusting the
+  // stated noise: keeps the test meaningful when the stated σ is off (units, optimism).
+  bool robust_scale = true;
+};
+
+struct PoseResidualSummary {
+  std::string id;
+  double chi_square = 0.0;  // ‖r‖² / scale²
+  int dof = 0;
+  double threshold = 0.0;
+  double position_error = 0.0;
+  double orientation_error = 0.0;
+  bool outlier = false;
+};
+
+struct ResidualDiagnostics {
+  std::vector<PoseResidualSummary> poses;
+  double scale = 1.0;  // the scale used (1 or robust)
+  double position_rms = 0.0;
+  double position_max = 0.0;
+  double orientation_rms = 0.0;
+  double orientation_max = 0.0;
+  std::size_t outliers = 0;
+};
+ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residuals,
+                                       const OutlierOptions& options = {});
+
+}  // namespace robocal::calib

@@ -1,0 +1,106 @@
+#include "robocal/calib/identifiability.hpp"
+
+#include "planar_fixture.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+namespace {
+
+using namespace robocal::calib;
+using namespace robocal::calib::testing;
+
+const Redundancy* find_redundancy(const IdentifiabilityReport& r, std::size_t param) {
+  for (const auto& red : r.redundancies)
+    if (red.parameter == param) return &red;
+  return nullptr;
+}
+
+// Geometry first, then base, then tool: the confounded base/tool parameters must be the ones
+// held fixed, each explained through its exact partner with coefficient +1.
+TEST(Identifiability, PlanarArmKnownRedundanciesAreFoundAndExplained) {
+  const auto a = planar_nominal();
+  const auto J = stacked_jacobian(a, planar_poses(25, -2.0, 2.0, 7));
+  std::vector<int> pref = {1, 1, 1, 1, 0, 0, 0, 0, 2, 2};
+  const auto report = analyze_identifiability(J, planar_names(), {}, pref);
+
+  EXPECT_EQ(report.rank, 7u);
+  EXPECT_EQ(report.identifiable, (std::vector<std::size_t>{kBx, kBy, kBz, kO1, kO2, kL1, kL2}));
+  EXPECT_EQ(report.redundant, (std::vector<std::size_t>{kYaw, kToolLen, kToolZ}));
+  EXPECT_TRUE(report.no_effect.empty());
+  EXPECT_FALSE(report.underdetermined);
+
+  const std::pair<std::size_t, std::size_t> expected[] = {
+      {kYaw, kO1}, {kToolLen, kL2}, {kToolZ, kBz}};
+  for (const auto& [param, partner] : expected) {
+    const Redundancy* red = find_redundancy(report, param);
+    ASSERT_NE(red, nullptr) << report.names[param];
+    ASSERT_EQ(red->partners.size(), 1u) << red->explanation;
+    EXPECT_EQ(red->partners[0], partner);
+    EXPECT_NEAR(red->coefficients[0], 1.0, 1e-9);
+    EXPECT_LT(red->residual, 1e-9);
+    EXPECT_NE(red->explanation.find(report.names[partner]), std::string::npos);
+    EXPECT_NE(red->explanation.find("cannot be told apart"), std::string::npos);
+  }
+  // The base set itself is well conditioned with poses spread over the workspace.
+  EXPECT_TRUE(report.ill_conditioned.empty());
+  EXPECT_LT(report.condition_number, 1e3);
+}
+
+TEST(Identifiability, PreferenceDecidesWhichOfAConfoundedPairIsKept) {
+  const auto a = planar_nominal();
+  const auto J = stacked_jacobian(a, planar_poses(25, -2.0, 2.0, 7));
+  std::vector<int> pref(kPlanarCount, 0);
+  pref[kL2] = 5;  // prefer the tool length over link 2
+  pref[kO1] = 5;
+  const auto report = analyze_identifiability(J, planar_names(), {}, pref);
+  EXPECT_TRUE(report.is_identifiable(kToolLen));
+  EXPECT_FALSE(report.is_identifiable(kL2));
+  EXPECT_TRUE(report.is_identifiable(kYaw));
+  EXPECT_FALSE(report.is_identifiable(kO1));
+  EXPECT_EQ(report.rank, 7u);
+}
+
+// An almost straight arm (joint 2 within ±0.1°) cannot tell link 1 from link 2 well.
+TEST(Identifiability, NearlyStraightArmReportsLinkLengthsAsIllConditionedPair) {
+  const auto a = planar_nominal();
+  const auto J = stacked_jacobian(a, planar_poses(40, -0.002, 0.002, 3));
+  std::vector<int> pref = {1, 1, 1, 1, 0, 0, 0, 0, 2, 2};
+  const auto report = analyze_identifiability(J, planar_names(), {}, pref);
+  EXPECT_EQ(report.rank, 7u);  // still identifiable, just barely
+  bool found = false;
+  for (const auto& dir : report.ill_conditioned) {
+    const bool pair =
+        (dir.first == kL1 && dir.second == kL2) || (dir.first == kL2 && dir.second == kL1);
+    found = found || pair;
+    EXPECT_LT(dir.relative_singular_value, 1e-3);
+  }
+  std::string all;
+  for (const auto& m : report.messages) all += m + "\n";
+  EXPECT_TRUE(found) << "link1/link2 not reported as culprit pair:\n" << all;
+  EXPECT_GT(report.condition_number, 1e3);
+}
+
+TEST(Identifiability, UnusedColumnAndTooFewEquations) {
+  const auto a = planar_nominal();
+  Eigen::MatrixXd J = stacked_jacobian(a, planar_poses(2, -2.0, 2.0, 1));  // 6 rows, 10 columns
+  J.col(kToolLen).setZero();
+  const auto report = analyze_identifiability(J, planar_names());
+  EXPECT_TRUE(report.underdetermined);
+  EXPECT_LE(report.rank, 6u);
+  EXPECT_EQ(report.no_effect, std::vector<std::size_t>{kToolLen});
+  const bool says = std::any_of(
+      report.messages.begin(), report.messages.end(),
+      [](const std::string& m) { return m.find("underdetermined") != std::string::npos; });
+  EXPECT_TRUE(says);
+}
+
+TEST(Identifiability, RejectsBadInput) {
+  Eigen::MatrixXd J = Eigen::MatrixXd::Identity(3, 3);
+  EXPECT_THROW(analyze_identifiability(J, {"a", "b"}), std::invalid_argument);
+  J(1, 1) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(analyze_identifiability(J, {"a", "b", "c"}), std::invalid_argument);
+}
+
+}  // namespace
