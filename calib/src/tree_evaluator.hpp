@@ -5,8 +5,8 @@
 #include "robocal/calib/mechanism.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/LU>
 #include <Eigen/Core>
+#include <Eigen/LU>
 
 #include <cmath>
 #include <vector>
@@ -118,7 +118,9 @@ struct LmOutcome {
   int iterations = 0;
 };
 
-inline double max_abs(const Eigen::VectorXd& v) { return v.size() ? v.cwiseAbs().maxCoeff() : 0.0; }
+inline double max_abs(const Eigen::VectorXd& v) {
+  return v.size() ? v.cwiseAbs().maxCoeff() : 0.0;
+}
 
 template <class System>
 LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, int max_iterations,
