@@ -6,6 +6,8 @@
 
 #include <Eigen/SVD>
 
+#include <stdexcept>
+
 namespace robocal::calib {
 
 const char* to_string(SolveStatus status) {
@@ -37,24 +39,28 @@ struct ClosureSystem {
 
   Eigen::Index rows() const { return ev->rows() + (pin_frame >= 0 ? 3 : 0); }
 
-  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
     for (Eigen::Index j = 0; j < x.size(); ++j)
       (*q)[m->passive[static_cast<std::size_t>(j)]] = x[j];
     ev->update(*q);
     const int mc = ev->rows();
     ev->closure_residual(r.data());
     if (pin_frame >= 0) r.segment<3>(mc) = ev->pose(pin_frame).p - pin_target;
-    if (!J) return;
-    for (Eigen::Index j = 0; j < x.size(); ++j) {
+  }
+
+  // At the last evaluated x.
+  void jacobian(Eigen::MatrixXd& J) const {
+    const int mc = ev->rows();
+    for (Eigen::Index j = 0; j < J.cols(); ++j) {
       const int b = m->passive[static_cast<std::size_t>(j)];
-      ev->closure_column(b, 1.0, J->col(j).data());
+      ev->closure_column(b, 1.0, J.col(j).data());
       if (pin_frame >= 0) {
         if (detail::in_subtree(*m, b, pin_frame)) {
           Eigen::Vector3d w, v;
           ev->joint_twist(b, w, v);
-          J->col(j).segment<3>(mc) = w.cross(ev->pose(pin_frame).p) + v;
+          J.col(j).segment<3>(mc) = w.cross(ev->pose(pin_frame).p) + v;
         } else {
-          J->col(j).segment<3>(mc).setZero();
+          J.col(j).segment<3>(mc).setZero();
         }
       }
     }
@@ -114,7 +120,9 @@ struct ClosureSolver::Impl {
 
 ClosureSolver::ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params,
                              ClosureOptions options)
-    : impl_(std::make_unique<Impl>(model, params, options)) {}
+    : impl_(params.size() != static_cast<Eigen::Index>(model.parameters.size())
+                ? throw std::invalid_argument("ClosureSolver: parameter vector has the wrong size")
+                : std::make_unique<Impl>(model, params, options)) {}
 ClosureSolver::ClosureSolver(const ClosureSolver& other)
     : impl_(std::make_unique<Impl>(*other.impl_)) {}
 ClosureSolver& ClosureSolver::operator=(const ClosureSolver& other) {
@@ -148,7 +156,8 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   const auto n = static_cast<Eigen::Index>(m.passive.size());
   result.unknowns = static_cast<int>(n);
   result.equations = m.constraint_rows();
-  if (!s.set_actuators(actuator_readings) || (seed.size() != 0 && seed.size() != n) ||
+  if (s.params.size() != static_cast<Eigen::Index>(m.parameters.size()) ||
+      !s.set_actuators(actuator_readings) || (seed.size() != 0 && seed.size() != n) ||
       !seed.allFinite() || !s.params.allFinite()) {
     result.status = SolveStatus::kInvalidInput;
     return result;
@@ -169,7 +178,8 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
     result.status = SolveStatus::kNotConverged;
   }
   if (s.options.diagnose && n > 0 && result.equations > 0) {
-    sys.evaluate(result.passive, s.ws.r, &s.ws.J);
+    sys.evaluate(result.passive, s.ws.r);
+    sys.jacobian(s.ws.J);
     const Eigen::JacobiSVD<Eigen::MatrixXd> svd(s.ws.J);
     const Eigen::VectorXd& sv = svd.singularValues();
     result.sigma_max = sv[0];
@@ -186,6 +196,11 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
 ClosureResult solve_closure(const Mechanism& model, const Eigen::VectorXd& params,
                             const Eigen::VectorXd& actuator_readings, const Eigen::VectorXd& seed,
                             const ClosureOptions& options) {
+  if (params.size() != static_cast<Eigen::Index>(model.parameters.size())) {
+    ClosureResult bad;
+    bad.status = SolveStatus::kInvalidInput;
+    return bad;
+  }
   return ClosureSolver(model, params, options).solve(actuator_readings, seed);
 }
 
@@ -193,6 +208,11 @@ ForwardResult forward_kinematics(const Mechanism& model, const Eigen::VectorXd& 
                                  const Eigen::VectorXd& actuator_readings, int frame,
                                  const Eigen::VectorXd& seed, const ClosureOptions& options) {
   ForwardResult out;
+  if (frame < 0 || frame >= static_cast<int>(model.bodies.size()) ||
+      params.size() != static_cast<Eigen::Index>(model.parameters.size())) {
+    out.closure.status = SolveStatus::kInvalidInput;
+    return out;
+  }
   out.closure = solve_closure(model, params, actuator_readings, seed, options);
   if (out.closure.status == SolveStatus::kInvalidInput) return out;
   out.state = make_joint_state(model, params, actuator_readings, out.closure.passive);

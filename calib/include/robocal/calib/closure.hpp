@@ -47,7 +47,8 @@ struct ClosureResult {
 };
 
 // Reusable solver: caches the parameter-dependent fixed transforms and a preallocated workspace,
-// so solve() does no heap allocation for mechanisms up to kMaxUnknowns passive joints.
+// so the Newton iterations inside solve() do no heap allocation (only the returned vector is
+// allocated). Throws std::invalid_argument when params has the wrong size.
 class ClosureSolver {
  public:
   ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params, ClosureOptions options = {});
