@@ -15,6 +15,7 @@ CommandSpec version_command();
 CommandSpec kin_command();
 CommandSpec target_command();
 CommandSpec render_command();
+CommandSpec intrinsics_command();
 
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
@@ -22,6 +23,7 @@ const std::vector<CommandSpec>& all_commands() {
       kin_command(),
       target_command(),
       render_command(),
+      intrinsics_command(),
   };
   return commands;
 }

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <regex>
+#include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -201,7 +201,6 @@ TEST(AprilTagDetector, UpstreamNasaPhotographs) {
   rv::AprilTagDetectorOptions refined_opt = opt;
   refined_opt.subpixel_refine = true;
   rv::AprilTagDetector refined_detector(refined_opt);
-  const std::regex number(R"(-?[0-9]+\.?[0-9]*)");
   int expected_total = 0;
   int matched_total = 0;
   int refined_total = 0;
@@ -215,10 +214,12 @@ TEST(AprilTagDetector, UpstreamNasaPhotographs) {
     std::ifstream txt(std::filesystem::path(entry.path()).replace_extension(".txt"));
     std::string line;
     while (std::getline(txt, line)) {
+      // "id, (x y), (x y), (x y), (x y)"
+      for (char& ch : line)
+        if (ch == ',' || ch == '(' || ch == ')') ch = ' ';
+      std::istringstream fields(line);
       std::vector<double> v;
-      for (std::sregex_iterator it(line.begin(), line.end(), number), end; it != end; ++it) {
-        v.push_back(std::stod(it->str()));
-      }
+      for (double x = 0.0; fields >> x;) v.push_back(x);
       if (v.size() != 9) continue;
       ++expected_total;
       std::array<Eigen::Vector2d, 4> want;

@@ -42,6 +42,35 @@ struct TargetDetection {
 TargetDetection detect_apriltag_board(const cv::Mat& gray, const TargetBoard& board,
                                       AprilTagDetector& detector);
 
+/// OpenCV 4.6's interpolateCornersCharuco returns corners +0.5 px off in both axes (measured on
+/// rendered boards, see vision.md); detect_charuco_board adds this before its own refinement.
+inline constexpr double kOpenCv46CharucoOffset = -0.5;
+
+struct ChessboardDetectorOptions {
+  /// cornerSubPix half window as a fraction of the local square size in px (clamped to 2..10).
+  double subpix_window_fraction = 0.3;
+  /// A ChArUco corner further than this (px, or 0.15 square, whichever is larger) from where
+  /// its neighbouring markers predict it is dropped (OpenCV 4.6 misplaces some; issues 3301,
+  /// 3367 of opencv_contrib).
+  double max_marker_disagreement_px = 2.0;
+};
+
+/// Chessboard: cv::findChessboardCorners + cv::cornerSubPix, ordered onto the board's ids (the
+/// black top-left square disambiguates 180 deg unless the board is symmetric). A mirrored
+/// chessboard image is indistinguishable from a real view and cannot be rejected here.
+TargetDetection detect_chessboard_board(const cv::Mat& gray, const TargetBoard& board,
+                                        const ChessboardDetectorOptions& options = {});
+
+/// ChArUco (OpenCV 4.6 layout): aruco markers, interpolated corners with the 4.6 offset
+/// removed, each corner re-refined (cornerSubPix) and checked against a local homography of the
+/// neighbouring markers.
+TargetDetection detect_charuco_board(const cv::Mat& gray, const TargetBoard& board,
+                                     const ChessboardDetectorOptions& options = {});
+
+/// Dispatches on the board kind (AprilTag detector used only for AprilTag grids).
+TargetDetection detect_target(const cv::Mat& gray, const TargetBoard& board,
+                              AprilTagDetector& apriltag_detector);
+
 /// Observations for calibrate_intrinsics().
 CalibrationView to_calibration_view(const TargetDetection& detection, std::string name);
 
