@@ -36,7 +36,8 @@ Eigen::Vector3d rz(double phi, const Eigen::Vector3d& v) {
 
 }  // namespace
 
-std::optional<Eigen::Vector3d> delta_forward(const ClosedFormSpec& s, const Eigen::Vector3d& theta) {
+std::optional<Eigen::Vector3d> delta_forward(const ClosedFormSpec& s,
+                                             const Eigen::Vector3d& theta) {
   Eigen::Vector3d c[3];
   for (int i = 0; i < 3; ++i) {
     const Eigen::Vector3d elbow(s.base_radius + s.upper_arm * std::cos(theta[i]), 0.0,
@@ -83,15 +84,14 @@ std::optional<Eigen::Vector3d> rails_inverse(const ClosedFormSpec& s, const Eige
     const auto k = static_cast<std::size_t>(i);
     const Eigen::Vector3d& v = s.rail_direction[k];
     const Eigen::Vector3d D = T + s.platform_offset[k] - s.rail_origin[k];
-    const double a = v.squaredNorm(), b = v.dot(D), c = D.squaredNorm() - s.link_length[k] * s.link_length[k];
+    const double a = v.squaredNorm(), b = v.dot(D),
+                 c = D.squaredNorm() - s.link_length[k] * s.link_length[k];
     const double disc = b * b - a * c;
     if (disc < 0 || a <= 0) return std::nullopt;
     const double r = std::sqrt(disc);
     const double q1 = (b + r) / a, q2 = (b - r) / a;
     // T must lie on the branch side of the rail point: larger (T - point).dir * sign wins.
-    auto side = [&](double qi) {
-      return s.branch_sign * (D - qi * v).dot(s.branch_direction);
-    };
+    auto side = [&](double qi) { return s.branch_sign * (D - qi * v).dot(s.branch_direction); };
     q[i] = side(q1) >= side(q2) ? q1 : q2;
   }
   return q;
@@ -101,10 +101,13 @@ std::optional<Eigen::Vector3d> closed_form_forward(const ClosedFormSpec& spec,
                                                    const Eigen::VectorXd& q) {
   if (q.size() != 3) return std::nullopt;
   switch (spec.kind) {
-    case ClosedFormKind::kRotaryDelta: return delta_forward(spec, q);
+    case ClosedFormKind::kRotaryDelta:
+      return delta_forward(spec, q);
     case ClosedFormKind::kLinearDelta:
-    case ClosedFormKind::kGantryTau: return rails_forward(spec, q);
-    case ClosedFormKind::kNone: break;
+    case ClosedFormKind::kGantryTau:
+      return rails_forward(spec, q);
+    case ClosedFormKind::kNone:
+      break;
   }
   return std::nullopt;
 }
@@ -113,10 +116,15 @@ std::optional<Eigen::VectorXd> closed_form_inverse(const ClosedFormSpec& spec,
                                                    const Eigen::Vector3d& T) {
   std::optional<Eigen::Vector3d> q;
   switch (spec.kind) {
-    case ClosedFormKind::kRotaryDelta: q = delta_inverse(spec, T); break;
+    case ClosedFormKind::kRotaryDelta:
+      q = delta_inverse(spec, T);
+      break;
     case ClosedFormKind::kLinearDelta:
-    case ClosedFormKind::kGantryTau: q = rails_inverse(spec, T); break;
-    case ClosedFormKind::kNone: break;
+    case ClosedFormKind::kGantryTau:
+      q = rails_inverse(spec, T);
+      break;
+    case ClosedFormKind::kNone:
+      break;
   }
   if (!q) return std::nullopt;
   return Eigen::VectorXd(*q);

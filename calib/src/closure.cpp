@@ -10,11 +10,16 @@ namespace robocal::calib {
 
 const char* to_string(SolveStatus status) {
   switch (status) {
-    case SolveStatus::kConverged: return "converged";
-    case SolveStatus::kSingular: return "singular";
-    case SolveStatus::kNotConverged: return "not_converged";
-    case SolveStatus::kNoSolution: return "no_solution";
-    case SolveStatus::kInvalidInput: return "invalid_input";
+    case SolveStatus::kConverged:
+      return "converged";
+    case SolveStatus::kSingular:
+      return "singular";
+    case SolveStatus::kNotConverged:
+      return "not_converged";
+    case SolveStatus::kNoSolution:
+      return "no_solution";
+    case SolveStatus::kInvalidInput:
+      return "invalid_input";
   }
   return "unknown";
 }
@@ -33,7 +38,8 @@ struct ClosureSystem {
   Eigen::Index rows() const { return ev->rows() + (pin_frame >= 0 ? 3 : 0); }
 
   void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
-    for (Eigen::Index j = 0; j < x.size(); ++j) (*q)[m->passive[static_cast<std::size_t>(j)]] = x[j];
+    for (Eigen::Index j = 0; j < x.size(); ++j)
+      (*q)[m->passive[static_cast<std::size_t>(j)]] = x[j];
     ev->update(*q);
     const int mc = ev->rows();
     ev->closure_residual(r.data());
@@ -66,7 +72,10 @@ struct ClosureSolver::Impl {
   Eigen::VectorXd q;
 
   Impl(const Mechanism& m, const Eigen::VectorXd& p, const ClosureOptions& o)
-      : model(&m), params(p), options(o), ev(m, p),
+      : model(&m),
+        params(p),
+        options(o),
+        ev(m, p),
         q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))) {
     ws.resize(m.constraint_rows(), static_cast<Eigen::Index>(m.passive.size()));
   }
@@ -77,9 +86,9 @@ struct ClosureSolver::Impl {
       return false;
     for (std::size_t i = 0; i < model->actuated.size(); ++i) {
       const Body& b = model->bodies[model->actuated[i]];
-      q[model->actuated[i]] = params[b.encoder_scale_param] *
-                                  readings[static_cast<Eigen::Index>(i)] +
-                              params[b.encoder_offset_param];
+      q[model->actuated[i]] =
+          params[b.encoder_scale_param] * readings[static_cast<Eigen::Index>(i)] +
+          params[b.encoder_offset_param];
     }
     return true;
   }
@@ -116,9 +125,15 @@ ClosureSolver::ClosureSolver(ClosureSolver&&) noexcept = default;
 ClosureSolver& ClosureSolver::operator=(ClosureSolver&&) noexcept = default;
 ClosureSolver::~ClosureSolver() = default;
 
-const Mechanism& ClosureSolver::model() const { return *impl_->model; }
-const Eigen::VectorXd& ClosureSolver::params() const { return impl_->params; }
-const ClosureOptions& ClosureSolver::options() const { return impl_->options; }
+const Mechanism& ClosureSolver::model() const {
+  return *impl_->model;
+}
+const Eigen::VectorXd& ClosureSolver::params() const {
+  return impl_->params;
+}
+const ClosureOptions& ClosureSolver::options() const {
+  return impl_->options;
+}
 
 Eigen::VectorXd ClosureSolver::closed_form_seed(const Eigen::VectorXd& actuator_readings) const {
   if (!impl_->set_actuators(actuator_readings)) return {};

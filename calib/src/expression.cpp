@@ -92,8 +92,8 @@ class ExpressionParser {
     }
     if (std::isalpha(static_cast<unsigned char>(c))) {
       const std::size_t start = pos_;
-      while (pos_ < text_.size() && (std::isalnum(static_cast<unsigned char>(text_[pos_])) ||
-                                     text_[pos_] == '_'))
+      while (pos_ < text_.size() &&
+             (std::isalnum(static_cast<unsigned char>(text_[pos_])) || text_[pos_] == '_'))
         ++pos_;
       const std::string name = text_.substr(start, pos_ - start);
       if (name == "pi") return std::numbers::pi;

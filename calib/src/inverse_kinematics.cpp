@@ -8,9 +8,12 @@ namespace {
 
 int task_rows(TaskType t) {
   switch (t) {
-    case TaskType::kPosition: return 3;
-    case TaskType::kPose: return 6;
-    case TaskType::kJoint: return 1;
+    case TaskType::kPosition:
+      return 3;
+    case TaskType::kPose:
+      return 6;
+    case TaskType::kJoint:
+      return 1;
   }
   return 0;
 }
@@ -62,8 +65,8 @@ struct IkSystem {
       ev->joint_twist(b, w, v);
       col.segment<3>(mc) = w.cross(F.p) + v;
       if (m->task.type == TaskType::kPose)
-        col.segment<3>(mc + 3) = detail::rotation_residual_derivative(
-            F.R, target.pose.linear(), w, Eigen::Vector3d::Zero());
+        col.segment<3>(mc + 3) = detail::rotation_residual_derivative(F.R, target.pose.linear(), w,
+                                                                      Eigen::Vector3d::Zero());
     }
   }
 };
@@ -78,7 +81,8 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   if (!target.pose.matrix().allFinite() || !std::isfinite(target.joint_value) ||
       !params.allFinite() || (seed.actuator_q.size() != 0 && seed.actuator_q.size() != na) ||
       (seed.passive.size() != 0 && seed.passive.size() != np) || !seed.actuator_q.allFinite() ||
-      !seed.passive.allFinite() || params.size() != static_cast<Eigen::Index>(model.parameters.size()))
+      !seed.passive.allFinite() ||
+      params.size() != static_cast<Eigen::Index>(model.parameters.size()))
     return out;
 
   Eigen::VectorXd x(na + np);

@@ -164,9 +164,8 @@ FrameJacobians frame_jacobians(const Mechanism& model, const Eigen::VectorXd& pa
     }
     if (prm.group == ParamGroup::kEncoderOffset || prm.group == ParamGroup::kEncoderScale) {
       const Body& body = model.bodies[static_cast<std::size_t>(prm.body)];
-      const double scale = prm.group == ParamGroup::kEncoderOffset
-                               ? 1.0
-                               : actuator_readings[body.actuator];
+      const double scale =
+          prm.group == ParamGroup::kEncoderOffset ? 1.0 : actuator_readings[body.actuator];
       const Source& s = joint_src[static_cast<std::size_t>(prm.body)];
       frame_col(s, scale, out.parameters.col(k));
       if (closed) closure_col(s, scale, Cv_a.col(k).data());
@@ -204,11 +203,9 @@ FrameJacobians frame_jacobians(const Mechanism& model, const Eigen::VectorXd& pa
   return out;
 }
 
-Eigen::Matrix<double, 6, Eigen::Dynamic> parameter_jacobian(const Mechanism& model,
-                                                            const Eigen::VectorXd& params,
-                                                            const JointState& state,
-                                                            const Eigen::VectorXd& actuator_readings,
-                                                            int frame) {
+Eigen::Matrix<double, 6, Eigen::Dynamic> parameter_jacobian(
+    const Mechanism& model, const Eigen::VectorXd& params, const JointState& state,
+    const Eigen::VectorXd& actuator_readings, int frame) {
   return frame_jacobians(model, params, state, actuator_readings, frame).parameters;
 }
 

@@ -4,10 +4,14 @@ namespace robocal::calib {
 
 int closure_rows(ClosureType type) {
   switch (type) {
-    case ClosureType::kPose: return 6;
-    case ClosureType::kPosition: return 3;
-    case ClosureType::kPositionAxis: return 5;
-    case ClosureType::kDistance: return 1;
+    case ClosureType::kPose:
+      return 6;
+    case ClosureType::kPosition:
+      return 3;
+    case ClosureType::kPositionAxis:
+      return 5;
+    case ClosureType::kDistance:
+      return 1;
   }
   return 0;
 }
@@ -51,9 +55,9 @@ JointState make_joint_state(const Mechanism& model, const Eigen::VectorXd& param
   s.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.bodies.size()));
   for (std::size_t i = 0; i < model.actuated.size(); ++i) {
     const Body& b = model.bodies[model.actuated[i]];
-    s.q[model.actuated[i]] = params[b.encoder_scale_param] *
-                                 actuator_readings[static_cast<Eigen::Index>(i)] +
-                             params[b.encoder_offset_param];
+    s.q[model.actuated[i]] =
+        params[b.encoder_scale_param] * actuator_readings[static_cast<Eigen::Index>(i)] +
+        params[b.encoder_offset_param];
   }
   for (std::size_t i = 0; i < model.passive.size(); ++i)
     s.q[model.passive[i]] = passive[static_cast<Eigen::Index>(i)];

@@ -158,9 +158,12 @@ struct RawBody {
 
 double default_sigma(const std::map<std::string, double>& sigma, ParamUnit unit) {
   switch (unit) {
-    case ParamUnit::kLength: return sigma.at("length");
-    case ParamUnit::kAngle: return sigma.at("angle");
-    case ParamUnit::kScale: return sigma.at("scale");
+    case ParamUnit::kLength:
+      return sigma.at("length");
+    case ParamUnit::kAngle:
+      return sigma.at("angle");
+    case ParamUnit::kScale:
+      return sigma.at("scale");
   }
   return 1.0;
 }
@@ -168,8 +171,8 @@ double default_sigma(const std::map<std::string, double>& sigma, ParamUnit unit)
 Mechanism parse(const YAML::Node& root, const std::string& source) {
   if (!root.IsMap()) fail(source, root, "a robot file must be a YAML mapping");
   check_keys(source, root, "robot file",
-             {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool",
-              "task", "closed_form", "bodies", "closures", "rods"});
+             {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool", "task",
+              "closed_form", "bodies", "closures", "rods"});
   Mechanism m;
   m.source = source;
   if (!root["robot"]) fail(source, root, "missing 'robot' (the robot's name)");
@@ -201,9 +204,8 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   std::map<std::string, int> raw_index;
   for (const auto& b : bodies) {
     check_keys(source, b, "body",
-               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed",
-                "sigma", "encoder", "limits", "cone", "home", "collision", "rotation_order",
-                "axis"});
+               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed", "sigma",
+                "encoder", "limits", "cone", "home", "collision", "rotation_order", "axis"});
     if (!b["name"]) fail(source, b, "body without 'name'");
     RawBody r{b, text(source, b["name"], "name"), "world"};
     if (r.name == "world") fail(source, b["name"], "'world' is the root frame, not a body name");
@@ -270,8 +272,9 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
     body.role = cut ? JointRole::kCut : (moving ? JointRole::kPassive : JointRole::kAuxiliary);
     if (b["role"]) {
       const std::string role = text(source, b["role"], "role");
-      if (!moving) fail(source, b["role"], "body '" + body.name + "': a " + joint +
-                                               " joint has no role (only moving joints do)");
+      if (!moving)
+        fail(source, b["role"],
+             "body '" + body.name + "': a " + joint + " joint has no role (only moving joints do)");
       if (role == "actuated") {
         body.role = JointRole::kActuated;
       } else if (role != "passive") {
@@ -319,8 +322,8 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
     std::set<std::string> fixed(spec.default_fixed.begin(), spec.default_fixed.end());
     for (const std::string& k : string_list(source, b["fixed"], "fixed")) {
       if (!keys.count(k) && k != "encoder_offset" && k != "encoder_scale")
-        fail(source, b["fixed"], "body '" + body.name + "': 'fixed' names unknown parameter '" +
-                                     k + "'");
+        fail(source, b["fixed"],
+             "body '" + body.name + "': 'fixed' names unknown parameter '" + k + "'");
       fixed.insert(k);
     }
     std::set<std::string> freed;
@@ -337,8 +340,8 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       for (const auto& kv : s) {
         const std::string k = kv.first.Scalar();
         if (!keys.count(k) && k != "encoder_offset" && k != "encoder_scale")
-          fail(source, kv.first, "body '" + body.name + "': sigma for unknown parameter '" + k +
-                                     "'");
+          fail(source, kv.first,
+               "body '" + body.name + "': sigma for unknown parameter '" + k + "'");
         const double v = number(source, kv.second, "sigma");
         if (v <= 0) fail(source, kv.second, "sigma must be > 0");
         sigmas[k] = v;
@@ -358,20 +361,18 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       m.parameters.push_back(prm);
       return static_cast<int>(m.parameters.size()) - 1;
     };
-    const ParamGroup geom_group =
-        moving ? ParamGroup::kJointGeometry : ParamGroup::kFrame;
+    const ParamGroup geom_group = moving ? ParamGroup::kJointGeometry : ParamGroup::kFrame;
     for (const OpSpec& op : spec.ops) {
       ElementaryOp e;
       e.kind = op.kind;
       e.joint = op.joint;
       e.sign = op.joint ? sign : 1.0;
       if (op.key) {
-        const bool angle = op.kind == OpKind::kRotX || op.kind == OpKind::kRotY ||
-                           op.kind == OpKind::kRotZ;
+        const bool angle =
+            op.kind == OpKind::kRotX || op.kind == OpKind::kRotY || op.kind == OpKind::kRotZ;
         const double v = values.count(op.key) ? values[op.key] : 0.0;
-        e.param = add_param(op.key, angle ? ParamUnit::kAngle : ParamUnit::kLength, geom_group,
-                            v, !fixed.count(op.key),
-                            lines.count(op.key) ? lines[op.key] : body.line);
+        e.param = add_param(op.key, angle ? ParamUnit::kAngle : ParamUnit::kLength, geom_group, v,
+                            !fixed.count(op.key), lines.count(op.key) ? lines[op.key] : body.line);
       }
       if (op.joint) body.joint_op = static_cast<int>(body.ops.size());
       body.ops.push_back(e);
@@ -389,19 +390,17 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       body.encoder_offset_param =
           add_param("encoder_offset", joint_unit, ParamGroup::kEncoderOffset, offset,
                     freed.count("encoder_offset") > 0, body.line);
-      body.encoder_scale_param = add_param("encoder_scale", ParamUnit::kScale,
-                                           ParamGroup::kEncoderScale, scale,
-                                           freed.count("encoder_scale") > 0, body.line);
+      body.encoder_scale_param =
+          add_param("encoder_scale", ParamUnit::kScale, ParamGroup::kEncoderScale, scale,
+                    freed.count("encoder_scale") > 0, body.line);
     } else if (b["encoder"]) {
       fail(source, b["encoder"], "body '" + body.name + "': only actuated joints have an encoder");
     }
     if (const YAML::Node lim = b["limits"]) {
-      if (!lim.IsSequence() || lim.size() != 2)
-        fail(source, lim, "limits must be [lower, upper]");
+      if (!lim.IsSequence() || lim.size() != 2) fail(source, lim, "limits must be [lower, upper]");
       body.limits.lower = number(source, lim[0], "limits");
       body.limits.upper = number(source, lim[1], "limits");
-      if (body.limits.lower > body.limits.upper)
-        fail(source, lim, "limits: lower > upper");
+      if (body.limits.lower > body.limits.upper) fail(source, lim, "limits: lower > upper");
     }
     if (b["cone"]) body.limits.cone = number(source, b["cone"], "cone");
     if (b["home"]) {
@@ -516,8 +515,7 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       closure.body_a = body_ref(r["a"], "rod '" + closure.name + "': a");
       closure.body_b = body_ref(r["b"], "rod '" + closure.name + "': b");
       if (!r["length"]) fail(source, r, "rod '" + closure.name + "' needs 'length'");
-      if (!closure_names.insert(closure.name).second ||
-          m.body_index(closure.name) >= 0)
+      if (!closure_names.insert(closure.name).second || m.body_index(closure.name) >= 0)
         fail(source, r, "rod name '" + closure.name + "' is already used");
       Parameter prm;
       prm.name = closure.name + ".length";

@@ -3,13 +3,12 @@
 namespace robocal::calib::detail {
 
 Eigen::Vector3d rotation_residual(const Eigen::Matrix3d& Ra, const Eigen::Matrix3d& Rb) {
-  return 0.5 * (Rb.col(0).cross(Ra.col(0)) + Rb.col(1).cross(Ra.col(1)) +
-                Rb.col(2).cross(Ra.col(2)));
+  return 0.5 *
+         (Rb.col(0).cross(Ra.col(0)) + Rb.col(1).cross(Ra.col(1)) + Rb.col(2).cross(Ra.col(2)));
 }
 
 Eigen::Vector3d rotation_residual_derivative(const Eigen::Matrix3d& Ra, const Eigen::Matrix3d& Rb,
-                                             const Eigen::Vector3d& wA,
-                                             const Eigen::Vector3d& wB) {
+                                             const Eigen::Vector3d& wA, const Eigen::Vector3d& wB) {
   Eigen::Vector3d d = Eigen::Vector3d::Zero();
   for (int k = 0; k < 3; ++k) {
     const Eigen::Vector3d a = Ra.col(k), b = Rb.col(k);

@@ -17,8 +17,12 @@ struct Rigid {
   Eigen::Vector3d p = Eigen::Vector3d::Zero();
 };
 
-inline int axis_of(OpKind k) { return static_cast<int>(k) % 3; }
-inline bool is_rotation(OpKind k) { return static_cast<int>(k) < 3; }
+inline int axis_of(OpKind k) {
+  return static_cast<int>(k) % 3;
+}
+inline bool is_rotation(OpKind k) {
+  return static_cast<int>(k) < 3;
+}
 
 // Right-multiplies an elementary transform onto (R, p).
 inline void apply_op(Eigen::Matrix3d& R, Eigen::Vector3d& p, OpKind kind, double value) {
@@ -51,8 +55,7 @@ void closure_derivative(const Closure& c, const Rigid& A, const Rigid& B,
 // Rotation residual of pose closures / pose targets: 0.5 * sum_k b_k x a_k.
 Eigen::Vector3d rotation_residual(const Eigen::Matrix3d& Ra, const Eigen::Matrix3d& Rb);
 Eigen::Vector3d rotation_residual_derivative(const Eigen::Matrix3d& Ra, const Eigen::Matrix3d& Rb,
-                                             const Eigen::Vector3d& wA,
-                                             const Eigen::Vector3d& wB);
+                                             const Eigen::Vector3d& wA, const Eigen::Vector3d& wB);
 
 class TreeEvaluator {
  public:

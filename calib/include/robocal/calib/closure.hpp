@@ -15,11 +15,11 @@
 namespace robocal::calib {
 
 enum class SolveStatus : std::uint8_t {
-  kConverged,       // residual <= tolerance
-  kSingular,        // converged but the constraint Jacobian is rank deficient (singular pose)
-  kNotConverged,    // iteration limit reached; residual reported
-  kNoSolution,      // stalled with a residual far from zero (loop cannot close / unreachable)
-  kInvalidInput,    // NaN/inf or wrong vector sizes
+  kConverged,     // residual <= tolerance
+  kSingular,      // converged but the constraint Jacobian is rank deficient (singular pose)
+  kNotConverged,  // iteration limit reached; residual reported
+  kNoSolution,    // stalled with a residual far from zero (loop cannot close / unreachable)
+  kInvalidInput,  // NaN/inf or wrong vector sizes
 };
 
 const char* to_string(SolveStatus status);
@@ -39,9 +39,9 @@ struct ClosureResult {
   double residual = 0.0;    // max |v| at the returned state
   int iterations = 0;
   // Diagnostics (filled when options.diagnose, else rank = -1).
-  int rank = -1;            // numerical rank of dv/dtheta
-  int unknowns = 0;         // number of passive joints
-  int equations = 0;        // constraint rows
+  int rank = -1;      // numerical rank of dv/dtheta
+  int unknowns = 0;   // number of passive joints
+  int equations = 0;  // constraint rows
   double sigma_min = 0.0, sigma_max = 0.0;
   bool ok() const { return status == SolveStatus::kConverged; }
 };
@@ -50,8 +50,7 @@ struct ClosureResult {
 // so solve() does no heap allocation for mechanisms up to kMaxUnknowns passive joints.
 class ClosureSolver {
  public:
-  ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params,
-                ClosureOptions options = {});
+  ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params, ClosureOptions options = {});
 
   // Solve for the passive joints. `seed` = previous passive solution (warm start); empty ->
   // closed-form seed when the model has one, else the home configuration.

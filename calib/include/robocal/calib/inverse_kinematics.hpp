@@ -23,7 +23,7 @@ struct TaskTarget {
 
 struct IkOptions {
   int max_iterations = 100;
-  double tolerance = 1e-12;  // max |residual| (closure + task rows; m, rad)
+  double tolerance = 1e-12;     // max |residual| (closure + task rows; m, rad)
   bool respect_limits = false;  // report kNoSolution when the answer violates joint limits
 };
 

@@ -43,11 +43,9 @@ Eigen::VectorXd closure_residual(const Mechanism& model, const Eigen::VectorXd& 
 // small-angle rotation w with R(a + da) = Exp(w) R(a). Encoder parameters are included (they act
 // through the actuated joints at the given readings). `state` must be a solved state (closure
 // residual ~0), e.g. from ClosureSolver; derivatives are exact (analytic).
-Eigen::Matrix<double, 6, Eigen::Dynamic> parameter_jacobian(const Mechanism& model,
-                                                            const Eigen::VectorXd& params,
-                                                            const JointState& state,
-                                                            const Eigen::VectorXd& actuator_readings,
-                                                            int frame);
+Eigen::Matrix<double, 6, Eigen::Dynamic> parameter_jacobian(
+    const Mechanism& model, const Eigen::VectorXd& params, const JointState& state,
+    const Eigen::VectorXd& actuator_readings, int frame);
 
 // Same but also returns d(pose)/d(actuator readings) (6 x A) through the closures, which
 // identification needs for actuator-noise propagation.

@@ -68,7 +68,7 @@ enum class ParamGroup : std::uint8_t {
 };
 
 struct Parameter {
-  std::string name;  // stable, e.g. "body26.d1", "rod5.length", "base.z", "body2.encoder_offset"
+  std::string name;    // stable, e.g. "body26.d1", "rod5.length", "base.z", "body2.encoder_offset"
   double value = 0.0;  // nominal value from the robot file
   bool free = true;    // identification may estimate it (robot file: free:/fixed: lists)
   double sigma = 0.0;  // prior tolerance (1-sigma) for identification; > 0
@@ -103,17 +103,17 @@ struct Body {
   int parent = -1;  // index of the predecessor body, -1 = world
   JointType joint = JointType::kFixed;
   JointRole role = JointRole::kAuxiliary;
-  std::string convention;          // "mcpc", "dh", "mdh", "hayati", "xyz_rpy"
-  std::vector<ElementaryOp> ops;   // predecessor frame -> this frame
-  int joint_op = -1;               // index into ops of the joint op, -1 for fixed bodies
-  int actuator = -1;               // index into Mechanism::actuated, -1 if not actuated
-  int passive = -1;                // index into Mechanism::passive, -1 if not passive
-  int encoder_scale_param = -1;    // actuated bodies only
-  int encoder_offset_param = -1;   // actuated bodies only
+  std::string convention;         // "mcpc", "dh", "mdh", "hayati", "xyz_rpy"
+  std::vector<ElementaryOp> ops;  // predecessor frame -> this frame
+  int joint_op = -1;              // index into ops of the joint op, -1 for fixed bodies
+  int actuator = -1;              // index into Mechanism::actuated, -1 if not actuated
+  int passive = -1;               // index into Mechanism::passive, -1 if not passive
+  int encoder_scale_param = -1;   // actuated bodies only
+  int encoder_offset_param = -1;  // actuated bodies only
   JointLimits limits;
-  double home = 0.0;               // joint value used as the generic seed (q, joint units)
+  double home = 0.0;  // joint value used as the generic seed (q, joint units)
   std::vector<CollisionShape> collision;
-  int subtree_end = 0;             // bodies [index, subtree_end) are this body and its descendants
+  int subtree_end = 0;  // bodies [index, subtree_end) are this body and its descendants
   int line = 0;
 };
 

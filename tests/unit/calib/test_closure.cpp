@@ -1,0 +1,162 @@
+// Closure solver: exactness against closed forms, residuals, assembly mode, warm starts, and
+// honest failure statuses.
+#include "calib_test_support.hpp"
+#include "robocal/calib/closed_form.hpp"
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/kinematics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace robocal::calib {
+namespace {
+
+using testing::library;
+using testing::load;
+
+TEST(Closure, RotaryDeltaTreeEqualsClosedFormOverWorkingVolume) {
+  const Mechanism m = load("rotary_delta.yaml");
+  const Eigen::VectorXd p = m.nominal_parameters();
+  ASSERT_EQ(m.passive.size(), 15u);
+  ASSERT_EQ(m.constraint_rows(), 15);
+  ClosureSolver solver(m, p);
+  int tested = 0;
+  // A grid over the actuator box; each pose cold-started from the closed-form seed.
+  for (double t1 = -0.2; t1 <= 0.81; t1 += 0.25)
+    for (double t2 = -0.2; t2 <= 0.81; t2 += 0.25)
+      for (double t3 = -0.2; t3 <= 0.81; t3 += 0.25) {
+        const Eigen::Vector3d theta(t1, t2, t3);
+        const auto T = delta_forward(m.closed_form, theta);
+        ASSERT_TRUE(T.has_value());
+        const ClosureResult r = solver.solve(theta);
+        ASSERT_TRUE(r.ok()) << to_string(r.status) << " residual " << r.residual;
+        EXPECT_LE(r.residual, 1e-12);
+        const JointState s = make_joint_state(m, p, theta, r.passive);
+        const Eigen::Isometry3d tool = frame_pose(m, p, s, m.tool);
+        EXPECT_LE((tool.translation() - *T).norm(), 1e-9) << theta.transpose();
+        // Intended assembly mode: plate level (tool z parallel to world z), below the base.
+        EXPECT_GT(tool.linear().col(2).z(), 1.0 - 1e-9);
+        EXPECT_LT(tool.translation().z(), -0.3);
+        // Every closure really closes (independent check through the public residual).
+        EXPECT_LE(closure_residual(m, p, s).cwiseAbs().maxCoeff(), 1e-12);
+        ++tested;
+      }
+  EXPECT_EQ(tested, 125);
+}
+
+TEST(Closure, RotaryDeltaWarmStartAlongPathStaysOnBranch) {
+  const Mechanism m = load("rotary_delta.yaml");
+  const Eigen::VectorXd p = m.nominal_parameters();
+  ClosureSolver solver(m, p);
+  Eigen::Vector3d theta(0.1, 0.2, 0.3);
+  Eigen::VectorXd passive = solver.solve(theta).passive;
+  for (int k = 0; k < 200; ++k) {
+    theta += Eigen::Vector3d(0.002, -0.001, 0.0015);  // ~1-2 mm steps at the plate
+    const ClosureResult r = solver.solve(theta, passive);
+    ASSERT_TRUE(r.ok());
+    EXPECT_LE(r.iterations, 4);
+    passive = r.passive;
+    const JointState s = make_joint_state(m, p, theta, passive);
+    const auto T = delta_forward(m.closed_form, theta);
+    ASSERT_TRUE(T);
+    EXPECT_LE((frame_pose(m, p, s, m.tool).translation() - *T).norm(), 1e-9);
+  }
+}
+
+TEST(Closure, RailRobotsMatchTheirClosedForms) {
+  for (const char* file : {"linear_delta.yaml", "gantry_tau.yaml"}) {
+    const Mechanism m = load(file);
+    const Eigen::VectorXd p = m.nominal_parameters();
+    const auto& spec = *std::find_if(library().begin(), library().end(),
+                                     [&](const auto& r) { return r.file == file; });
+    std::mt19937 rng(7);
+    for (int k = 0; k < 30; ++k) {
+      const Eigen::VectorXd q = testing::random_readings(spec, rng);
+      const ForwardResult fk = forward_kinematics(m, p, q, m.tool);
+      ASSERT_TRUE(fk.closure.ok()) << file;
+      EXPECT_LE(fk.closure.residual, 1e-12);
+      const auto T = rails_forward(m.closed_form, q);
+      ASSERT_TRUE(T);
+      EXPECT_LE((fk.pose.translation() - *T).norm(), 1e-9) << file;
+    }
+  }
+}
+
+TEST(Closure, EveryLibraryRobotClosesWithFullRankDiagnostics) {
+  for (const auto& robot : library()) {
+    const Mechanism m = load(robot.file);
+    const Eigen::VectorXd p = m.nominal_parameters();
+    ClosureOptions o;
+    o.diagnose = true;
+    ClosureSolver solver(m, p, o);
+    std::mt19937 rng(3);
+    for (int k = 0; k < 10; ++k) {
+      const ClosureResult r = solver.solve(testing::random_readings(robot, rng));
+      ASSERT_TRUE(r.ok()) << robot.file << " " << to_string(r.status);
+      EXPECT_LE(r.residual, 1e-12);
+      if (!m.passive.empty()) {
+        EXPECT_EQ(r.rank, static_cast<int>(m.passive.size())) << robot.file;
+        EXPECT_GT(r.sigma_min, 1e-3) << robot.file;
+      }
+    }
+  }
+}
+
+TEST(Closure, FourBarOutputFollowsCrank) {
+  // With the table's geometry the linkage is a spatial parallelogram: output angle = crank angle.
+  const Mechanism m = load("four_bar.yaml");
+  const Eigen::VectorXd p = m.nominal_parameters();
+  for (double a : {-0.9, -0.3, 0.2, 0.7}) {
+    const ClosureResult r = solve_closure(m, p, Eigen::VectorXd::Constant(1, a));
+    ASSERT_TRUE(r.ok());
+    const JointState s = make_joint_state(m, p, Eigen::VectorXd::Constant(1, a), r.passive);
+    EXPECT_NEAR(s.q[m.body_index("body3")], a, 1e-12);
+  }
+}
+
+TEST(Closure, LoopThatCannotCloseReportsNoSolutionWithResidual) {
+  const Mechanism m = load("linear_delta.yaml");
+  Eigen::VectorXd p = m.nominal_parameters();
+  // Carriages 0.5 m apart in height with 0.27 m rods: no effector position closes all three.
+  const Eigen::Vector3d q(0.0, 0.5, 0.25);
+  const ClosureResult r = solve_closure(m, p, q);
+  EXPECT_FALSE(r.ok());
+  EXPECT_EQ(r.status, SolveStatus::kNoSolution);
+  EXPECT_GT(r.residual, 1e-3);
+}
+
+TEST(Closure, InvalidInputIsReportedNotSolved) {
+  const Mechanism m = load("rotary_delta.yaml");
+  const Eigen::VectorXd p = m.nominal_parameters();
+  Eigen::Vector3d q(0.1, std::nan(""), 0.2);
+  EXPECT_EQ(solve_closure(m, p, q).status, SolveStatus::kInvalidInput);
+  EXPECT_EQ(solve_closure(m, p, Eigen::VectorXd::Zero(2)).status, SolveStatus::kInvalidInput);
+  EXPECT_EQ(solve_closure(m, p, Eigen::Vector3d::Zero(), Eigen::VectorXd::Zero(3)).status,
+            SolveStatus::kInvalidInput);
+}
+
+TEST(Closure, PerturbedDeltaStillClosesFromNominalClosedFormSeed) {
+  const Mechanism m = load("rotary_delta.yaml");
+  Eigen::VectorXd p = m.nominal_parameters();
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (std::size_t k = 0; k < m.parameters.size(); ++k)
+    if (m.parameters[k].group == ParamGroup::kJointGeometry ||
+        m.parameters[k].group == ParamGroup::kFrame)
+      p[static_cast<Eigen::Index>(k)] += 1e-3 * n(rng);
+  ClosureSolver solver(m, p);
+  for (double t : {-0.1, 0.2, 0.5}) {
+    const Eigen::Vector3d theta(t, 0.3, 0.1);
+    const ClosureResult r = solver.solve(theta);
+    ASSERT_TRUE(r.ok());
+    const JointState s = make_joint_state(m, p, theta, r.passive);
+    const Eigen::Isometry3d tool = frame_pose(m, p, s, m.tool);
+    // Same branch: within a few mm of the nominal closed form, plate nearly level.
+    EXPECT_LE((tool.translation() - *delta_forward(m.closed_form, theta)).norm(), 0.02);
+    EXPECT_GT(tool.linear().col(2).z(), 0.99);
+  }
+}
+
+}  // namespace
+}  // namespace robocal::calib
