@@ -12,10 +12,12 @@ namespace robocal::app {
 
 // Each command file defines one of these.
 CommandSpec version_command();
+CommandSpec kin_command();
 
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
       version_command(),
+      kin_command(),
   };
   return commands;
 }

@@ -37,24 +37,28 @@ struct ClosureSystem {
 
   Eigen::Index rows() const { return ev->rows() + (pin_frame >= 0 ? 3 : 0); }
 
-  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
     for (Eigen::Index j = 0; j < x.size(); ++j)
       (*q)[m->passive[static_cast<std::size_t>(j)]] = x[j];
     ev->update(*q);
     const int mc = ev->rows();
     ev->closure_residual(r.data());
     if (pin_frame >= 0) r.segment<3>(mc) = ev->pose(pin_frame).p - pin_target;
-    if (!J) return;
-    for (Eigen::Index j = 0; j < x.size(); ++j) {
+  }
+
+  // At the last evaluated x.
+  void jacobian(Eigen::MatrixXd& J) const {
+    const int mc = ev->rows();
+    for (Eigen::Index j = 0; j < J.cols(); ++j) {
       const int b = m->passive[static_cast<std::size_t>(j)];
-      ev->closure_column(b, 1.0, J->col(j).data());
+      ev->closure_column(b, 1.0, J.col(j).data());
       if (pin_frame >= 0) {
         if (detail::in_subtree(*m, b, pin_frame)) {
           Eigen::Vector3d w, v;
           ev->joint_twist(b, w, v);
-          J->col(j).segment<3>(mc) = w.cross(ev->pose(pin_frame).p) + v;
+          J.col(j).segment<3>(mc) = w.cross(ev->pose(pin_frame).p) + v;
         } else {
-          J->col(j).segment<3>(mc).setZero();
+          J.col(j).segment<3>(mc).setZero();
         }
       }
     }
@@ -169,7 +173,8 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
     result.status = SolveStatus::kNotConverged;
   }
   if (s.options.diagnose && n > 0 && result.equations > 0) {
-    sys.evaluate(result.passive, s.ws.r, &s.ws.J);
+    sys.evaluate(result.passive, s.ws.r);
+    sys.jacobian(s.ws.J);
     const Eigen::JacobiSVD<Eigen::MatrixXd> svd(s.ws.J);
     const Eigen::VectorXd& sv = svd.singularValues();
     result.sigma_max = sv[0];

@@ -28,7 +28,7 @@ struct IkSystem {
 
   Eigen::Index rows() const { return ev->rows() + task_rows(m->task.type); }
 
-  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
     for (std::size_t j = 0; j < unknown_bodies.size(); ++j)
       (*q)[unknown_bodies[j]] = x[static_cast<Eigen::Index>(j)];
     ev->update(*q);
@@ -48,7 +48,14 @@ struct IkSystem {
         r[mc] = (*q)[m->task.joint] - target.joint_value;
         break;
     }
-    if (!J) return;
+  }
+
+  // At the last evaluated x.
+  void jacobian(Eigen::MatrixXd& Jm) const {
+    Eigen::MatrixXd* J = &Jm;
+    const int mc = ev->rows();
+    const int f = m->task.frame;
+    const detail::Rigid& F = ev->pose(f);
     for (std::size_t j = 0; j < unknown_bodies.size(); ++j) {
       const int b = unknown_bodies[j];
       auto col = J->col(static_cast<Eigen::Index>(j));

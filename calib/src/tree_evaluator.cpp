@@ -79,6 +79,7 @@ TreeEvaluator::TreeEvaluator(const Mechanism& model, const Eigen::VectorXd& para
   post_.resize(nb);
   poses_.resize(nb);
   joint_frames_.resize(nb);
+  has_post_.assign(nb, 0);
   rows_ = model.constraint_rows();
   for (std::size_t b = 0; b < nb; ++b) {
     const Body& body = model.bodies[b];
@@ -89,6 +90,7 @@ TreeEvaluator::TreeEvaluator(const Mechanism& model, const Eigen::VectorXd& para
         continue;
       }
       apply_op(target->R, target->p, body.ops[k].kind, op_value(body.ops[k], params, 0.0));
+      if (target == &post_[b]) has_post_[b] = 1;
     }
   }
 }
@@ -113,6 +115,11 @@ void TreeEvaluator::update(const Eigen::VectorXd& q) {
       continue;
     }
     const ElementaryOp& op = body.ops[body.joint_op];
+    if (!has_post_[b]) {
+      out = jf;
+      apply_op(out.R, out.p, op.kind, op_value(op, params_, q[static_cast<Eigen::Index>(b)]));
+      continue;
+    }
     Eigen::Matrix3d R = jf.R;
     Eigen::Vector3d p = jf.p;
     apply_op(R, p, op.kind, op_value(op, params_, q[static_cast<Eigen::Index>(b)]));

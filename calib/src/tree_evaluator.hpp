@@ -6,6 +6,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/LU>
 
 #include <cmath>
 #include <vector>
@@ -80,22 +81,27 @@ class TreeEvaluator {
   const Mechanism* model_ = nullptr;
   Eigen::VectorXd params_;
   std::vector<Rigid> pre_, post_;  // ops before / after the joint op
+  std::vector<char> has_post_;     // post_ is not the identity (DH, Hayati; not MCPC)
   std::vector<Rigid> poses_;
   std::vector<Rigid> joint_frames_;  // world frame just before the joint op
   int rows_ = 0;
 };
 
-// Damped Gauss-Newton (Levenberg) on a system with evaluate(x, r, J*) (J may be nullptr).
+// Damped Gauss-Newton (Levenberg) on a system with evaluate(x, r) (residual; the system keeps
+// the state) and jacobian(J) (at the last evaluated x). Square systems first try the plain
+// Newton step (LU); the damped normal equations take over when it does not reduce the residual
+// (far from the solution, singular poses, idle mobilities).
 struct LmWorkspace {
-  Eigen::MatrixXd J, A, J_trial;
+  Eigen::MatrixXd J, A;
   Eigen::VectorXd r, g, dx, x_trial, r_trial;
   Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu;
   void resize(Eigen::Index rows, Eigen::Index cols) {
     if (J.rows() != rows || J.cols() != cols) {
       J.resize(rows, cols);
-      J_trial.resize(rows, cols);
       A.resize(cols, cols);
       llt = Eigen::LLT<Eigen::MatrixXd>(cols);
+      lu = Eigen::PartialPivLU<Eigen::MatrixXd>(cols);
     }
     r.resize(rows);
     r_trial.resize(rows);
@@ -112,60 +118,84 @@ struct LmOutcome {
   int iterations = 0;
 };
 
+inline double max_abs(const Eigen::VectorXd& v) {
+  return v.size() ? v.cwiseAbs().maxCoeff() : 0.0;
+}
+
 template <class System>
 LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, int max_iterations,
                               double tolerance, double max_step) {
   LmOutcome out;
   const Eigen::Index n = x.size();
+  const bool square = sys.rows() == n;
   ws.resize(sys.rows(), n);
-  sys.evaluate(x, ws.r, &ws.J);
+  sys.evaluate(x, ws.r);
   double cost = ws.r.squaredNorm();
   double lambda = 1e-12;
+  bool newton_ok = square;  // try undamped Newton until it fails once
   for (out.iterations = 0; out.iterations < max_iterations; ++out.iterations) {
-    out.residual = ws.r.size() ? ws.r.cwiseAbs().maxCoeff() : 0.0;
+    out.residual = max_abs(ws.r);
     if (!std::isfinite(out.residual)) return out;
     if (out.residual <= tolerance) {
       out.converged = true;
       return out;
     }
     if (n == 0) break;
-    ws.A.noalias() = ws.J.transpose() * ws.J;
-    ws.g.noalias() = ws.J.transpose() * ws.r;
-    const double scale = std::max(ws.A.diagonal().maxCoeff(), 1e-300);
+    sys.jacobian(ws.J);
     bool accepted = false;
+    bool normal_ready = false;
+    double scale = 1.0;
     for (int attempt = 0; attempt < 30 && !accepted; ++attempt) {
-      for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) += lambda * scale;
-      ws.llt.compute(ws.A);
-      for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) -= lambda * scale;
-      if (ws.llt.info() != Eigen::Success) {
-        lambda *= 100.0;
-        continue;
+      if (newton_ok && attempt == 0) {
+        ws.lu.compute(ws.J);
+        ws.dx = ws.lu.solve(ws.r);
+        ws.dx = -ws.dx;
+        if (!ws.dx.allFinite()) continue;
+      } else {
+        if (!normal_ready) {
+          ws.A.noalias() = ws.J.transpose() * ws.J;
+          ws.g.noalias() = ws.J.transpose() * ws.r;
+          scale = std::max(ws.A.diagonal().maxCoeff(), 1e-300);
+          normal_ready = true;
+        }
+        for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) += lambda * scale;
+        ws.llt.compute(ws.A);
+        for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) -= lambda * scale;
+        if (ws.llt.info() != Eigen::Success) {
+          lambda *= 100.0;
+          continue;
+        }
+        ws.dx = ws.llt.solve(ws.g);
+        ws.dx = -ws.dx;
       }
-      ws.dx = ws.llt.solve(ws.g);
-      ws.dx = -ws.dx;
-      const double step = ws.dx.cwiseAbs().maxCoeff();
+      const double step = max_abs(ws.dx);
       if (step > max_step) ws.dx *= max_step / step;
       ws.x_trial = x + ws.dx;
-      sys.evaluate(ws.x_trial, ws.r_trial, nullptr);
+      sys.evaluate(ws.x_trial, ws.r_trial);
       const double trial_cost = ws.r_trial.squaredNorm();
-      if (std::isfinite(trial_cost) &&
-          (trial_cost < cost || ws.r_trial.cwiseAbs().maxCoeff() <= tolerance)) {
+      if (std::isfinite(trial_cost) && (trial_cost < cost || max_abs(ws.r_trial) <= tolerance)) {
         accepted = true;
-        x = ws.x_trial;
+        x.swap(ws.x_trial);
+        ws.r.swap(ws.r_trial);
         cost = trial_cost;
-        lambda = std::max(lambda * 0.1, 1e-15);
+        if (!(newton_ok && attempt == 0)) lambda = std::max(lambda * 0.1, 1e-15);
       } else {
-        if (step <= 1e-15 * (1.0 + x.cwiseAbs().maxCoeff())) break;
+        if (newton_ok && attempt == 0) {
+          newton_ok = false;  // far from the solution: damped steps from now on
+          continue;
+        }
+        if (step <= 1e-15 * (1.0 + max_abs(x))) break;
         lambda *= 10.0;
       }
     }
     if (!accepted) {
       out.stalled = true;
+      // Leave the system evaluated at the returned x.
+      sys.evaluate(x, ws.r);
       break;
     }
-    sys.evaluate(x, ws.r, &ws.J);
   }
-  out.residual = ws.r.size() ? ws.r.cwiseAbs().maxCoeff() : 0.0;
+  out.residual = max_abs(ws.r);
   out.converged = out.residual <= tolerance;
   return out;
 }

@@ -1,0 +1,123 @@
+// `robocal kin` end to end in-process: JSON output, --set, --frame, and bad input exit codes.
+#include "command_registry.hpp"
+#include "robocal/calib/closed_form.hpp"
+#include "robocal/calib/robot_file.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+CliRun run(std::vector<std::string> args) {
+  args.insert(args.begin(), "robocal");
+  std::vector<const char*> argv;
+  for (const auto& a : args) argv.push_back(a.c_str());
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  const int code = robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
+  CliRun r{code, testing::internal::GetCapturedStdout(), testing::internal::GetCapturedStderr()};
+  return r;
+}
+
+std::string robot(const std::string& file) {
+  return std::string(ROBOCAL_TESTDATA_DIR) + "/robots/" + file;
+}
+
+TEST(KinCli, ForwardKinematicsMatchesClosedFormAndSetPerturbs) {
+  const CliRun r = run({"kin", "fk", robot("rotary_delta.yaml"), "--actuators", "0.2,0.4,0.1"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["status"], "converged");
+  EXPECT_EQ(doc["constraint_rank"], 15);
+  const auto m = robocal::calib::load_robot_file(robot("rotary_delta.yaml"));
+  const auto T = robocal::calib::delta_forward(m.closed_form, Eigen::Vector3d(0.2, 0.4, 0.1));
+  ASSERT_TRUE(T);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(doc["pose"]["position"][i].get<double>(), (*T)[i], 1e-9);
+
+  const CliRun p = run({"kin", "fk", robot("rotary_delta.yaml"), "--actuators", "0.2,0.4,0.1",
+                        "--set", "body26.d1=0.901", "--frame", "body9"});
+  ASSERT_EQ(p.code, 0) << p.err;
+  const auto pd = nlohmann::json::parse(p.out);
+  EXPECT_EQ(pd["frame"], "body9");
+  double moved = 0;
+  for (int i = 0; i < 3; ++i)
+    moved = std::max(moved, std::abs(pd["pose"]["position"][i].get<double>() - (*T)[i]));
+  EXPECT_GT(moved, 1e-4);  // a longer rod and another frame: a different answer
+}
+
+TEST(KinCli, InverseThenForwardRoundTrips) {
+  const CliRun ik = run({"kin", "ik", robot("linear_delta.yaml"), "--position", "0.02,-0.03,0.05"});
+  ASSERT_EQ(ik.code, 0) << ik.err;
+  const auto doc = nlohmann::json::parse(ik.out);
+  std::string acts;
+  for (const char* name : {"carriage_a", "carriage_b", "carriage_c"}) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.17g", doc["actuator_readings"][name].get<double>());
+    if (!acts.empty()) acts += ',';
+    acts += buf;
+  }
+  const CliRun fk = run({"kin", "fk", robot("linear_delta.yaml"), "--actuators", acts});
+  ASSERT_EQ(fk.code, 0) << fk.err;
+  const auto f = nlohmann::json::parse(fk.out);
+  const double want[3] = {0.02, -0.03, 0.05};
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(f["pose"]["position"][i].get<double>(), want[i], 1e-9);
+}
+
+TEST(KinCli, JacobianAndCheckReportModel) {
+  const CliRun j = run({"kin", "jacobian", robot("gantry_tau.yaml"), "--actuators", "0.5,0.5,0.5"});
+  ASSERT_EQ(j.code, 0) << j.err;
+  const auto jd = nlohmann::json::parse(j.out);
+  EXPECT_EQ(jd["parameters"].size(), 81u);
+  EXPECT_EQ(jd["actuators"].size(), 3u);
+  const CliRun c = run({"kin", "check", robot("rotary_delta.yaml")});
+  ASSERT_EQ(c.code, 0) << c.err;
+  const auto cd = nlohmann::json::parse(c.out);
+  EXPECT_EQ(cd["free_joints"].size(), 15u);
+  EXPECT_EQ(cd["constraint_rows"], 15);
+  EXPECT_EQ(cd["home_closure"]["constraint_rank"], 15);
+  EXPECT_EQ(cd["parameter_count"], 186);
+}
+
+TEST(KinCli, BadInputGivesExitCode3AndSaysWhy) {
+  CliRun r = run({"kin", "fk", robot("rotary_delta.yaml"), "--actuators", "0.1,0.2,0.3", "--set",
+                  "body26.length=1"});
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("rotary_delta.yaml"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("body26.length"), std::string::npos) << r.err;
+
+  r = run({"kin", "fk", robot("rotary_delta.yaml"), "--actuators", "0.1,nan,0.3"});
+  EXPECT_EQ(r.code, 3) << r.err;
+  r = run({"kin", "fk", robot("rotary_delta.yaml"), "--actuators", "0.1,0.3"});
+  EXPECT_EQ(r.code, 3) << r.err;
+  r = run({"kin", "fk", robot("rotary_delta.yaml"), "--actuators", "0.1,0.2,0.3", "--frame",
+           "nowhere"});
+  EXPECT_EQ(r.code, 3) << r.err;
+
+  const auto bad = std::filesystem::temp_directory_path() / "robocal_bad_robot.yaml";
+  std::ofstream(bad) << "robot: x\nbodies:\n  - {name: a, convention: mcpc}\n"
+                        "  - {name: b, parent: ghost, convention: mcpc}\n";
+  r = run({"kin", "check", bad.string()});
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("robocal_bad_robot.yaml:4:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("unknown predecessor 'ghost'"), std::string::npos) << r.err;
+  std::filesystem::remove(bad);
+
+  // A loop that cannot close: the command runs but reports failure with the residual.
+  r = run({"kin", "fk", robot("linear_delta.yaml"), "--actuators", "0,0.5,0.25"});
+  EXPECT_EQ(r.code, 1);
+  const auto doc = nlohmann::json::parse(r.out);
+  EXPECT_EQ(doc["status"], "no_solution");
+  EXPECT_GT(doc["closure_residual"].get<double>(), 1e-3);
+}
+
+}  // namespace
