@@ -33,7 +33,7 @@ Eigen::MatrixXd sqrt_information(const Eigen::MatrixXd& covariance);
 
 // Angle-axis of a rotation matrix (column-major, Jet-safe, correct near identity).
 template <typename T>
-Vec3<T> rotation_log(const Mat3<T>& R) {
+Vec3<T> rotation_vector(const Mat3<T>& R) {
   Vec3<T> aa;
   ceres::RotationMatrixToAngleAxis(R.data(), aa.data());
   return aa;
@@ -59,7 +59,7 @@ struct PoseObservation {
     const Mat3<T> E = R * measured_rotation.cast<T>().transpose();
     Eigen::Matrix<T, 6, 1> e;
     e.template head<3>() = p - measured_position.cast<T>();
-    e.template tail<3>() = rotation_log<T>(E);
+    e.template tail<3>() = rotation_vector<T>(E);
     Eigen::Map<Eigen::Matrix<T, 6, 1>> out(residual);
     out = weight.cast<T>() * e;
   }

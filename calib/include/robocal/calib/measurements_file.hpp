@@ -1,0 +1,32 @@
+#pragma once
+// Measurements file (YAML): actuator readings per pose plus what was observed of the measured
+// frame there. Format documented in testdata/measurements/README.md. Every error names the file,
+// the line and the problem (MeasurementsFileError).
+#include "robocal/calib/identification.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace robocal::calib {
+
+class MeasurementsFileError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct MeasurementsFile {
+  std::string source;
+  std::string robot;  // robot name the data belongs to ("" = not stated)
+  std::string frame;  // measured body name ("" = the robot's tool frame)
+  Measurements measurements;
+  Eigen::VectorXd actuator_sigma;  // optional per-actuator reading noise (reading units)
+};
+
+MeasurementsFile load_measurements_file(const std::string& path);
+MeasurementsFile parse_measurements_yaml(const std::string& text, const std::string& source);
+
+// Writes measurements (metres, radians) in the same format; used by simulation.
+void save_measurements_file(const MeasurementsFile& file, const std::string& path);
+std::string measurements_to_yaml(const MeasurementsFile& file);
+
+}  // namespace robocal::calib
