@@ -12,10 +12,14 @@ namespace robocal::app {
 
 // Each command file defines one of these.
 CommandSpec version_command();
+CommandSpec target_command();
+CommandSpec render_command();
 
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
       version_command(),
+      target_command(),
+      render_command(),
   };
   return commands;
 }
