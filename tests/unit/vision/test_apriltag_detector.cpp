@@ -1,0 +1,255 @@
+// AprilTag detection against rendered ground truth and the upstream AprilTag test photographs.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "robocal/vision/apriltag_detector.hpp"
+#include "robocal/vision/edge_fit.hpp"
+#include "synthetic_tags.hpp"
+
+namespace rv = robocal::vision;
+namespace rt = robocal::testing;
+
+namespace {
+
+struct ErrorStats {
+  double rms = 0.0;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  double radial = 0.0;  // mean signed error away from the tag centre
+  int corners = 0;
+};
+
+ErrorStats compare(const std::vector<rv::TagDetection>& found,
+                   const std::vector<rt::SyntheticTag>& truth, bool library_corners) {
+  ErrorStats s;
+  for (const auto& t : truth) {
+    for (const auto& d : found) {
+      if (d.id != t.id) continue;
+      const Eigen::Vector2d centre =
+          (t.corners[0] + t.corners[1] + t.corners[2] + t.corners[3]) / 4;
+      for (size_t k = 0; k < 4; ++k) {
+        const Eigen::Vector2d e =
+            (library_corners ? d.library_corners[k] : d.corners[k]) - t.corners[k];
+        s.rms += e.squaredNorm();
+        s.mean += e;
+        s.radial += e.dot((t.corners[k] - centre).normalized());
+        ++s.corners;
+      }
+    }
+  }
+  if (s.corners > 0) {
+    s.rms = std::sqrt(s.rms / s.corners);
+    s.mean /= s.corners;
+    s.radial /= s.corners;
+  }
+  return s;
+}
+
+// A 640x512 view of a 5x4 grid of 40 mm tags at 600 mm: tags 45-55 px across.
+struct Scene {
+  rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
+  rt::TagGridRenderer renderer{rt::TagGrid{5, 4, 40.0, 10.0, 0}};
+
+  cv::Mat render(double tilt_deg, double blur, double noise, unsigned seed,
+                 std::vector<rt::SyntheticTag>* truth, double u = 319.5, double v = 255.5) const {
+    const auto [r, t] =
+        rt::look_at_pose(cam, renderer.board_size() / 2, 600.0, tilt_deg, 30.0, 8.0, u, v);
+    rt::SyntheticImageOptions opt;
+    opt.blur_sigma = blur;
+    opt.noise_sigma = noise;
+    opt.seed = seed;
+    return renderer.render(cam, rt::board_homography(cam, r, t), opt, truth);
+  }
+};
+
+}  // namespace
+
+// The requirement of issue 5 at blur 0.8 px / noise 2 DN / tilt up to 45 deg: RMS <= 0.03 px.
+// Bias limits here are 0.01 px: with ~80 corners per case the mean's own noise is ~0.002 px; the
+// 0.005 px limit is checked over the full sweep by bench_vision_accuracy.
+TEST(AprilTagDetector, RefinedCornersMeetAccuracyOnRenderedViews) {
+  Scene scene;
+  rv::AprilTagDetector detector;
+  for (double tilt : {0.0, 45.0}) {
+    std::vector<rt::SyntheticTag> truth;
+    const cv::Mat img = scene.render(tilt, 0.8, 2.0, 7, &truth);
+    const auto found = detector.detect(img);
+    ASSERT_EQ(found.size(), truth.size()) << "tilt " << tilt;
+    for (const auto& d : found) EXPECT_TRUE(d.refined) << "tag " << d.id;
+    const ErrorStats ours = compare(found, truth, false);
+    const ErrorStats lib = compare(found, truth, true);
+    EXPECT_EQ(ours.corners, 4 * static_cast<int>(truth.size()));
+    EXPECT_LE(ours.rms, 0.03) << "tilt " << tilt;
+    EXPECT_LE(std::abs(ours.mean.x()), 0.01);
+    EXPECT_LE(std::abs(ours.mean.y()), 0.01);
+    EXPECT_LE(std::abs(ours.radial), 0.01);
+    // Our refinement must beat the library it starts from.
+    EXPECT_LT(ours.rms, 0.6 * lib.rms) << "ours " << ours.rms << " library " << lib.rms;
+  }
+}
+
+// Without the -0.5 px shift every library corner would be off by (+0.5, +0.5); with it the
+// library's corners are unbiased to well under 0.1 px.
+TEST(AprilTagDetector, LibraryCornersAreShiftedToOpenCvConvention) {
+  Scene scene;
+  rv::AprilTagDetectorOptions opt;
+  opt.subpixel_refine = false;
+  rv::AprilTagDetector detector(opt);
+  std::vector<rt::SyntheticTag> truth;
+  const cv::Mat img = scene.render(20.0, 0.8, 1.0, 3, &truth);
+  const auto found = detector.detect(img);
+  ASSERT_EQ(found.size(), truth.size());
+  const ErrorStats lib = compare(found, truth, true);
+  EXPECT_LT(std::abs(lib.mean.x()), 0.1);
+  EXPECT_LT(std::abs(lib.mean.y()), 0.1);
+  EXPECT_LT(lib.rms, 0.2);
+  for (const auto& d : found) {
+    EXPECT_FALSE(d.refined);
+    EXPECT_TRUE(std::isnan(d.edge_blur_px));
+  }
+}
+
+// The refinement must not depend on where it starts: from truth perturbed by up to 0.8 px in
+// random directions it lands on the truth (to the noise level), not near its start.
+TEST(QuadRefinement, ConvergesFromPerturbedCorners) {
+  Scene scene;
+  std::vector<rt::SyntheticTag> truth;
+  const cv::Mat img = scene.render(30.0, 0.8, 2.0, 5, &truth);
+  ASSERT_FALSE(truth.empty());
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> jitter(-0.8, 0.8);
+  double sq = 0.0;
+  int n = 0;
+  for (const auto& tag : truth) {
+    std::array<Eigen::Vector2d, 4> start = tag.corners;
+    for (auto& c : start) c += Eigen::Vector2d(jitter(rng), jitter(rng));
+    const auto refined = rv::refine_quad_corners(img, start);
+    ASSERT_TRUE(refined.has_value()) << "tag " << tag.id;
+    for (size_t k = 0; k < 4; ++k) {
+      const double e = (refined->corners[k] - tag.corners[k]).norm();
+      EXPECT_LT(e, 0.1) << "tag " << tag.id << " corner " << k;
+      sq += e * e;
+      ++n;
+    }
+  }
+  EXPECT_LT(std::sqrt(sq / n), 0.03);
+}
+
+TEST(AprilTagDetector, EdgeBlurMeasureGrowsWithBlur) {
+  Scene scene;
+  rv::AprilTagDetector detector;
+  double previous = 0.0;
+  for (double blur : {0.0, 0.5, 0.8, 1.2, 1.6, 2.0}) {
+    const cv::Mat img = scene.render(25.0, blur, 2.0, 11, nullptr);
+    const auto found = detector.detect(img);
+    ASSERT_FALSE(found.empty()) << "blur " << blur;
+    double mean = 0.0;
+    int n = 0;
+    for (const auto& d : found) {
+      if (!d.refined) continue;
+      mean += d.edge_blur_px;
+      ++n;
+    }
+    ASSERT_GT(n, 0) << "blur " << blur;
+    mean /= n;
+    EXPECT_GT(mean, previous + 0.1) << "blur " << blur;
+    // Fitted spread ~ sqrt(lens blur^2 + pixel box variance 1/12). Below ~0.8 px the renderer's
+    // discrete Gaussian kernel is narrower than its nominal sigma, so compare only above.
+    // Above ~1.2 px on these 5.6 px cells the usable band is narrower than the edge spread and
+    // the fit sees the data bits: still monotone, no longer the true sigma.
+    if (blur >= 0.8 && blur <= 1.2) {
+      const double expected = std::sqrt(blur * blur + 1.0 / 12.0);
+      EXPECT_NEAR(mean, expected, 0.05 * expected) << "blur " << blur;
+    }
+    previous = mean;
+  }
+}
+
+TEST(AprilTagDetector, RejectsWrongImageTypeAndBadOptions) {
+  rv::AprilTagDetector detector;
+  EXPECT_THROW(detector.detect(cv::Mat()), std::invalid_argument);
+  EXPECT_THROW(detector.detect(cv::Mat(50, 50, CV_16UC1, cv::Scalar(0))), std::invalid_argument);
+  EXPECT_THROW(detector.detect(cv::Mat(50, 50, CV_8UC3, cv::Scalar(0))), std::invalid_argument);
+  rv::AprilTagDetectorOptions bad;
+  bad.family = "tag99h99";
+  EXPECT_THROW(rv::AprilTagDetector{bad}, std::invalid_argument);
+  bad = {};
+  bad.quad_decimate = 0.5f;
+  EXPECT_THROW(rv::AprilTagDetector{bad}, std::invalid_argument);
+  // A blank image is valid input with no tags in it.
+  EXPECT_TRUE(detector.detect(cv::Mat(64, 64, CV_8UC1, cv::Scalar(128))).empty());
+}
+
+// Upstream AprilTag's own test photographs: with quad_decimate 1 and refine_edges off the library
+// must reproduce the expected corners (AprilTag's convention) once our -0.5 shift is undone.
+TEST(AprilTagDetector, UpstreamNasaPhotographs) {
+  const std::filesystem::path dir =
+      std::filesystem::path(ROBOCAL_SHARED_DATA_DIR) / "real" / "apriltag_nasa";
+  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir;
+  rv::AprilTagDetectorOptions opt;
+  opt.quad_decimate = 1.0f;
+  opt.refine_edges = false;
+  opt.subpixel_refine = false;
+  opt.max_hamming = 2;
+  opt.min_decision_margin = 0.0;
+  rv::AprilTagDetector detector(opt);
+  rv::AprilTagDetectorOptions refined_opt = opt;
+  refined_opt.subpixel_refine = true;
+  rv::AprilTagDetector refined_detector(refined_opt);
+  const std::regex number(R"(-?[0-9]+\.?[0-9]*)");
+  int expected_total = 0;
+  int matched_total = 0;
+  int refined_total = 0;
+  int large_total = 0;  // tags with a border cell of >= 3.75 px
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".jpg") continue;
+    const cv::Mat img = cv::imread(entry.path().string(), cv::IMREAD_GRAYSCALE);
+    ASSERT_FALSE(img.empty()) << entry.path();
+    const auto found = detector.detect(img);
+    const auto refined = refined_detector.detect(img);
+    std::ifstream txt(std::filesystem::path(entry.path()).replace_extension(".txt"));
+    std::string line;
+    while (std::getline(txt, line)) {
+      std::vector<double> v;
+      for (std::sregex_iterator it(line.begin(), line.end(), number), end; it != end; ++it) {
+        v.push_back(std::stod(it->str()));
+      }
+      if (v.size() != 9) continue;
+      ++expected_total;
+      std::array<Eigen::Vector2d, 4> want;
+      for (size_t k = 0; k < 4; ++k) want[k] = {v[1 + 2 * k], v[2 + 2 * k]};
+      for (const auto& d : found) {
+        double worst = 0.0;
+        for (size_t k = 0; k < 4; ++k) {
+          const Eigen::Vector2d lib = d.library_corners[k] - Eigen::Vector2d(-0.5, -0.5);
+          worst = std::max(worst, (lib - want[k]).norm());
+        }
+        if (worst < 0.15) ++matched_total;
+      }
+    }
+    // No ground truth here (the .txt corners are the library's own, refine_edges off, which is
+    // biased by ~0.1-0.3 px on sharp tags and more on these 12-35 px JPEG tags): refined corners
+    // are only checked for gross failure, within 1 px of the library's.
+    for (const auto& d : refined) {
+      const double side = (d.library_corners[0] - d.library_corners[2]).norm() / std::sqrt(2.0);
+      if (side >= 30.0) ++large_total;
+      if (!d.refined) continue;
+      ++refined_total;
+      for (size_t k = 0; k < 4; ++k) {
+        EXPECT_LT((d.corners[k] - d.library_corners[k]).norm(), 1.0)
+            << entry.path() << " tag " << d.id;
+      }
+    }
+  }
+  EXPECT_EQ(expected_total, 47);
+  EXPECT_EQ(matched_total, expected_total);
+  // Real, small (12-35 px), blurry JPEG tags: those with border cells under 3 px are left to the
+  // library; the larger ones must be refined.
+  EXPECT_GE(refined_total, large_total);
+  EXPECT_GT(large_total, 0);
+}

@@ -1,0 +1,141 @@
+#include "robocal/vision/apriltag_detector.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "robocal/vision/edge_fit.hpp"
+
+extern "C" {
+#include <apriltag/apriltag.h>
+#include <apriltag/tag16h5.h>
+#include <apriltag/tag25h9.h>
+#include <apriltag/tag36h11.h>
+#include <apriltag/tagCircle21h7.h>
+#include <apriltag/tagStandard41h12.h>
+#include <apriltag/tagStandard52h13.h>
+}
+
+namespace robocal::vision {
+
+struct AprilTagDetector::Impl {
+  AprilTagDetectorOptions options;
+  apriltag_family_t* family = nullptr;
+  void (*destroy_family)(apriltag_family_t*) = nullptr;
+  apriltag_detector_t* detector = nullptr;
+
+  ~Impl() {
+    if (detector != nullptr) apriltag_detector_destroy(detector);
+    if (family != nullptr && destroy_family != nullptr) destroy_family(family);
+  }
+
+  std::vector<TagDetection> run(const cv::Mat& gray, bool refine) {
+    if (gray.empty() || gray.type() != CV_8UC1) {
+      throw std::invalid_argument(
+          "AprilTag detection needs a non-empty 8-bit single-channel image");
+    }
+    image_u8_t image{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]),
+                     const_cast<uint8_t*>(gray.ptr<uint8_t>(0))};
+    zarray_t* found = apriltag_detector_detect(detector, &image);
+    std::vector<TagDetection> out;
+    out.reserve(static_cast<size_t>(zarray_size(found)));
+    QuadRefineOptions refine_options;
+    // The black border is one cell of width_at_border; the white quiet zone at least one cell.
+    const double cell_fraction = 1.0 / static_cast<double>(family->width_at_border);
+    refine_options.inner_band_fraction = cell_fraction;
+    refine_options.outer_band_fraction = cell_fraction;
+    for (int i = 0; i < zarray_size(found); ++i) {
+      apriltag_detection_t* det = nullptr;
+      zarray_get(found, i, &det);
+      if (det->decision_margin < options.min_decision_margin) continue;
+      TagDetection tag;
+      tag.id = det->id;
+      tag.hamming = det->hamming;
+      tag.decision_margin = det->decision_margin;
+      for (size_t k = 0; k < 4; ++k) {
+        tag.library_corners[k] = Eigen::Vector2d(det->p[k][0] + kAprilTagToOpenCvOffset,
+                                                 det->p[k][1] + kAprilTagToOpenCvOffset);
+      }
+      tag.corners = tag.library_corners;
+      tag.edge_blur_px = std::numeric_limits<double>::quiet_NaN();
+      tag.edge_contrast = std::numeric_limits<double>::quiet_NaN();
+      if (refine) {
+        if (const auto r = refine_quad_corners(gray, tag.library_corners, refine_options)) {
+          tag.corners = r->corners;
+          tag.refined = true;
+          tag.edge_blur_px = r->mean_blur_sigma;
+          tag.edge_contrast = r->mean_contrast;
+        }
+      }
+      out.push_back(tag);
+    }
+    apriltag_detections_destroy(found);
+    std::sort(out.begin(), out.end(),
+              [](const TagDetection& a, const TagDetection& b) { return a.id < b.id; });
+    return out;
+  }
+};
+
+AprilTagDetector::AprilTagDetector(AprilTagDetectorOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  if (!(options.quad_decimate >= 1.0f) || options.quad_decimate > 8.0f) {
+    throw std::invalid_argument("AprilTag quad_decimate must be in [1, 8]");
+  }
+  if (options.threads < 1 || options.threads > 64) {
+    throw std::invalid_argument("AprilTag threads must be in [1, 64]");
+  }
+  if (options.max_hamming < 0 || options.max_hamming > 2) {
+    throw std::invalid_argument("AprilTag max_hamming must be 0, 1 or 2");
+  }
+  const std::string& name = options.family;
+  if (name == "tag36h11") {
+    impl_->family = tag36h11_create();
+    impl_->destroy_family = tag36h11_destroy;
+  } else if (name == "tag25h9") {
+    impl_->family = tag25h9_create();
+    impl_->destroy_family = tag25h9_destroy;
+  } else if (name == "tag16h5") {
+    impl_->family = tag16h5_create();
+    impl_->destroy_family = tag16h5_destroy;
+  } else if (name == "tagCircle21h7") {
+    impl_->family = tagCircle21h7_create();
+    impl_->destroy_family = tagCircle21h7_destroy;
+  } else if (name == "tagStandard41h12") {
+    impl_->family = tagStandard41h12_create();
+    impl_->destroy_family = tagStandard41h12_destroy;
+  } else if (name == "tagStandard52h13") {
+    impl_->family = tagStandard52h13_create();
+    impl_->destroy_family = tagStandard52h13_destroy;
+  } else {
+    throw std::invalid_argument("unknown AprilTag family '" + name +
+                                "' (tag36h11, tag25h9, tag16h5, tagCircle21h7, tagStandard41h12, "
+                                "tagStandard52h13)");
+  }
+  impl_->detector = apriltag_detector_create();
+  apriltag_detector_add_family_bits(impl_->detector, impl_->family, options.max_hamming);
+  impl_->detector->quad_decimate = options.quad_decimate;
+  impl_->detector->quad_sigma = options.quad_sigma;
+  impl_->detector->nthreads = options.threads;
+  impl_->detector->refine_edges = options.refine_edges;
+  impl_->detector->decode_sharpening = options.decode_sharpening;
+  impl_->options = std::move(options);
+}
+
+AprilTagDetector::~AprilTagDetector() = default;
+AprilTagDetector::AprilTagDetector(AprilTagDetector&&) noexcept = default;
+AprilTagDetector& AprilTagDetector::operator=(AprilTagDetector&&) noexcept = default;
+
+std::vector<TagDetection> AprilTagDetector::detect(const cv::Mat& gray) {
+  return impl_->run(gray, impl_->options.subpixel_refine);
+}
+
+std::vector<TagDetection> AprilTagDetector::detect_library_only(const cv::Mat& gray) {
+  return impl_->run(gray, false);
+}
+
+const AprilTagDetectorOptions& AprilTagDetector::options() const {
+  return impl_->options;
+}
+
+}  // namespace robocal::vision

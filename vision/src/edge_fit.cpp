@@ -1,0 +1,322 @@
+#include "robocal/vision/edge_fit.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+namespace robocal::vision {
+namespace {
+
+constexpr double kInvSqrt2 = 0.70710678118654752440;
+constexpr double kInvSqrt2Pi = 0.39894228040143267794;
+
+double normal_cdf(double z) {
+  return 0.5 * std::erfc(-z * kInvSqrt2);
+}
+double normal_pdf(double z) {
+  return kInvSqrt2Pi * std::exp(-0.5 * z * z);
+}
+
+// Parameters of the blurred-step model: angle of the normal, line offset, dark level, contrast,
+// log of the blur sigma (log keeps sigma positive without constraints).
+struct StepParams {
+  double theta = 0.0;
+  double offset = 0.0;
+  double dark = 0.0;
+  double contrast = 0.0;
+  double log_sigma = 0.0;
+};
+
+double model_cost(const std::vector<EdgeSample>& samples, const Eigen::Vector2d& origin,
+                  const StepParams& p) {
+  const Eigen::Vector2d n(std::cos(p.theta), std::sin(p.theta));
+  const double sigma = std::exp(p.log_sigma);
+  double cost = 0.0;
+  for (const auto& s : samples) {
+    const double z = (n.dot(s.position - origin) - p.offset) / sigma;
+    const double r = p.dark + p.contrast * normal_cdf(z) - s.value;
+    cost += r * r;
+  }
+  return cost;
+}
+
+// Dark level and contrast by linear least squares for a fixed line and blur.
+bool solve_levels(const std::vector<EdgeSample>& samples, const Eigen::Vector2d& origin,
+                  StepParams& p) {
+  const Eigen::Vector2d n(std::cos(p.theta), std::sin(p.theta));
+  const double sigma = std::exp(p.log_sigma);
+  Eigen::Matrix2d ata = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d atb = Eigen::Vector2d::Zero();
+  for (const auto& s : samples) {
+    const double f = normal_cdf((n.dot(s.position - origin) - p.offset) / sigma);
+    ata(0, 0) += 1.0;
+    ata(0, 1) += f;
+    ata(1, 1) += f * f;
+    atb(0) += s.value;
+    atb(1) += f * s.value;
+  }
+  ata(1, 0) = ata(0, 1);
+  if (std::abs(ata.determinant()) < 1e-9 * ata(0, 0) * ata(0, 0)) return false;
+  const Eigen::Vector2d x = ata.ldlt().solve(atb);
+  p.dark = x(0);
+  p.contrast = x(1);
+  return true;
+}
+
+}  // namespace
+
+std::optional<EdgeLineFit> fit_edge_line(const std::vector<EdgeSample>& samples,
+                                         const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  constexpr int kMinSamples = 12;
+  if (static_cast<int>(samples.size()) < kMinSamples) return std::nullopt;
+  const Eigen::Vector2d dir = b - a;
+  if (dir.norm() < 1e-6) return std::nullopt;
+
+  Eigen::Vector2d origin = Eigen::Vector2d::Zero();
+  for (const auto& s : samples) origin += s.position;
+  origin /= static_cast<double>(samples.size());
+
+  StepParams p;
+  const Eigen::Vector2d n0 = Eigen::Vector2d(-dir.y(), dir.x()).normalized();
+  p.theta = std::atan2(n0.y(), n0.x());
+  p.offset = n0.dot(a - origin);
+  p.log_sigma = 0.0;
+  if (!solve_levels(samples, origin, p)) return std::nullopt;
+
+  // Levenberg-Marquardt on the five parameters; the problem is small (a few hundred samples).
+  double cost = model_cost(samples, origin, p);
+  double lambda = 1e-3;
+  bool converged = false;
+  Eigen::Matrix<double, 5, 5> jtj;
+  double last_offset_step = 1.0;
+  for (int iter = 0; iter < 100; ++iter) {
+    const Eigen::Vector2d n(std::cos(p.theta), std::sin(p.theta));
+    const Eigen::Vector2d dn(-std::sin(p.theta), std::cos(p.theta));
+    const double sigma = std::exp(p.log_sigma);
+    jtj.setZero();
+    Eigen::Matrix<double, 5, 1> jtr = Eigen::Matrix<double, 5, 1>::Zero();
+    for (const auto& s : samples) {
+      const Eigen::Vector2d q = s.position - origin;
+      const double z = (n.dot(q) - p.offset) / sigma;
+      const double cdf = normal_cdf(z);
+      const double pdf = normal_pdf(z);
+      const double r = p.dark + p.contrast * cdf - s.value;
+      Eigen::Matrix<double, 5, 1> j;
+      j(0) = p.contrast * pdf * dn.dot(q) / sigma;
+      j(1) = -p.contrast * pdf / sigma;
+      j(2) = 1.0;
+      j(3) = cdf;
+      j(4) = -p.contrast * pdf * z;
+      jtj.selfadjointView<Eigen::Lower>().rankUpdate(j);
+      jtr += j * r;
+    }
+    jtj = jtj.selfadjointView<Eigen::Lower>();
+    bool stepped = false;
+    for (int attempt = 0; attempt < 10 && !stepped; ++attempt) {
+      Eigen::Matrix<double, 5, 5> damped = jtj;
+      for (int k = 0; k < 5; ++k) damped(k, k) += lambda * std::max(jtj(k, k), 1e-12);
+      const Eigen::Matrix<double, 5, 1> delta = damped.ldlt().solve(-jtr);
+      if (!delta.allFinite()) return std::nullopt;
+      StepParams trial = p;
+      trial.theta += delta(0);
+      trial.offset += delta(1);
+      trial.dark += delta(2);
+      trial.contrast += delta(3);
+      trial.log_sigma = std::clamp(p.log_sigma + delta(4), std::log(0.05), std::log(20.0));
+      const double trial_cost = model_cost(samples, origin, trial);
+      if (trial_cost <= cost) {
+        // 1e-5 px / 1e-7 rad steps are far below any accuracy that matters here.
+        const bool small = std::abs(delta(1)) < 1e-5 && std::abs(delta(0)) < 1e-7;
+        const bool flat = cost - trial_cost <= 1e-10 * std::max(cost, 1.0);
+        last_offset_step = std::abs(delta(1));
+        p = trial;
+        cost = trial_cost;
+        lambda = std::max(lambda / 4.0, 1e-9);
+        stepped = true;
+        if (small || flat) converged = true;
+      } else {
+        lambda *= 8.0;
+      }
+    }
+    if (!stepped) converged = true;  // no decrease possible: at a minimum to machine precision
+    if (converged) break;
+  }
+  if (!converged && last_offset_step > 1e-3) return std::nullopt;
+
+  EdgeLineFit fit;
+  fit.origin = origin;
+  fit.normal = Eigen::Vector2d(std::cos(p.theta), std::sin(p.theta));
+  fit.offset = p.offset;
+  fit.blur_sigma = std::exp(p.log_sigma);
+  fit.dark = p.dark;
+  fit.bright = p.dark + p.contrast;
+  fit.samples = static_cast<int>(samples.size());
+  const double dof = std::max(1.0, static_cast<double>(samples.size()) - 5.0);
+  fit.rms_residual = std::sqrt(cost / static_cast<double>(samples.size()));
+  const Eigen::Matrix<double, 5, 5> cov = jtj.inverse() * (cost / dof);
+  fit.offset_stddev = std::sqrt(std::max(0.0, cov(1, 1)));
+  if (p.contrast < 0.0) {  // orient the normal from dark to bright
+    fit.normal = -fit.normal;
+    fit.offset = -fit.offset;
+    std::swap(fit.dark, fit.bright);
+  }
+  const double contrast = fit.bright - fit.dark;
+  // Implausible fits: no real edge (contrast lost in noise) or a spread no lens produces.
+  if (!(contrast > 4.0 * fit.rms_residual) || contrast < 3.0 || fit.blur_sigma < 0.1 ||
+      fit.blur_sigma > 8.0 || !std::isfinite(fit.offset)) {
+    return std::nullopt;
+  }
+  fit.converged = true;
+  return fit;
+}
+
+std::optional<Eigen::Vector2d> intersect_lines(const EdgeLineFit& l1, const EdgeLineFit& l2) {
+  Eigen::Matrix2d a;
+  a.row(0) = l1.normal.transpose();
+  a.row(1) = l2.normal.transpose();
+  const double det = a.determinant();
+  if (std::abs(det) < 1e-3) return std::nullopt;  // within ~0.06 deg of parallel
+  const Eigen::Vector2d rhs(l1.normal.dot(l1.point()), l2.normal.dot(l2.point()));
+  return Eigen::Vector2d(a.inverse() * rhs);
+}
+
+namespace {
+
+// Pixels of an 8-bit image inside the band of edge i of a quad: within [-outer, inner] of the
+// edge (inner = towards the quad centre), between its end points, and at least `margin` px from
+// the lines of the two neighbouring edges (whose blur would distort the step profile).
+std::vector<EdgeSample> quad_edge_samples(const cv::Mat& gray,
+                                          const std::array<Eigen::Vector2d, 4>& c, int i,
+                                          double inner, double outer, double margin) {
+  const Eigen::Vector2d& p0 = c[static_cast<size_t>(i)];
+  const Eigen::Vector2d& p1 = c[static_cast<size_t>((i + 1) % 4)];
+  const Eigen::Vector2d centre = (c[0] + c[1] + c[2] + c[3]) / 4.0;
+  const double len = (p1 - p0).norm();
+  const Eigen::Vector2d u = (p1 - p0) / len;
+  Eigen::Vector2d n_in(-u.y(), u.x());
+  if (n_in.dot(centre - p0) < 0.0) n_in = -n_in;
+
+  auto line_distance = [&](int k, const Eigen::Vector2d& p) {
+    const Eigen::Vector2d& a = c[static_cast<size_t>((k + 4) % 4)];
+    const Eigen::Vector2d& b = c[static_cast<size_t>((k + 5) % 4)];
+    const Eigen::Vector2d d = (b - a).normalized();
+    const Eigen::Vector2d q = p - a;
+    return std::abs(d.x() * q.y() - d.y() * q.x());
+  };
+
+  const double reach = std::max(inner, outer);
+  const int x0 = std::max(0, static_cast<int>(std::floor(std::min(p0.x(), p1.x()) - reach)));
+  const int x1 =
+      std::min(gray.cols - 1, static_cast<int>(std::ceil(std::max(p0.x(), p1.x()) + reach)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(std::min(p0.y(), p1.y()) - reach)));
+  const int y1 =
+      std::min(gray.rows - 1, static_cast<int>(std::ceil(std::max(p0.y(), p1.y()) + reach)));
+  std::vector<EdgeSample> samples;
+  for (int y = y0; y <= y1; ++y) {
+    const auto* row = gray.ptr<unsigned char>(y);
+    for (int x = x0; x <= x1; ++x) {
+      const Eigen::Vector2d p(x, y);
+      const Eigen::Vector2d q = p - p0;
+      const double t = u.dot(q);
+      const double depth = n_in.dot(q);
+      if (t < 0.0 || t > len || depth > inner || depth < -outer) continue;
+      if (line_distance(i - 1, p) < margin || line_distance(i + 1, p) < margin) continue;
+      samples.push_back({p, static_cast<double>(row[x])});
+    }
+  }
+  return samples;
+}
+
+}  // namespace
+
+std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
+                                                  const std::array<Eigen::Vector2d, 4>& corners,
+                                                  const QuadRefineOptions& options) {
+  if (gray.empty() || gray.type() != CV_8UC1) return std::nullopt;
+  double side = 0.0;
+  for (int i = 0; i < 4; ++i) {
+    const double len =
+        (corners[static_cast<size_t>((i + 1) % 4)] - corners[static_cast<size_t>(i)]).norm();
+    if (len < 8.0) return std::nullopt;
+    side += len / 4.0;
+  }
+  const double inner_cell = options.inner_band_fraction * side;
+  const double outer_cell = options.outer_band_fraction * side;
+  // The step model needs a uniform border at least a few pixels deep on both sides; narrower
+  // borders put the data bits inside the fitted band and would pull the line.
+  if (std::min(inner_cell, outer_cell) < options.min_border_px) return std::nullopt;
+
+  // Two passes: the first, with a conservative band, measures the blur; the second widens the
+  // band as far as that blur allows without seeing the data bits or the neighbouring edges.
+  QuadRefinement result;
+  result.corners = corners;
+  double blur = options.max_blur_px;
+  for (int pass = 0; pass < 2; ++pass) {
+    // Pass 1 only needs the blur and a rough line: most of a cell, some contamination accepted.
+    // Pass 2 keeps 2.5 sigma (+ half a pixel) away from the data bits and neighbouring edges.
+    const double keep_off = pass == 0 ? std::max(2.0, 0.2 * side) : 0.5 + 2.5 * blur;
+    const double inner =
+        pass == 0 ? std::max(2.0, 0.8 * inner_cell) : std::max(2.0, inner_cell - keep_off);
+    const double outer =
+        pass == 0 ? std::max(2.0, 0.8 * outer_cell) : std::max(2.0, outer_cell - keep_off);
+    std::array<EdgeLineFit, 4> edges;
+    for (int i = 0; i < 4; ++i) {
+      const auto samples = quad_edge_samples(gray, result.corners, i, inner, outer, keep_off);
+      const auto fit = fit_edge_line(samples, result.corners[static_cast<size_t>(i)],
+                                     result.corners[static_cast<size_t>((i + 1) % 4)]);
+      if (!fit) return std::nullopt;
+      edges[static_cast<size_t>(i)] = *fit;
+    }
+    std::array<Eigen::Vector2d, 4> refined;
+    for (int i = 0; i < 4; ++i) {
+      const auto corner =
+          intersect_lines(edges[static_cast<size_t>((i + 3) % 4)], edges[static_cast<size_t>(i)]);
+      if (!corner) return std::nullopt;
+      if ((*corner - corners[static_cast<size_t>(i)]).norm() > options.max_shift_px) {
+        return std::nullopt;
+      }
+      refined[static_cast<size_t>(i)] = *corner;
+    }
+    result.corners = refined;
+    result.edges = edges;
+    double mean_blur = 0.0;
+    double contrast = 0.0;
+    for (const auto& e : edges) {
+      mean_blur += e.blur_sigma / 4.0;
+      contrast += (e.bright - e.dark) / 4.0;
+    }
+    result.mean_blur_sigma = mean_blur;
+    result.mean_contrast = contrast;
+    blur = std::clamp(mean_blur, 0.3, options.max_blur_px);
+  }
+  return result;
+}
+
+std::optional<EdgeLineFit> fit_edge_between(const cv::Mat& gray, const Eigen::Vector2d& a,
+                                            const Eigen::Vector2d& b, double half_width,
+                                            double end_margin) {
+  if (gray.empty() || gray.type() != CV_8UC1) return std::nullopt;
+  const double len = (b - a).norm();
+  if (len <= 2.0 * end_margin + 2.0) return std::nullopt;
+  const Eigen::Vector2d u = (b - a) / len;
+  const Eigen::Vector2d n(-u.y(), u.x());
+  const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - half_width)));
+  const int x1 =
+      std::min(gray.cols - 1, static_cast<int>(std::ceil(std::max(a.x(), b.x()) + half_width)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), b.y()) - half_width)));
+  const int y1 =
+      std::min(gray.rows - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + half_width)));
+  std::vector<EdgeSample> samples;
+  for (int y = y0; y <= y1; ++y) {
+    const auto* row = gray.ptr<unsigned char>(y);
+    for (int x = x0; x <= x1; ++x) {
+      const Eigen::Vector2d q = Eigen::Vector2d(x, y) - a;
+      const double t = u.dot(q);
+      if (t < end_margin || t > len - end_margin || std::abs(n.dot(q)) > half_width) continue;
+      samples.push_back({Eigen::Vector2d(x, y), static_cast<double>(row[x])});
+    }
+  }
+  return fit_edge_line(samples, a, b);
+}
+
+}  // namespace robocal::vision
