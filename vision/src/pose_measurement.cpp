@@ -1,0 +1,515 @@
+#include "robocal/vision/pose_measurement.hpp"
+
+#include "rig_internal.hpp"
+
+#include <ceres/ceres.h>
+#include <fmt/format.h>
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+
+namespace robocal::vision {
+
+namespace {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+// One observed corner with everything the residual needs.
+struct Corner {
+  int camera = 0;
+  Eigen::Vector3d board_point;
+  Eigen::Vector2d pixel;
+  double sigma = 0.1;
+};
+
+// Whitened reprojection residual of one corner. Parameters: the target pose perturbation
+// [d_theta; d_t] around (R0, t0) in the world frame, and the camera pose perturbation (held
+// constant in the fit; used for the extrinsic-uncertainty Jacobian).
+template <class Model>
+struct TargetCornerResidual {
+  std::array<double, 12> intrinsics{};
+  Eigen::Matrix3d camera_R_world;
+  Eigen::Vector3d camera_t_world;
+  Eigen::Vector3d rotated_point;  // R0 * board point
+  Eigen::Vector3d t0;
+  Eigen::Vector2d pixel;
+  double inv_sigma = 1.0;
+
+  template <class T>
+  bool operator()(const T* d_target, const T* d_camera, T* residual) const {
+    const T a[3] = {T(rotated_point[0]), T(rotated_point[1]), T(rotated_point[2])};
+    T w[3];
+    detail::rotate(d_target, a, w);
+    for (int i = 0; i < 3; ++i) w[i] += T(t0[i]) + d_target[3 + i];
+    T b[3];
+    for (int i = 0; i < 3; ++i)
+      b[i] = T(camera_R_world(i, 0)) * w[0] + T(camera_R_world(i, 1)) * w[1] +
+             T(camera_R_world(i, 2)) * w[2];
+    T c[3];
+    detail::rotate(d_camera, b, c);
+    for (int i = 0; i < 3; ++i) c[i] += T(camera_t_world[i]) + d_camera[3 + i];
+    T intr[Model::kNumParams];
+    for (int i = 0; i < Model::kNumParams; ++i) intr[i] = T(intrinsics[static_cast<size_t>(i)]);
+    T px[2];
+    if (!Model::project(intr, c, px)) return false;
+    residual[0] = (px[0] - T(pixel[0])) * T(inv_sigma);
+    residual[1] = (px[1] - T(pixel[1])) * T(inv_sigma);
+    return true;
+  }
+};
+
+// The same with the camera held exactly: the fit differentiates 6 parameters, not 12.
+template <class Model>
+struct TargetOnlyResidual {
+  TargetCornerResidual<Model> full;
+  template <class T>
+  bool operator()(const T* d_target, T* residual) const {
+    const T zero[6] = {T(0), T(0), T(0), T(0), T(0), T(0)};
+    return full(d_target, zero, residual);
+  }
+};
+
+std::unique_ptr<ceres::CostFunction> make_cost(const RigCamera& cam, const Corner& corner,
+                                               const Eigen::Isometry3d& world_T_target,
+                                               bool target_only = false) {
+  return visit_camera_kind(cam.model.kind, [&](auto model) -> std::unique_ptr<ceres::CostFunction> {
+    using M = decltype(model);
+    auto* f = new TargetCornerResidual<M>();
+    for (int i = 0; i < M::kNumParams && i < static_cast<int>(cam.model.params.size()); ++i)
+      f->intrinsics[static_cast<size_t>(i)] = cam.model.params[static_cast<size_t>(i)];
+    f->camera_R_world = cam.camera_T_world.linear();
+    f->camera_t_world = cam.camera_T_world.translation();
+    f->rotated_point = world_T_target.linear() * corner.board_point;
+    f->t0 = world_T_target.translation();
+    f->pixel = corner.pixel;
+    f->inv_sigma = 1.0 / corner.sigma;
+    if (target_only) {
+      auto* g = new TargetOnlyResidual<M>{*f};
+      delete f;
+      return std::make_unique<ceres::AutoDiffCostFunction<TargetOnlyResidual<M>, 2, 6>>(g);
+    }
+    return std::make_unique<ceres::AutoDiffCostFunction<TargetCornerResidual<M>, 2, 6, 6>>(f);
+  });
+}
+
+Eigen::Isometry3d apply_delta(const Eigen::Isometry3d& pose, const double* d) {
+  Eigen::Isometry3d out = pose;
+  out.linear() = detail::exp_so3(Eigen::Vector3d(d[0], d[1], d[2])) * pose.linear();
+  out.translation() = pose.translation() + Eigen::Vector3d(d[3], d[4], d[5]);
+  return out;
+}
+
+struct FitResult {
+  bool converged = false;
+  Eigen::Isometry3d world_T_target = Eigen::Isometry3d::Identity();
+  double chi2 = std::numeric_limits<double>::infinity();
+};
+
+// Levenberg-Marquardt over the 6 pose perturbation parameters (the covariance is evaluated
+// afterwards by linearise(), re-centred at the solution).
+FitResult refine(const std::vector<RigCamera>& rig, const std::vector<Corner>& corners,
+                 const Eigen::Isometry3d& start) {
+  FitResult out;
+  out.world_T_target = start;
+  {
+    double d_target[6] = {0, 0, 0, 0, 0, 0};
+    ceres::Problem problem;
+    problem.AddParameterBlock(d_target, 6);
+    for (const Corner& c : corners)
+      problem.AddResidualBlock(
+          make_cost(rig[static_cast<size_t>(c.camera)], c, out.world_T_target, true).release(),
+          nullptr, d_target);
+    ceres::Solver::Options sopts;
+    sopts.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+    sopts.max_num_iterations = 100;
+    sopts.function_tolerance = 1e-12;
+    sopts.gradient_tolerance = 1e-12;
+    sopts.parameter_tolerance = 1e-12;
+    sopts.logging_type = ceres::SILENT;
+    sopts.num_threads = 1;
+    ceres::Solver::Summary summary;
+    ceres::Solve(sopts, &problem, &summary);
+    if (!summary.IsSolutionUsable()) return out;
+    out.world_T_target = apply_delta(out.world_T_target, d_target);
+    out.chi2 = 2.0 * summary.final_cost;
+    out.converged = summary.termination_type == ceres::CONVERGENCE ||
+                    summary.termination_type == ceres::NO_CONVERGENCE;
+  }
+  return out;
+}
+
+struct Linearisation {
+  Matrix6d information = Matrix6d::Zero();  // J^T J over the target perturbation
+  std::vector<Matrix6d> cross;              // per camera: J_target^T J_camera
+  std::vector<double> sq_px;                // per camera: sum of squared pixel residuals
+  std::vector<int> count;
+  double chi2 = 0.0;
+  bool ok = true;
+};
+
+Linearisation linearise(const std::vector<RigCamera>& rig, const std::vector<Corner>& corners,
+                        const Eigen::Isometry3d& pose) {
+  Linearisation lin;
+  lin.cross.assign(rig.size(), Matrix6d::Zero());
+  lin.sq_px.assign(rig.size(), 0.0);
+  lin.count.assign(rig.size(), 0);
+  const double zeros[6] = {0, 0, 0, 0, 0, 0};
+  const double* params[2] = {zeros, zeros};
+  for (const Corner& c : corners) {
+    const auto cost = make_cost(rig[static_cast<size_t>(c.camera)], c, pose);
+    double r[2];
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> jt, jc;
+    double* jac[2] = {jt.data(), jc.data()};
+    if (!cost->Evaluate(params, r, jac)) {
+      lin.ok = false;
+      continue;
+    }
+    lin.information += jt.transpose() * jt;
+    lin.cross[static_cast<size_t>(c.camera)] += jt.transpose() * jc;
+    const double rr = r[0] * r[0] + r[1] * r[1];
+    lin.chi2 += rr;
+    lin.sq_px[static_cast<size_t>(c.camera)] += rr * c.sigma * c.sigma;
+    lin.count[static_cast<size_t>(c.camera)] += 1;
+  }
+  return lin;
+}
+
+std::vector<Corner> gather(const std::vector<RigCamera>& rig, const BoardPoints& board,
+                           const std::vector<const std::vector<CameraFrame>*>& frames,
+                           double default_sigma) {
+  std::vector<Corner> out;
+  for (const auto* frame : frames) {
+    for (size_t c = 0; c < rig.size(); ++c) {
+      for (const CornerObservation& obs : (*frame)[c].corners) {
+        const auto it = board.find(obs.id);
+        if (it == board.end() || !obs.pixel.allFinite()) continue;
+        out.push_back({static_cast<int>(c), it->second, obs.pixel,
+                       detail::sigma_or(obs.sigma_px, default_sigma)});
+      }
+    }
+  }
+  return out;
+}
+
+void check_sizes(const std::vector<RigCamera>& rig, const std::vector<CameraFrame>& frame) {
+  if (frame.size() != rig.size())
+    throw std::invalid_argument(
+        fmt::format("pose measurement: {} camera frames given for a rig of {} cameras",
+                    frame.size(), rig.size()));
+}
+
+// Fills covariance, diagnostics and flags for a converged pose.
+void finish(const std::vector<RigCamera>& rig, const std::vector<Corner>& corners,
+            const std::vector<const std::vector<CameraFrame>*>& frames,
+            const PoseMeasurementOptions& options, PoseMeasurement& m) {
+  const Linearisation lin = linearise(rig, corners, m.world_T_target);
+  m.corners = static_cast<int>(corners.size());
+  m.dof = 2 * m.corners - 6;
+  m.chi2 = lin.chi2;
+  double sq = 0.0;
+  for (double s : lin.sq_px) sq += s;
+  m.rms_px = m.corners > 0 ? std::sqrt(sq / (2.0 * m.corners)) : 0.0;
+  const Eigen::FullPivLU<Matrix6d> lu(lin.information);
+  if (!lu.isInvertible()) {
+    m.status = PoseStatus::kFailed;
+    m.message = "the corners do not determine the pose (singular information matrix)";
+    return;
+  }
+  const Matrix6d cov = lu.inverse();
+  m.covariance_corner_noise = 0.5 * (cov + cov.transpose());
+  m.covariance = m.covariance_corner_noise;
+  if (options.include_extrinsic_covariance) {
+    for (size_t c = 0; c < rig.size(); ++c) {
+      if (lin.count[c] == 0 || rig[c].extrinsic_covariance.isZero(0.0)) continue;
+      const Matrix6d A = -cov * lin.cross[c];
+      m.covariance += A * rig[c].extrinsic_covariance * A.transpose();
+    }
+    m.covariance = 0.5 * (m.covariance + m.covariance.transpose());
+  }
+  m.cameras.clear();
+  for (size_t c = 0; c < rig.size(); ++c) {
+    CameraPoseDiagnostics d;
+    d.camera = static_cast<int>(c);
+    d.corners = lin.count[c];
+    d.rms_px = lin.count[c] > 0 ? std::sqrt(lin.sq_px[c] / (2.0 * lin.count[c])) : 0.0;
+    for (const auto* frame : frames) {
+      const CameraFrame& f = (*frame)[c];
+      if (!f.corners.empty() && std::isfinite(f.blur_px) && f.blur_px > options.max_blur_px)
+        d.blurred = true;
+    }
+    m.blurred = m.blurred || d.blurred;
+    m.cameras.push_back(d);
+  }
+  m.few_corners = m.corners < options.min_corners;
+  m.status = PoseStatus::kOk;
+}
+
+double rotation_angle_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * 180.0 / M_PI;
+}
+
+bool distinct(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() > 0.5 * M_PI / 180.0 ||
+         (a.translation() - b.translation()).norm() > 1e-3 * std::max(1e-3, a.translation().norm());
+}
+
+PoseMeasurement measure_frames(const std::vector<RigCamera>& rig, const BoardPoints& board,
+                               const std::vector<const std::vector<CameraFrame>*>& frames,
+                               const Eigen::Isometry3d* guess,
+                               const PoseMeasurementOptions& options) {
+  PoseMeasurement m;
+  m.frames_used = static_cast<int>(frames.size());
+  const std::vector<Corner> corners = gather(rig, board, frames, options.default_sigma_px);
+  if (corners.empty()) {
+    m.status = PoseStatus::kNotSeen;
+    m.message = "no camera saw a corner of the target";
+    return m;
+  }
+  // Per-camera IPPE (first frame), for both the initial guesses and the per-camera diagnostics.
+  std::vector<Eigen::Isometry3d> candidates;
+  std::vector<double> ippe_ratio(rig.size(), std::numeric_limits<double>::infinity());
+  const std::vector<CameraFrame>& first = *frames.front();
+  for (size_t c = 0; c < rig.size(); ++c) {
+    const auto sols = detail::planar_pnp_ippe(rig[c].model, board, first[c]);
+    if (sols.size() >= 2 && sols[0].rms_px > 0.0) ippe_ratio[c] = sols[1].rms_px / sols[0].rms_px;
+    if (guess) continue;
+    for (const auto& s : sols)
+      candidates.push_back(rig[c].camera_T_world.inverse() * s.camera_T_board);
+  }
+  if (guess) candidates.push_back(*guess);
+  if (candidates.empty()) {
+    m.status = PoseStatus::kTooFewCorners;
+    m.message = fmt::format(
+        "{} corners in all cameras together, but no camera has the 4 needed "
+        "for an initial pose",
+        corners.size());
+    m.corners = static_cast<int>(corners.size());
+    m.few_corners = true;
+    return m;
+  }
+  // Refine every distinct candidate jointly over all cameras; keep the distinct minima.
+  std::vector<FitResult> minima;
+  for (const Eigen::Isometry3d& start : candidates) {
+    bool seen = false;
+    for (const FitResult& r : minima)
+      if (!distinct(r.world_T_target, start)) seen = true;
+    if (seen) continue;
+    FitResult r = refine(rig, corners, start);
+    if (!r.converged || !std::isfinite(r.chi2)) continue;
+    bool dup = false;
+    for (FitResult& q : minima) {
+      if (!distinct(q.world_T_target, r.world_T_target)) {
+        dup = true;
+        if (r.chi2 < q.chi2) q = r;
+      }
+    }
+    if (!dup) minima.push_back(r);
+  }
+  if (minima.empty()) {
+    m.status = PoseStatus::kFailed;
+    m.message = "the joint pose refinement did not converge from any IPPE solution";
+    return m;
+  }
+  std::sort(minima.begin(), minima.end(),
+            [](const FitResult& a, const FitResult& b) { return a.chi2 < b.chi2; });
+  m.world_T_target = minima[0].world_T_target;
+  finish(rig, corners, frames, options, m);
+  if (m.status == PoseStatus::kOk) {
+    // The runner-up: the cheapest other local minimum that lies well outside the best pose's
+    // own noise ellipsoid (a broad single basin is expressed by the covariance; a second
+    // branch is an ambiguity).
+    std::vector<FitResult> others(minima.begin() + 1, minima.end());
+    const Eigen::LDLT<Matrix6d> ldlt(m.covariance_corner_noise);
+    for (const FitResult& o : others) {
+      if (!std::isfinite(o.chi2) || o.chi2 >= m.alternative_chi2) continue;
+      Vector6d e;
+      e.head<3>() =
+          detail::log_so3(o.world_T_target.linear() * m.world_T_target.linear().transpose());
+      e.tail<3>() = o.world_T_target.translation() - m.world_T_target.translation();
+      if (e.dot(ldlt.solve(e)) < options.ambiguity_min_separation_chi2) continue;
+      m.alternative_chi2 = o.chi2;
+      m.world_T_target_alternative = o.world_T_target;
+    }
+    const double best = m.chi2;
+    m.ambiguous = m.alternative_chi2 < options.ambiguity_cost_ratio * best ||
+                  m.alternative_chi2 < best + options.ambiguity_min_delta_chi2;
+  }
+  for (auto& d : m.cameras) d.ippe_rms_ratio = ippe_ratio[static_cast<size_t>(d.camera)];
+  if (m.status == PoseStatus::kOk) {
+    std::vector<std::string> why;
+    if (m.ambiguous)
+      why.push_back(
+          fmt::format("ambiguous: a second pose explains the corners nearly as well "
+                      "(chi2 {:.1f} vs {:.1f}, {:.2f} deg apart)",
+                      m.alternative_chi2, m.chi2,
+                      rotation_angle_deg(m.world_T_target, m.world_T_target_alternative)));
+    if (m.few_corners)
+      why.push_back(fmt::format("few corners ({} < {})", m.corners, options.min_corners));
+    if (m.blurred) why.push_back("blurred image in at least one camera");
+    m.message = fmt::format("{}", fmt::join(why, "; "));
+  }
+  return m;
+}
+
+}  // namespace
+
+const char* pose_status_name(PoseStatus status) {
+  switch (status) {
+    case PoseStatus::kOk:
+      return "ok";
+    case PoseStatus::kNotSeen:
+      return "not_seen";
+    case PoseStatus::kTooFewCorners:
+      return "too_few_corners";
+    case PoseStatus::kMoving:
+      return "moving";
+    case PoseStatus::kFailed:
+    default:
+      return "failed";
+  }
+}
+
+PoseMeasurement measure_target_pose(const std::vector<RigCamera>& rig, const BoardPoints& board,
+                                    const std::vector<CameraFrame>& frame,
+                                    const PoseMeasurementOptions& options) {
+  check_sizes(rig, frame);
+  return measure_frames(rig, board, {&frame}, nullptr, options);
+}
+
+PoseMeasurement refine_target_pose(const std::vector<RigCamera>& rig, const BoardPoints& board,
+                                   const std::vector<CameraFrame>& frame,
+                                   const Eigen::Isometry3d& world_T_target_guess,
+                                   const PoseMeasurementOptions& options) {
+  check_sizes(rig, frame);
+  return measure_frames(rig, board, {&frame}, &world_T_target_guess, options);
+}
+
+MotionCheck check_target_still(const PoseMeasurement& a, const PoseMeasurement& b,
+                               double false_alarm) {
+  MotionCheck out;
+  Vector6d d;
+  d.head<3>() = detail::log_so3(b.world_T_target.linear() * a.world_T_target.linear().transpose());
+  d.tail<3>() = b.world_T_target.translation() - a.world_T_target.translation();
+  out.rotation_rad = d.head<3>().norm();
+  out.translation_m = d.tail<3>().norm();
+  const Matrix6d S = a.covariance_corner_noise + b.covariance_corner_noise;
+  const Eigen::LDLT<Matrix6d> ldlt(S);
+  if (ldlt.info() != Eigen::Success || !(S.trace() > 0.0)) {
+    out.chi2 = std::numeric_limits<double>::infinity();
+  } else {
+    out.chi2 = d.dot(ldlt.solve(d));
+  }
+  out.p_value = chi2_survival(out.chi2, 6);
+  out.moving = out.p_value < false_alarm;
+  return out;
+}
+
+PoseMeasurement measure_settled_pose(const std::vector<RigCamera>& rig, const BoardPoints& board,
+                                     const std::vector<std::vector<CameraFrame>>& frames,
+                                     const PoseMeasurementOptions& options) {
+  if (frames.empty()) {
+    PoseMeasurement m;
+    m.status = PoseStatus::kNotSeen;
+    m.message = "no frames";
+    return m;
+  }
+  for (const auto& f : frames) check_sizes(rig, f);
+  PoseMeasurement first = measure_target_pose(rig, board, frames[0], options);
+  if (frames.size() == 1 || first.status != PoseStatus::kOk) return first;
+  double worst = 0.0;
+  size_t worst_frame = 0;
+  MotionCheck worst_check;
+  for (size_t f = 1; f < frames.size(); ++f) {
+    const PoseMeasurement other =
+        refine_target_pose(rig, board, frames[f], first.world_T_target, options);
+    if (other.status != PoseStatus::kOk) {
+      first.status = other.status;
+      first.message = fmt::format("frame {}: {}", f, other.message);
+      return first;
+    }
+    const MotionCheck check = check_target_still(first, other, options.motion_false_alarm);
+    if (check.chi2 > worst) {
+      worst = check.chi2;
+      worst_frame = f;
+      worst_check = check;
+    }
+  }
+  first.motion_chi2 = worst;
+  if (worst_check.moving) {
+    first.status = PoseStatus::kMoving;
+    first.moving = true;
+    first.message = fmt::format(
+        "target moved between frame 0 and frame {}: {:.1f} um, {:.4f} deg (chi2 {:.1f} on 6 dof, "
+        "p = {:.2g})",
+        worst_frame, worst_check.translation_m * 1e6, worst_check.rotation_rad * 180.0 / M_PI,
+        worst_check.chi2, worst_check.p_value);
+    return first;
+  }
+  std::vector<const std::vector<CameraFrame>*> all;
+  for (const auto& f : frames) all.push_back(&f);
+  PoseMeasurement joint = measure_frames(rig, board, all, &first.world_T_target, options);
+  joint.motion_chi2 = worst;
+  // The branch ambiguity was judged on frame 0 with IPPE; keep that verdict.
+  joint.ambiguous = first.ambiguous;
+  joint.alternative_chi2 = first.alternative_chi2;
+  joint.world_T_target_alternative = first.world_T_target_alternative;
+  return joint;
+}
+
+double chi2_survival(double x, int dof) {
+  if (!(x > 0.0)) return 1.0;
+  if (!std::isfinite(x)) return 0.0;
+  // Regularised upper incomplete gamma Q(a, x/2), a = dof/2 (series / continued fraction).
+  const double a = 0.5 * dof;
+  const double z = 0.5 * x;
+  const double log_prefactor = -z + a * std::log(z) - std::lgamma(a);
+  if (z < a + 1.0) {
+    double sum = 1.0 / a;
+    double term = sum;
+    for (int n = 1; n < 1000; ++n) {
+      term *= z / (a + n);
+      sum += term;
+      if (std::abs(term) < std::abs(sum) * 1e-15) break;
+    }
+    return std::clamp(1.0 - std::exp(log_prefactor) * sum, 0.0, 1.0);
+  }
+  // Lentz's continued fraction.
+  const double tiny = 1e-300;
+  double b = z + 1.0 - a;
+  double c = 1.0 / tiny;
+  double d = 1.0 / b;
+  double h = d;
+  for (int i = 1; i < 1000; ++i) {
+    const double an = -i * (i - a);
+    b += 2.0;
+    d = an * d + b;
+    if (std::abs(d) < tiny) d = tiny;
+    c = b + an / c;
+    if (std::abs(c) < tiny) c = tiny;
+    d = 1.0 / d;
+    const double delta = d * c;
+    h *= delta;
+    if (std::abs(delta - 1.0) < 1e-15) break;
+  }
+  return std::clamp(std::exp(log_prefactor) * h, 0.0, 1.0);
+}
+
+double chi2_quantile_upper(double p, int dof) {
+  double lo = 0.0;
+  double hi = std::max(10.0, 10.0 * dof);
+  while (chi2_survival(hi, dof) > p) hi *= 2.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    if (chi2_survival(mid, dof) > p)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace robocal::vision
