@@ -198,9 +198,14 @@ IdentifiabilityReport analyze_identifiability(const Eigen::MatrixXd& J,
     report.messages.push_back(fmt::format(
         "underdetermined: only {} measurement equations for {} candidate parameters; add poses",
         report.rows, p));
-  for (std::size_t j : report.no_effect)
+  if (!report.no_effect.empty()) {
+    std::string list;
+    for (std::size_t j : report.no_effect) list += (list.empty() ? "" : ", ") + names[j];
     report.messages.push_back(fmt::format(
-        "{} has no effect on any measurement with this data; held at nominal", names[j]));
+        "{} parameter(s) have no effect on any measurement with this data and are held at "
+        "nominal: {}",
+        report.no_effect.size(), list));
+  }
   for (const auto& red : report.redundancies) report.messages.push_back(red.explanation);
   for (const auto& dir : report.ill_conditioned) report.messages.push_back(dir.explanation);
   return report;

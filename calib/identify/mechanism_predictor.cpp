@@ -1,5 +1,6 @@
 #include "robocal/calib/mechanism_predictor.hpp"
 
+#include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/kinematics.hpp"
 
 #include <fmt/core.h>
@@ -35,23 +36,41 @@ bool MechanismPredictor::predict(const Eigen::VectorXd& params, const Eigen::Vec
     why = "non-finite parameters or readings";
     return false;
   }
+  // Seed: this pose's solution at the NOMINAL parameters (cold start from the closed form, cached
+  // per slot). Seeding every parameter vector from the same nominal solution makes the prediction
+  // a deterministic function of the parameters on one assembly branch: warm-starting from the
+  // previous trial point instead lets a large trial step hop to a neighbouring branch (the plate
+  // ball joint modelled as three revolutes has two nearby branches once its offsets are nonzero),
+  // which the identification then cannot undo.
+  Eigen::VectorXd seed;
+  if (slot >= 0 && static_cast<std::size_t>(slot) < seeds_.size() &&
+      seeds_[static_cast<std::size_t>(slot)].size() > 0 &&
+      seed_readings_[static_cast<std::size_t>(slot)] == actuators) {
+    seed = seeds_[static_cast<std::size_t>(slot)];
+  } else {
+    if (!nominal_solver_) nominal_solver_.emplace(model_, model_.nominal_parameters(), options_);
+    const ClosureResult nominal = nominal_solver_->solve(actuators);
+    if (nominal.ok()) seed = nominal.passive;
+    if (slot >= 0) {
+      const auto s = static_cast<std::size_t>(slot);
+      if (s >= seeds_.size()) {
+        seeds_.resize(s + 1);
+        seed_readings_.resize(s + 1);
+      }
+      seeds_[s] = seed;
+      seed_readings_[s] = actuators;
+    }
+  }
   if (!solver_ || solver_params_.size() != params.size() || solver_params_ != params) {
     solver_.emplace(model_, params, options_);
     solver_params_ = params;
   }
-  Eigen::VectorXd seed;
-  if (slot >= 0 && static_cast<std::size_t>(slot) < seeds_.size()) seed = seeds_[slot];
   ClosureResult closure = solver_->solve(actuators, seed);
   if (!closure.ok() && seed.size() > 0) closure = solver_->solve(actuators);  // cold restart
   if (!closure.ok()) {
     why = fmt::format("closure {} (residual {:.3g} after {} iterations)", to_string(closure.status),
                       closure.residual, closure.iterations);
     return false;
-  }
-  if (slot >= 0) {
-    if (static_cast<std::size_t>(slot) >= seeds_.size())
-      seeds_.resize(static_cast<std::size_t>(slot) + 1);
-    seeds_[static_cast<std::size_t>(slot)] = closure.passive;
   }
   const JointState state = make_joint_state(model_, params, actuators, closure.passive);
   out.pose = frame_pose(model_, params, state, frame_);
@@ -74,30 +93,95 @@ SolveOptions solve_options_from_model(const Mechanism& model, bool use_priors) {
     const Parameter& prm = model.parameters[i];
     if (prm.free) opt.candidates.push_back(i);
     if (use_priors && prm.free) opt.prior_sigma[i] = prm.sigma;
-    int pref = 0;
-    switch (prm.group) {
-      case ParamGroup::kJointGeometry:
-      case ParamGroup::kRodLength:
+    // Base frame first: world <-> robot is always a real unknown and the natural carrier of a
+    // combination it shares with the geometry or the tool.
+    int pref = 1;
+    if (prm.group == ParamGroup::kFrame && prm.body >= 0) {
+      const auto body = static_cast<std::size_t>(prm.body);
+      if (tool_chain[body])
+        pref = 3;
+      else if (model.bodies[body].parent < 0)
         pref = 0;
-        break;
-      case ParamGroup::kEncoderOffset:
-      case ParamGroup::kEncoderScale:
-        pref = 1;
-        break;
-      case ParamGroup::kFrame: {
-        const auto body = static_cast<std::size_t>(prm.body);
-        if (prm.body >= 0 && tool_chain[body])
-          pref = 3;
-        else if (prm.body >= 0 && model.bodies[body].parent < 0)
-          pref = 2;
-        else
-          pref = 1;
-        break;
-      }
+      else
+        pref = 2;
     }
-    opt.preference[i] = pref;
+    // Within a class, lengths before angles: a cut or attachment point is then carried by its
+    // translations, which represent any displaced point exactly (angles only to first order).
+    opt.preference[i] = 2 * pref + (prm.unit == ParamUnit::kAngle ? 1 : 0);
   }
   return opt;
+}
+
+}  // namespace robocal::calib
+
+namespace robocal::calib {
+
+Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, double angle_sigma,
+                                 double scale_sigma, bool include_fixed) {
+  Eigen::VectorXd s = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.parameters.size()));
+  for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+    const Parameter& p = model.parameters[i];
+    if (!p.free && !include_fixed) continue;
+    switch (p.unit) {
+      case ParamUnit::kLength:
+        s(static_cast<Eigen::Index>(i)) = length_sigma;
+        break;
+      case ParamUnit::kAngle:
+        s(static_cast<Eigen::Index>(i)) = angle_sigma;
+        break;
+      case ParamUnit::kScale:
+        s(static_cast<Eigen::Index>(i)) = scale_sigma;
+        break;
+    }
+  }
+  return s;
+}
+
+std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predictor,
+                                              const std::vector<Eigen::VectorXd>& must_solve,
+                                              std::size_t count, std::mt19937& rng,
+                                              double min_relative_sigma) {
+  const Mechanism& m = predictor.model();
+  const auto A = static_cast<Eigen::Index>(m.actuated.size());
+  Eigen::VectorXd lo(A);
+  Eigen::VectorXd hi(A);
+  for (Eigen::Index i = 0; i < A; ++i) {
+    const Body& b = m.bodies[static_cast<std::size_t>(m.actuated[static_cast<std::size_t>(i)])];
+    lo(i) = b.limits.lower > -1e299 ? b.limits.lower : -1.0;
+    hi(i) = b.limits.upper < 1e299 ? b.limits.upper : 1.0;
+  }
+  const Eigen::VectorXd nominal = m.nominal_parameters();
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Eigen::VectorXd> out;
+  for (std::size_t tries = 0; out.size() < count && tries < 100 * count; ++tries) {
+    Eigen::VectorXd q(A);
+    for (Eigen::Index i = 0; i < A; ++i) q(i) = lo(i) + (hi(i) - lo(i)) * u(rng);
+    // Limits are joint values; readings follow from the nominal encoder model.
+    const Eigen::VectorXd readings = readings_from_joint_values(m, nominal, q);
+    bool ok = true;
+    for (const auto& params : must_solve) {
+      FramePrediction pred;
+      std::string why;
+      ok = ok && predictor.predict(params, readings, -1, false, pred, why);
+      if (!ok) break;
+      ClosureOptions diag;
+      diag.diagnose = true;
+      const ClosureResult c = solve_closure(m, params, readings, {}, diag);
+      ok = c.ok() && (c.unknowns == 0 ||
+                      (c.rank == c.unknowns && c.sigma_min >= min_relative_sigma * c.sigma_max));
+    }
+    // Where the robot has a closed form, the nominal tree solution must be the intended
+    // assembly mode (the exact construction agrees with it to machine precision).
+    if (ok && m.closed_form.kind != ClosedFormKind::kNone) {
+      const auto cf = closed_form_forward(m.closed_form, q);
+      FramePrediction pred;
+      std::string why;
+      ok = cf.has_value() && predictor.predict(nominal, readings, -1, false, pred, why) &&
+           (pred.pose.translation() - *cf).norm() < 1e-6;
+    }
+    if (ok) out.push_back(readings);
+  }
+  return out;
 }
 
 }  // namespace robocal::calib

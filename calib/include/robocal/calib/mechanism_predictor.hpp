@@ -1,9 +1,10 @@
 #pragma once
 // Adapter from the closed-loop mechanism model (mechanism.hpp, closure.hpp, kinematics.hpp) to the
-// identification engine's FramePredictor: closure solved per pose (warm-started from that pose's
-// previous solution), frame pose and its exact parameter Jacobian by the implicit-function
-// theorem (parameter_jacobian). Plus the defaults identification takes from a robot file: which
-// parameters are free, their prior tolerances, and which of a confounded group to keep.
+// identification engine's FramePredictor: closure solved per pose (seeded from that pose's
+// solution at the nominal parameters), frame pose and its exact parameter Jacobian by the
+// implicit-function theorem (parameter_jacobian). Plus the defaults identification takes from a
+// robot file: which parameters are free, their prior tolerances, and which of a confounded group to
+// keep.
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/mechanism.hpp"
@@ -31,17 +32,40 @@ class MechanismPredictor final : public FramePredictor {
   const Mechanism& model_;
   int frame_;
   ClosureOptions options_;
-  // Caches (single-threaded use): the closure solver for the last parameter vector, and the last
-  // passive solution per pose slot (warm start keeps each pose on its assembly mode).
+  // Caches (single-threaded use): the closure solver for the last parameter vector, one for the
+  // nominal parameters, and each pose slot's nominal solution (the seed for every parameter
+  // vector, see predict()).
   mutable std::optional<ClosureSolver> solver_;
   mutable Eigen::VectorXd solver_params_;
+  mutable std::optional<ClosureSolver> nominal_solver_;
   mutable std::vector<Eigen::VectorXd> seeds_;
+  mutable std::vector<Eigen::VectorXd> seed_readings_;
 };
 
 // Candidates = the robot file's free parameters; prior_sigma = their tolerances when
-// `use_priors`; preference: joint geometry and rod lengths first, then encoder parameters and
-// attachment/cut frames, then the base frame (bodies hanging from the world), then the tool
-// frame — so a tool offset confounded with the base translation is the one held fixed.
+// `use_priors`; preference: the base frame (bodies hanging from the world) first, then joint
+// geometry, rod lengths and encoder parameters, then attachment/cut frames, then the tool frame —
+// so a tool offset confounded with the base translation is the one held fixed and explained.
 SolveOptions solve_options_from_model(const Mechanism& model, bool use_priors);
+
+}  // namespace robocal::calib
+
+namespace robocal::calib {
+
+// Realistic-tolerance perturbation sigmas per parameter: `length_sigma` for lengths,
+// `angle_sigma` for angles, `scale_sigma` for encoder scales; parameters the robot file fixes are
+// not perturbed unless `include_fixed`.
+Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, double angle_sigma,
+                                 double scale_sigma = 0.0, bool include_fixed = false);
+
+// `count` actuator reading vectors drawn uniformly within the actuated joints' limits (±1 joint
+// unit where a limit is open) that every model in `must_solve` can assemble, away from
+// singularities: closure converged and σ_min/σ_max of the constraint Jacobian ≥
+// `min_relative_sigma` (0.01 keeps the Delta's plate clear of its stretched-arm and
+// parallel-rod singularities). Gives up after 100·count draws and returns what it has.
+std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predictor,
+                                              const std::vector<Eigen::VectorXd>& must_solve,
+                                              std::size_t count, std::mt19937& rng,
+                                              double min_relative_sigma = 0.01);
 
 }  // namespace robocal::calib
