@@ -16,14 +16,12 @@ CommandSpec kin_command();
 CommandSpec target_command();
 CommandSpec render_command();
 CommandSpec intrinsics_command();
+CommandSpec demo_command();
 
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
-      version_command(),
-      kin_command(),
-      target_command(),
-      render_command(),
-      intrinsics_command(),
+      demo_command(),   version_command(), kin_command(),
+      target_command(), render_command(),  intrinsics_command(),
   };
   return commands;
 }

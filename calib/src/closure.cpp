@@ -74,6 +74,11 @@ struct ClosureSolver::Impl {
   Eigen::VectorXd params;
   ClosureOptions options;
   detail::TreeEvaluator ev;
+  // Evaluator for the closed-form seed: the base frames (fixed bodies hanging from the world) and
+  // the task frame at the robot file's values, because a closed form describes the file's base
+  // and tool. Neither enters a closure, so the passive joints it yields are the seed for any
+  // base placement or tool offset (identification moves both far from the file's values).
+  detail::TreeEvaluator seed_ev;
   detail::LmWorkspace ws, pin_ws;
   Eigen::VectorXd q;
 
@@ -82,8 +87,23 @@ struct ClosureSolver::Impl {
         params(p),
         options(o),
         ev(m, p),
+        seed_ev(m, seed_params(m, p)),
         q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))) {
     ws.resize(m.constraint_rows(), static_cast<Eigen::Index>(m.passive.size()));
+  }
+
+  static Eigen::VectorXd seed_params(const Mechanism& m, const Eigen::VectorXd& p) {
+    Eigen::VectorXd out = p;
+    if (p.size() != static_cast<Eigen::Index>(m.parameters.size())) return out;
+    for (std::size_t i = 0; i < m.parameters.size(); ++i) {
+      const int b = m.parameters[i].body;
+      if (b < 0) continue;
+      const Body& body = m.bodies[static_cast<std::size_t>(b)];
+      const bool base_frame = body.parent < 0 && body.joint == JointType::kFixed;
+      const bool task_frame = b == m.task.frame && body.joint == JointType::kFixed;
+      if (base_frame || task_frame) out[static_cast<Eigen::Index>(i)] = m.parameters[i].value;
+    }
+    return out;
   }
 
   bool set_actuators(const Eigen::VectorXd& readings) {
@@ -111,7 +131,7 @@ struct ClosureSolver::Impl {
     }
     const auto T = closed_form_forward(model->closed_form, qa);
     if (!T) return x;
-    ClosureSystem pinned{&ev, &q, model, model->task.frame, *T};
+    ClosureSystem pinned{&seed_ev, &q, model, model->task.frame, *T};
     pin_ws.resize(pinned.rows(), x.size());
     detail::levenberg_marquardt(pinned, x, pin_ws, 50, 1e-10, 0.5);
     return x;
