@@ -170,6 +170,33 @@ struct Errors {
   nlohmann::json json() const { return {{"rms_m", rms}, {"max_m", max}, {"poses", n}}; }
 };
 
+// Position errors of `predicted` against `truth`, and the same after the rigid transform that
+// best aligns them (Umeyama): the latter is the robot's accuracy in its own frame, unaffected by
+// where the whole camera world sits.
+struct ErrorPair {
+  Errors absolute;
+  Errors registered;
+};
+ErrorPair position_errors(const std::vector<Eigen::Vector3d>& predicted,
+                          const std::vector<Eigen::Vector3d>& truth) {
+  ErrorPair out;
+  Eigen::Matrix3Xd P(3, static_cast<Eigen::Index>(predicted.size()));
+  Eigen::Matrix3Xd T(3, P.cols());
+  for (std::size_t i = 0; i < predicted.size(); ++i) {
+    P.col(static_cast<Eigen::Index>(i)) = predicted[i];
+    T.col(static_cast<Eigen::Index>(i)) = truth[i];
+    out.absolute.add((predicted[i] - truth[i]).norm());
+  }
+  if (P.cols() >= 3) {
+    const Eigen::Isometry3d align(Eigen::umeyama(P, T, false));
+    for (Eigen::Index i = 0; i < P.cols(); ++i)
+      out.registered.add((align * Eigen::Vector3d(P.col(i)) - T.col(i)).norm());
+  }
+  out.absolute.finish();
+  out.registered.finish();
+  return out;
+}
+
 std::string fmt_param_change(const calib::Parameter& p, double delta) {
   switch (p.unit) {
     case calib::ParamUnit::kLength:
@@ -397,22 +424,43 @@ int run_demo(const DemoOptions& o) {
   const auto held_out =
       calib::sample_actuators(true_predictor, {cell.truth, start, result.estimate},
                               static_cast<std::size_t>(o.held_out), validation_rng);
-  Errors before, after;
+  std::vector<Eigen::Vector3d> truth_points, nominal_points, calibrated_points;
+  int branch_disagreements = 0;
   for (const auto& q : held_out) {
     Eigen::Isometry3d world_T_board;
     if (!true_frame_pose(cell, q, &world_T_board)) continue;
-    const Eigen::Vector3d truth = cam0_T_world * world_T_board.translation();
     const auto nominal_fk = calib::forward_kinematics(cell.model, start, q, cell.target_frame);
     const auto calibrated_fk =
         calib::forward_kinematics(cell.model, result.estimate, q, cell.target_frame);
     if (!nominal_fk.closure.ok() || !calibrated_fk.closure.ok()) continue;
-    before.add((nominal_fk.pose.translation() - truth).norm());
-    after.add((calibrated_fk.pose.translation() - truth).norm());
+    // A prediction 5 cm off is not an accuracy figure but the closure solver on another
+    // assembly mode (seen for the nominal model at extreme actuator values): count it apart.
+    const Eigen::Vector3d truth = cam0_T_world * world_T_board.translation();
+    constexpr double kBranchGap = 0.05;
+    if ((nominal_fk.pose.translation() - truth).norm() > kBranchGap ||
+        (calibrated_fk.pose.translation() - truth).norm() > kBranchGap) {
+      ++branch_disagreements;
+      continue;
+    }
+    truth_points.push_back(truth);
+    nominal_points.push_back(nominal_fk.pose.translation());
+    calibrated_points.push_back(calibrated_fk.pose.translation());
   }
-  before.finish();
-  after.finish();
-  report["validate"] = {
-      {"held_out_poses", after.n}, {"nominal", before.json()}, {"calibrated", after.json()}};
+  if (branch_disagreements > 0)
+    fmt::print(out,
+               "  note: {} held-out configurations left out: a model's closure solved to another "
+               "assembly mode there\n",
+               branch_disagreements);
+  const ErrorPair nominal_errors = position_errors(nominal_points, truth_points);
+  const ErrorPair calibrated_errors = position_errors(calibrated_points, truth_points);
+  const Errors& before = nominal_errors.absolute;
+  const Errors& after = calibrated_errors.absolute;
+  report["validate"] = {{"held_out_poses", after.n},
+                        {"assembly_mode_disagreements", branch_disagreements},
+                        {"nominal", before.json()},
+                        {"calibrated", after.json()},
+                        {"nominal_registered", nominal_errors.registered.json()},
+                        {"calibrated_registered", calibrated_errors.registered.json()}};
   clock.stop();
 
   // Closing summary.
@@ -425,6 +473,10 @@ int run_demo(const DemoOptions& o) {
       out,
       "  calibrated model:                  {:8.1f} µm RMS, {:8.1f} µm max  ({:.0f}x better)\n",
       after.rms * 1e6, after.max * 1e6, after.rms > 0 ? before.rms / after.rms : 0.0);
+  fmt::print(out, "  robot accuracy in its own frame (after best-fit rigid registration):\n");
+  fmt::print(out, "    nominal {:.1f} µm RMS, calibrated {:.1f} µm RMS ({:.1f} µm max)\n",
+             nominal_errors.registered.rms * 1e6, calibrated_errors.registered.rms * 1e6,
+             calibrated_errors.registered.max * 1e6);
 
   std::vector<std::size_t> order = result.estimated;
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
@@ -451,7 +503,8 @@ int run_demo(const DemoOptions& o) {
     fmt::print(out, "\n  what could not be identified ({} parameters held at nominal):\n",
                result.identifiability.redundant.size());
     for (std::size_t k = 0; k < std::min<std::size_t>(6, messages.size()); ++k)
-      fmt::print(out, "    - {}\n", messages[k]);
+      fmt::print(out, "    - {}\n",
+                 messages[k].size() > 240 ? messages[k].substr(0, 237) + "..." : messages[k]);
     if (messages.size() > 6)
       fmt::print(out, "    ... {} more in the JSON report\n", messages.size() - 6);
   }
