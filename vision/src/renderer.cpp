@@ -256,12 +256,24 @@ CameraRays precompute_rays(const CameraModel& camera) {
   r.cols = camera.width + 1;
   r.rows = camera.height + 1;
   r.rays.resize(static_cast<size_t>(r.cols) * static_cast<size_t>(r.rows));
-  for (int j = 0; j < r.rows; ++j)
+  for (int j = 0; j < r.rows; ++j) {
+    // Warm start from the left neighbour (or the pixel above at the row start).
+    std::optional<Eigen::Vector3d> prev;
+    if (j > 0) {
+      const Eigen::Vector3d& above =
+          r.rays[static_cast<size_t>(j - 1) * static_cast<size_t>(r.cols)];
+      if (above.allFinite()) prev = above;
+    }
     for (int i = 0; i < r.cols; ++i) {
-      const auto ray = unproject(camera, Eigen::Vector2d(i - 0.5, j - 0.5));
+      const Eigen::Vector2d px(i - 0.5, j - 0.5);
+      std::optional<Eigen::Vector3d> ray =
+          prev ? unproject(camera, px, *prev) : unproject(camera, px);
+      if (!ray && prev) ray = unproject(camera, px);
       r.rays[static_cast<size_t>(j) * static_cast<size_t>(r.cols) + static_cast<size_t>(i)] =
           ray ? *ray : Eigen::Vector3d(kNaN, kNaN, kNaN);
+      prev = ray;
     }
+  }
   return r;
 }
 

@@ -361,8 +361,9 @@ TEST(Renderer, OcclusionAndVisibility) {
   Eigen::Isometry3d front_pose = Eigen::Isometry3d::Identity();
   front_pose.translation() = Eigen::Vector3d(-0.08, -0.03, 0.2);
   const std::vector<rv::RenderTarget> targets = {{board, pose}, {front, front_pose}};
-  const auto res = rv::render(rv::precompute_rays(cam), targets, opt);
-  const cv::Mat ideal = rv::render_ideal(rv::precompute_rays(cam), targets, opt);
+  const auto rays = rv::precompute_rays(cam);
+  const auto res = rv::render(rays, targets, opt);
+  const cv::Mat ideal = rv::render_ideal(rays, targets, opt);
   int occluded_by_target = 0;
   for (const auto& c : res.corners) {
     if (c.target != 0) continue;
