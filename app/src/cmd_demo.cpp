@@ -536,7 +536,7 @@ CommandSpec demo_command() {
           "against the hidden truth",
           [](CLI::App& cmd) -> CommandAction {
             auto o = std::make_shared<DemoOptions>();
-            cmd.description(
+            cmd.footer(
                 "Builds a simulated cell (a library robot whose real geometry differs from its "
                 "drawing by realistic tolerances, two cameras, a board on the end-effector), "
                 "renders every camera image, then runs the real pipeline on those images: "
