@@ -14,12 +14,16 @@ namespace robocal::app {
 CommandSpec version_command();
 CommandSpec target_command();
 CommandSpec render_command();
+CommandSpec rig_command();
+CommandSpec measure_command();
 
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
       version_command(),
       target_command(),
       render_command(),
+      rig_command(),
+      measure_command(),
   };
   return commands;
 }
