@@ -16,12 +16,15 @@ CommandSpec kin_command();
 CommandSpec target_command();
 CommandSpec render_command();
 CommandSpec intrinsics_command();
+CommandSpec rig_command();
+CommandSpec measure_command();
 CommandSpec demo_command();
 
+// In the order of a calibration: the demo first, then the steps a user runs on real data.
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
-      demo_command(),   version_command(), kin_command(),
-      target_command(), render_command(),  intrinsics_command(),
+      demo_command(),       kin_command(), target_command(),  render_command(),
+      intrinsics_command(), rig_command(), measure_command(), version_command(),
   };
   return commands;
 }

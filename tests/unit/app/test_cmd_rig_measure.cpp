@@ -1,0 +1,188 @@
+// `robocal rig` and `robocal measure` end to end on rendered images with known truth, including
+// the bad-input cases: a missing camera image, an image whose size does not match the camera
+// file, a target seen by no camera, and cameras sharing no views.
+#include "command_registry.hpp"
+
+#include "robocal/vision/camera_io.hpp"
+#include "robocal/vision/pose.hpp"
+#include "robocal/vision/renderer.hpp"
+#include "robocal/vision/target_io.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+namespace robocal::app {
+namespace {
+
+namespace fs = std::filesystem;
+namespace rv = robocal::vision;
+
+std::string fmt_view(int i) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "pose_%03d", i);
+  return buf;
+}
+
+const fs::path kTarget = fs::path(ROBOCAL_TESTDATA_DIR) / "vision" / "apriltag_4x3.yaml";
+
+struct Scene {
+  std::vector<rv::CameraModel> cams;
+  std::vector<Eigen::Isometry3d> camera_T_world;
+  std::vector<rv::CameraRays> rays;
+  rv::TargetBoard board;
+  rv::RenderOptions options;
+  Scene() {
+    board = rv::load_target_file(kTarget);
+    const auto cam =
+        rv::load_camera_file(fs::path(ROBOCAL_TESTDATA_DIR) / "vision" / "camera_640x480.yaml");
+    for (int i = 0; i < 2; ++i) {
+      cams.push_back(cam);
+      camera_T_world.push_back(
+          rv::camera_T_board_look_at(Eigen::Vector3d(i == 0 ? -0.075 : 0.075, 0, 0),
+                                     Eigen::Vector3d(0, 0, 0.45), Eigen::Vector3d(0, -1, 0)));
+      rays.push_back(rv::precompute_rays(cam));
+    }
+    options.blur_sigma = 0.8;
+    options.read_noise = 2.0;
+  }
+  Eigen::Isometry3d random_pose(std::mt19937_64& rng, double tilt_deg) const {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const Eigen::Vector3d c(0.5 * (board.extent_min + board.extent_max).x(),
+                            0.5 * (board.extent_min + board.extent_max).y(), 0);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = (Eigen::AngleAxisd(tilt_deg * M_PI / 180 * u(rng),
+                                       Eigen::Vector3d(u(rng), u(rng), 0).normalized()) *
+                     Eigen::AngleAxisd(0.3 * u(rng), Eigen::Vector3d::UnitZ()))
+                        .toRotationMatrix();
+    pose.translation() =
+        Eigen::Vector3d(0.03 * u(rng), 0.03 * u(rng), 0.4 + 0.05 * u(rng)) - pose.linear() * c;
+    return pose;
+  }
+  void write(const fs::path& dir, const std::string& name, int cam,
+             const Eigen::Isometry3d& world_T_board) {
+    fs::create_directories(dir);
+    options.seed += 1;
+    const auto r =
+        rv::render(rays[static_cast<size_t>(cam)],
+                   {{board, camera_T_world[static_cast<size_t>(cam)] * world_T_board}}, options);
+    cv::imwrite((dir / (name + ".png")).string(), r.image);
+  }
+};
+
+int run(const std::vector<std::string>& args) {
+  std::vector<const char*> argv = {"robocal"};
+  for (const auto& a : args) argv.push_back(a.c_str());
+  return run_cli(static_cast<int>(argv.size()), argv.data());
+}
+
+nlohmann::json read_json(const fs::path& p) {
+  std::ifstream in(p);
+  return nlohmann::json::parse(in);
+}
+
+TEST(RigMeasureCli, CalibratesARigAndMeasuresPosesWithPerPoseStatus) {
+  const fs::path root = fs::current_path() / "rig_cli_data";
+  fs::remove_all(root);
+  fs::create_directories(root);
+  Scene scene;
+  std::mt19937_64 rng(3);
+  const char* names[2] = {"left", "right"};
+  for (int i = 0; i < 2; ++i)
+    rv::save_camera_file(scene.cams[static_cast<size_t>(i)],
+                         root / (std::string(names[i]) + ".yaml"), names[i]);
+  for (int v = 0; v < 12; ++v) {
+    const auto pose = scene.random_pose(rng, 35.0);
+    for (int c = 0; c < 2; ++c) scene.write(root / "views" / fmt_view(v), names[c], c, pose);
+  }
+  ASSERT_EQ(run({"rig", "--camera", "left=" + (root / "left.yaml").string(), "--camera",
+                 "right=" + (root / "right.yaml").string(), "--target", kTarget.string(), "--views",
+                 (root / "views").string(), "--out", (root / "rig.json").string()}),
+            0);
+  const auto rig = read_json(root / "rig.json");
+  ASSERT_TRUE(rig["ok"].get<bool>()) << rig.dump(2);
+  const double baseline = rig["cameras"][1]["baseline_m"].get<double>();
+  const double sigma = rig["cameras"][1]["baseline_sigma_m"].get<double>();
+  EXPECT_GT(sigma, 0.0);
+  EXPECT_LT(std::abs(baseline - 0.15), std::max(5.0 * sigma, 1e-4)) << baseline << " +- " << sigma;
+  EXPECT_LT(rig["rms_px"].get<double>(), 0.2);
+  EXPECT_TRUE(rig["opencv_stereoCalibrate"][0]["ok"].get<bool>());
+
+  // Poses: two good ones (one with two frames), a missing right image, a right image of the
+  // wrong size, and the target out of every camera's view.
+  std::vector<Eigen::Isometry3d> truth;
+  for (int p = 0; p < 2; ++p) {
+    truth.push_back(scene.random_pose(rng, 30.0));
+    for (int c = 0; c < 2; ++c)
+      scene.write(root / "poses" / fmt_view(p), names[c], c, truth.back());
+  }
+  scene.write(root / "poses" / "pose_001", "left_1", 0, truth[1]);
+  scene.write(root / "poses" / "pose_001", "right_1", 1, truth[1]);
+  scene.write(root / "poses" / "pose_002", "left", 0, scene.random_pose(rng, 20.0));
+  const auto p3 = scene.random_pose(rng, 20.0);
+  scene.write(root / "poses" / "pose_003", "left", 0, p3);
+  {
+    scene.write(root / "poses" / "pose_003", "right", 1, p3);
+    cv::Mat img =
+        cv::imread((root / "poses" / "pose_003" / "right.png").string(), cv::IMREAD_GRAYSCALE);
+    cv::Mat small;
+    cv::resize(img, small, cv::Size(320, 240));
+    cv::imwrite((root / "poses" / "pose_003" / "right.png").string(), small);
+  }
+  Eigen::Isometry3d away = scene.random_pose(rng, 0.0);
+  away.translation().x() += 2.0;
+  for (int c = 0; c < 2; ++c) scene.write(root / "poses" / "pose_004", names[c], c, away);
+
+  ASSERT_EQ(run({"measure", "--rig", (root / "rig.json").string(), "--target", kTarget.string(),
+                 "--poses", (root / "poses").string(), "--out", (root / "m.json").string()}),
+            0);
+  const auto m = read_json(root / "m.json");
+  ASSERT_EQ(m["poses"].size(), 5u);
+  const auto& poses = m["poses"];
+  for (int p = 0; p < 2; ++p) {
+    EXPECT_EQ(poses[p]["status"], "ok") << poses[p].dump(1);
+    const auto r = poses[p]["rig_T_target"]["rvec"];
+    const auto t = poses[p]["rig_T_target"]["tvec"];
+    const Eigen::Isometry3d est = rv::pose_from_rvec_tvec(Eigen::Vector3d(r[0], r[1], r[2]),
+                                                          Eigen::Vector3d(t[0], t[1], t[2]));
+    const Eigen::Isometry3d expected = scene.camera_T_world[0] * truth[static_cast<size_t>(p)];
+    EXPECT_LT(rv::translation_between(est, expected), 2e-4);
+    EXPECT_EQ(poses[p]["covariance"].size(), 6u);
+    EXPECT_FALSE(poses[p]["observations"].empty());
+  }
+  EXPECT_EQ(poses[1]["frames"], 2);
+  // Missing right image: measured with the left camera alone, and said so.
+  EXPECT_EQ(poses[2]["status"], "ok");
+  EXPECT_NE(poses[2]["problems"].dump().find("no image for camera 'right'"), std::string::npos);
+  // Wrong image size: that image is not used, the problem is named.
+  EXPECT_EQ(poses[3]["status"], "ok");
+  EXPECT_NE(poses[3]["problems"].dump().find("calibrated for 640x480"), std::string::npos)
+      << poses[3]["problems"].dump();
+  // Out of view: per-pose status, the rest proceeded.
+  EXPECT_EQ(poses[4]["status"], "not_seen");
+  EXPECT_GE(m["summary"]["usable"].get<int>(), 2);
+
+  // Cameras sharing no views: the rig command fails naming the camera.
+  fs::remove_all(root / "views_disjoint");
+  for (int v = 0; v < 4; ++v) {
+    const auto pose = scene.random_pose(rng, 30.0);
+    scene.write(root / "views_disjoint" / fmt_view(v), names[v % 2], v % 2, pose);
+  }
+  EXPECT_EQ(run({"rig", "--camera", "left=" + (root / "left.yaml").string(), "--camera",
+                 "right=" + (root / "right.yaml").string(), "--target", kTarget.string(), "--views",
+                 (root / "views_disjoint").string(), "--out", (root / "rig_bad.json").string()}),
+            1);
+  const auto bad = read_json(root / "rig_bad.json");
+  EXPECT_NE(bad["message"].get<std::string>().find("camera 1 'right' shares no views"),
+            std::string::npos)
+      << bad["message"];
+}
+
+}  // namespace
+}  // namespace robocal::app
