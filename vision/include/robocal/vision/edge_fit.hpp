@@ -45,8 +45,10 @@ struct EdgeLineFit {
 /// Fits the blurred-step model to samples, starting from the line through a and b (the samples
 /// must straddle it). Returns nullopt when the fit is degenerate (too few samples, no contrast,
 /// no convergence, or an implausible blur).
+/// `initial_sigma` is the starting blur (px); a good value (from an earlier fit) saves iterations.
 std::optional<EdgeLineFit> fit_edge_line(const std::vector<EdgeSample>& samples,
-                                         const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+                                         const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                                         double initial_sigma = 1.0);
 
 /// Intersection of two fitted lines; nullopt when they are (nearly) parallel.
 std::optional<Eigen::Vector2d> intersect_lines(const EdgeLineFit& l1, const EdgeLineFit& l2);
