@@ -13,11 +13,15 @@ namespace robocal::app {
 // Each command file defines one of these.
 CommandSpec version_command();
 CommandSpec intrinsics_command();
+CommandSpec target_command();
+CommandSpec render_command();
 
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
       version_command(),
       intrinsics_command(),
+      target_command(),
+      render_command(),
   };
   return commands;
 }

@@ -2,6 +2,7 @@
 
 #include "yaml_util.hpp"
 
+#include <cstdio>
 #include <sstream>
 #include <stdexcept>
 
@@ -141,6 +142,66 @@ std::string target_to_svg(const TargetBoard& board) {
 
 void save_target_svg(const TargetBoard& board, const std::filesystem::path& path) {
   detail::write_text_file_atomic(path, target_to_svg(board));
+}
+
+std::string target_to_pdf(const TargetBoard& board) {
+  const double pt = 72.0 / 0.0254;  // points per metre
+  const Eigen::Vector2d size = board.extent_max - board.extent_min;
+  std::ostringstream content;
+  content.setf(std::ios::fixed);
+  content.precision(4);
+  content << "0 g\n";
+  for (const PatternPatch& p : board.patches) {
+    for (int v = 0; v < p.ny; ++v) {
+      for (int u = 0; u < p.nx;) {
+        if (!p.black[static_cast<size_t>(v * p.nx + u)]) {
+          ++u;
+          continue;
+        }
+        int end = u;
+        while (end < p.nx && p.black[static_cast<size_t>(v * p.nx + end)]) ++end;
+        // PDF's origin is the bottom-left corner of the page, y up.
+        const double x = (p.x0 + u * p.module - board.extent_min.x()) * pt;
+        const double y = (board.extent_max.y() - (p.y0 + (v + 1) * p.module)) * pt;
+        content << x << " " << y << " " << (end - u) * p.module * pt << " " << p.module * pt
+                << " re f\n";
+        u = end;
+      }
+    }
+  }
+  const std::string stream = content.str();
+  std::ostringstream pdf;
+  pdf.setf(std::ios::fixed);
+  pdf.precision(4);
+  std::vector<size_t> offsets;
+  pdf << "%PDF-1.4\n";
+  auto object = [&](const std::string& body) {
+    offsets.push_back(static_cast<size_t>(pdf.tellp()));
+    pdf << offsets.size() << " 0 obj\n" << body << "\nendobj\n";
+  };
+  object("<< /Type /Catalog /Pages 2 0 R >>");
+  object("<< /Type /Pages /Kids [3 0 R] /Count 1 >>");
+  std::ostringstream page;
+  page.setf(std::ios::fixed);
+  page.precision(4);
+  page << "<< /Type /Page /Parent 2 0 R /MediaBox [0 0 " << size.x() * pt << " " << size.y() * pt
+       << "] /Contents 4 0 R /Resources << >> >>";
+  object(page.str());
+  object("<< /Length " + std::to_string(stream.size()) + " >>\nstream\n" + stream + "endstream");
+  const size_t xref = static_cast<size_t>(pdf.tellp());
+  pdf << "xref\n0 " << offsets.size() + 1 << "\n0000000000 65535 f \n";
+  for (size_t off : offsets) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%010zu 00000 n \n", off);
+    pdf << buf;
+  }
+  pdf << "trailer\n<< /Size " << offsets.size() + 1 << " /Root 1 0 R >>\nstartxref\n"
+      << xref << "\n%%EOF\n";
+  return pdf.str();
+}
+
+void save_target_pdf(const TargetBoard& board, const std::filesystem::path& path) {
+  detail::write_text_file_atomic(path, target_to_pdf(board));
 }
 
 }  // namespace robocal::vision

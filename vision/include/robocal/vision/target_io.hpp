@@ -44,5 +44,8 @@ std::string target_to_yaml(const TargetSpec& spec);
 // the SVG's comment states the expected pattern size.
 std::string target_to_svg(const TargetBoard& board);
 void save_target_svg(const TargetBoard& board, const std::filesystem::path& path);
+// Single-page PDF of the same drawing, page size = paper size (points, 1 pt = 1/72 inch).
+std::string target_to_pdf(const TargetBoard& board);
+void save_target_pdf(const TargetBoard& board, const std::filesystem::path& path);
 
 }  // namespace robocal::vision

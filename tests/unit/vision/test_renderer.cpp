@@ -1,0 +1,390 @@
+// Renderer: rendered corners lie where the camera model projects them (measured from the
+// rendered intensities alone), detectors decode the renders, determinism, noise statistics.
+#include "robocal/vision/pose.hpp"
+#include "robocal/vision/renderer.hpp"
+
+#include <apriltag/apriltag.h>
+#include <apriltag/tag36h11.h>
+#include <gtest/gtest.h>
+#include <opencv2/aruco/charuco.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <map>
+
+namespace rv = robocal::vision;
+
+namespace {
+
+rv::TargetBoard chessboard(int cols, int rows, double square) {
+  rv::TargetSpec s;
+  s.kind = rv::TargetKind::kChessboard;
+  s.cols = cols;
+  s.rows = rows;
+  s.square_size = square;
+  return rv::build_target(s);
+}
+
+// camera_T_board placing the board's centre at `distance` on the optical axis, tilted.
+Eigen::Isometry3d board_pose(const rv::TargetBoard& b, double distance, double tilt_x_deg,
+                             double tilt_y_deg, double roll_deg) {
+  const Eigen::Vector3d centre(0.5 * (b.extent_min + b.extent_max).x(),
+                               0.5 * (b.extent_min + b.extent_max).y(), 0);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = (Eigen::AngleAxisd(roll_deg * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                   Eigen::AngleAxisd(tilt_x_deg * M_PI / 180, Eigen::Vector3d::UnitX()) *
+                   Eigen::AngleAxisd(tilt_y_deg * M_PI / 180, Eigen::Vector3d::UnitY()))
+                      .toRotationMatrix();
+  pose.translation() = Eigen::Vector3d(0, 0, distance) - pose.linear() * centre;
+  return pose;
+}
+
+// Position of a single edge crossing a row (or column) segment, from the intensities alone:
+// for an ideal area-sampled image, sum over pixels a..b of I = cL (e - (a - 1/2)) +
+// cR ((b + 1/2) - e) exactly, where cL, cR are the intensities on either side (read from the
+// end pixels, which the edge does not touch).
+double edge_crossing(const double* values, int n, int a) {
+  const int b = a + n - 1;
+  const double cl = values[0], cr = values[n - 1];
+  double sum = 0;
+  for (int k = 0; k < n; ++k) sum += values[k];
+  return (sum - cr * (b + 0.5) + cl * (a - 0.5)) / (cl - cr);
+}
+
+// Quadratic least-squares fit x = c0 + c1 t + c2 t^2.
+Eigen::Vector3d fit_quadratic(const std::vector<double>& t, const std::vector<double>& x) {
+  Eigen::MatrixXd A(static_cast<int>(t.size()), 3);
+  Eigen::VectorXd b(static_cast<int>(t.size()));
+  for (int k = 0; k < static_cast<int>(t.size()); ++k) {
+    A.row(k) << 1, t[static_cast<size_t>(k)], t[static_cast<size_t>(k)] * t[static_cast<size_t>(k)];
+    b[k] = x[static_cast<size_t>(k)];
+  }
+  return A.colPivHouseholderQr().solve(b);
+}
+
+// Measures a chessboard corner from the ideal image: the two edges through it are located row
+// by row (column by column) 4..12 px away on both sides, fitted with quadratics and intersected.
+// `along_v`: image direction of the board's y axis near the corner (to place the windows).
+std::optional<Eigen::Vector2d> measure_corner(const cv::Mat& img, const Eigen::Vector2d& guess,
+                                              const Eigen::Vector2d& dir_v,
+                                              const Eigen::Vector2d& dir_u) {
+  constexpr int kHalf = 6;
+  std::vector<double> tv, xv, tu, yu;
+  const int cu = static_cast<int>(std::lround(guess.x()));
+  const int cv_ = static_cast<int>(std::lround(guess.y()));
+  for (int d = -12; d <= 12; ++d) {
+    if (std::abs(d) < 4) continue;
+    {  // vertical edge crossing row cv_ + d
+      const int v = cv_ + d;
+      const double x_pred = guess.x() + dir_v.x() / dir_v.y() * (v - guess.y());
+      const int a = static_cast<int>(std::lround(x_pred)) - kHalf;
+      if (a < 0 || a + 2 * kHalf >= img.cols || v < 0 || v >= img.rows) return std::nullopt;
+      double vals[2 * kHalf + 1];
+      for (int k = 0; k <= 2 * kHalf; ++k) vals[k] = img.at<float>(v, a + k);
+      if (std::abs(vals[0] - vals[2 * kHalf]) < 100) return std::nullopt;
+      tv.push_back(v - guess.y());
+      xv.push_back(edge_crossing(vals, 2 * kHalf + 1, a));
+    }
+    {  // horizontal edge crossing column cu + d
+      const int u = cu + d;
+      const double y_pred = guess.y() + dir_u.y() / dir_u.x() * (u - guess.x());
+      const int a = static_cast<int>(std::lround(y_pred)) - kHalf;
+      if (a < 0 || a + 2 * kHalf >= img.rows || u < 0 || u >= img.cols) return std::nullopt;
+      double vals[2 * kHalf + 1];
+      for (int k = 0; k <= 2 * kHalf; ++k) vals[k] = img.at<float>(a + k, u);
+      if (std::abs(vals[0] - vals[2 * kHalf]) < 100) return std::nullopt;
+      tu.push_back(u - guess.x());
+      yu.push_back(edge_crossing(vals, 2 * kHalf + 1, a));
+    }
+  }
+  const Eigen::Vector3d fv = fit_quadratic(tv, xv);
+  const Eigen::Vector3d fu = fit_quadratic(tu, yu);
+  Eigen::Vector2d p = guess;
+  for (int it = 0; it < 50; ++it) {
+    const double ty = p.y() - guess.y();
+    p.x() = fv[0] + fv[1] * ty + fv[2] * ty * ty;
+    const double tx = p.x() - guess.x();
+    p.y() = fu[0] + fu[1] * tx + fu[2] * tx * tx;
+  }
+  return p;
+}
+
+struct CornerCheck {
+  int measured = 0;
+  double worst = 0;
+  double rms = 0;
+};
+
+CornerCheck check_chessboard_corners(const rv::CameraModel& cam, const Eigen::Isometry3d& pose) {
+  const rv::TargetBoard board = chessboard(9, 7, 0.03);
+  const rv::CameraRays rays = rv::precompute_rays(cam);
+  std::vector<rv::RenderTarget> targets = {{board, pose}};
+  rv::RenderOptions opt;
+  const cv::Mat img = rv::render_ideal(rays, targets, opt);
+  const auto truth = rv::corner_truth(cam, targets, opt);
+  CornerCheck r;
+  for (const auto& t : truth) {
+    if (!t.visible || !rv::in_image(cam, t.pixel, 25)) continue;
+    const Eigen::Vector3d p = *rv::corner_point(board, t.id);
+    const auto proj = [&](const Eigen::Vector3d& q) { return *rv::project(cam, pose * q); };
+    const Eigen::Vector2d dir_v =
+        proj(p + Eigen::Vector3d(0, 0.01, 0)) - proj(p - Eigen::Vector3d(0, 0.01, 0));
+    const Eigen::Vector2d dir_u =
+        proj(p + Eigen::Vector3d(0.01, 0, 0)) - proj(p - Eigen::Vector3d(0.01, 0, 0));
+    const auto m = measure_corner(img, t.pixel, dir_v, dir_u);
+    if (!m) continue;
+    const double e = (*m - t.pixel).norm();
+    r.worst = std::max(r.worst, e);
+    r.rms += e * e;
+    ++r.measured;
+  }
+  if (r.measured > 0) r.rms = std::sqrt(r.rms / r.measured);
+  return r;
+}
+
+}  // namespace
+
+TEST(Renderer, CornersLieWhereTheModelProjectsThem_Radtan) {
+  const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 800, 600, 820.0, 818.0, 401.3,
+                                   297.8, {-0.28, 0.12, 0.0008, -0.0005, -0.02});
+  const auto board = chessboard(9, 7, 0.03);
+  const CornerCheck r = check_chessboard_corners(cam, board_pose(board, 0.42, 20, -25, 4));
+  EXPECT_GE(r.measured, 40);
+  EXPECT_LT(r.worst, 0.002) << "rms " << r.rms;
+  RecordProperty("worst_px", std::to_string(r.worst));
+  RecordProperty("rms_px", std::to_string(r.rms));
+  RecordProperty("corners", std::to_string(r.measured));
+}
+
+TEST(Renderer, CornersLieWhereTheModelProjectsThem_Fisheye) {
+  const auto cam = rv::make_camera(rv::CameraKind::kFisheyeKB4, 800, 600, 380.0, 379.0, 399.2,
+                                   301.1, {0.02, -0.01, 0.003, -0.0005});
+  const auto board = chessboard(9, 7, 0.03);
+  const CornerCheck r = check_chessboard_corners(cam, board_pose(board, 0.22, -15, 30, -3));
+  EXPECT_GE(r.measured, 40);
+  EXPECT_LT(r.worst, 0.002) << "rms " << r.rms;
+  RecordProperty("worst_px", std::to_string(r.worst));
+  RecordProperty("rms_px", std::to_string(r.rms));
+  RecordProperty("corners", std::to_string(r.measured));
+}
+
+TEST(Renderer, BlurKeepsEdgePositions) {
+  const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 200, 120, 300, 300, 99.5, 59.5);
+  rv::TargetSpec s;
+  s.kind = rv::TargetKind::kChessboard;
+  s.cols = 2;
+  s.rows = 2;
+  s.square_size = 0.2;
+  const auto board = rv::build_target(s);
+  // The vertical edge of the board's centre slightly right of the image centre, tilted.
+  auto pose = board_pose(board, 1.0, 0, 0, 3);
+  pose.translation().x() += 0.0013;
+  const auto rays = rv::precompute_rays(cam);
+  rv::RenderOptions opt;
+  const cv::Mat sharp = rv::render_ideal(rays, {{board, pose}}, opt);
+  cv::Mat blurred;
+  cv::GaussianBlur(sharp, blurred, cv::Size(0, 0), 1.2, 1.2, cv::BORDER_REFLECT);
+  double worst = 0;
+  for (int v = 10; v < 50; ++v) {  // upper half: one vertical edge near u = 100
+    double a[25], b[25];
+    for (int k = 0; k < 25; ++k) {
+      a[k] = sharp.at<float>(v, 88 + k);
+      b[k] = blurred.at<float>(v, 88 + k);
+    }
+    worst = std::max(worst, std::abs(edge_crossing(a, 25, 88) - edge_crossing(b, 25, 88)));
+  }
+  EXPECT_LT(worst, 1e-3);
+}
+
+namespace {
+rv::TargetBoard april_board() {
+  rv::TargetSpec s;
+  s.kind = rv::TargetKind::kAprilTagGrid;
+  s.cols = 4;
+  s.rows = 3;
+  s.tag_size = 0.03;
+  s.first_id = 20;
+  return rv::build_target(s);
+}
+}  // namespace
+
+TEST(Renderer, AprilTagDecodesRenderWithTruthCorners) {
+  const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 640, 480, 600, 600, 319.5, 239.5,
+                                   {-0.1, 0.02, 0, 0, 0});
+  const auto board = april_board();
+  std::vector<rv::RenderTarget> targets = {{board, board_pose(board, 0.25, 25, 15, 10)}};
+  rv::RenderOptions opt;
+  opt.blur_sigma = 0.6;
+  opt.read_noise = 1.0;
+  const auto res = rv::render(rv::precompute_rays(cam), targets, opt);
+  std::map<int, Eigen::Vector2d> truth;
+  for (const auto& c : res.corners) {
+    EXPECT_TRUE(c.visible);
+    truth[c.id] = c.pixel;
+  }
+  apriltag_family_t* family = tag36h11_create();
+  apriltag_detector_t* det = apriltag_detector_create();
+  apriltag_detector_add_family(det, family);
+  det->quad_decimate = 1.0;
+  det->nthreads = 1;
+  cv::Mat img = res.image;
+  image_u8_t im{img.cols, img.rows, static_cast<int32_t>(img.step), img.data};
+  zarray_t* found = apriltag_detector_detect(det, &im);
+  int n = zarray_size(found);
+  double worst = 0;
+  for (int i = 0; i < n; ++i) {
+    apriltag_detection_t* d = nullptr;
+    zarray_get(found, i, &d);
+    for (int k = 0; k < 4; ++k) {
+      ASSERT_TRUE(truth.count(d->id * 4 + k)) << d->id;
+      const Eigen::Vector2d p(d->p[k][0] - 0.5, d->p[k][1] - 0.5);
+      worst = std::max(worst, (p - truth[d->id * 4 + k]).norm());
+    }
+  }
+  apriltag_detections_destroy(found);
+  apriltag_detector_destroy(det);
+  tag36h11_destroy(family);
+  EXPECT_EQ(n, 12);
+  EXPECT_LT(worst, 0.5);  // a mirrored or shifted render would be many pixels off
+}
+
+TEST(Renderer, CharucoDecodesRender) {
+  rv::TargetSpec s;
+  s.kind = rv::TargetKind::kCharuco;
+  s.cols = 5;
+  s.rows = 4;
+  s.square_size = 0.03;
+  s.marker_size = 0.022;
+  const auto board = rv::build_target(s);
+  const auto cam =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 640, 480, 600, 600, 319.5, 239.5);
+  const auto pose = board_pose(board, 0.3, -20, 10, 0);
+  const auto res = rv::render(rv::precompute_rays(cam), {{board, pose}}, rv::RenderOptions{});
+  const auto dict = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_6X6_250);
+  std::vector<std::vector<cv::Point2f>> corners;
+  std::vector<int> ids;
+  cv::aruco::detectMarkers(res.image, dict, corners, ids);
+  ASSERT_EQ(ids.size(), 10u);
+  for (size_t m = 0; m < ids.size(); ++m) {
+    const auto& mk = board.markers[static_cast<size_t>(ids[m])];
+    for (int k = 0; k < 4; ++k) {  // unrefined ArUco corners: about a pixel
+      const auto px = *rv::project(cam, pose * mk.corners[k]);
+      EXPECT_LT(std::hypot(corners[m][static_cast<size_t>(k)].x - px.x(),
+                           corners[m][static_cast<size_t>(k)].y - px.y()),
+                1.5);
+    }
+  }
+  const auto cvb = cv::aruco::CharucoBoard::create(5, 4, 0.03f, 0.022f, dict);
+  std::vector<cv::Point2f> chess;
+  std::vector<int> chess_ids;
+  cv::aruco::interpolateCornersCharuco(corners, ids, res.image, cvb, chess, chess_ids);
+  ASSERT_EQ(chess_ids.size(), 12u);
+  Eigen::Vector2d offset(0, 0);
+  for (size_t k = 0; k < chess_ids.size(); ++k) {
+    const auto px = *rv::project(cam, pose * *rv::corner_point(board, chess_ids[k]));
+    offset += Eigen::Vector2d(chess[k].x - px.x(), chess[k].y - px.y());
+  }
+  offset /= 12.0;
+  EXPECT_NEAR(offset.x(), 0.5, 0.1);  // OpenCV 4.6's known +0.5 px
+  EXPECT_NEAR(offset.y(), 0.5, 0.1);
+}
+
+TEST(Renderer, DeterministicWithSeed) {
+  const auto cam =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto board = april_board();
+  std::vector<rv::RenderTarget> targets = {{board, board_pose(board, 0.3, 10, 10, 0)}};
+  const auto rays = rv::precompute_rays(cam);
+  rv::RenderOptions opt;
+  opt.read_noise = 2.0;
+  opt.shot_noise_gain = 4.0;
+  opt.blur_sigma = 0.8;
+  opt.seed = 42;
+  const cv::Mat a = rv::render(rays, targets, opt).image;
+  const cv::Mat b = rv::render(rays, targets, opt).image;
+  opt.seed = 43;
+  const cv::Mat c = rv::render(rays, targets, opt).image;
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(a, c, cv::NORM_L1), 1000.0);
+}
+
+TEST(Renderer, NoiseStatistics) {
+  const auto cam =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 300, 300, 300, 300, 149.5, 149.5);
+  rv::RenderOptions opt;
+  opt.background_level = 100.0;
+  opt.read_noise = 2.0;
+  opt.shot_noise_gain = 4.0;  // shot variance 100 / 4 = 25 DN^2
+  opt.bit_depth = 16;
+  const cv::Mat img = rv::render(rv::precompute_rays(cam), {}, opt).image;
+  cv::Mat dn;
+  img.convertTo(dn, CV_64F, 1.0 / 257.0);
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(dn, mean, stddev);
+  EXPECT_NEAR(mean[0], 100.0, 0.1);
+  EXPECT_NEAR(stddev[0] * stddev[0], 29.0, 29.0 * 0.03);
+  // Neighbouring pixels are uncorrelated.
+  double cov = 0;
+  for (int v = 0; v < dn.rows; ++v)
+    for (int u = 0; u + 1 < dn.cols; ++u)
+      cov += (dn.at<double>(v, u) - mean[0]) * (dn.at<double>(v, u + 1) - mean[0]);
+  cov /= dn.rows * (dn.cols - 1);
+  EXPECT_LT(std::abs(cov) / 29.0, 0.02);
+}
+
+TEST(Renderer, LevelsLightingAndVignetting) {
+  const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 101, 81, 100, 100, 50, 40);
+  rv::RenderOptions opt;
+  opt.background_level = 100.0;
+  opt.vignetting = 0.3;
+  opt.lighting_gradient = Eigen::Vector2d(0.2, 0.0);
+  const cv::Mat img = rv::render_ideal(rv::precompute_rays(cam), {}, opt);
+  EXPECT_NEAR(img.at<float>(40, 50), 100.0, 1e-3);  // centre
+  // Top-left pixel: vignetting 1 - 0.3 (r = r_corner), gradient 1 + 0.2 (0.5/101 - 0.5).
+  const double g = 1.0 + 0.2 * (0.5 / 101 - 0.5);
+  EXPECT_NEAR(img.at<float>(0, 0), 100.0 * g * 0.7, 1e-3);
+}
+
+TEST(Renderer, OcclusionAndVisibility) {
+  const auto cam =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 640, 480, 600, 600, 319.5, 239.5);
+  const auto board = april_board();
+  const auto pose = board_pose(board, 0.25, 0, 0, 0);
+  rv::RenderOptions opt;
+  rv::Occluder occ;
+  const int hidden_id = 25 * 4 + 2;
+  occ.center = *rv::project(cam, pose * *rv::corner_point(board, hidden_id));
+  occ.radius = 10;
+  occ.level = 5;
+  opt.occluders = {occ};
+  // A second board in front covering the left part of the first.
+  const auto front = chessboard(3, 3, 0.01);
+  Eigen::Isometry3d front_pose = Eigen::Isometry3d::Identity();
+  front_pose.translation() = Eigen::Vector3d(-0.08, -0.03, 0.2);
+  const std::vector<rv::RenderTarget> targets = {{board, pose}, {front, front_pose}};
+  const auto res = rv::render(rv::precompute_rays(cam), targets, opt);
+  const cv::Mat ideal = rv::render_ideal(rv::precompute_rays(cam), targets, opt);
+  int occluded_by_target = 0;
+  for (const auto& c : res.corners) {
+    if (c.target != 0) continue;
+    if (c.id == hidden_id) {
+      EXPECT_TRUE(c.occluded);
+      EXPECT_FALSE(c.visible);
+      EXPECT_NEAR(ideal.at<float>(static_cast<int>(std::lround(c.pixel.y())),
+                                  static_cast<int>(std::lround(c.pixel.x()))),
+                  5.0, 1e-4);
+    } else if (c.occluded) {
+      ++occluded_by_target;
+      // The front board is what the image shows there: its paper or print, never the tag below.
+      const Eigen::Vector3d ray = rv::unproject(cam, c.pixel)->normalized();
+      const double t = front_pose.translation().z() / ray.z();
+      const Eigen::Vector3d hit = ray * t - front_pose.translation();
+      EXPECT_TRUE(rv::on_board(front, hit.x(), hit.y()));
+    }
+  }
+  EXPECT_GT(occluded_by_target, 0);
+  // Corners outside the image are not visible.
+  const auto far = rv::corner_truth(cam, {{board, board_pose(board, 0.05, 0, 0, 0)}}, opt);
+  int outside = 0;
+  for (const auto& c : far) outside += !rv::in_image(cam, c.pixel) && !c.visible;
+  EXPECT_GT(outside, 0);
+}

@@ -1,0 +1,96 @@
+#pragma once
+// Synthetic camera images of calibration targets with exact ground truth.
+//
+// Every output pixel is the exact box-filtered (area-averaged) image of the targets: the four
+// corners of the pixel are mapped back through the full camera model (unprojection, precomputed
+// once per camera in CameraRays) onto the target plane, and the black area of the pattern inside
+// that footprint is computed analytically by clipping against the pattern's modules. Pixels on a
+// target's silhouette or seeing several targets are supersampled (8x8). Then, in this order:
+// lighting gradient and vignetting (multiplicative), occluders, Gaussian defocus blur, shot +
+// read noise (seeded), quantisation to 8 or 16 bit.
+//
+// Intensities are in DN of an 8-bit sensor (0..255); 16-bit output is DN * 257.
+// Pixel convention: OpenCV ((0,0) = centre of the top-left pixel), as everywhere in robocal.
+#include "robocal/vision/camera_model.hpp"
+#include "robocal/vision/target.hpp"
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace robocal::vision {
+
+// Unit bearing vectors of all pixel corners: corner (i, j) is pixel position (i - 0.5, j - 0.5),
+// i in [0, width], j in [0, height]; row-major. NaN where the model cannot be inverted.
+struct CameraRays {
+  CameraModel camera;
+  int cols = 0;  // width + 1
+  int rows = 0;  // height + 1
+  std::vector<Eigen::Vector3d> rays;
+};
+CameraRays precompute_rays(const CameraModel& camera);
+
+struct RenderTarget {
+  TargetBoard board;
+  Eigen::Isometry3d camera_T_board = Eigen::Isometry3d::Identity();  // see pose.hpp
+};
+
+// Something in front of the targets, in image coordinates: a disc (radius) or an axis-aligned
+// rectangle (half_size), filled with `level` DN.
+struct Occluder {
+  enum class Shape { kDisc, kRectangle } shape = Shape::kDisc;
+  Eigen::Vector2d center = Eigen::Vector2d::Zero();
+  double radius = 0.0;
+  Eigen::Vector2d half_size = Eigen::Vector2d::Zero();
+  double level = 0.0;
+};
+
+struct RenderOptions {
+  double black_level = 20.0;       // DN of the printed black
+  double white_level = 220.0;      // DN of the white paper
+  double background_level = 60.0;  // DN where no target is seen
+  // Relative brightness change across the image: factor 1 + gx (u/W - 1/2) + gy (v/H - 1/2).
+  Eigen::Vector2d lighting_gradient = Eigen::Vector2d::Zero();
+  // Relative brightness loss at the image corners: factor 1 - vignetting (r / r_corner)^2,
+  // r measured from the image centre, r_corner = distance to the centre of a corner pixel.
+  double vignetting = 0.0;
+  std::vector<Occluder> occluders;
+  double blur_sigma = 0.0;       // Gaussian defocus blur, pixels (0 = none)
+  double read_noise = 0.0;       // Gaussian read noise sigma, DN
+  double shot_noise_gain = 0.0;  // electrons per DN; shot-noise variance = signal / gain (0: off)
+  int bit_depth = 8;             // 8 or 16
+  std::uint64_t seed = 1;        // noise seed: same seed, same image
+};
+
+struct CornerTruth {
+  int target = 0;                                   // index into the targets
+  int id = 0;                                       // corner id on that target (target.hpp)
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // OpenCV convention; NaN if not projectable
+  // Projects inside the image, the target faces the camera, and neither another target nor an
+  // occluder (grown by 1.5 px + 3 blur sigma) covers it.
+  bool visible = false;
+  bool occluded = false;  // by another target or an occluder
+};
+
+struct RenderResult {
+  cv::Mat image;  // CV_8U or CV_16U
+  std::vector<CornerTruth> corners;
+};
+
+// The ideal image: CV_32F in DN, exact area sampling, lighting, vignetting and occluders
+// applied; no blur, noise or quantisation.
+cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                     const RenderOptions& options);
+// Blur, noise and quantisation of an ideal image (deterministic for a given seed).
+cv::Mat apply_sensor(const cv::Mat& ideal, const RenderOptions& options);
+// Ground-truth pixel positions and visibility of every corner of every target.
+std::vector<CornerTruth> corner_truth(const CameraModel& camera,
+                                      const std::vector<RenderTarget>& targets,
+                                      const RenderOptions& options);
+// All of the above.
+RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                    const RenderOptions& options);
+
+}  // namespace robocal::vision

@@ -1,0 +1,463 @@
+#include "robocal/vision/renderer.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+
+namespace robocal::vision {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Uniform grid over a board's paper listing the patches that overlap each cell, so a footprint
+// only visits the one or two patches near it.
+struct PatternIndex {
+  const TargetBoard* board = nullptr;
+  double x0 = 0, y0 = 0, cell = 1;
+  int nx = 1, ny = 1;
+  std::vector<std::vector<int>> cells;
+
+  explicit PatternIndex(const TargetBoard& b) : board(&b) {
+    x0 = b.extent_min.x();
+    y0 = b.extent_min.y();
+    const Eigen::Vector2d size = b.extent_max - b.extent_min;
+    cell = std::max(size.x(), size.y());
+    for (const PatternPatch& p : b.patches) cell = std::min(cell, std::max(p.nx, p.ny) * p.module);
+    cell = std::max({cell, size.x() / 512, size.y() / 512, 1e-9});
+    nx = std::max(1, static_cast<int>(std::ceil(size.x() / cell)));
+    ny = std::max(1, static_cast<int>(std::ceil(size.y() / cell)));
+    cells.resize(static_cast<size_t>(nx * ny));
+    for (int k = 0; k < static_cast<int>(b.patches.size()); ++k) {
+      const PatternPatch& p = b.patches[static_cast<size_t>(k)];
+      const int i0 = cell_x(p.x0), i1 = cell_x(p.x0 + p.nx * p.module);
+      const int j0 = cell_y(p.y0), j1 = cell_y(p.y0 + p.ny * p.module);
+      for (int j = j0; j <= j1; ++j)
+        for (int i = i0; i <= i1; ++i) cells[static_cast<size_t>(j * nx + i)].push_back(k);
+    }
+  }
+  int cell_x(double x) const {
+    return std::clamp(static_cast<int>(std::floor((x - x0) / cell)), 0, nx - 1);
+  }
+  int cell_y(double y) const {
+    return std::clamp(static_cast<int>(std::floor((y - y0) / cell)), 0, ny - 1);
+  }
+
+  bool black_at(double x, double y) const {
+    for (int k : cells[static_cast<size_t>(cell_y(y) * nx + cell_x(x))]) {
+      const PatternPatch& p = board->patches[static_cast<size_t>(k)];
+      const double u = (x - p.x0) / p.module, v = (y - p.y0) / p.module;
+      if (u < 0 || v < 0 || u >= p.nx || v >= p.ny) continue;
+      if (p.black[static_cast<size_t>(static_cast<int>(v) * p.nx + static_cast<int>(u))])
+        return true;
+    }
+    return false;
+  }
+
+  // Fraction of the convex quad q (board coordinates) covered by black modules.
+  double black_fraction(const std::array<Eigen::Vector2d, 4>& q) const;
+};
+
+double polygon_area(const Eigen::Vector2d* v, int n) {
+  double a = 0;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector2d& p = v[i];
+    const Eigen::Vector2d& r = v[(i + 1) % n];
+    a += p.x() * r.y() - r.x() * p.y();
+  }
+  return 0.5 * std::abs(a);
+}
+
+// Area of a convex polygon clipped to an axis-aligned rectangle (Sutherland-Hodgman).
+double clipped_area(const std::array<Eigen::Vector2d, 4>& q, double rx0, double ry0, double rx1,
+                    double ry1) {
+  Eigen::Vector2d buf_a[12], buf_b[12];
+  int n = 4;
+  for (int i = 0; i < 4; ++i) buf_a[i] = q[static_cast<size_t>(i)];
+  Eigen::Vector2d* in = buf_a;
+  Eigen::Vector2d* out = buf_b;
+  for (int edge = 0; edge < 4 && n > 0; ++edge) {
+    const int axis = edge % 2;  // 0: x, 1: y
+    const bool keep_greater = edge < 2;
+    const double bound = edge == 0 ? rx0 : edge == 1 ? ry0 : edge == 2 ? rx1 : ry1;
+    auto inside = [&](const Eigen::Vector2d& p) {
+      return keep_greater ? p[axis] >= bound : p[axis] <= bound;
+    };
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d& a = in[i];
+      const Eigen::Vector2d& b = in[(i + 1) % n];
+      const bool ia = inside(a), ib = inside(b);
+      if (ia) out[m++] = a;
+      if (ia != ib) {
+        const double t = (bound - a[axis]) / (b[axis] - a[axis]);
+        out[m++] = a + t * (b - a);
+      }
+    }
+    n = m;
+    std::swap(in, out);
+  }
+  return n >= 3 ? polygon_area(in, n) : 0.0;
+}
+
+double PatternIndex::black_fraction(const std::array<Eigen::Vector2d, 4>& q) const {
+  double bx0 = q[0].x(), bx1 = q[0].x(), by0 = q[0].y(), by1 = q[0].y();
+  for (int i = 1; i < 4; ++i) {
+    bx0 = std::min(bx0, q[static_cast<size_t>(i)].x());
+    bx1 = std::max(bx1, q[static_cast<size_t>(i)].x());
+    by0 = std::min(by0, q[static_cast<size_t>(i)].y());
+    by1 = std::max(by1, q[static_cast<size_t>(i)].y());
+  }
+  // Candidate patches from the cells the bounding box touches (deduplicated).
+  int cand[16];
+  int n_cand = 0;
+  bool overflow = false;
+  const int ci0 = cell_x(bx0), ci1 = cell_x(bx1), cj0 = cell_y(by0), cj1 = cell_y(by1);
+  for (int j = cj0; j <= cj1 && !overflow; ++j)
+    for (int i = ci0; i <= ci1 && !overflow; ++i)
+      for (int k : cells[static_cast<size_t>(j * nx + i)]) {
+        if (std::find(cand, cand + n_cand, k) != cand + n_cand) continue;
+        if (n_cand == 16) {
+          overflow = true;
+          break;
+        }
+        cand[n_cand++] = k;
+      }
+  // A footprint spanning more patches (board far away) visits all of them.
+  const int total = overflow ? static_cast<int>(board->patches.size()) : n_cand;
+
+  double area = -1.0;
+  double black = 0.0;
+  for (int c = 0; c < total; ++c) {
+    const PatternPatch& p = board->patches[static_cast<size_t>(overflow ? c : cand[c])];
+    const double m = p.module;
+    int i0 = static_cast<int>(std::floor((bx0 - p.x0) / m));
+    int i1 = static_cast<int>(std::floor((bx1 - p.x0) / m));
+    int j0 = static_cast<int>(std::floor((by0 - p.y0) / m));
+    int j1 = static_cast<int>(std::floor((by1 - p.y0) / m));
+    if (i1 < 0 || j1 < 0 || i0 >= p.nx || j0 >= p.ny) continue;
+    i0 = std::max(i0, 0);
+    j0 = std::max(j0, 0);
+    i1 = std::min(i1, p.nx - 1);
+    j1 = std::min(j1, p.ny - 1);
+    for (int j = j0; j <= j1; ++j) {
+      for (int i = i0; i <= i1; ++i) {
+        if (!p.black[static_cast<size_t>(j * p.nx + i)]) continue;
+        const double rx0 = p.x0 + i * m, ry0 = p.y0 + j * m;
+        const double rx1 = rx0 + m, ry1 = ry0 + m;
+        if (area < 0) area = polygon_area(q.data(), 4);
+        if (bx0 >= rx0 && bx1 <= rx1 && by0 >= ry0 && by1 <= ry1) {
+          black += area;  // footprint entirely inside this black module
+        } else {
+          black += clipped_area(q, rx0, ry0, rx1, ry1);
+        }
+      }
+    }
+  }
+  if (area <= 0) return 0.0;
+  return std::min(1.0, black / area);
+}
+
+struct TargetGeometry {
+  Eigen::Matrix3d board_R_camera;
+  Eigen::Vector3d camera_in_board;
+  bool faces_camera = false;  // the camera is on the printed side (z < 0 in the board frame)
+};
+
+TargetGeometry geometry_of(const RenderTarget& t) {
+  const Eigen::Isometry3d board_T_camera = t.camera_T_board.inverse();
+  TargetGeometry g;
+  g.board_R_camera = board_T_camera.linear();
+  g.camera_in_board = board_T_camera.translation();
+  g.faces_camera = g.camera_in_board.z() < 0.0;
+  return g;
+}
+
+// Intersection of a camera ray with a target's paper: distance along the ray (in units of the
+// ray's length) and the board point, or false.
+bool intersect(const TargetGeometry& g, const TargetBoard& board, const Eigen::Vector3d& ray,
+               double* t, Eigen::Vector2d* xy) {
+  if (!g.faces_camera) return false;
+  const Eigen::Vector3d d = g.board_R_camera * ray;
+  if (!(d.z() > 0.0)) return false;
+  *t = -g.camera_in_board.z() / d.z();
+  const double x = g.camera_in_board.x() + *t * d.x();
+  const double y = g.camera_in_board.y() + *t * d.y();
+  if (!on_board(board, x, y)) return false;
+  *xy = Eigen::Vector2d(x, y);
+  return true;
+}
+
+struct CornerHit {
+  int target = -1;  // -1: no target, -2: invalid ray
+  Eigen::Vector2d xy = Eigen::Vector2d::Zero();
+};
+
+CornerHit nearest_hit(const std::vector<TargetGeometry>& geo,
+                      const std::vector<RenderTarget>& targets, const Eigen::Vector3d& ray) {
+  CornerHit hit;
+  if (!ray.allFinite()) {
+    hit.target = -2;
+    return hit;
+  }
+  double best = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < static_cast<int>(targets.size()); ++k) {
+    double t;
+    Eigen::Vector2d xy;
+    if (intersect(geo[static_cast<size_t>(k)], targets[static_cast<size_t>(k)].board, ray, &t,
+                  &xy) &&
+        t < best) {
+      best = t;
+      hit.target = k;
+      hit.xy = xy;
+    }
+  }
+  return hit;
+}
+
+bool inside_occluder(const Occluder& o, const Eigen::Vector2d& p, double grow) {
+  if (o.shape == Occluder::Shape::kDisc) return (p - o.center).norm() <= o.radius + grow;
+  const Eigen::Vector2d d = (p - o.center).cwiseAbs();
+  return d.x() <= o.half_size.x() + grow && d.y() <= o.half_size.y() + grow;
+}
+
+// Counter-based random numbers (SplitMix64): pixel k's noise depends only on (seed, k).
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// Two independent standard normals for the pixel pair `pair` (Box-Muller on one 64-bit draw:
+// 32 bits per uniform is plenty for image noise, tails reach 6.6 sigma).
+void standard_normal_pair(std::uint64_t seed, std::uint64_t pair, double* z0, double* z1) {
+  const std::uint64_t a = splitmix64(seed ^ splitmix64(pair));
+  const double u1 = (static_cast<double>(a >> 32) + 0.5) * 0x1.0p-32;  // (0, 1)
+  const double u2 = static_cast<double>(a & 0xFFFFFFFFull) * 0x1.0p-32;
+  const double r = std::sqrt(-2.0 * std::log(u1));
+  const double phi = 2.0 * std::numbers::pi * u2;
+  *z0 = r * std::cos(phi);
+  *z1 = r * std::sin(phi);
+}
+
+}  // namespace
+
+CameraRays precompute_rays(const CameraModel& camera) {
+  const std::string problem = validate_camera(camera);
+  if (!problem.empty()) throw std::invalid_argument("camera: " + problem);
+  CameraRays r;
+  r.camera = camera;
+  r.cols = camera.width + 1;
+  r.rows = camera.height + 1;
+  r.rays.resize(static_cast<size_t>(r.cols) * static_cast<size_t>(r.rows));
+  for (int j = 0; j < r.rows; ++j)
+    for (int i = 0; i < r.cols; ++i) {
+      const auto ray = unproject(camera, Eigen::Vector2d(i - 0.5, j - 0.5));
+      r.rays[static_cast<size_t>(j) * static_cast<size_t>(r.cols) + static_cast<size_t>(i)] =
+          ray ? *ray : Eigen::Vector3d(kNaN, kNaN, kNaN);
+    }
+  return r;
+}
+
+cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                     const RenderOptions& o) {
+  const int W = rays.cols - 1, H = rays.rows - 1;
+  if (W <= 0 || H <= 0) throw std::invalid_argument("render: empty camera rays");
+  std::vector<TargetGeometry> geo;
+  std::vector<PatternIndex> index;
+  geo.reserve(targets.size());
+  index.reserve(targets.size());
+  for (const RenderTarget& t : targets) {
+    geo.push_back(geometry_of(t));
+    index.emplace_back(t.board);
+  }
+  const double contrast = o.white_level - o.black_level;
+  cv::Mat img(H, W, CV_32F);
+  std::vector<CornerHit> upper(static_cast<size_t>(W + 1)), lower(static_cast<size_t>(W + 1));
+  auto ray_at = [&](int i, int j) -> const Eigen::Vector3d& {
+    return rays
+        .rays[static_cast<size_t>(j) * static_cast<size_t>(rays.cols) + static_cast<size_t>(i)];
+  };
+  for (int i = 0; i <= W; ++i)
+    upper[static_cast<size_t>(i)] = nearest_hit(geo, targets, ray_at(i, 0));
+  // r_corner: from the image centre to the centre of a corner pixel.
+  const double half_diag2 =
+      std::max(0.25 * (double(W - 1) * (W - 1) + double(H - 1) * (H - 1)), 1e-9);
+  constexpr int kSuper = 8;
+
+  for (int j = 0; j < H; ++j) {
+    for (int i = 0; i <= W; ++i)
+      lower[static_cast<size_t>(i)] = nearest_hit(geo, targets, ray_at(i, j + 1));
+    float* row = img.ptr<float>(j);
+    for (int i = 0; i < W; ++i) {
+      const CornerHit* c[4] = {&upper[static_cast<size_t>(i)], &upper[static_cast<size_t>(i + 1)],
+                               &lower[static_cast<size_t>(i + 1)], &lower[static_cast<size_t>(i)]};
+      double value;
+      const int t0 = c[0]->target;
+      if (t0 == c[1]->target && t0 == c[2]->target && t0 == c[3]->target) {
+        if (t0 >= 0) {
+          const std::array<Eigen::Vector2d, 4> q = {c[0]->xy, c[1]->xy, c[2]->xy, c[3]->xy};
+          value = o.white_level - contrast * index[static_cast<size_t>(t0)].black_fraction(q);
+        } else {
+          value = o.background_level;
+        }
+      } else if (t0 == -2 || c[1]->target == -2 || c[2]->target == -2 || c[3]->target == -2) {
+        value = o.background_level;  // outside the model's invertible field
+      } else {
+        // Silhouette of a target or several targets: supersample interpolated rays.
+        const Eigen::Vector3d& r00 = ray_at(i, j);
+        const Eigen::Vector3d& r10 = ray_at(i + 1, j);
+        const Eigen::Vector3d& r01 = ray_at(i, j + 1);
+        const Eigen::Vector3d& r11 = ray_at(i + 1, j + 1);
+        double sum = 0;
+        for (int sy = 0; sy < kSuper; ++sy) {
+          const double fy = (sy + 0.5) / kSuper;
+          for (int sx = 0; sx < kSuper; ++sx) {
+            const double fx = (sx + 0.5) / kSuper;
+            const Eigen::Vector3d ray =
+                ((1 - fy) * ((1 - fx) * r00 + fx * r10) + fy * ((1 - fx) * r01 + fx * r11))
+                    .normalized();
+            const CornerHit h = nearest_hit(geo, targets, ray);
+            if (h.target >= 0) {
+              sum += index[static_cast<size_t>(h.target)].black_at(h.xy.x(), h.xy.y())
+                         ? o.black_level
+                         : o.white_level;
+            } else {
+              sum += o.background_level;
+            }
+          }
+        }
+        value = sum / (kSuper * kSuper);
+      }
+      double gain = 1.0 + o.lighting_gradient.x() * ((i + 0.5) / W - 0.5) +
+                    o.lighting_gradient.y() * ((j + 0.5) / H - 0.5);
+      if (o.vignetting != 0.0) {
+        const double du = i - 0.5 * (W - 1), dv = j - 0.5 * (H - 1);
+        gain *= 1.0 - o.vignetting * (du * du + dv * dv) / half_diag2;
+      }
+      row[i] = static_cast<float>(value * gain);
+    }
+    std::swap(upper, lower);
+  }
+
+  // Occluders: 4x4 supersampled coverage of the shape, painted over the scene.
+  for (const Occluder& occ : o.occluders) {
+    const Eigen::Vector2d ext = occ.shape == Occluder::Shape::kDisc
+                                    ? Eigen::Vector2d(occ.radius, occ.radius)
+                                    : occ.half_size;
+    const int u0 = std::max(0, static_cast<int>(std::floor(occ.center.x() - ext.x())));
+    const int u1 = std::min(W - 1, static_cast<int>(std::ceil(occ.center.x() + ext.x())));
+    const int v0 = std::max(0, static_cast<int>(std::floor(occ.center.y() - ext.y())));
+    const int v1 = std::min(H - 1, static_cast<int>(std::ceil(occ.center.y() + ext.y())));
+    for (int v = v0; v <= v1; ++v)
+      for (int u = u0; u <= u1; ++u) {
+        int n_in = 0;
+        for (int sy = 0; sy < 4; ++sy)
+          for (int sx = 0; sx < 4; ++sx)
+            n_in += inside_occluder(
+                occ, Eigen::Vector2d(u - 0.5 + (sx + 0.5) / 4, v - 0.5 + (sy + 0.5) / 4), 0.0);
+        if (n_in == 0) continue;
+        const double a = n_in / 16.0;
+        float& px = img.at<float>(v, u);
+        px = static_cast<float>((1 - a) * px + a * occ.level);
+      }
+  }
+  return img;
+}
+
+cv::Mat apply_sensor(const cv::Mat& ideal, const RenderOptions& o) {
+  if (ideal.type() != CV_32F) throw std::invalid_argument("apply_sensor: expects a CV_32F image");
+  if (o.bit_depth != 8 && o.bit_depth != 16)
+    throw std::invalid_argument("bit_depth must be 8 or 16");
+  cv::Mat img;
+  if (o.blur_sigma > 0.0) {
+    cv::GaussianBlur(ideal, img, cv::Size(0, 0), o.blur_sigma, o.blur_sigma, cv::BORDER_REFLECT);
+  } else {
+    img = ideal;
+  }
+  const double scale = o.bit_depth == 16 ? 257.0 : 1.0;
+  const double max_value = o.bit_depth == 16 ? 65535.0 : 255.0;
+  cv::Mat out(img.rows, img.cols, o.bit_depth == 16 ? CV_16U : CV_8U);
+  const bool noisy = o.read_noise > 0.0 || o.shot_noise_gain > 0.0;
+  const double read_var = o.read_noise * o.read_noise;
+  const std::uint64_t seed = splitmix64(o.seed);
+  double z[2] = {0.0, 0.0};
+  for (int v = 0; v < img.rows; ++v) {
+    const float* in = img.ptr<float>(v);
+    for (int u = 0; u < img.cols; ++u) {
+      double x = in[u];
+      if (noisy) {
+        // Pixel k's noise depends only on (seed, k): pixels 2p and 2p+1 share one draw.
+        const std::uint64_t k =
+            static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(img.cols) +
+            static_cast<std::uint64_t>(u);
+        if (k % 2 == 0 || u == 0) standard_normal_pair(seed, k / 2, &z[0], &z[1]);
+        double var = read_var;
+        if (o.shot_noise_gain > 0.0) var += std::max(x, 0.0) / o.shot_noise_gain;
+        x += std::sqrt(var) * z[k % 2];
+      }
+      const double q = std::clamp(std::round(x * scale), 0.0, max_value);
+      if (o.bit_depth == 16) {
+        out.ptr<std::uint16_t>(v)[u] = static_cast<std::uint16_t>(q);
+      } else {
+        out.ptr<std::uint8_t>(v)[u] = static_cast<std::uint8_t>(q);
+      }
+    }
+  }
+  return out;
+}
+
+std::vector<CornerTruth> corner_truth(const CameraModel& camera,
+                                      const std::vector<RenderTarget>& targets,
+                                      const RenderOptions& o) {
+  std::vector<TargetGeometry> geo;
+  for (const RenderTarget& t : targets) geo.push_back(geometry_of(t));
+  std::vector<CornerTruth> out;
+  for (int k = 0; k < static_cast<int>(targets.size()); ++k) {
+    const RenderTarget& t = targets[static_cast<size_t>(k)];
+    for (const TargetCorner& c : t.board.corners) {
+      CornerTruth truth;
+      truth.target = k;
+      truth.id = c.id;
+      const Eigen::Vector3d p_cam = t.camera_T_board * c.point;
+      const auto px = project(camera, p_cam);
+      truth.pixel = px ? *px : Eigen::Vector2d(kNaN, kNaN);
+      if (px) {
+        // Another target in front of the corner?
+        const Eigen::Vector3d ray = p_cam.normalized();
+        const double dist = p_cam.norm();
+        for (int m = 0; m < static_cast<int>(targets.size()) && !truth.occluded; ++m) {
+          if (m == k) continue;
+          double s;
+          Eigen::Vector2d xy;
+          if (intersect(geo[static_cast<size_t>(m)], targets[static_cast<size_t>(m)].board, ray, &s,
+                        &xy) &&
+              s < dist)
+            truth.occluded = true;
+        }
+        for (const Occluder& occ : o.occluders)
+          if (inside_occluder(occ, *px, 1.5 + 3.0 * o.blur_sigma)) truth.occluded = true;
+        truth.visible =
+            geo[static_cast<size_t>(k)].faces_camera && in_image(camera, *px) && !truth.occluded;
+      }
+      out.push_back(truth);
+    }
+  }
+  return out;
+}
+
+RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                    const RenderOptions& options) {
+  RenderResult r;
+  r.image = apply_sensor(render_ideal(rays, targets, options), options);
+  r.corners = corner_truth(rays.camera, targets, options);
+  return r;
+}
+
+}  // namespace robocal::vision
