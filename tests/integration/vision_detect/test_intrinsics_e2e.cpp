@@ -144,4 +144,11 @@ TEST(IntrinsicsEndToEnd, RealRctCharucoSet) {
   EXPECT_NEAR(c.camera.params[2], 789.67, 30.0);
   EXPECT_NEAR(c.camera.params[3], 627.30, 30.0);
   for (double s : c.param_stddev) EXPECT_TRUE(std::isfinite(s));
+  // Two images with fewer than 8 corners are rejected by name; the 0.49 px RMS deserves a warning.
+  int rejected = 0;
+  for (const auto& v : c.views) rejected += v.rejection.find("only") != std::string::npos ? 1 : 0;
+  EXPECT_EQ(rejected, 2);
+  bool rms_warning = false;
+  for (const auto& w : c.warnings) rms_warning |= w.find("residual RMS") != std::string::npos;
+  EXPECT_EQ(rms_warning, c.rms_px > 0.3);
 }
