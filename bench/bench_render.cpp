@@ -47,33 +47,46 @@ void BM_PrecomputeRays_2448x2048(benchmark::State& state) {
   const auto cam = scene().rays.camera;
   for (auto _ : state) benchmark::DoNotOptimize(rv::precompute_rays(cam).rays.data());
 }
-BENCHMARK(BM_PrecomputeRays_2448x2048)->Unit(benchmark::kMillisecond)->Iterations(2)->MeasureProcessCPUTime();
+BENCHMARK(BM_PrecomputeRays_2448x2048)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(2)
+    ->MeasureProcessCPUTime();
 
 void BM_RenderIdeal_2448x2048(benchmark::State& state) {
   const Scene& s = scene();
   for (auto _ : state)
     benchmark::DoNotOptimize(rv::render_ideal(s.rays, s.targets, s.options).data);
 }
-BENCHMARK(BM_RenderIdeal_2448x2048)->Unit(benchmark::kMillisecond)->Iterations(5)->MeasureProcessCPUTime();
+BENCHMARK(BM_RenderIdeal_2448x2048)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(5)
+    ->MeasureProcessCPUTime();
 
 void BM_ApplySensor_2448x2048(benchmark::State& state) {
   const Scene& s = scene();
   const cv::Mat ideal = rv::render_ideal(s.rays, s.targets, s.options);
   for (auto _ : state) benchmark::DoNotOptimize(rv::apply_sensor(ideal, s.options).data);
 }
-BENCHMARK(BM_ApplySensor_2448x2048)->Unit(benchmark::kMillisecond)->Iterations(5)->MeasureProcessCPUTime();
+BENCHMARK(BM_ApplySensor_2448x2048)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(5)
+    ->MeasureProcessCPUTime();
 
 void BM_Render_2448x2048(benchmark::State& state) {
   const Scene& s = scene();
   for (auto _ : state)
     benchmark::DoNotOptimize(rv::render(s.rays, s.targets, s.options).image.data);
 }
-BENCHMARK(BM_Render_2448x2048)->Unit(benchmark::kMillisecond)->Iterations(5)->MeasureProcessCPUTime();
+BENCHMARK(BM_Render_2448x2048)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(5)
+    ->MeasureProcessCPUTime();
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  cv::setNumThreads(1);  // the figure asked for is single-threaded (OpenCV's blur would use threads)
+  cv::setNumThreads(
+      1);  // the figure asked for is single-threaded (OpenCV's blur would use threads)
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

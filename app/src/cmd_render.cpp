@@ -89,8 +89,11 @@ int run_render(const RenderArgs& a) {
     const std::filesystem::path png = std::filesystem::path(a.out) / (view.name + ".png");
     const std::filesystem::path json = std::filesystem::path(a.out) / (view.name + ".json");
     if (!cv::imwrite(png.string(), r.image)) throw InputError("cannot write " + png.string());
-    std::ofstream(json) << vision::render_truth_json(png.filename().string(), camera, targets, opt,
-                                                     r.corners);
+    {
+      std::ofstream out(json, std::ios::binary | std::ios::trunc);
+      out << vision::render_truth_json(png.filename().string(), camera, targets, opt, r.corners);
+      if (!out.flush()) throw InputError("cannot write " + json.string());
+    }
     int visible = 0;
     for (const auto& c : r.corners) visible += c.visible;
     fmt::print("{}: {} of {} corners visible, {:.2f} s\n", png.string(), visible, r.corners.size(),

@@ -68,27 +68,39 @@ namespace {
 
 // Newton iteration on OpenCV's Brown-Conrady distortion: finds (x, y) with distort(x, y) = m.
 std::optional<Eigen::Vector3d> unproject_brown_conrady(const CameraModel& camera,
-                                                       const Eigen::Vector2d& pixel) {
+                                                       const Eigen::Vector2d& pixel,
+                                                       const Eigen::Vector3d* guess) {
   const double* p = camera.params.data();
   const bool rational = camera.kind == CameraKind::kPinholeRational;
   double d[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   std::copy(p + 4, p + camera.params.size(), d);
   const Eigen::Vector2d m((pixel.x() - p[2]) / p[0], (pixel.y() - p[3]) / p[1]);
 
-  using J = ceres::Jet<double, 2>;
-  J dj[8];
-  for (int i = 0; i < 8; ++i) dj[i] = J(d[i]);
-  // Residual and its 2x2 Jacobian at (x, y).
+  // Residual and its analytic 2x2 Jacobian at (x, y) (OpenCV's distortion, differentiated).
   auto eval = [&](const Eigen::Vector2d& xy, Eigen::Vector2d* r, Eigen::Matrix2d* jac) {
-    J xd, yd;
-    if (!detail::distort_brown_conrady(dj, rational, J(xy.x(), 0), J(xy.y(), 1), &xd, &yd))
-      return false;
-    *r << xd.a - m.x(), yd.a - m.y();
-    *jac << xd.v[0], xd.v[1], yd.v[0], yd.v[1];
+    const double x = xy.x(), y = xy.y();
+    const double r2 = x * x + y * y, r4 = r2 * r2, r6 = r4 * r2;
+    const double num = 1 + d[0] * r2 + d[1] * r4 + d[4] * r6;
+    const double dnum = d[0] + 2 * d[1] * r2 + 3 * d[4] * r4;
+    double den = 1, dden = 0;
+    if (rational) {
+      den = 1 + d[5] * r2 + d[6] * r4 + d[7] * r6;
+      dden = d[5] + 2 * d[6] * r2 + 3 * d[7] * r4;
+      if (!(den > 0)) return false;
+    }
+    const double R = num / den;
+    const double dR = (dnum * den - num * dden) / (den * den);  // dR / d(r^2)
+    const double p1 = d[2], p2 = d[3];
+    *r << x * R + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - m.x(),
+        y * R + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - m.y();
+    const double off = 2 * x * y * dR + 2 * p1 * x + 2 * p2 * y;
+    *jac << R + 2 * x * x * dR + 2 * p1 * y + 6 * p2 * x, off, off,
+        R + 2 * y * y * dR + 6 * p1 * y + 2 * p2 * x;
     return true;
   };
 
   Eigen::Vector2d xy = m;
+  if (guess && guess->allFinite() && guess->z() > 1e-12) xy = guess->head<2>() / guess->z();
   Eigen::Vector2d r;
   Eigen::Matrix2d jac;
   if (!eval(xy, &r, &jac)) return std::nullopt;
@@ -96,13 +108,14 @@ std::optional<Eigen::Vector3d> unproject_brown_conrady(const CameraModel& camera
     const double det = jac.determinant();
     if (!(std::abs(det) > 1e-14)) return std::nullopt;
     Eigen::Vector2d step = jac.inverse() * r;
+    if (step.norm() <= 1e-16 * (1.0 + xy.norm())) break;  // converged to double precision
     // Backtracking keeps the iteration from jumping across a fold of a strong distortion.
     bool improved = false;
     for (int half = 0; half < 40; ++half) {
       Eigen::Vector2d r_new;
       Eigen::Matrix2d jac_new;
       const Eigen::Vector2d xy_new = xy - step;
-      if (eval(xy_new, &r_new, &jac_new) && r_new.norm() < r.norm()) {
+      if (eval(xy_new, &r_new, &jac_new) && r_new.norm() <= r.norm()) {
         xy = xy_new;
         r = r_new;
         jac = jac_new;
@@ -141,11 +154,12 @@ std::optional<Eigen::Vector3d> unproject_kb4(const CameraModel& camera,
     const double slope = dg(theta);
     if (!(slope > 1e-12)) return std::nullopt;
     double step = r / slope;
+    if (std::abs(step) <= 1e-16 * (1.0 + theta)) break;  // converged to double precision
     bool improved = false;
     for (int half = 0; half < 40; ++half) {
       const double t_new = theta - step;
       const double r_new = g(t_new);
-      if (t_new >= 0.0 && std::abs(r_new) < std::abs(r)) {
+      if (t_new >= 0.0 && std::abs(r_new) <= std::abs(r)) {
         theta = t_new;
         r = r_new;
         improved = true;
@@ -167,7 +181,14 @@ std::optional<Eigen::Vector3d> unproject_kb4(const CameraModel& camera,
 std::optional<Eigen::Vector3d> unproject(const CameraModel& camera, const Eigen::Vector2d& pixel) {
   if (static_cast<int>(camera.params.size()) != num_params(camera.kind)) return std::nullopt;
   if (camera.kind == CameraKind::kFisheyeKB4) return unproject_kb4(camera, pixel);
-  return unproject_brown_conrady(camera, pixel);
+  return unproject_brown_conrady(camera, pixel, nullptr);
+}
+
+std::optional<Eigen::Vector3d> unproject(const CameraModel& camera, const Eigen::Vector2d& pixel,
+                                         const Eigen::Vector3d& initial_bearing) {
+  if (static_cast<int>(camera.params.size()) != num_params(camera.kind)) return std::nullopt;
+  if (camera.kind == CameraKind::kFisheyeKB4) return unproject_kb4(camera, pixel);
+  return unproject_brown_conrady(camera, pixel, &initial_bearing);
 }
 
 bool in_image(const CameraModel& camera, const Eigen::Vector2d& pixel, double margin) {

@@ -63,19 +63,28 @@ struct PatternIndex {
   double black_fraction(const std::array<Eigen::Vector2d, 4>& q) const;
 };
 
-double polygon_area(const Eigen::Vector2d* v, int n) {
-  double a = 0;
+// Area and centroid of a simple polygon.
+double polygon_moments(const Eigen::Vector2d* v, int n, Eigen::Vector2d* centroid) {
+  double a2 = 0, cx = 0, cy = 0;
   for (int i = 0; i < n; ++i) {
     const Eigen::Vector2d& p = v[i];
     const Eigen::Vector2d& r = v[(i + 1) % n];
-    a += p.x() * r.y() - r.x() * p.y();
+    const double cross = p.x() * r.y() - r.x() * p.y();
+    a2 += cross;
+    cx += (p.x() + r.x()) * cross;
+    cy += (p.y() + r.y()) * cross;
   }
-  return 0.5 * std::abs(a);
+  if (a2 == 0.0) {
+    *centroid = v[0];
+    return 0.0;
+  }
+  *centroid = Eigen::Vector2d(cx / (3 * a2), cy / (3 * a2));
+  return 0.5 * std::abs(a2);
 }
 
 // Area of a convex polygon clipped to an axis-aligned rectangle (Sutherland-Hodgman).
 double clipped_area(const std::array<Eigen::Vector2d, 4>& q, double rx0, double ry0, double rx1,
-                    double ry1) {
+                    double ry1, Eigen::Vector2d* centroid) {
   Eigen::Vector2d buf_a[12], buf_b[12];
   int n = 4;
   for (int i = 0; i < 4; ++i) buf_a[i] = q[static_cast<size_t>(i)];
@@ -102,7 +111,8 @@ double clipped_area(const std::array<Eigen::Vector2d, 4>& q, double rx0, double 
     n = m;
     std::swap(in, out);
   }
-  return n >= 3 ? polygon_area(in, n) : 0.0;
+  if (n < 3) return 0.0;
+  return polygon_moments(in, n, centroid);
 }
 
 double PatternIndex::black_fraction(const std::array<Eigen::Vector2d, 4>& q) const {
@@ -131,7 +141,34 @@ double PatternIndex::black_fraction(const std::array<Eigen::Vector2d, 4>& q) con
   // A footprint spanning more patches (board far away) visits all of them.
   const int total = overflow ? static_cast<int>(board->patches.size()) : n_cand;
 
+  // The footprint's board area is not spread evenly over the pixel: under perspective the
+  // board area per image area (det of the pixel->board Jacobian) changes across the pixel. To
+  // first order it is the bilinear interpolation of its values at the four corners, so each
+  // clipped piece is weighted by 1/det at its centroid (a 60 degree tilt would otherwise shift
+  // edges by ~0.0005 px).
+  auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return a.x() * b.y() - a.y() * b.x();
+  };
+  const double det00 = cross(q[1] - q[0], q[3] - q[0]);
+  const double det10 = cross(q[1] - q[0], q[2] - q[1]);
+  const double det11 = cross(q[2] - q[3], q[2] - q[1]);
+  const double det01 = cross(q[2] - q[3], q[3] - q[0]);
+  const Eigen::Vector2d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
+  Eigen::Matrix2d st_of;  // board offset from the centre -> (s, t) offset, locally affine
+  st_of.col(0) = 0.5 * (q[1] + q[2] - q[0] - q[3]);
+  st_of.col(1) = 0.5 * (q[2] + q[3] - q[0] - q[1]);
+  bool weighted = std::abs(st_of.determinant()) > 0.0;
+  if (weighted) st_of = st_of.inverse().eval();
+  auto weight = [&](const Eigen::Vector2d& p) {
+    const Eigen::Vector2d st = Eigen::Vector2d(0.5, 0.5) + st_of * (p - centre);
+    const double s_ = std::clamp(st.x(), 0.0, 1.0), t_ = std::clamp(st.y(), 0.0, 1.0);
+    return 1.0 / ((1 - s_) * (1 - t_) * det00 + s_ * (1 - t_) * det10 + s_ * t_ * det11 +
+                  (1 - s_) * t_ * det01);
+  };
+  weighted = weighted && det00 * det10 > 0 && det00 * det11 > 0 && det00 * det01 > 0;
+
   double area = -1.0;
+  double weighted_area = 0.0;
   double black = 0.0;
   for (int c = 0; c < total; ++c) {
     const PatternPatch& p = board->patches[static_cast<size_t>(overflow ? c : cand[c])];
@@ -150,17 +187,20 @@ double PatternIndex::black_fraction(const std::array<Eigen::Vector2d, 4>& q) con
         if (!p.black[static_cast<size_t>(j * p.nx + i)]) continue;
         const double rx0 = p.x0 + i * m, ry0 = p.y0 + j * m;
         const double rx1 = rx0 + m, ry1 = ry0 + m;
-        if (area < 0) area = polygon_area(q.data(), 4);
-        if (bx0 >= rx0 && bx1 <= rx1 && by0 >= ry0 && by1 <= ry1) {
-          black += area;  // footprint entirely inside this black module
-        } else {
-          black += clipped_area(q, rx0, ry0, rx1, ry1);
+        if (bx0 >= rx0 && bx1 <= rx1 && by0 >= ry0 && by1 <= ry1) return 1.0;  // all black
+        if (area < 0) {
+          Eigen::Vector2d qc;
+          area = polygon_moments(q.data(), 4, &qc);
+          weighted_area = weighted ? area * weight(qc) : area;
         }
+        Eigen::Vector2d pc;
+        const double a = clipped_area(q, rx0, ry0, rx1, ry1, &pc);
+        black += weighted ? a * weight(pc) : a;
       }
     }
   }
-  if (area <= 0) return 0.0;
-  return std::min(1.0, black / area);
+  if (area <= 0 || !(weighted_area != 0.0)) return 0.0;
+  return std::clamp(black / weighted_area, 0.0, 1.0);
 }
 
 struct TargetGeometry {
@@ -256,12 +296,24 @@ CameraRays precompute_rays(const CameraModel& camera) {
   r.cols = camera.width + 1;
   r.rows = camera.height + 1;
   r.rays.resize(static_cast<size_t>(r.cols) * static_cast<size_t>(r.rows));
-  for (int j = 0; j < r.rows; ++j)
+  for (int j = 0; j < r.rows; ++j) {
+    // Warm start from the left neighbour (or the pixel above at the row start).
+    std::optional<Eigen::Vector3d> prev;
+    if (j > 0) {
+      const Eigen::Vector3d& above =
+          r.rays[static_cast<size_t>(j - 1) * static_cast<size_t>(r.cols)];
+      if (above.allFinite()) prev = above;
+    }
     for (int i = 0; i < r.cols; ++i) {
-      const auto ray = unproject(camera, Eigen::Vector2d(i - 0.5, j - 0.5));
+      const Eigen::Vector2d px(i - 0.5, j - 0.5);
+      std::optional<Eigen::Vector3d> ray =
+          prev ? unproject(camera, px, *prev) : unproject(camera, px);
+      if (!ray && prev) ray = unproject(camera, px);
       r.rays[static_cast<size_t>(j) * static_cast<size_t>(r.cols) + static_cast<size_t>(i)] =
           ray ? *ray : Eigen::Vector3d(kNaN, kNaN, kNaN);
+      prev = ray;
     }
+  }
   return r;
 }
 

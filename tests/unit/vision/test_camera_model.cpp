@@ -228,3 +228,15 @@ TEST(CameraFile, ErrorsNameFileAndLine) {
     EXPECT_EQ(std::string(e.what()), "/nonexistent/cam.yaml: cannot open file");
   }
 }
+
+TEST(CameraModel, WarmStartedUnprojectionAgrees) {
+  const auto cam = rational_camera();
+  const Eigen::Vector2d a(2000.0, 1900.0), b(2001.0, 1900.0);
+  const auto ra = rv::unproject(cam, a);
+  ASSERT_TRUE(ra.has_value());
+  const auto cold = rv::unproject(cam, b);
+  const auto warm = rv::unproject(cam, b, *ra);
+  ASSERT_TRUE(cold.has_value());
+  ASSERT_TRUE(warm.has_value());
+  EXPECT_LT((*cold - *warm).norm(), 1e-13);
+}

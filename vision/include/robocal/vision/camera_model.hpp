@@ -60,6 +60,9 @@ std::optional<Eigen::Vector2d> project(const CameraModel& camera, const Eigen::V
 // Unit bearing vector (camera frame) of a pixel, found by Newton iteration on the distortion
 // (converges to ~1e-12 px re-projection). nullopt where the distortion cannot be inverted.
 std::optional<Eigen::Vector3d> unproject(const CameraModel& camera, const Eigen::Vector2d& pixel);
+// The same, starting from a nearby pixel's bearing (faster when sweeping a grid).
+std::optional<Eigen::Vector3d> unproject(const CameraModel& camera, const Eigen::Vector2d& pixel,
+                                         const Eigen::Vector3d& initial_bearing);
 
 // True when a pixel lies inside the image area shrunk by `margin` pixels on each side
 // ([-0.5, width-0.5] x [-0.5, height-0.5] at margin 0).

@@ -4,8 +4,12 @@
 // Every output pixel is the exact box-filtered (area-averaged) image of the targets: the four
 // corners of the pixel are mapped back through the full camera model (unprojection, precomputed
 // once per camera in CameraRays) onto the target plane, and the black area of the pattern inside
-// that footprint is computed analytically by clipping against the pattern's modules. Pixels on a
-// target's silhouette or seeing several targets are supersampled (8x8). Then, in this order:
+// that footprint is computed analytically by clipping against the pattern's modules, each
+// clipped piece weighted by the local pixel/board area ratio (perspective), so edges and corners
+// sit where the model puts them to < 0.001 px (tests: Renderer.CornersLieWhere...). Pixels on
+// a target's silhouette or seeing several targets are supersampled (8x8 interpolated rays); a
+// target or target corner smaller than one pixel that falls between pixel corners is missed.
+// Then, in this order:
 // lighting gradient and vignetting (multiplicative), occluders, Gaussian defocus blur, shot +
 // read noise (seeded), quantisation to 8 or 16 bit.
 //
