@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <thread>
 
 #include "robocal/vision/edge_fit.hpp"
 
@@ -60,15 +61,35 @@ struct AprilTagDetector::Impl {
       tag.corners = tag.library_corners;
       tag.edge_blur_px = std::numeric_limits<double>::quiet_NaN();
       tag.edge_contrast = std::numeric_limits<double>::quiet_NaN();
-      if (refine) {
-        if (const auto r = refine_quad_corners(gray, tag.library_corners, refine_options)) {
-          tag.corners = r->corners;
-          tag.refined = true;
-          tag.edge_blur_px = r->mean_blur_sigma;
-          tag.edge_contrast = r->mean_contrast;
-        }
-      }
       out.push_back(tag);
+    }
+    if (refine) {
+      // Tags are independent: refine them on the detector's threads.
+      auto refine_range = [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+          TagDetection& tag = out[i];
+          if (const auto r = refine_quad_corners(gray, tag.library_corners, refine_options)) {
+            tag.corners = r->corners;
+            tag.refined = true;
+            tag.edge_blur_px = r->mean_blur_sigma;
+            tag.edge_contrast = r->mean_contrast;
+          }
+        }
+      };
+      const size_t workers =
+          std::min<size_t>(static_cast<size_t>(std::max(1, options.threads)), out.size());
+      if (workers <= 1) {
+        refine_range(0, out.size());
+      } else {
+        std::vector<std::thread> pool;
+        const size_t chunk = (out.size() + workers - 1) / workers;
+        for (size_t w = 1; w < workers; ++w) {
+          pool.emplace_back(refine_range, std::min(out.size(), w * chunk),
+                            std::min(out.size(), (w + 1) * chunk));
+        }
+        refine_range(0, std::min(out.size(), chunk));
+        for (auto& t : pool) t.join();
+      }
     }
     apriltag_detections_destroy(found);
     std::sort(out.begin(), out.end(),

@@ -222,9 +222,20 @@ TargetDetection detect_charuco_board(const cv::Mat& gray, const TargetBoard& boa
   }
   // Square size in px from the markers (their side is marker_size).
   double side_px = 0.0;
-  for (const auto& mc : marker_corners) side_px += cv::norm(mc[1] - mc[0]) / marker_corners.size();
+  // Shortest side per marker: foreshortening shrinks squares along one direction only.
+  for (const auto& mc : marker_corners) {
+    double shortest = cv::norm(mc[1] - mc[0]);
+    for (size_t k = 1; k < 4; ++k) shortest = std::min(shortest, cv::norm(mc[(k + 1) % 4] - mc[k]));
+    side_px += shortest / static_cast<double>(marker_corners.size());
+  }
   const double square_px = side_px * board.spec.square_size / board.spec.marker_size;
-  sub_pixel(gray, corners, square_px, options);
+  // The cornerSubPix window must stay inside the white margin between the square's edges and
+  // its marker, or the marker's edges pull the corner.
+  ChessboardDetectorOptions charuco_options = options;
+  const double margin_fraction = 0.5 * (1.0 - board.spec.marker_size / board.spec.square_size);
+  charuco_options.subpix_window_fraction =
+      std::min(options.subpix_window_fraction, 0.7 * margin_fraction);
+  sub_pixel(gray, corners, square_px, charuco_options);
 
   // Verify each corner against a homography fitted to the nearby markers' corners.
   std::vector<Eigen::Vector3d> mk_board;

@@ -470,6 +470,12 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
           rep.name, rep.rms_px, median_view_rms));
     }
   }
+  if (result.rms_px > options.high_rms_warning_px) {
+    result.warnings.push_back(fmt::format(
+        "residual RMS {:.3f} px is high (sharp, flat boards give ~0.1-0.2 px): check focus, board "
+        "flatness and motion, or try a richer lens model",
+        result.rms_px));
+  }
   if (result.corners_rejected > 0.05 * static_cast<double>(obs.size())) {
     result.warnings.push_back(
         fmt::format("{} of {} corners rejected as outliers", result.corners_rejected, obs.size()));

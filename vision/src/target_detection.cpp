@@ -26,6 +26,14 @@ std::string truncation_problem(const std::filesystem::path& path, const std::str
   f.seekg(0, std::ios::end);
   const auto size = static_cast<long long>(f.tellg());
   if (size < 16) return "file too short to be an image";
+  char head[4] = {0, 0, 0, 0};
+  f.seekg(0);
+  f.read(head, 4);
+  if (ext == ".png" && std::string(head + 1, 3) != "PNG") return "not a PNG file (bad signature)";
+  if ((ext == ".jpg" || ext == ".jpeg") && !(static_cast<unsigned char>(head[0]) == 0xFF &&
+                                             static_cast<unsigned char>(head[1]) == 0xD8)) {
+    return "not a JPEG file (bad signature)";
+  }
   if (ext == ".png") {
     char tail[12];
     f.seekg(size - 12);

@@ -29,11 +29,15 @@ struct EdgeLineFit {
   Eigen::Vector2d origin = Eigen::Vector2d::Zero();   ///< reference point (mean of the samples)
   Eigen::Vector2d normal = Eigen::Vector2d::UnitX();  ///< unit normal, points from dark to bright
   double offset = 0.0;                                ///< signed distance of the line from origin
-  double blur_sigma = 0.0;     ///< fitted edge spread in px (lens blur + pixel integration)
-  double dark = 0.0;           ///< grey level on the dark side
-  double bright = 0.0;         ///< grey level on the bright side
-  double rms_residual = 0.0;   ///< DN
-  double offset_stddev = 0.0;  ///< 1-sigma of the line offset from the fit (px)
+  /// Quadratic bend (1/px): the edge is n.(p - origin) = offset + curvature * (t.(p - origin))^2
+  /// with t = direction(); 0 for a straight fit.
+  double curvature = 0.0;
+  double curvature_stddev = 0.0;  ///< 1-sigma of the bend (0 for a straight fit)
+  double blur_sigma = 0.0;        ///< fitted edge spread in px (lens blur + pixel integration)
+  double dark = 0.0;              ///< grey level on the dark side
+  double bright = 0.0;            ///< grey level on the bright side
+  double rms_residual = 0.0;      ///< DN
+  double offset_stddev = 0.0;     ///< 1-sigma of the line offset from the fit (px)
   int samples = 0;
   bool converged = false;
 
@@ -45,10 +49,14 @@ struct EdgeLineFit {
 /// Fits the blurred-step model to samples, starting from the line through a and b (the samples
 /// must straddle it). Returns nullopt when the fit is degenerate (too few samples, no contrast,
 /// no convergence, or an implausible blur).
+/// `initial_sigma` is the starting blur (px); a good value (from an earlier fit) saves iterations.
+/// `curved` also fits a quadratic bend (lens distortion curves straight board edges).
 std::optional<EdgeLineFit> fit_edge_line(const std::vector<EdgeSample>& samples,
-                                         const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+                                         const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                                         double initial_sigma = 1.0, bool curved = false);
 
-/// Intersection of two fitted lines; nullopt when they are (nearly) parallel.
+/// Intersection of two fitted edges (curved ones by Newton iteration); nullopt when they are
+/// (nearly) parallel.
 std::optional<Eigen::Vector2d> intersect_lines(const EdgeLineFit& l1, const EdgeLineFit& l2);
 
 /// Refinement settings for a dark square seen against a bright surround (or the reverse).
@@ -64,6 +72,8 @@ struct QuadRefineOptions {
   double max_blur_px = 1.6;
   /// Quads whose border band (side x fraction) is thinner than this are not refined (px).
   double min_border_px = 3.0;
+  /// Fit a quadratic bend per edge (lens distortion); costs some noise on undistorted images.
+  bool fit_curvature = true;
   /// Refined corners that move more than this from the initial ones are rejected (px).
   double max_shift_px = 2.0;
 };

@@ -34,12 +34,13 @@ struct IntrinsicCalibrationOptions {
   double min_outlier_px = 0.05;  ///< never reject residuals below this (noise-free data)
   int max_outlier_rounds = 4;
   int min_corners_per_view = 8;
-  int min_views = 4;               ///< fewer usable views: refused
-  int recommended_views = 10;      ///< fewer: warning
-  double min_max_tilt_deg = 10.0;  ///< all views flatter than this: refused (f unobservable)
-  double good_tilt_deg = 20.0;     ///< fewer than 3 views this tilted: warning
-  int max_uncovered_regions = 5;   ///< of the 3x3 image regions; more uncovered: refused
-  int coverage_cols = 16;          ///< resolution of the coverage / uncertainty map
+  int min_views = 4;                 ///< fewer usable views: refused
+  int recommended_views = 10;        ///< fewer: warning
+  double min_max_tilt_deg = 10.0;    ///< all views flatter than this: refused (f unobservable)
+  double good_tilt_deg = 20.0;       ///< fewer than 3 views this tilted: warning
+  int max_uncovered_regions = 5;     ///< of the 3x3 image regions; more uncovered: refused
+  double high_rms_warning_px = 0.3;  ///< RMS above this: warning (focus, flatness, detection)
+  int coverage_cols = 16;            ///< resolution of the coverage / uncertainty map
   int coverage_rows = 12;
   int max_iterations = 200;
 };
