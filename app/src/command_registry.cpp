@@ -13,11 +13,13 @@ namespace robocal::app {
 // Each command file defines one of these.
 CommandSpec version_command();
 CommandSpec kin_command();
+CommandSpec identify_command();
 
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
       version_command(),
       kin_command(),
+      identify_command(),
   };
   return commands;
 }
