@@ -6,6 +6,8 @@
 
 #include <Eigen/SVD>
 
+#include <stdexcept>
+
 namespace robocal::calib {
 
 const char* to_string(SolveStatus status) {
@@ -118,7 +120,9 @@ struct ClosureSolver::Impl {
 
 ClosureSolver::ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params,
                              ClosureOptions options)
-    : impl_(std::make_unique<Impl>(model, params, options)) {}
+    : impl_(params.size() != static_cast<Eigen::Index>(model.parameters.size())
+                ? throw std::invalid_argument("ClosureSolver: parameter vector has the wrong size")
+                : std::make_unique<Impl>(model, params, options)) {}
 ClosureSolver::ClosureSolver(const ClosureSolver& other)
     : impl_(std::make_unique<Impl>(*other.impl_)) {}
 ClosureSolver& ClosureSolver::operator=(const ClosureSolver& other) {
@@ -152,7 +156,8 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   const auto n = static_cast<Eigen::Index>(m.passive.size());
   result.unknowns = static_cast<int>(n);
   result.equations = m.constraint_rows();
-  if (!s.set_actuators(actuator_readings) || (seed.size() != 0 && seed.size() != n) ||
+  if (s.params.size() != static_cast<Eigen::Index>(m.parameters.size()) ||
+      !s.set_actuators(actuator_readings) || (seed.size() != 0 && seed.size() != n) ||
       !seed.allFinite() || !s.params.allFinite()) {
     result.status = SolveStatus::kInvalidInput;
     return result;
@@ -191,6 +196,11 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
 ClosureResult solve_closure(const Mechanism& model, const Eigen::VectorXd& params,
                             const Eigen::VectorXd& actuator_readings, const Eigen::VectorXd& seed,
                             const ClosureOptions& options) {
+  if (params.size() != static_cast<Eigen::Index>(model.parameters.size())) {
+    ClosureResult bad;
+    bad.status = SolveStatus::kInvalidInput;
+    return bad;
+  }
   return ClosureSolver(model, params, options).solve(actuator_readings, seed);
 }
 
@@ -198,6 +208,11 @@ ForwardResult forward_kinematics(const Mechanism& model, const Eigen::VectorXd& 
                                  const Eigen::VectorXd& actuator_readings, int frame,
                                  const Eigen::VectorXd& seed, const ClosureOptions& options) {
   ForwardResult out;
+  if (frame < 0 || frame >= static_cast<int>(model.bodies.size()) ||
+      params.size() != static_cast<Eigen::Index>(model.parameters.size())) {
+    out.closure.status = SolveStatus::kInvalidInput;
+    return out;
+  }
   out.closure = solve_closure(model, params, actuator_readings, seed, options);
   if (out.closure.status == SolveStatus::kInvalidInput) return out;
   out.state = make_joint_state(model, params, actuator_readings, out.closure.passive);

@@ -5,10 +5,27 @@
 #include <Eigen/QR>
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace robocal::calib {
 
 using detail::Rigid;
+
+namespace {
+
+// Programming errors (bad indices, wrong vector sizes) throw instead of reading out of bounds.
+void check_inputs(const Mechanism& model, const Eigen::VectorXd& params, const JointState& state,
+                  int frame, const char* where) {
+  if (frame < 0 || frame >= static_cast<int>(model.bodies.size()))
+    throw std::invalid_argument(std::string(where) + ": frame index out of range");
+  if (params.size() != static_cast<Eigen::Index>(model.parameters.size()))
+    throw std::invalid_argument(std::string(where) + ": parameter vector has the wrong size");
+  if (state.q.size() != static_cast<Eigen::Index>(model.bodies.size()))
+    throw std::invalid_argument(std::string(where) + ": joint state has the wrong size");
+}
+
+}  // namespace
 
 void body_poses(const Mechanism& model, const Eigen::VectorXd& params, const JointState& state,
                 std::vector<Eigen::Isometry3d>& poses) {
@@ -29,6 +46,7 @@ void body_poses(const Mechanism& model, const Eigen::VectorXd& params, const Joi
 
 Eigen::Isometry3d frame_pose(const Mechanism& model, const Eigen::VectorXd& params,
                              const JointState& state, int body) {
+  check_inputs(model, params, state, body, "frame_pose");
   // Walk the chain from the root to `body` only.
   std::vector<int> chain;
   for (int b = body; b >= 0; b = model.bodies[b].parent) chain.push_back(b);
@@ -79,6 +97,9 @@ inline void motion_at(const Source& s, const Rigid& f, Eigen::Vector3d& dp, Eige
 FrameJacobians frame_jacobians(const Mechanism& model, const Eigen::VectorXd& params,
                                const JointState& state, const Eigen::VectorXd& actuator_readings,
                                int frame) {
+  check_inputs(model, params, state, frame, "frame_jacobians");
+  if (actuator_readings.size() != static_cast<Eigen::Index>(model.actuated.size()))
+    throw std::invalid_argument("frame_jacobians: wrong number of actuator readings");
   const auto P = static_cast<Eigen::Index>(model.parameters.size());
   const auto n = static_cast<Eigen::Index>(model.passive.size());
   const auto na = static_cast<Eigen::Index>(model.actuated.size());

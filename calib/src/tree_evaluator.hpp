@@ -100,8 +100,7 @@ struct LmWorkspace {
     if (J.rows() != rows || J.cols() != cols) {
       J.resize(rows, cols);
       A.resize(cols, cols);
-      llt = Eigen::LLT<Eigen::MatrixXd>(cols);
-      lu = Eigen::PartialPivLU<Eigen::MatrixXd>(cols);
+      // llt / lu size themselves on their first compute() and reuse the storage afterwards.
     }
     r.resize(rows);
     r_trial.resize(rows);

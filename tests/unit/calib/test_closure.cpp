@@ -160,3 +160,45 @@ TEST(Closure, PerturbedDeltaStillClosesFromNominalClosedFormSeed) {
 
 }  // namespace
 }  // namespace robocal::calib
+
+namespace robocal::calib {
+namespace {
+
+TEST(Closure, IdleMobilityIsSolvedAndReportedByRank) {
+  // The four-bar with the crank-tip joint made passive: it sits at the ball centre, so it can
+  // spin without moving anything (an idle mobility). The loop still closes; the SVD says rank
+  // 3 of 4 unknowns.
+  const Mechanism m = parse_robot_yaml(
+      "robot: idle\nbodies:\n"
+      "  - {name: b1, convention: mcpc, joint: revolute, role: actuated}\n"
+      "  - {name: b2, parent: b1, convention: mcpc, joint: revolute, params: {d2: 1}}\n"
+      "  - {name: b3, convention: mcpc, joint: revolute, params: {d1: 1}}\n"
+      "  - {name: b4, parent: b3, convention: mcpc, joint: revolute, params: {a1: -pi/2}}\n"
+      "  - {name: b5, parent: b4, convention: mcpc, joint: revolute, params: {a1: pi/2, d2: 1}}\n"
+      "  - {name: b6, parent: b5, convention: mcpc, joint: spherical, params: {a1: -pi/2, d1: "
+      "-1}}\n"
+      "closures:\n  - {a: b6, b: b2}\n",
+      "idle");
+  ASSERT_EQ(m.passive.size(), 4u);
+  ClosureOptions o;
+  o.diagnose = true;
+  const ClosureResult r = solve_closure(m, m.nominal_parameters(),
+                                        Eigen::VectorXd::Constant(1, 0.4), Eigen::VectorXd(), o);
+  EXPECT_EQ(r.status, SolveStatus::kSingular);
+  EXPECT_LE(r.residual, 1e-12);
+  EXPECT_EQ(r.rank, 3);
+  EXPECT_EQ(r.unknowns, 4);
+}
+
+TEST(Closure, WrongSizedInputsAreRejectedNotRead) {
+  const Mechanism m = testing::load("four_bar.yaml");
+  EXPECT_EQ(solve_closure(m, Eigen::VectorXd::Zero(3), Eigen::VectorXd::Zero(1)).status,
+            SolveStatus::kInvalidInput);
+  EXPECT_THROW(ClosureSolver(m, Eigen::VectorXd::Zero(3)), std::invalid_argument);
+  JointState s;
+  s.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()));
+  EXPECT_THROW(frame_pose(m, m.nominal_parameters(), s, 99), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace robocal::calib

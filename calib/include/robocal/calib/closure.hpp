@@ -16,7 +16,8 @@ namespace robocal::calib {
 
 enum class SolveStatus : std::uint8_t {
   kConverged,     // residual <= tolerance
-  kSingular,      // converged but the constraint Jacobian is rank deficient (singular pose)
+  kSingular,      // converged (diagnose on) but dv/dtheta has rank < unknowns: singular pose or
+                  // idle mobility (see rank)
   kNotConverged,  // iteration limit reached; residual reported
   kNoSolution,    // stalled with a residual far from zero (loop cannot close / unreachable)
   kInvalidInput,  // NaN/inf or wrong vector sizes
@@ -47,7 +48,9 @@ struct ClosureResult {
 };
 
 // Reusable solver: caches the parameter-dependent fixed transforms and a preallocated workspace,
-// so solve() does no heap allocation for mechanisms up to kMaxUnknowns passive joints.
+// so the Newton iterations inside solve() do no heap allocation (only the returned vector is
+// allocated). Keeps a pointer to `model`, which must outlive the solver. Throws
+// std::invalid_argument when params has the wrong size.
 class ClosureSolver {
  public:
   ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params, ClosureOptions options = {});

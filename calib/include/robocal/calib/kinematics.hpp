@@ -47,6 +47,9 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> parameter_jacobian(
     const Mechanism& model, const Eigen::VectorXd& params, const JointState& state,
     const Eigen::VectorXd& actuator_readings, int frame);
 
+// frame_pose / parameter_jacobian / frame_jacobians throw std::invalid_argument for an
+// out-of-range frame or wrongly sized vectors (programming errors, not data errors).
+
 // Same but also returns d(pose)/d(actuator readings) (6 x A) through the closures, which
 // identification needs for actuator-noise propagation.
 struct FrameJacobians {
