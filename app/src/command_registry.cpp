@@ -18,13 +18,15 @@ CommandSpec render_command();
 CommandSpec intrinsics_command();
 CommandSpec rig_command();
 CommandSpec measure_command();
+CommandSpec identify_command();
 CommandSpec demo_command();
 
 // In the order of a calibration: the demo first, then the steps a user runs on real data.
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
-      demo_command(),       kin_command(), target_command(),  render_command(),
-      intrinsics_command(), rig_command(), measure_command(), version_command(),
+      demo_command(),    kin_command(),        target_command(),
+      render_command(),  intrinsics_command(), rig_command(),
+      measure_command(), identify_command(),   version_command(),
   };
   return commands;
 }

@@ -180,11 +180,20 @@ IdentifiabilityReport analyze_identifiability(const Eigen::MatrixXd& J,
       });
       dir.first = report.identifiable[idx[0]];
       dir.second = report.identifiable[idx.size() > 1 ? idx[1] : idx[0]];
+      std::string others;
+      for (std::size_t k = 2; k < idx.size(); ++k) {
+        const double vk = v(static_cast<Eigen::Index>(idx[k]));
+        if (std::abs(vk) < 0.2) break;
+        others += fmt::format(", {} ({:+.2f})", names[report.identifiable[idx[k]]], vk);
+      }
       dir.explanation = fmt::format(
           "{} and {} are barely separated by this data (relative singular value {:.2g}, "
           "condition {:.3g}): they move the measurements almost the same way, so their estimates "
-          "are strongly correlated and sensitive to noise; add poses that separate them or fix one",
-          names[dir.first], names[dir.second], rel, 1.0 / rel);
+          "are strongly correlated and sensitive to noise; add poses that separate them or fix "
+          "one (weak direction: {} ({:+.2f}), {} ({:+.2f}){})",
+          names[dir.first], names[dir.second], rel, 1.0 / rel, names[dir.first],
+          v(static_cast<Eigen::Index>(idx[0])), names[dir.second],
+          v(static_cast<Eigen::Index>(idx.size() > 1 ? idx[1] : idx[0])), others);
       report.ill_conditioned.push_back(std::move(dir));
     }
   }

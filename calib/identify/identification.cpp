@@ -356,7 +356,14 @@ IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd
     for (Eigen::Index k = 0; k < norms.size(); ++k)
       with_effect += norms(k) > options.identifiability.no_effect_tolerance * top ? 1 : 0;
   }
-  const double needed_rows = options.min_equations_per_parameter * static_cast<double>(with_effect);
+  result.identifiability =
+      analyze_identifiability(Jc, cand_names, options.identifiability, cand_pref);
+  // Too few poses: to tell a structural redundancy from a lack of data there must be at least
+  // one equation per candidate that has an effect (min_equations_per_parameter of them), and
+  // enough for the identifiable set.
+  const double needed_rows =
+      options.min_equations_per_parameter *
+      static_cast<double>(std::max(with_effect, result.identifiability.rank));
   if (static_cast<double>(as.rows) < needed_rows) {
     const auto needed_poses = static_cast<long>(std::ceil(needed_rows / rows_per_pose));
     return invalid(fmt::format(
@@ -365,10 +372,20 @@ IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd
         "fit)",
         poses_used, as.rows, with_effect, needed_poses));
   }
-  result.identifiability =
-      analyze_identifiability(Jc, cand_names, options.identifiability, cand_pref);
-  for (std::size_t k : result.identifiability.identifiable)
-    result.estimated.push_back(candidates[k]);
+  if (options.estimate_redundant) {
+    // Every candidate that has an effect is estimated; the prior makes the problem well posed.
+    for (std::size_t k = 0; k < candidates.size(); ++k)
+      if (!std::binary_search(result.identifiability.no_effect.begin(),
+                              result.identifiability.no_effect.end(), k))
+        result.estimated.push_back(candidates[k]);
+    bool all_priors = !options.prior_sigma.empty();
+    for (std::size_t i : result.estimated) all_priors = all_priors && options.prior_sigma[i] > 0.0;
+    if (!all_priors)
+      return invalid("estimate_redundant needs a prior (prior_sigma > 0) on every candidate");
+  } else {
+    for (std::size_t k : result.identifiability.identifiable)
+      result.estimated.push_back(candidates[k]);
+  }
   if (result.estimated.empty()) return invalid("no identifiable parameter among the candidates");
 
   // 3. Ceres problem over the full vector with the non-estimated entries held constant.

@@ -88,6 +88,11 @@ struct SolveOptions {
   IdentifiabilityOptions identifiability;
   // Priors from tolerances: prior_sigma[i] > 0 adds (a_i − nominal_i)/σ_i (MAP). Empty = none.
   std::vector<double> prior_sigma;
+  // Estimate the redundant candidates too (all with an effect), regularised by the priors, instead
+  // of holding them at nominal. Redundancies found at the nominal model are often only local
+  // (first order): a truth perturbed in "redundant" parameters is then not exactly representable
+  // by the base set. Requires prior_sigma on every candidate; covariance is then the MAP one.
+  bool estimate_redundant = false;
   // Optional bounds per parameter (NaN = unbounded).
   std::vector<double> lower_bound;
   std::vector<double> upper_bound;

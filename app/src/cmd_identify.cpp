@@ -1,0 +1,245 @@
+// `robocal identify`: identify a robot's geometry from a measurements file (format:
+// testdata/measurements/README.md). Writes the JSON result and, on success, the calibrated robot
+// file. Also `--simulate` to write a synthetic measurements file from a perturbed robot.
+#include "cli_common.hpp"
+#include "command_registry.hpp"
+#include "robocal/calib/calibrated_robot_file.hpp"
+#include "robocal/calib/identification_json.hpp"
+#include "robocal/calib/measurements_file.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal_version.hpp"
+
+#include <fmt/core.h>
+#include <fnmatch.h>
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+namespace robocal::app {
+namespace {
+
+using namespace robocal::calib;
+
+struct IdentifyOptions {
+  std::string robot;
+  std::string measurements;
+  std::string json = "-";
+  std::string out_robot;
+  std::vector<std::string> free_patterns;
+  std::vector<std::string> fix_patterns;
+  bool priors = false;
+  std::string robust = "none";
+  double robust_scale = 3.0;
+  int multi_start = 0;
+  int holdout_every = 0;
+  int kfold = 0;
+  unsigned seed = 1;
+  // --simulate: write measurements instead of identifying.
+  std::string simulate;
+  int poses = 60;
+  double point_sigma = 20e-6;
+  double length_sigma = 0.5e-3;
+  double angle_sigma_deg = 0.2;
+  std::string kind = "point";
+};
+
+bool matches(const std::string& name, const std::vector<std::string>& patterns) {
+  for (const auto& p : patterns)
+    if (fnmatch(p.c_str(), name.c_str(), 0) == 0) return true;
+  return false;
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+Mechanism load_robot(const std::string& path) {
+  try {
+    return load_robot_file(path);
+  } catch (const RobotFileError& e) {
+    throw InputError(e.what());
+  }
+}
+
+int run_simulate(const IdentifyOptions& o) {
+  const Mechanism model = load_robot(o.robot);
+  const MechanismPredictor pred(model);
+  std::mt19937 rng(o.seed);
+  const Eigen::VectorXd nominal = model.nominal_parameters();
+  const Eigen::VectorXd truth = perturb_parameters(
+      nominal, tolerance_sigmas(model, o.length_sigma, o.angle_sigma_deg * M_PI / 180.0), rng);
+  const auto qs = sample_actuators(pred, {nominal, truth}, static_cast<std::size_t>(o.poses), rng);
+  SimulationOptions sim;
+  sim.position_sigma = o.point_sigma;
+  if (o.kind == "pose")
+    sim.kind = SimulatedObservation::kPose;
+  else if (o.kind == "probe")
+    sim.kind = SimulatedObservation::kProbeHeight;
+  else if (o.kind != "point")
+    throw InputError("--kind must be point, pose or probe");
+  MeasurementsFile file;
+  file.robot = model.name;
+  file.measurements = simulate_measurements(pred, truth, qs, sim, rng);
+  save_measurements_file(file, o.simulate);
+  nlohmann::json truth_json;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i)
+    truth_json[model.parameters[i].name] = truth(static_cast<Eigen::Index>(i));
+  write_json({{"measurements", o.simulate},
+              {"poses", file.measurements.poses.size()},
+              {"truth", truth_json}},
+             o.json);
+  return kExitOk;
+}
+
+int run_identify(const IdentifyOptions& o) {
+  if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
+  const Mechanism model = load_robot(o.robot);
+  MeasurementsFile file;
+  try {
+    file = load_measurements_file(o.measurements);
+  } catch (const MeasurementsFileError& e) {
+    throw InputError(e.what());
+  }
+  if (!file.robot.empty() && file.robot != model.name)
+    throw InputError(fmt::format("{}: measurements are for robot '{}', the robot file is '{}'",
+                                 o.measurements, file.robot, model.name));
+  int frame = -1;
+  if (!file.frame.empty()) {
+    frame = model.body_index(file.frame);
+    if (frame < 0)
+      throw InputError(fmt::format("{}: frame '{}' is not a body of {}", o.measurements, file.frame,
+                                   model.name));
+  }
+  const MechanismPredictor pred(model, frame);
+  const Eigen::VectorXd nominal = model.nominal_parameters();
+
+  SolveOptions opt = solve_options_from_model(model, o.priors);
+  if (!o.free_patterns.empty() || !o.fix_patterns.empty()) {
+    std::vector<std::size_t> candidates;
+    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+      const std::string& n = model.parameters[i].name;
+      const bool free =
+          o.free_patterns.empty() ? model.parameters[i].free : matches(n, o.free_patterns);
+      if (free && !matches(n, o.fix_patterns)) candidates.push_back(i);
+    }
+    if (candidates.empty()) throw InputError("--free/--fix leave no parameter to estimate");
+    opt.candidates = candidates;
+    if (o.priors) {
+      opt.prior_sigma.assign(model.parameters.size(), 0.0);
+      for (std::size_t i : candidates) opt.prior_sigma[i] = model.parameters[i].sigma;
+    }
+  }
+  if (o.robust == "huber")
+    opt.robust_loss = RobustLoss::kHuber;
+  else if (o.robust == "cauchy")
+    opt.robust_loss = RobustLoss::kCauchy;
+  else if (o.robust != "none")
+    throw InputError("--robust must be none, huber or cauchy");
+  opt.robust_scale = o.robust_scale;
+  opt.multi_start = o.multi_start;
+  opt.seed = o.seed;
+  if (o.multi_start > 0 && opt.prior_sigma.empty()) {
+    opt.start_sigma.assign(model.parameters.size(), 0.0);
+    for (std::size_t i = 0; i < model.parameters.size(); ++i)
+      opt.start_sigma[i] = model.parameters[i].sigma;
+  }
+
+  // Held-out validation: every k-th pose is kept out of the fit.
+  Measurements fit = file.measurements;
+  std::vector<PoseMeasurement> held;
+  if (o.holdout_every > 1) {
+    fit.poses.clear();
+    for (std::size_t k = 0; k < file.measurements.poses.size(); ++k)
+      ((k + 1) % static_cast<std::size_t>(o.holdout_every) == 0 ? held : fit.poses)
+          .push_back(file.measurements.poses[k]);
+  }
+  const IdentificationResult res = identify(pred, nominal, fit, opt);
+  nlohmann::json doc = to_json(res);
+  doc["robot"] = o.robot;
+  doc["measurements"] = o.measurements;
+  doc["robocal"] = kVersion;
+  doc["fit_validation"] = to_json(validate(pred, nominal, res.estimate, fit.poses));
+  if (!held.empty())
+    doc["heldout_validation"] = to_json(validate(pred, nominal, res.estimate, held));
+  if (o.kfold > 1)
+    doc["kfold"] = to_json(k_fold_validation(pred, nominal, file.measurements, o.kfold, opt));
+
+  const bool usable = res.status == IdentificationStatus::kConverged ||
+                      res.status == IdentificationStatus::kNotConverged;
+  if (usable && !o.out_robot.empty()) {
+    std::vector<std::string> provenance = {
+        fmt::format("Calibrated by robocal {} identify ({}).", kVersion, to_string(res.status)),
+        fmt::format("Measurements: {} ({} poses used, {} excluded).", o.measurements,
+                    res.residuals.poses.size(), res.excluded.size()),
+        fmt::format("Estimated {} parameters; fit residual RMS {:.3g} m; predicted accuracy RMS "
+                    "{:.3g} m.",
+                    res.estimated.size(), res.residuals.position_rms,
+                    res.predicted.position_rms_overall),
+        fmt::format("Nominal model: {}.", o.robot)};
+    const std::string text =
+        calibrated_robot_yaml(read_text(o.robot), model, res.estimate, res.estimated, provenance);
+    const std::string tmp = o.out_robot + ".tmp";
+    {
+      std::ofstream out(tmp);
+      if (!out) throw InputError(o.out_robot + ": cannot write");
+      out << text;
+    }
+    std::filesystem::rename(tmp, o.out_robot);
+    doc["calibrated_robot"] = o.out_robot;
+  }
+  write_json(doc, o.json);
+  if (res.status == IdentificationStatus::kInvalidInput)
+    throw InputError(fmt::format("{}: {}", o.measurements, res.message));
+  if (!usable) {
+    fmt::print(stderr, "identification failed: {}\n", res.message);
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+CommandSpec identify_command() {
+  return {"identify", "Identify the robot's geometry from a measurements file (or simulate one)",
+          [](CLI::App& cmd) -> CommandAction {
+            auto o = std::make_shared<IdentifyOptions>();
+            cmd.add_option("--robot", o->robot, "Robot file (YAML)")->required();
+            cmd.add_option("--measurements", o->measurements,
+                           "Measurements file (testdata/measurements/README.md)");
+            cmd.add_option("--json", o->json, "Result JSON file ('-' = stdout)");
+            cmd.add_option("--out-robot", o->out_robot,
+                           "Write the calibrated robot file here (only when the solve succeeds)");
+            cmd.add_option("--free", o->free_patterns,
+                           "Parameters to estimate (glob on names, repeatable; default: the robot "
+                           "file's free parameters)");
+            cmd.add_option("--fix", o->fix_patterns, "Parameters to hold (glob, repeatable)");
+            cmd.add_flag("--priors", o->priors, "Use the robot file's tolerances as priors (MAP)");
+            cmd.add_option("--robust", o->robust, "Robust loss: none, huber or cauchy");
+            cmd.add_option("--robust-scale", o->robust_scale, "Robust loss scale in sigmas");
+            cmd.add_option("--multi-start", o->multi_start, "Extra perturbed starts");
+            cmd.add_option("--holdout-every", o->holdout_every,
+                           "Hold every k-th pose out of the fit and validate on it");
+            cmd.add_option("--kfold", o->kfold, "k-fold cross-validation with k folds");
+            cmd.add_option("--seed", o->seed, "Random seed (multi-start, simulation)");
+            cmd.add_option("--simulate", o->simulate,
+                           "Write a synthetic measurements file from a randomly perturbed robot "
+                           "instead of identifying");
+            cmd.add_option("--poses", o->poses, "Simulation: number of poses");
+            cmd.add_option("--point-sigma", o->point_sigma, "Simulation: noise sigma (m)");
+            cmd.add_option("--kind", o->kind, "Simulation: point, pose or probe observations");
+            cmd.add_option("--length-sigma", o->length_sigma,
+                           "Simulation: perturbation sigma of lengths (m)");
+            cmd.add_option("--angle-sigma-deg", o->angle_sigma_deg,
+                           "Simulation: perturbation sigma of angles (deg)");
+            return [o]() { return o->simulate.empty() ? run_identify(*o) : run_simulate(*o); };
+          }};
+}
+
+}  // namespace robocal::app

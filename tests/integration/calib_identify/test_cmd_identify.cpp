@@ -1,0 +1,97 @@
+// `robocal identify` driven in-process as a user would: simulate a measurements file, identify,
+// read the calibrated robot file back; bad measurement files give exit code 3 with the reason.
+#include "command_registry.hpp"
+#include "robocal/calib/robot_file.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace {
+
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const auto pos = text.find(from);
+  if (pos != std::string::npos) text.replace(pos, from.size(), to);
+  return text;
+}
+
+int run(std::vector<std::string> args) {
+  args.insert(args.begin(), "robocal");
+  std::vector<const char*> argv;
+  for (const auto& a : args) argv.push_back(a.c_str());
+  return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
+}
+
+std::string read(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+struct IdentifyCli : ::testing::Test {
+  std::filesystem::path dir;
+  std::string robot = std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml";
+  void SetUp() override {
+    dir = std::filesystem::temp_directory_path() /
+          ("robocal_identify_cli_" + std::to_string(::getpid()) + "_" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir); }
+  std::string file(const std::string& name) const { return (dir / name).string(); }
+};
+
+TEST_F(IdentifyCli, SimulateIdentifyAndWriteCalibratedRobot) {
+  ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--poses", "40",
+                 "--json", file("sim.json")}),
+            0);
+  ASSERT_EQ(run({"identify", "--robot", robot, "--measurements", file("m.yaml"), "--json",
+                 file("r.json"), "--out-robot", file("cal.yaml"), "--holdout-every", "4"}),
+            0);
+  const auto doc = nlohmann::json::parse(read(file("r.json")));
+  EXPECT_EQ(doc["status"], "converged");
+  const double before = doc["heldout_validation"]["before"]["position_rms_m"];
+  const double after = doc["heldout_validation"]["after"]["position_rms_m"];
+  EXPECT_LT(after, before / 10.0);
+  // The calibrated file loads and carries the estimated values.
+  const auto cal = robocal::calib::load_robot_file(file("cal.yaml"));
+  for (const auto& p : doc["parameters"]) {
+    if (!p["estimated"].get<bool>()) continue;
+    const int i = cal.parameter_index(p["name"]);
+    ASSERT_GE(i, 0);
+    EXPECT_NEAR(cal.parameters[static_cast<std::size_t>(i)].value, p["value"].get<double>(), 1e-15);
+  }
+  EXPECT_NE(read(file("cal.yaml")).find("# Calibrated by robocal"), std::string::npos);
+}
+
+TEST_F(IdentifyCli, BadMeasurementFilesAreRefusedWithTheReason) {
+  ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--poses", "30",
+                 "--json", file("sim.json")}),
+            0);
+  const std::string good = read(file("m.yaml"));
+  // Duplicate pose id.
+  std::ofstream(file("dup.yaml")) << replaced(good, "id: p0003", "id: p0002");
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("dup.yaml"), "--json",
+                 file("r.json")}),
+            3);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("p0002"), std::string::npos) << err;
+  EXPECT_NE(err.find("more than once"), std::string::npos) << err;
+  // Metre values declared as millimetres: off by 1000.
+  std::ofstream(file("mm.yaml")) << replaced(good, "units:\n  length: m", "units:\n  length: mm");
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("mm.yaml"), "--json",
+                 file("r.json")}),
+            3);
+  const std::string err2 = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err2.find("1000"), std::string::npos) << err2;
+  // Missing file.
+  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("none.yaml")}), 3);
+}
+
+}  // namespace
