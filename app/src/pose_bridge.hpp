@@ -14,10 +14,11 @@ namespace robocal::app {
 // Reorders a vision pose covariance [rotation; translation] into calib's [position; rotation].
 inline Eigen::Matrix<double, 6, 6> vision_to_calib_covariance(
     const Eigen::Matrix<double, 6, 6>& vision_covariance) {
-  Eigen::Matrix<double, 6, 6> swap = Eigen::Matrix<double, 6, 6>::Zero();
-  swap.block<3, 3>(0, 3).setIdentity();
-  swap.block<3, 3>(3, 0).setIdentity();
-  return swap * vision_covariance * swap.transpose();
+  const auto& v = vision_covariance;
+  Eigen::Matrix<double, 6, 6> out;
+  out << v.bottomRightCorner<3, 3>(), v.bottomLeftCorner<3, 3>(),  // position rows
+      v.topRightCorner<3, 3>(), v.topLeftCorner<3, 3>();           // rotation rows
+  return out;
 }
 
 inline calib::PoseObservation to_pose_observation(const vision::PoseMeasurement& measurement) {
