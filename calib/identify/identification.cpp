@@ -54,21 +54,34 @@ class PoseCost final : public ceres::CostFunction {
     std::string why;
     if (!model_.predict(params, pose_.actuators, slot_, want_jacobian, pred, why)) return false;
     int row = 0;
+    bool ok = true;
     for (const auto& obs : pose_.observations) {
       std::visit(
           [&](const auto& o) {
             using O = std::decay_t<decltype(o)>;
-            Eigen::Matrix<double, O::kResiduals, 1> r;
-            const auto Jo = residual_and_twist_jacobian(o, pred.pose, r);
-            for (int i = 0; i < O::kResiduals; ++i) residuals[row + i] = r(i);
-            if (want_jacobian) {
-              Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
-                  jacobians[0], num_residuals(), P);
-              J.middleRows(row, O::kResiduals) = Jo * pred.jacobian;
+            Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
+                want_jacobian ? jacobians[0] : nullptr, num_residuals(), P);
+            if constexpr (std::is_same_v<O, PixelObservation>) {
+              // Depends on camera parameters too: the predictor chains it (exact).
+              Eigen::Vector2d r;
+              Eigen::Matrix<double, 2, Eigen::Dynamic> Jp;
+              if (!model_.pixel_residual(o, params, pred, r, want_jacobian ? &Jp : nullptr, why)) {
+                ok = false;
+                return;
+              }
+              residuals[row] = r(0);
+              residuals[row + 1] = r(1);
+              if (want_jacobian) J.middleRows(row, 2) = Jp;
+            } else {
+              Eigen::Matrix<double, O::kResiduals, 1> r;
+              const auto Jo = residual_and_twist_jacobian(o, pred.pose, r);
+              for (int i = 0; i < O::kResiduals; ++i) residuals[row + i] = r(i);
+              if (want_jacobian) J.middleRows(row, O::kResiduals) = Jo * pred.jacobian;
             }
             row += O::kResiduals;
           },
           obs);
+      if (!ok) return false;
     }
     return true;
   }
@@ -157,11 +170,31 @@ bool finite_observation(const Observation& obs) {
                  o.weight.allFinite();
         else if constexpr (std::is_same_v<O, PointObservation>)
           return o.measured.allFinite() && o.weight.allFinite();
+        else if constexpr (std::is_same_v<O, PixelObservation>)
+          return o.measured.allFinite() && o.point.allFinite() && o.weight.allFinite();
         else
           return std::isfinite(o.measured_height) && std::isfinite(o.offset) &&
                  o.normal.allFinite() && std::isfinite(o.sigma) && o.sigma > 0.0;
       },
       obs);
+}
+
+// Every pixel observation of a pose can be evaluated at the start (camera known, corner in front
+// of it); otherwise `why` names the first that cannot.
+bool pixels_project(const FramePredictor& model, const Eigen::VectorXd& params,
+                    const PoseMeasurement& pose, const FramePrediction& pred, std::string& why) {
+  for (const auto& obs : pose.observations) {
+    const auto* px = std::get_if<PixelObservation>(&obs);
+    if (px == nullptr) continue;
+    Eigen::Vector2d r;
+    std::string reason;
+    if (!model.pixel_residual(*px, params, pred, r, nullptr, reason)) {
+      why = fmt::format("pixel observation of corner {} in camera {} unusable at the start: {}",
+                        px->corner, px->camera, reason);
+      return false;
+    }
+  }
+  return true;
 }
 
 std::optional<Eigen::Vector3d> observed_position(const Observation& obs) {
@@ -289,6 +322,10 @@ IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd
     if (!model.predict(nominal, pose.actuators, static_cast<int>(k), false, pred, why)) {
       result.excluded.push_back(
           {pose.id, fmt::format("the nominal model cannot solve this pose: {}", why)});
+      continue;
+    }
+    if (!pixels_project(model, nominal, pose, pred, why)) {
+      result.excluded.push_back({pose.id, why});
       continue;
     }
     slot_of[pose.id] = static_cast<int>(k);

@@ -3,9 +3,11 @@
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -65,6 +67,70 @@ double positive(const std::string& source, const YAML::Node& node, const std::st
   return v;
 }
 
+// Orientation from `rotation_vector` or `quaternion` [w, x, y, z] (one of them required).
+Eigen::Matrix3d rotation(const std::string& source, const YAML::Node& map, const std::string& what,
+                         double angle_unit) {
+  if (map["rotation_vector"] && map["quaternion"])
+    fail(source, map, what + ": give either rotation_vector or quaternion, not both");
+  if (map["rotation_vector"]) {
+    const Eigen::Vector3d w =
+        vector(source, map["rotation_vector"], what + " rotation_vector", 3) * angle_unit;
+    return w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix()
+                        : Eigen::Matrix3d::Identity();
+  }
+  if (map["quaternion"]) {
+    const Eigen::VectorXd q =
+        vector(source, map["quaternion"], what + " quaternion [w, x, y, z]", 4);
+    if (std::abs(q.norm() - 1.0) > 1e-6)
+      fail(source, map["quaternion"],
+           fmt::format("{}: quaternion must have unit norm (has {:.9g})", what, q.norm()));
+    return Eigen::Quaterniond(q(0), q(1), q(2), q(3)).normalized().toRotationMatrix();
+  }
+  fail(source, map, what + " needs rotation_vector or quaternion");
+}
+
+// `cameras:` list → ObservingCamera (intrinsics in pixels, pose in the file's units).
+std::vector<ObservingCamera> parse_cameras(const std::string& source, const YAML::Node& list,
+                                           double length_unit, double angle_unit) {
+  if (!list.IsSequence() || list.size() == 0)
+    fail(source, list, "cameras must be a non-empty list");
+  std::vector<ObservingCamera> cameras;
+  std::set<std::string> names;
+  for (const YAML::Node& c : list) {
+    check_keys(source, c, "camera",
+               {"name", "model", "size", "params", "position", "rotation_vector", "quaternion"});
+    ObservingCamera cam;
+    if (!c["name"] || c["name"].Scalar().empty()) fail(source, c, "camera without 'name'");
+    cam.name = c["name"].Scalar();
+    if (!names.insert(cam.name).second)
+      fail(source, c["name"], fmt::format("camera '{}' appears more than once", cam.name));
+    const std::string what = fmt::format("camera '{}'", cam.name);
+    if (!c["model"]) fail(source, c, what + " needs 'model'");
+    const auto kind = vision::kind_from_name(c["model"].Scalar());
+    if (!kind)
+      fail(source, c["model"],
+           fmt::format("{}: unknown model '{}' (pinhole_radtan, pinhole_rational, fisheye_kb4)",
+                       what, c["model"].Scalar()));
+    cam.model.kind = *kind;
+    if (!c["size"]) fail(source, c, what + " needs 'size: [width, height]'");
+    const Eigen::VectorXd size = vector(source, c["size"], what + " size", 2);
+    cam.model.width = static_cast<int>(size(0));
+    cam.model.height = static_cast<int>(size(1));
+    if (!c["params"]) fail(source, c, what + " needs 'params'");
+    const Eigen::VectorXd prm =
+        vector(source, c["params"], what + " params", vision::num_params(*kind));
+    cam.model.params.assign(prm.data(), prm.data() + prm.size());
+    const std::string problem = vision::validate_camera(cam.model);
+    if (!problem.empty()) fail(source, c, fmt::format("{}: {}", what, problem));
+    if (!c["position"]) fail(source, c, what + " needs 'position' (its centre in the world)");
+    cam.world_T_camera.translation() =
+        vector(source, c["position"], what + " position", 3) * length_unit;
+    cam.world_T_camera.linear() = rotation(source, c, what, angle_unit);
+    cameras.push_back(std::move(cam));
+  }
+  return cameras;
+}
+
 }  // namespace
 
 MeasurementsFile parse_measurements_yaml(const std::string& text, const std::string& source) {
@@ -77,7 +143,8 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
   }
   if (!root.IsMap()) fail(source, root, "a measurements file must be a YAML mapping");
   check_keys(source, root, "measurements file",
-             {"robot", "frame", "units", "noise", "poses", "distances", "description"});
+             {"robot", "frame", "units", "noise", "poses", "distances", "description", "cameras",
+              "target"});
   MeasurementsFile file;
   file.source = source;
   if (root["robot"]) file.robot = root["robot"].Scalar();
@@ -110,8 +177,10 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
   }
   double default_pos_sigma = 0.0;
   double default_rot_sigma = 0.0;
+  double default_pixel_sigma = 0.0;
   if (const YAML::Node n = root["noise"]) {
-    check_keys(source, n, "noise", {"position_sigma", "rotation_sigma", "actuator_sigma"});
+    check_keys(source, n, "noise",
+               {"position_sigma", "rotation_sigma", "actuator_sigma", "pixel_sigma"});
     if (n["position_sigma"])
       default_pos_sigma =
           positive(source, n["position_sigma"], "noise.position_sigma") * length_unit;
@@ -120,13 +189,29 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
           positive(source, n["rotation_sigma"], "noise.rotation_sigma") * angle_unit;
     if (n["actuator_sigma"])
       file.actuator_sigma = vector(source, n["actuator_sigma"], "noise.actuator_sigma");
+    if (n["pixel_sigma"])
+      default_pixel_sigma = positive(source, n["pixel_sigma"], "noise.pixel_sigma");
+  }
+  if (const YAML::Node c = root["cameras"])
+    file.cameras = parse_cameras(source, c, length_unit, angle_unit);
+  std::map<int, Eigen::Vector3d> target;
+  if (const YAML::Node t = root["target"]) {
+    if (!t.IsSequence()) fail(source, t, "target must be a list of {id, point}");
+    for (const YAML::Node& c : t) {
+      check_keys(source, c, "target corner", {"id", "point"});
+      if (!c["id"] || !c["point"]) fail(source, c, "a target corner needs 'id' and 'point'");
+      const int id = static_cast<int>(number(source, c["id"], "target corner id"));
+      if (!target.emplace(id, vector(source, c["point"], "target corner point", 3) * length_unit)
+               .second)
+        fail(source, c["id"], fmt::format("target corner {} appears more than once", id));
+    }
   }
   const YAML::Node poses = root["poses"];
   if (!poses || !poses.IsSequence()) fail(source, root, "missing 'poses' (a list)");
   Eigen::Index actuator_count = -1;
   for (const YAML::Node& p : poses) {
     check_keys(source, p, "pose",
-               {"id", "actuators", "point", "point_sigma", "pose", "probe", "comment"});
+               {"id", "actuators", "point", "point_sigma", "pose", "probe", "pixels", "comment"});
     PoseMeasurement m;
     if (!p["id"]) fail(source, p, "pose without 'id'");
     m.id = p["id"].Scalar();
@@ -223,8 +308,63 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
       if (!(o.sigma > 0.0)) fail(source, pr, "probe needs 'sigma' (or noise.position_sigma)");
       m.observations.push_back(o);
     }
+    if (const YAML::Node pxs = p["pixels"]) {
+      if (!pxs.IsSequence())
+        fail(source, pxs, fmt::format("pose '{}': pixels must be a list", m.id));
+      if (file.cameras.empty())
+        fail(source, pxs, fmt::format("pose '{}' has pixels but the file lists no cameras", m.id));
+      for (const YAML::Node& x : pxs) {
+        check_keys(source, x, "pixel observation",
+                   {"camera", "corner", "point", "pixel", "sigma", "covariance"});
+        if (!x["camera"] || !x["pixel"])
+          fail(source, x,
+               fmt::format("pose '{}': a pixel observation needs 'camera' and 'pixel'", m.id));
+        PixelObservation o;
+        const std::string cam = x["camera"].Scalar();
+        const auto it = std::find_if(file.cameras.begin(), file.cameras.end(),
+                                     [&](const ObservingCamera& c) { return c.name == cam; });
+        if (it == file.cameras.end())
+          fail(source, x["camera"], fmt::format("pose '{}': unknown camera '{}'", m.id, cam));
+        o.camera = static_cast<int>(it - file.cameras.begin());
+        if (x["corner"]) o.corner = static_cast<int>(number(source, x["corner"], "corner id"));
+        if (x["point"]) {
+          o.point = vector(source, x["point"], "pixel observation point", 3) * length_unit;
+        } else if (o.corner >= 0 && target.count(o.corner)) {
+          o.point = target.at(o.corner);
+        } else {
+          fail(source, x,
+               fmt::format("pose '{}': corner {} has no 'point' and is not in 'target'", m.id,
+                           o.corner));
+        }
+        o.measured = vector(source, x["pixel"], "pixel [u, v]", 2);
+        Eigen::Matrix2d cov = Eigen::Matrix2d::Identity();
+        if (x["covariance"]) {
+          const Eigen::VectorXd c =
+              vector(source, x["covariance"], "pixel covariance (4 numbers, px²)", 4);
+          cov << c(0), c(1), c(2), c(3);
+        } else {
+          const double s =
+              x["sigma"] ? positive(source, x["sigma"], "pixel sigma") : default_pixel_sigma;
+          if (!(s > 0.0))
+            fail(source, x,
+                 fmt::format("pose '{}': pixel needs sigma (or noise.pixel_sigma)", m.id));
+          cov *= s * s;
+        }
+        if (!cov.allFinite()) {
+          o.weight = Eigen::Matrix2d::Constant(std::nan(""));  // identify() excludes the pose
+        } else {
+          try {
+            o.weight = sqrt_information(cov);
+          } catch (const std::invalid_argument& e) {
+            fail(source, x, fmt::format("pose '{}': pixel {}", m.id, e.what()));
+          }
+        }
+        m.observations.push_back(o);
+      }
+    }
     if (m.observations.empty())
-      fail(source, p, fmt::format("pose '{}' has no observation (point, pose or probe)", m.id));
+      fail(source, p,
+           fmt::format("pose '{}' has no observation (point, pose, probe or pixels)", m.id));
     file.measurements.poses.push_back(std::move(m));
   }
   if (const YAML::Node ds = root["distances"]) {
@@ -272,6 +412,35 @@ std::string measurements_to_yaml(const MeasurementsFile& file) {
   root["units"]["length"] = "m";
   root["units"]["angle"] = "rad";
   if (file.actuator_sigma.size() > 0) root["noise"]["actuator_sigma"] = seq(file.actuator_sigma);
+  for (const auto& cam : file.cameras) {
+    YAML::Node c;
+    c["name"] = cam.name;
+    c["model"] = std::string(vision::kind_name(cam.model.kind));
+    c["size"] = seq(Eigen::Vector2d(cam.model.width, cam.model.height));
+    c["params"] = seq(Eigen::Map<const Eigen::VectorXd>(
+        cam.model.params.data(), static_cast<Eigen::Index>(cam.model.params.size())));
+    c["position"] = seq(cam.world_T_camera.translation());
+    const Eigen::AngleAxisd aa(cam.world_T_camera.linear());
+    c["rotation_vector"] = seq(aa.axis() * aa.angle());
+    root["cameras"].push_back(c);
+  }
+  // Corner points go to `target` once when every observation of a corner id agrees.
+  std::map<int, Eigen::Vector3d> target;
+  std::set<int> inconsistent;
+  for (const auto& m : file.measurements.poses)
+    for (const auto& obs : m.observations)
+      if (const auto* px = std::get_if<PixelObservation>(&obs); px && px->corner >= 0) {
+        const auto [it, inserted] = target.emplace(px->corner, px->point);
+        if (!inserted && it->second != px->point) inconsistent.insert(px->corner);
+      }
+  for (const auto& [id, point] : target)
+    if (!inconsistent.count(id)) {
+      YAML::Node t;
+      t["id"] = id;
+      t["point"] = seq(point);
+      t.SetStyle(YAML::EmitterStyle::Flow);
+      root["target"].push_back(t);
+    }
   for (const auto& m : file.measurements.poses) {
     YAML::Node p;
     p["id"] = m.id;
@@ -294,6 +463,20 @@ std::string measurements_to_yaml(const MeasurementsFile& file) {
         p["probe"]["normal"] = seq(pr->normal);
         p["probe"]["offset"] = fmt::format("{:.17g}", pr->offset);
         p["probe"]["sigma"] = fmt::format("{:.17g}", pr->sigma);
+      } else if (const auto* px = std::get_if<PixelObservation>(&obs)) {
+        YAML::Node x;
+        x["camera"] = file.cameras.at(static_cast<std::size_t>(px->camera)).name;
+        if (px->corner >= 0) x["corner"] = px->corner;
+        if (px->corner < 0 || inconsistent.count(px->corner)) x["point"] = seq(px->point);
+        x["pixel"] = seq(px->measured);
+        const Eigen::Matrix2d cov = (px->weight.transpose() * px->weight).inverse();
+        if (px->weight(0, 1) == 0.0 && px->weight(1, 0) == 0.0 &&
+            std::abs(px->weight(0, 0) - px->weight(1, 1)) <= 1e-12 * px->weight(0, 0))
+          x["sigma"] = fmt::format("{:.17g}", 1.0 / px->weight(0, 0));
+        else
+          x["covariance"] = seq(Eigen::Map<const Eigen::Vector4d>(cov.data()));
+        x.SetStyle(YAML::EmitterStyle::Flow);
+        p["pixels"].push_back(x);
       }
     }
     root["poses"].push_back(p);

@@ -57,4 +57,26 @@ PointObservation PointObservation::with_sigma(const Eigen::Vector3d& measured, d
   return with_covariance(measured, Eigen::Matrix3d::Identity() * sigma * sigma);
 }
 
+PixelObservation PixelObservation::with_covariance(int camera, int corner,
+                                                   const Eigen::Vector3d& point,
+                                                   const Eigen::Vector2d& pixel,
+                                                   const Eigen::Matrix2d& covariance) {
+  PixelObservation o;
+  o.camera = camera;
+  o.corner = corner;
+  o.point = point;
+  o.measured = pixel;
+  o.weight = sqrt_information(covariance);
+  return o;
+}
+
+PixelObservation PixelObservation::with_sigma(int camera, int corner, const Eigen::Vector3d& point,
+                                              const Eigen::Vector2d& pixel, double sigma_px) {
+  if (!(sigma_px > 0.0))
+    throw std::invalid_argument(
+        fmt::format("pixel observation sigma must be positive (got {} px)", sigma_px));
+  return with_covariance(camera, corner, point, pixel,
+                         Eigen::Matrix2d::Identity() * sigma_px * sigma_px);
+}
+
 }  // namespace robocal::calib

@@ -54,9 +54,22 @@ class FramePredictor {
   // solved (closure fails, singular configuration).
   virtual bool predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators, int slot,
                        bool with_jacobian, FramePrediction& out, std::string& why) const = 0;
+  // Pixel observations (camera-in-the-loop): the whitened residual of `obs` for the measured
+  // frame `frame` predicted at `params` and, when `jacobian` is not null, its exact
+  // 2 × parameter_count derivative (then `frame` must carry its jacobian). Only a predictor that
+  // models cameras implements it (CameraRigPredictor, pixel_observations.hpp); this default says
+  // so and returns false.
+  virtual bool pixel_residual(const PixelObservation& /*obs*/, const Eigen::VectorXd& /*params*/,
+                              const FramePrediction& /*frame*/, Eigen::Vector2d& /*residual*/,
+                              Eigen::Matrix<double, 2, Eigen::Dynamic>* /*jacobian*/,
+                              std::string& why) const {
+    why = "the model has no cameras: pixel observations need a CameraRigPredictor";
+    return false;
+  }
 };
 
-using Observation = std::variant<PoseObservation, PointObservation, ProbeHeightObservation>;
+using Observation =
+    std::variant<PoseObservation, PointObservation, ProbeHeightObservation, PixelObservation>;
 
 // One measured pose: the actuator readings and what was observed of the measured frame there.
 struct PoseMeasurement {

@@ -3,6 +3,7 @@
 // frame there. Format documented in testdata/measurements/README.md. Every error names the file,
 // the line and the problem (MeasurementsFileError).
 #include "robocal/calib/identification.hpp"
+#include "robocal/calib/pixel_observations.hpp"
 
 #include <stdexcept>
 #include <string>
@@ -20,6 +21,9 @@ struct MeasurementsFile {
   std::string frame;  // measured body name ("" = the robot's tool frame)
   Measurements measurements;
   Eigen::VectorXd actuator_sigma;  // optional per-actuator reading noise (reading units)
+  // Cameras of the pixel observations (PixelObservation::camera indexes this list); the first is
+  // the gauge. Build the model with CameraRigPredictor(robot, cameras).
+  std::vector<ObservingCamera> cameras;
 };
 
 MeasurementsFile load_measurements_file(const std::string& path);

@@ -115,6 +115,29 @@ struct DistanceObservation {
   }
 };
 
+// A target corner seen by a camera (camera-in-the-loop identification): the corner `point`, fixed
+// in the measured frame (metres), was imaged at `measured` (pixels, OpenCV convention: see
+// vision/camera_models.hpp) by camera `camera` (index into the cameras of the predictor).
+//     residual = W · (π(K_c, world_T_camera_c⁻¹ · world_T_frame · X) − uv)
+// It depends on the camera's pose and intrinsics as well as on the frame, so it is evaluated by a
+// predictor that models cameras (CameraRigPredictor in pixel_observations.hpp) rather than by a
+// single-pose functor.
+struct PixelObservation {
+  static constexpr int kResiduals = 2;
+  static constexpr int kPoses = 1;
+  int camera = 0;
+  int corner = -1;  // the target's corner id (reporting and files; -1 = none)
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  Eigen::Vector2d measured = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d weight = Eigen::Matrix2d::Identity();  // square-root information (1/px)
+
+  static PixelObservation with_covariance(int camera, int corner, const Eigen::Vector3d& point,
+                                          const Eigen::Vector2d& pixel,
+                                          const Eigen::Matrix2d& covariance);
+  static PixelObservation with_sigma(int camera, int corner, const Eigen::Vector3d& point,
+                                     const Eigen::Vector2d& pixel, double sigma_px);
+};
+
 namespace detail {
 template <typename T, int N>
 void perturbed_pose(const Eigen::Isometry3d& pose, int offset, Mat3<T>& R, Vec3<T>& p) {
