@@ -7,6 +7,7 @@
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/measurements_file.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/pixel_observations.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal_version.hpp"
 
@@ -44,6 +45,8 @@ struct IdentifyOptions {
   double length_sigma = 0.5e-3;
   double angle_sigma_deg = 0.2;
   std::string kind = "point";
+  double pixel_sigma = 0.1;
+  bool free_intrinsics = false;
 };
 
 bool matches(const std::string& name, const std::vector<std::string>& patterns) {
@@ -68,6 +71,16 @@ Mechanism load_robot(const std::string& path) {
   }
 }
 
+// Simulation target: a 3x3 grid of 4 cm pitch in the measured frame plus one corner 2 cm off
+// its plane (a non-coplanar target constrains the frame's orientation from every view).
+std::vector<Eigen::Vector3d> grid_target() {
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = -1; i <= 1; ++i)
+    for (int j = -1; j <= 1; ++j) pts.emplace_back(0.04 * i, 0.04 * j, 0.0);
+  pts.emplace_back(0.0, 0.0, 0.02);
+  return pts;
+}
+
 int run_simulate(const IdentifyOptions& o) {
   const Mechanism model = load_robot(o.robot);
   const MechanismPredictor pred(model);
@@ -82,19 +95,45 @@ int run_simulate(const IdentifyOptions& o) {
     sim.kind = SimulatedObservation::kPose;
   else if (o.kind == "probe")
     sim.kind = SimulatedObservation::kProbeHeight;
-  else if (o.kind != "point")
-    throw InputError("--kind must be point, pose or probe");
+  else if (o.kind != "point" && o.kind != "pixel")
+    throw InputError("--kind must be point, pose, probe or pixel");
   MeasurementsFile file;
   file.robot = model.name;
-  file.measurements = simulate_measurements(pred, truth, qs, sim, rng);
+  nlohmann::json cameras_json;
+  if (o.kind == "pixel") {
+    // Two cameras placed around the working volume; the file states camera 0 at its true pose
+    // (the gauge) and camera 1 off by a few millimetres, as a rig calibration would leave it.
+    std::vector<Eigen::Vector3d> reach;
+    for (const auto& q : qs) {
+      FramePrediction fp;
+      std::string why;
+      if (pred.predict(nominal, q, -1, false, fp, why)) reach.push_back(fp.pose.translation());
+    }
+    if (reach.empty()) throw InputError("no reachable pose to place the cameras around");
+    file.cameras = cameras_below(reach);
+    const Eigen::Isometry3d true_camera1 = file.cameras[1].world_T_camera;
+    file.cameras[1].world_T_camera.translation() += Eigen::Vector3d(3e-3, -2e-3, 2e-3);
+    const CameraRigPredictor rig(pred, file.cameras);
+    Eigen::VectorXd full_truth = rig.initial_parameters(truth);
+    rig.set_camera(full_truth, 1, true_camera1);
+    PixelSimulationOptions ps;
+    ps.pixel_sigma = o.pixel_sigma;
+    file.measurements = simulate_pixel_measurements(rig, full_truth, qs, grid_target(), ps, rng);
+    for (const auto& c : file.cameras) cameras_json.push_back({{"name", c.name}});
+    const Eigen::Vector3d p = true_camera1.translation();
+    cameras_json[1]["true_position"] = {p.x(), p.y(), p.z()};
+  } else {
+    file.measurements = simulate_measurements(pred, truth, qs, sim, rng);
+  }
   save_measurements_file(file, o.simulate);
   nlohmann::json truth_json;
   for (std::size_t i = 0; i < model.parameters.size(); ++i)
     truth_json[model.parameters[i].name] = truth(static_cast<Eigen::Index>(i));
-  write_json({{"measurements", o.simulate},
-              {"poses", file.measurements.poses.size()},
-              {"truth", truth_json}},
-             o.json);
+  nlohmann::json doc = {{"measurements", o.simulate},
+                        {"poses", file.measurements.poses.size()},
+                        {"truth", truth_json}};
+  if (!cameras_json.is_null()) doc["cameras"] = cameras_json;
+  write_json(doc, o.json);
   return kExitOk;
 }
 
@@ -117,8 +156,22 @@ int run_identify(const IdentifyOptions& o) {
       throw InputError(fmt::format("{}: frame '{}' is not a body of {}", o.measurements, file.frame,
                                    model.name));
   }
-  const MechanismPredictor pred(model, frame);
-  const Eigen::VectorXd nominal = model.nominal_parameters();
+  const MechanismPredictor robot_pred(model, frame);
+  // Pixel observations: the cameras join the model (camera parameters after the robot's; the
+  // first camera is the gauge). Otherwise the robot alone.
+  std::unique_ptr<CameraRigPredictor> rig;
+  if (!file.cameras.empty()) {
+    CameraRigOptions ro;
+    ro.estimate_intrinsics = o.free_intrinsics;
+    try {
+      rig = std::make_unique<CameraRigPredictor>(robot_pred, file.cameras, ro);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(fmt::format("{}: {}", o.measurements, e.what()));
+    }
+  }
+  const FramePredictor& pred = rig ? static_cast<const FramePredictor&>(*rig) : robot_pred;
+  const Eigen::VectorXd nominal =
+      rig ? rig->initial_parameters(model.nominal_parameters()) : model.nominal_parameters();
 
   SolveOptions opt = solve_options_from_model(model, o.priors);
   if (!o.free_patterns.empty() || !o.fix_patterns.empty()) {
@@ -150,6 +203,7 @@ int run_identify(const IdentifyOptions& o) {
     for (std::size_t i = 0; i < model.parameters.size(); ++i)
       opt.start_sigma[i] = model.parameters[i].sigma;
   }
+  if (rig) opt = rig->solve_options(opt);
 
   // Held-out validation: every k-th pose is kept out of the fit.
   Measurements fit = file.measurements;
@@ -170,6 +224,32 @@ int run_identify(const IdentifyOptions& o) {
     doc["heldout_validation"] = to_json(validate(pred, nominal, res.estimate, held));
   if (o.kfold > 1)
     doc["kfold"] = to_json(k_fold_validation(pred, nominal, file.measurements, o.kfold, opt));
+  if (rig) {
+    auto pixels = [&](const std::vector<PoseMeasurement>& poses) {
+      nlohmann::json j;
+      for (const auto& [key, params] : {std::pair{"before", nominal}, {"after", res.estimate}}) {
+        const auto e = pixel_errors(*rig, params, poses);
+        j[key] = {{"observations", e.observations}, {"rms_px", e.rms_px}, {"max_px", e.max_px}};
+      }
+      return j;
+    };
+    doc["fit_pixels"] = pixels(fit.poses);
+    if (!held.empty()) doc["heldout_pixels"] = pixels(held);
+    nlohmann::json cams = nlohmann::json::array();
+    for (int c = 0; c < rig->camera_count(); ++c) {
+      const Eigen::Isometry3d T = rig->world_T_camera(res.estimate, c);
+      const Eigen::AngleAxisd aa(T.linear());
+      const Eigen::Vector3d rv = aa.axis() * aa.angle();
+      nlohmann::json j = {
+          {"name", rig->cameras()[static_cast<std::size_t>(c)].name},
+          {"gauge", c == rig->options().gauge_camera},
+          {"position_m", {T.translation().x(), T.translation().y(), T.translation().z()}},
+          {"rotation_vector_rad", {rv.x(), rv.y(), rv.z()}}};
+      if (o.free_intrinsics) j["params"] = rig->camera_model(res.estimate, c).params;
+      cams.push_back(j);
+    }
+    doc["cameras"] = cams;
+  }
 
   const bool usable = res.status == IdentificationStatus::kConverged ||
                       res.status == IdentificationStatus::kNotConverged;
@@ -183,8 +263,14 @@ int run_identify(const IdentifyOptions& o) {
                     res.estimated.size(), res.residuals.position_rms,
                     res.predicted.position_rms_overall),
         fmt::format("Nominal model: {}.", o.robot)};
+    // Camera parameters (after the robot's) are reported in the JSON, not in the robot file.
+    std::vector<std::size_t> robot_estimated;
+    for (std::size_t i : res.estimated)
+      if (i < model.parameters.size()) robot_estimated.push_back(i);
+    const Eigen::VectorXd robot_values =
+        res.estimate.head(static_cast<Eigen::Index>(model.parameters.size()));
     const std::string text =
-        calibrated_robot_yaml(read_text(o.robot), model, res.estimate, res.estimated, provenance);
+        calibrated_robot_yaml(read_text(o.robot), model, robot_values, robot_estimated, provenance);
     const std::string tmp = o.out_robot + ".tmp";
     {
       std::ofstream out(tmp);
@@ -233,7 +319,13 @@ CommandSpec identify_command() {
                            "instead of identifying");
             cmd.add_option("--poses", o->poses, "Simulation: number of poses");
             cmd.add_option("--point-sigma", o->point_sigma, "Simulation: noise sigma (m)");
-            cmd.add_option("--kind", o->kind, "Simulation: point, pose or probe observations");
+            cmd.add_option("--kind", o->kind,
+                           "Simulation: point, pose, probe or pixel observations (pixel: two "
+                           "simulated cameras)");
+            cmd.add_option("--pixel-sigma", o->pixel_sigma, "Simulation: pixel noise sigma (px)");
+            cmd.add_flag(
+                "--free-intrinsics", o->free_intrinsics,
+                "Pixel observations: estimate the cameras' intrinsics too (default: held)");
             cmd.add_option("--length-sigma", o->length_sigma,
                            "Simulation: perturbation sigma of lengths (m)");
             cmd.add_option("--angle-sigma-deg", o->angle_sigma_deg,

@@ -303,6 +303,33 @@ Eigen::Isometry3d camera_looking_at(const Eigen::Vector3d& eye, const Eigen::Vec
   return T;
 }
 
+std::vector<ObservingCamera> cameras_below(const std::vector<Eigen::Vector3d>& points, int count,
+                                           int width, int height) {
+  if (points.empty()) throw std::invalid_argument("cameras_below: no points to look at");
+  Eigen::Vector3d lo = points.front();
+  Eigen::Vector3d hi = lo;
+  for (const auto& p : points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3d centre = 0.5 * (lo + hi);
+  const double size = std::max(0.2, (hi - lo).norm());
+  const double distance = 2.5 * size;
+  const double f = 0.5 * width * distance / (0.8 * size);
+  std::vector<ObservingCamera> cams;
+  for (int c = 0; c < count; ++c) {
+    ObservingCamera cam;
+    cam.name = fmt::format("camera{}", c);
+    cam.model = vision::make_camera(vision::CameraKind::kPinholeRadtan, width, height, f, f,
+                                    0.5 * (width - 1), 0.5 * (height - 1), {-0.05, 0.02});
+    const double x = count > 1 ? (0.4 * size) * (static_cast<double>(c) / (count - 1) - 0.5) : 0.0;
+    cam.world_T_camera = camera_looking_at(centre + Eigen::Vector3d(x, 0.0, -distance), centre,
+                                           Eigen::Vector3d::UnitY());
+    cams.push_back(std::move(cam));
+  }
+  return cams;
+}
+
 Measurements simulate_pixel_measurements(const CameraRigPredictor& rig,
                                          const Eigen::VectorXd& truth,
                                          const std::vector<Eigen::VectorXd>& actuators,

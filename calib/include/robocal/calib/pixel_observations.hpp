@@ -100,6 +100,12 @@ class CameraRigPredictor final : public FramePredictor {
 Eigen::Isometry3d camera_looking_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
                                     const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ());
 
+// Simulation rig: `count` pinhole cameras (width × height, mild barrel distortion) below the
+// points (world −z side) at 2.5 times their spread, 0.4 spreads apart along x, looking at their
+// centre with a focal length that frames them. Named camera0, camera1, ...
+std::vector<ObservingCamera> cameras_below(const std::vector<Eigen::Vector3d>& points,
+                                           int count = 2, int width = 1280, int height = 960);
+
 struct PixelSimulationOptions {
   double pixel_sigma = 0.1;  // px, per axis
   bool add_noise = true;
