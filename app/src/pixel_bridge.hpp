@@ -1,0 +1,44 @@
+#pragma once
+// From what the camera pipeline saw to the camera-in-the-loop identification's input: per robot
+// pose, the corners each calibrated camera detected become calib pixel observations of the target
+// corners (given in the measured/tool frame), and the calibrated rig becomes the identification's
+// cameras (start poses; camera 0 = the gauge, so the world is the rig's frame).
+#include "robocal/calib/identification.hpp"
+#include "robocal/calib/pixel_observations.hpp"
+#include "robocal/vision/observations.hpp"
+
+#include <Eigen/Core>
+
+#include <string>
+#include <vector>
+
+namespace robocal::app {
+
+// One robot pose: its actuator readings and, per rig camera, the corners detected in its image.
+struct PosePixels {
+  std::string id;
+  Eigen::VectorXd actuators;
+  std::vector<vision::CameraFrame> cameras;  // cameras[c] = what rig camera c saw (empty: none)
+};
+
+struct PixelBridgeOptions {
+  double default_sigma_px = 0.1;   // corners whose detection carries no sigma
+  int min_corners_per_camera = 4;  // a camera seeing fewer corners of a pose contributes none
+};
+
+struct PixelMeasurements {
+  std::vector<calib::ObservingCamera> cameras;  // rig cameras: model, world_T_camera
+  calib::Measurements measurements;             // poses with at least one camera's corners
+  std::vector<std::string> skipped;             // "id: reason" for poses left out
+  std::size_t unknown_corners = 0;              // detected ids that are not target corners
+};
+
+// `rig` = the calibrated cameras (vision convention: camera_T_world, world = rig frame);
+// `target` = corner id -> point in the measured frame (metres). Throws std::invalid_argument when
+// a pose does not have one frame per rig camera or the rig is empty/invalid.
+PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>& rig,
+                                           const vision::BoardPoints& target,
+                                           const std::vector<PosePixels>& poses,
+                                           const PixelBridgeOptions& options = {});
+
+}  // namespace robocal::app
