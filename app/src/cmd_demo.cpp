@@ -10,6 +10,7 @@
 // The pipeline never reads the true cameras or robot; only the validation stage does.
 #include "cli_common.hpp"
 #include "command_registry.hpp"
+#include "pixel_bridge.hpp"
 #include "pose_bridge.hpp"
 #include "progress.hpp"
 #include "simulated_cell.hpp"
@@ -35,6 +36,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 namespace robocal::app {
@@ -54,6 +56,7 @@ struct DemoOptions {
   bool quick = false;
   std::string out;
   std::string json;
+  std::string route = "pose";  // pose | pixel | both (identification routes reported)
 };
 
 // Runs fn(index, worker) for index in [0, n) on `threads` workers.
@@ -418,13 +421,39 @@ int run_demo(const DemoOptions& o) {
              result.residuals.outliers);
   report["identify"] = calib::to_json(result);
 
+  // 6b. Camera-in-the-loop route: the same detections as pixel observations, camera 1's pose
+  // estimated with the robot (camera 0 = the world), started from the base frame aligned above.
+  std::optional<PixelRouteResult> pixel_route;
+  if (o.route != "pose") {
+    clock.start("identify (pixels, camera-in-the-loop)");
+    std::vector<PosePixels> pixel_poses;
+    for (std::size_t i = 0; i < readings.size(); ++i) {
+      PosePixels p{fmt::format("pose{:03d}", i), readings[i], {}};
+      for (std::size_t c = 0; c < cell.cameras.size(); ++c)
+        p.cameras.push_back(
+            to_camera_frame(pose_shots[i * cell.cameras.size() + c].detection, corner_sigma[c]));
+      pixel_poses.push_back(std::move(p));
+    }
+    pixel_route =
+        identify_from_pixels(predictor, start, solve_options, measured_rig, ee_points, pixel_poses);
+    const auto& pr = pixel_route->result;
+    fmt::print(out,
+               "  pixels: {}: {} poses, {} parameters (robot + camera 1 pose), {} iterations, "
+               "{:.2f} s, reprojection {:.3f} px RMS\n",
+               calib::to_string(pr.status), pr.residuals.poses.size(), pr.estimated.size(),
+               pr.iterations, pr.solve_seconds, pixel_route->fit_pixels.rms_px);
+    report["identify_pixels"] = calib::to_json(pr);
+    report["identify_pixels"]["reprojection_rms_px"] = pixel_route->fit_pixels.rms_px;
+  }
+
   // 7. Validate against the truth on poses the fit never saw (no images needed here).
   clock.start("validate (held-out poses vs truth)");
   std::mt19937 validation_rng(o.seed + 7919);
-  const auto held_out =
-      calib::sample_actuators(true_predictor, {cell.truth, start, result.estimate},
-                              static_cast<std::size_t>(o.held_out), validation_rng);
-  std::vector<Eigen::Vector3d> truth_points, nominal_points, calibrated_points;
+  std::vector<Eigen::VectorXd> must_solve = {cell.truth, start, result.estimate};
+  if (pixel_route) must_solve.push_back(pixel_route->robot_estimate);
+  const auto held_out = calib::sample_actuators(
+      true_predictor, must_solve, static_cast<std::size_t>(o.held_out), validation_rng);
+  std::vector<Eigen::Vector3d> truth_points, nominal_points, calibrated_points, pixel_points;
   int branch_disagreements = 0;
   for (const auto& q : held_out) {
     Eigen::Isometry3d world_T_board;
@@ -433,18 +462,25 @@ int run_demo(const DemoOptions& o) {
     const auto calibrated_fk =
         calib::forward_kinematics(cell.model, result.estimate, q, cell.target_frame);
     if (!nominal_fk.closure.ok() || !calibrated_fk.closure.ok()) continue;
+    const auto pixel_fk = pixel_route
+                              ? calib::forward_kinematics(cell.model, pixel_route->robot_estimate,
+                                                          q, cell.target_frame)
+                              : calibrated_fk;
+    if (!pixel_fk.closure.ok()) continue;
     // A prediction 5 cm off is not an accuracy figure but the closure solver on another
     // assembly mode (seen for the nominal model at extreme actuator values): count it apart.
     const Eigen::Vector3d truth = cam0_T_world * world_T_board.translation();
     constexpr double kBranchGap = 0.05;
     if ((nominal_fk.pose.translation() - truth).norm() > kBranchGap ||
-        (calibrated_fk.pose.translation() - truth).norm() > kBranchGap) {
+        (calibrated_fk.pose.translation() - truth).norm() > kBranchGap ||
+        (pixel_fk.pose.translation() - truth).norm() > kBranchGap) {
       ++branch_disagreements;
       continue;
     }
     truth_points.push_back(truth);
     nominal_points.push_back(nominal_fk.pose.translation());
     calibrated_points.push_back(calibrated_fk.pose.translation());
+    pixel_points.push_back(pixel_fk.pose.translation());
   }
   if (branch_disagreements > 0)
     fmt::print(out,
@@ -461,6 +497,11 @@ int run_demo(const DemoOptions& o) {
                         {"calibrated", after.json()},
                         {"nominal_registered", nominal_errors.registered.json()},
                         {"calibrated_registered", calibrated_errors.registered.json()}};
+  const ErrorPair pixel_errors = position_errors(pixel_points, truth_points);
+  if (pixel_route) {
+    report["validate"]["calibrated_pixels"] = pixel_errors.absolute.json();
+    report["validate"]["calibrated_pixels_registered"] = pixel_errors.registered.json();
+  }
   clock.stop();
 
   // Closing summary.
@@ -473,6 +514,11 @@ int run_demo(const DemoOptions& o) {
       out,
       "  calibrated model:                  {:8.1f} µm RMS, {:8.1f} µm max  ({:.0f}x better)\n",
       after.rms * 1e6, after.max * 1e6, after.rms > 0 ? before.rms / after.rms : 0.0);
+  if (pixel_route)
+    fmt::print(out,
+               "  calibrated from pixels (camera-in-the-loop): {:5.1f} µm RMS, {:8.1f} µm max  "
+               "(route above: from measured 6-D poses)\n",
+               pixel_errors.absolute.rms * 1e6, pixel_errors.absolute.max * 1e6);
   fmt::print(out, "  robot accuracy in its own frame (after best-fit rigid registration):\n");
   fmt::print(out, "    nominal {:.1f} µm RMS, calibrated {:.1f} µm RMS ({:.1f} µm max)\n",
              nominal_errors.registered.rms * 1e6, calibrated_errors.registered.rms * 1e6,
@@ -559,6 +605,13 @@ CommandSpec demo_command() {
                          "Smaller images and fewer views (for CI); pair with --poses 20");
             cmd.add_option("--out", o->out, "Folder for the JSON report and sample images");
             cmd.add_option("--json", o->json, "Write the JSON report here ('-' for stdout)");
+            cmd.add_option(
+                   "--route", o->route,
+                   "Identification routes: pose (from measured 6-D poses) or pixel / both (also "
+                   "camera-in-the-loop from the corner pixels, started from the pose "
+                   "route's base-frame alignment; both are reported)")
+                ->check(CLI::IsMember({"pose", "pixel", "both"}))
+                ->capture_default_str();
             return [o]() {
               if (o->quick) {
                 o->intrinsic_views = 12;

@@ -55,4 +55,24 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
   return out;
 }
 
+PixelRouteResult identify_from_pixels(const calib::FramePredictor& robot,
+                                      const Eigen::VectorXd& robot_start,
+                                      const calib::SolveOptions& robot_options,
+                                      const std::vector<vision::RigCamera>& rig,
+                                      const vision::BoardPoints& target,
+                                      const std::vector<PosePixels>& poses,
+                                      const PixelBridgeOptions& options) {
+  PixelRouteResult out;
+  out.input = build_pixel_measurements(rig, target, poses, options);
+  const calib::CameraRigPredictor model(robot, out.input.cameras);
+  const Eigen::VectorXd start = model.initial_parameters(robot_start);
+  out.result =
+      calib::identify(model, start, out.input.measurements, model.solve_options(robot_options));
+  out.robot_estimate = model.robot_parameters(out.result.estimate);
+  for (int c = 0; c < model.camera_count(); ++c)
+    out.world_T_camera.push_back(model.world_T_camera(out.result.estimate, c));
+  out.fit_pixels = calib::pixel_errors(model, out.result.estimate, out.input.measurements.poses);
+  return out;
+}
+
 }  // namespace robocal::app

@@ -41,4 +41,23 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
                                            const std::vector<PosePixels>& poses,
                                            const PixelBridgeOptions& options = {});
 
+// The camera-in-the-loop route end to end: builds the pixel measurements, adds the rig's cameras
+// to `robot` (camera 0 = gauge; the other cameras' poses estimated, intrinsics held) and
+// identifies from `robot_start` (the robot's base frame must already be roughly placed in the
+// rig's world, e.g. by aligning the nominal model with per-pose PnP measurements).
+struct PixelRouteResult {
+  PixelMeasurements input;
+  calib::IdentificationResult result;             // over robot + camera parameters
+  Eigen::VectorXd robot_estimate;                 // the robot's part of result.estimate
+  std::vector<Eigen::Isometry3d> world_T_camera;  // estimated camera poses
+  calib::PixelErrorStatistics fit_pixels;         // reprojection at the estimate
+};
+PixelRouteResult identify_from_pixels(const calib::FramePredictor& robot,
+                                      const Eigen::VectorXd& robot_start,
+                                      const calib::SolveOptions& robot_options,
+                                      const std::vector<vision::RigCamera>& rig,
+                                      const vision::BoardPoints& target,
+                                      const std::vector<PosePixels>& poses,
+                                      const PixelBridgeOptions& options = {});
+
 }  // namespace robocal::app
