@@ -284,10 +284,12 @@ int main(int argc, char** argv) {
     return std::sqrt(s / static_cast<double>(v.size() > 1 ? v.size() - 1 : 1));
   };
 
-  // Cramér–Rao: Fisher information of the design at the truth over the estimated set.
-  double cramer_rao = NAN;
-  if (!estimated.empty()) {
-    const auto n = static_cast<Eigen::Index>(estimated.size());
+  // Cramér–Rao: Fisher information of the design at the truth over a parameter set (the
+  // estimator's own set; and, for reference, the base set chosen AT the truth, i.e. what an
+  // estimator that could represent this truth exactly would have to estimate).
+  auto cramer_rao_over = [&](const std::vector<std::size_t>& set) -> double {
+    if (set.empty()) return NAN;
+    const auto n = static_cast<Eigen::Index>(set.size());
     Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()), n);
     for (std::size_t k = 0; k < design.size(); ++k) {
       FramePrediction fp;
@@ -295,12 +297,12 @@ int main(int argc, char** argv) {
       pred.predict(truth, design[k], -1, true, fp, why);
       for (Eigen::Index c = 0; c < n; ++c)
         J.block(3 * static_cast<Eigen::Index>(k), c, 3, 1) =
-            fp.jacobian.col(static_cast<Eigen::Index>(estimated[static_cast<std::size_t>(c)]))
-                .head<3>() /
+            fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)])).head<3>() /
             sigma;
     }
-    std::vector<std::string> names(estimated.size(), "p");
+    std::vector<std::string> names(set.size(), "p");
     const auto u = parameter_uncertainty(J, names);
+    if (!u.ok) return NAN;
     std::vector<Eigen::MatrixXd> hj;
     for (const auto& r : held.readings) {
       FramePrediction fp;
@@ -309,11 +311,32 @@ int main(int argc, char** argv) {
       Eigen::MatrixXd Jh(3, n);
       for (Eigen::Index c = 0; c < n; ++c)
         Jh.col(c) =
-            fp.jacobian.col(static_cast<Eigen::Index>(estimated[static_cast<std::size_t>(c)]))
-                .head<3>();
+            fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)])).head<3>();
       hj.push_back(Jh);
     }
-    if (u.ok) cramer_rao = predict_accuracy(hj, u.covariance).position_rms_overall;
+    return predict_accuracy(hj, u.covariance).position_rms_overall;
+  };
+  const double cramer_rao = cramer_rao_over(estimated);
+  std::vector<std::size_t> truth_base;
+  {
+    Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()),
+                      static_cast<Eigen::Index>(opt.candidates.size()));
+    for (std::size_t k = 0; k < design.size(); ++k) {
+      FramePrediction fp;
+      std::string why;
+      pred.predict(truth, design[k], -1, true, fp, why);
+      for (std::size_t c = 0; c < opt.candidates.size(); ++c)
+        J.block(3 * static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(c), 3, 1) =
+            fp.jacobian.col(static_cast<Eigen::Index>(opt.candidates[c])).head<3>() / sigma;
+    }
+    std::vector<std::string> names;
+    std::vector<int> pref;
+    for (std::size_t c : opt.candidates) {
+      names.push_back(model.parameters[c].name);
+      pref.push_back(opt.preference[c]);
+    }
+    for (std::size_t k : analyze_identifiability(J, names, opt.identifiability, pref).identifiable)
+      truth_base.push_back(opt.candidates[k]);
   }
   const double calibrated = mean_square_root(rms_draws);
   out["noisy"] = {
@@ -325,6 +348,8 @@ int main(int argc, char** argv) {
       {"calibrated_heldout_rms_spread_m", rms_draws.empty() ? NAN : stddev(rms_draws)},
       {"calibrated_heldout_median_error_m", mean_square_root(median_draws)},
       {"cramer_rao_rms_m", cramer_rao},
+      {"rank_at_truth", truth_base.size()},
+      {"cramer_rao_over_base_set_at_truth_rms_m", cramer_rao_over(truth_base)},
       {"ratio_to_cramer_rao", calibrated / cramer_rao},
       {"base_tool_only_heldout_rms_m", mean_square_root(base_tool_draws)},
       {"raw_nominal_heldout_rms_m", heldout_rms(pred, nominal, held)},
