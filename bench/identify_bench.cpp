@@ -302,7 +302,10 @@ int main(int argc, char** argv) {
     }
     std::vector<std::string> names(set.size(), "p");
     const auto u = parameter_uncertainty(J, names);
-    if (!u.ok) return NAN;
+    if (!u.ok) {
+      std::cerr << "Cramér–Rao over " << set.size() << " parameters: " << u.message << "\n";
+      return NAN;
+    }
     std::vector<Eigen::MatrixXd> hj;
     for (const auto& r : held.readings) {
       FramePrediction fp;
