@@ -1,6 +1,6 @@
 // Identification figures for issue 4, printed as JSON.
 //
-//   build/release/bench/robocal_identify_bench [robot.yaml] [draws] [identifiable|all]
+//   build/release/bench/robocal_identify_bench [robot.yaml] [draws] [identifiable|all|groups|rank]
 //
 // For the robot (default: testdata/robots/rotary_delta.yaml):
 //  - truth = nominal + perturbation of every free parameter (lengths σ 0.5 mm, angles σ 0.2°;
@@ -13,14 +13,20 @@
 //  - the same with only base + tool frames fitted (what hand–eye alone gives) and raw nominal;
 //  - noise-free recovery (max held-out error);
 //  - time of a full-pose identification with 125 and 500 poses (one core).
+// Diagnosis modes: "groups" = noise-free recovery with one body's lengths (then angles) perturbed
+// at a time (fit RMS, held-out median/p90/max, parameters moved); "rank" = rank and singular values
+// of the scaled identification Jacobian at nominal and at the all-perturbed truth. Environment
+// ROBOCAL_NOMINAL_BODIES=body6,body9 keeps those bodies nominal in the truth.
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <ctime>
 #include <iostream>
 #include <string>
@@ -35,9 +41,10 @@ struct HeldOut {
 };
 
 double heldout_rms(const MechanismPredictor& pred, const Eigen::VectorXd& params, const HeldOut& h,
-                   double* max_err = nullptr) {
+                   double* max_err = nullptr, double* median_err = nullptr) {
   double sum = 0.0;
   double worst = 0.0;
+  std::vector<double> errors;
   for (std::size_t k = 0; k < h.readings.size(); ++k) {
     FramePrediction fp;
     std::string why;
@@ -46,8 +53,14 @@ double heldout_rms(const MechanismPredictor& pred, const Eigen::VectorXd& params
     const double e = (fp.pose.translation() - h.truth[k]).norm();
     sum += e * e;
     worst = std::max(worst, e);
+    errors.push_back(e);
   }
   if (max_err) *max_err = worst;
+  if (median_err && !errors.empty()) {
+    std::nth_element(errors.begin(), errors.begin() + static_cast<long>(errors.size() / 2),
+                     errors.end());
+    *median_err = errors[errors.size() / 2];
+  }
   return std::sqrt(sum / static_cast<double>(h.readings.size()));
 }
 
@@ -76,6 +89,16 @@ int main(int argc, char** argv) {
     clean.add_noise = false;
     const auto meas = simulate_measurements(pred, nominal, design, clean, rng);
     const auto base = identify(pred, nominal, meas, solve_options_from_model(model, false));
+    if (const char* keep = std::getenv("ROBOCAL_NOMINAL_BODIES")) {
+      // Experiment: these bodies (comma list of names) keep their nominal geometry in the truth.
+      const std::string list = std::string(",") + keep + ",";
+      for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+        const Parameter& p = model.parameters[i];
+        if (p.body >= 0 && list.find("," + model.bodies[static_cast<std::size_t>(p.body)].name +
+                                     ",") != std::string::npos)
+          truth(static_cast<Eigen::Index>(i)) = nominal(static_cast<Eigen::Index>(i));
+      }
+    }
     if (!perturb_all) {
       truth = nominal;
       for (std::size_t i : base.estimated)
@@ -89,6 +112,95 @@ int main(int argc, char** argv) {
     std::string why;
     pred.predict(truth, held.readings[k], -1, false, fp, why);
     held.truth.push_back(fp.pose.translation());
+  }
+  if (argc > 3 && std::string(argv[3]) == "rank") {
+    // Rank of the scaled identification Jacobian over the free parameters at nominal and truth.
+    const SolveOptions o = solve_options_from_model(model, false);
+    for (const Eigen::VectorXd* at : std::vector<const Eigen::VectorXd*>{&nominal, &truth_all}) {
+      Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()),
+                        static_cast<Eigen::Index>(o.candidates.size()));
+      for (std::size_t k = 0; k < design.size(); ++k) {
+        FramePrediction fp;
+        std::string why;
+        pred.predict(*at, design[k], -1, true, fp, why);
+        for (std::size_t c = 0; c < o.candidates.size(); ++c)
+          J.block(3 * static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(c), 3, 1) =
+              fp.jacobian.col(static_cast<Eigen::Index>(o.candidates[c])).head<3>();
+      }
+      std::vector<std::string> names;
+      std::vector<int> pref;
+      for (std::size_t c : o.candidates) {
+        names.push_back(model.parameters[c].name);
+        pref.push_back(o.preference[c]);
+      }
+      const auto rep = analyze_identifiability(J, names, o.identifiability, pref);
+      std::cout << "rank " << rep.rank << " sv:";
+      for (Eigen::Index i = 0; i < rep.singular_values.size() && i < 80; ++i)
+        std::cout << " " << rep.singular_values(i) / rep.singular_values(0);
+      std::cout << "\nbase:";
+      for (std::size_t k : rep.identifiable) std::cout << " " << names[k];
+      std::cout << "\n";
+    }
+    return 0;
+  }
+  if (argc > 3 && std::string(argv[3]) == "groups") {
+    // Noise-free diagnosis: perturb one body's parameters (lengths, then angles) at a time.
+    nlohmann::json rows;
+    const auto held_pool = sample_actuators(pred, {nominal}, 200, rng);
+    SimulationOptions clean;
+    clean.add_noise = false;
+    const SolveOptions o = solve_options_from_model(model, false);
+    for (std::size_t b = 0; b < model.bodies.size(); ++b) {
+      for (int kind = 0; kind < 2; ++kind) {
+        Eigen::VectorXd t = nominal;
+        std::string names;
+        for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+          const Parameter& p = model.parameters[i];
+          if (p.body != static_cast<int>(b) || !p.free) continue;
+          if ((p.unit == ParamUnit::kAngle) != (kind == 1)) continue;
+          t(static_cast<Eigen::Index>(i)) = truth_all(static_cast<Eigen::Index>(i));
+          names += p.name + " ";
+        }
+        if (names.empty()) continue;
+        const auto meas = simulate_measurements(pred, t, design, clean, rng);
+        const auto res = identify(pred, nominal, meas, o);
+        HeldOut h;
+        h.readings = held_pool;
+        for (const auto& r : h.readings) {
+          FramePrediction fp;
+          std::string why;
+          pred.predict(t, r, -1, false, fp, why);
+          h.truth.push_back(fp.pose.translation());
+        }
+        double worst = 0.0;
+        const double hr = heldout_rms(pred, res.estimate, h, &worst);
+        std::vector<double> errs;
+        for (std::size_t k = 0; k < h.readings.size(); ++k) {
+          HeldOut one;
+          one.readings = {h.readings[k]};
+          one.truth = {h.truth[k]};
+          errs.push_back(heldout_rms(pred, res.estimate, one));
+        }
+        std::sort(errs.begin(), errs.end());
+        nlohmann::json moved;
+        for (std::size_t i : res.estimated) {
+          const auto ii = static_cast<Eigen::Index>(i);
+          if (std::abs(res.estimate(ii) - t(ii)) > 1e-7)
+            moved[model.parameters[i].name] = {res.estimate(ii) - nominal(ii), t(ii) - nominal(ii)};
+        }
+        rows.push_back({{"params", names},
+                        {"fit_rms_m", res.residuals.position_rms},
+                        {"iterations", res.iterations},
+                        {"status", to_string(res.status)},
+                        {"heldout_max_m", worst},
+                        {"heldout_median_m", errs[errs.size() / 2]},
+                        {"heldout_p90_m", errs[errs.size() * 9 / 10]},
+                        {"moved", moved},
+                        {"heldout_rms_m", hr}});
+      }
+    }
+    std::cout << rows.dump(1) << std::endl;
+    return 0;
   }
   nlohmann::json out;
   out["robot"] = model.name;
@@ -107,15 +219,19 @@ int main(int argc, char** argv) {
     const auto meas = simulate_measurements(pred, truth, design, sim, rng);
     const auto res = identify(pred, nominal, meas, opt);
     double worst = 0.0;
-    const double rms = heldout_rms(pred, res.estimate, held, &worst);
+    double median = 0.0;
+    const double rms = heldout_rms(pred, res.estimate, held, &worst, &median);
     out["noise_free"] = {{"status", to_string(res.status)},
                          {"estimated", res.estimated.size()},
                          {"heldout_rms_m", rms},
-                         {"heldout_max_m", worst}};
+                         {"heldout_median_m", median},
+                         {"heldout_max_m", worst},
+                         {"identify_seconds", res.solve_seconds}};
   }
 
   // Noisy draws.
   std::vector<double> rms_draws;
+  std::vector<double> median_draws;
   std::vector<double> base_tool_draws;
   std::vector<std::size_t> estimated;
   double seconds = 0.0;
@@ -148,7 +264,9 @@ int main(int argc, char** argv) {
       continue;
     }
     if (estimated.empty()) estimated = res.estimated;
-    rms_draws.push_back(heldout_rms(pred, res.estimate, held));
+    double median = 0.0;
+    rms_draws.push_back(heldout_rms(pred, res.estimate, held, nullptr, &median));
+    median_draws.push_back(median);
     const auto bt = identify(pred, nominal, meas, frames_only);
     base_tool_draws.push_back(heldout_rms(pred, bt.estimate, held));
   }
@@ -166,10 +284,12 @@ int main(int argc, char** argv) {
     return std::sqrt(s / static_cast<double>(v.size() > 1 ? v.size() - 1 : 1));
   };
 
-  // Cramér–Rao: Fisher information of the design at the truth over the estimated set.
-  double cramer_rao = NAN;
-  if (!estimated.empty()) {
-    const auto n = static_cast<Eigen::Index>(estimated.size());
+  // Cramér–Rao: Fisher information of the design at the truth over a parameter set (the
+  // estimator's own set; and, for reference, the base set chosen AT the truth, i.e. what an
+  // estimator that could represent this truth exactly would have to estimate).
+  auto cramer_rao_over = [&](const std::vector<std::size_t>& set) -> double {
+    if (set.empty()) return NAN;
+    const auto n = static_cast<Eigen::Index>(set.size());
     Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()), n);
     for (std::size_t k = 0; k < design.size(); ++k) {
       FramePrediction fp;
@@ -177,12 +297,15 @@ int main(int argc, char** argv) {
       pred.predict(truth, design[k], -1, true, fp, why);
       for (Eigen::Index c = 0; c < n; ++c)
         J.block(3 * static_cast<Eigen::Index>(k), c, 3, 1) =
-            fp.jacobian.col(static_cast<Eigen::Index>(estimated[static_cast<std::size_t>(c)]))
-                .head<3>() /
+            fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)])).head<3>() /
             sigma;
     }
-    std::vector<std::string> names(estimated.size(), "p");
+    std::vector<std::string> names(set.size(), "p");
     const auto u = parameter_uncertainty(J, names);
+    if (!u.ok) {
+      std::cerr << "Cramér–Rao over " << set.size() << " parameters: " << u.message << "\n";
+      return NAN;
+    }
     std::vector<Eigen::MatrixXd> hj;
     for (const auto& r : held.readings) {
       FramePrediction fp;
@@ -191,11 +314,32 @@ int main(int argc, char** argv) {
       Eigen::MatrixXd Jh(3, n);
       for (Eigen::Index c = 0; c < n; ++c)
         Jh.col(c) =
-            fp.jacobian.col(static_cast<Eigen::Index>(estimated[static_cast<std::size_t>(c)]))
-                .head<3>();
+            fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)])).head<3>();
       hj.push_back(Jh);
     }
-    if (u.ok) cramer_rao = predict_accuracy(hj, u.covariance).position_rms_overall;
+    return predict_accuracy(hj, u.covariance).position_rms_overall;
+  };
+  const double cramer_rao = cramer_rao_over(estimated);
+  std::vector<std::size_t> truth_base;
+  {
+    Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()),
+                      static_cast<Eigen::Index>(opt.candidates.size()));
+    for (std::size_t k = 0; k < design.size(); ++k) {
+      FramePrediction fp;
+      std::string why;
+      pred.predict(truth, design[k], -1, true, fp, why);
+      for (std::size_t c = 0; c < opt.candidates.size(); ++c)
+        J.block(3 * static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(c), 3, 1) =
+            fp.jacobian.col(static_cast<Eigen::Index>(opt.candidates[c])).head<3>() / sigma;
+    }
+    std::vector<std::string> names;
+    std::vector<int> pref;
+    for (std::size_t c : opt.candidates) {
+      names.push_back(model.parameters[c].name);
+      pref.push_back(opt.preference[c]);
+    }
+    for (std::size_t k : analyze_identifiability(J, names, opt.identifiability, pref).identifiable)
+      truth_base.push_back(opt.candidates[k]);
   }
   const double calibrated = mean_square_root(rms_draws);
   out["noisy"] = {
@@ -205,7 +349,10 @@ int main(int argc, char** argv) {
       {"estimated_parameters", estimated.size()},
       {"calibrated_heldout_rms_m", calibrated},
       {"calibrated_heldout_rms_spread_m", rms_draws.empty() ? NAN : stddev(rms_draws)},
+      {"calibrated_heldout_median_error_m", mean_square_root(median_draws)},
       {"cramer_rao_rms_m", cramer_rao},
+      {"rank_at_truth", truth_base.size()},
+      {"cramer_rao_over_base_set_at_truth_rms_m", cramer_rao_over(truth_base)},
       {"ratio_to_cramer_rao", calibrated / cramer_rao},
       {"base_tool_only_heldout_rms_m", mean_square_root(base_tool_draws)},
       {"raw_nominal_heldout_rms_m", heldout_rms(pred, nominal, held)},

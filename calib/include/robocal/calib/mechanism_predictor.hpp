@@ -45,7 +45,9 @@ class MechanismPredictor final : public FramePredictor {
 // Candidates = the robot file's free parameters; prior_sigma = their tolerances when
 // `use_priors`; preference: the base frame (bodies hanging from the world) first, then joint
 // geometry, rod lengths and encoder parameters, then attachment/cut frames, then the tool frame —
-// so a tool offset confounded with the base translation is the one held fixed and explained.
+// so a tool offset confounded with the base translation is the one held fixed and explained;
+// within each, lengths before angles, then bodies nearer the root first (an upstream parameter
+// carries a downstream one's true deviation better than the reverse; identify/README.md).
 SolveOptions solve_options_from_model(const Mechanism& model, bool use_priors);
 
 }  // namespace robocal::calib
