@@ -693,6 +693,8 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
     if (m.status == vision::PoseStatus::kOk || m.status == vision::PoseStatus::kMoving) {
       ++measured;
       pj["rig_T_target"] = pose_to_json(m.world_T_target);
+      // Full precision (JSON doubles round-trip exactly): what identify reads.
+      pj["rig_T_target_matrix"] = matrix_to_json(m.world_T_target.matrix().topRows<3>());
       pj["covariance"] = matrix_to_json(m.covariance);
       pj["flags"] = {{"ambiguous", m.ambiguous},
                      {"few_corners", m.few_corners},
@@ -768,15 +770,38 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
                                 const PipelineLog& log) {
   const Session s = load_session(dir);
   const SessionRobot robot = session_robot(s, robot_override);
-  const fs::path mpath = s.results() / "measurements.yaml";
-  if (!fs::exists(mpath))
-    throw InputError(mpath.string() + ": missing (run `robocal measure " + dir.string() +
-                     "` first)");
+  // The used poses of results/measured_poses.json, at full precision (measurements.yaml is the
+  // same data for `robocal identify --measurements`, but its rotation vectors and inverted
+  // covariances are not bit-exact, and the identification's choice among confounded parameters
+  // is that sensitive).
+  const fs::path mpath = s.results() / "measured_poses.json";
+  const nlohmann::json measured_doc =
+      read_json_file(mpath, "run `robocal measure " + dir.string() + "` first");
   calib::MeasurementsFile file;
   try {
-    file = calib::load_measurements_file(mpath.string());
-  } catch (const calib::MeasurementsFileError& e) {
-    throw InputError(e.what());
+    for (const auto& p : measured_doc.at("poses")) {
+      if (!p.value("used", false)) continue;
+      const auto id = p.at("pose").get<std::string>();
+      const auto q = p.at("actuators").get<std::vector<double>>();
+      const auto rows = p.at("rig_T_target_matrix").get<std::vector<std::vector<double>>>();
+      const auto cov_rows = p.at("covariance").get<std::vector<std::vector<double>>>();
+      if (rows.size() != 3 || cov_rows.size() != 6)
+        throw InputError(mpath.string() + ": pose " + id + " has a malformed pose or covariance");
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) T.matrix()(r, c) = rows.at(r).at(c);
+      Eigen::Matrix<double, 6, 6> cov;
+      for (int r = 0; r < 6; ++r)
+        for (int c = 0; c < 6; ++c) cov(r, c) = cov_rows.at(r).at(c);
+      file.measurements.poses.push_back(
+          {id,
+           Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size())),
+           {calib::PoseObservation::with_covariance(T, vision_to_calib_covariance(cov))}});
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: malformed ({})", mpath.string(), e.what()));
+  } catch (const std::out_of_range& e) {
+    throw InputError(fmt::format("{}: malformed ({})", mpath.string(), e.what()));
   }
   stage(log, "identify");
   const calib::Mechanism& model = robot.model;
@@ -831,7 +856,7 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
       result.residuals.outliers);
   report["result"] = calib::to_json(result);
   report["robot"] = relative_to(robot.file, dir);
-  report["measurements"] = "results/measurements.yaml";
+  report["measurements"] = "results/measured_poses.json";
   report["not_identified"] = result.identifiability.messages;
   report["held_at_nominal"] = result.identifiability.redundant.size();
   report["start"] = params_json(model, start);

@@ -2,20 +2,18 @@
 // Helpers of the session tests: run the CLI in-process, fingerprint recorded data, copy a
 // session's recorded data without its results.
 #include "command_registry.hpp"
+#include "session.hpp"
 
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <map>
 #include <string>
 #include <vector>
 
 namespace robocal::test {
 
-inline int run_cli(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
+inline int run_cli(const std::vector<std::string>& args) {
+  std::vector<const char*> argv = {"robocal"};
   for (const auto& a : args) argv.push_back(a.c_str());
   return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
 }
@@ -28,8 +26,7 @@ inline std::map<std::string, std::uint64_t> recorded_fingerprint(
     if (!e.is_regular_file()) continue;
     const std::string rel = std::filesystem::relative(e.path(), session).generic_string();
     if (rel.rfind("results/", 0) == 0) continue;
-    std::ifstream in(e.path(), std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string bytes = robocal::app::read_text_file(e.path());
     std::uint64_t h = 1469598103934665603ULL;
     for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ULL;
     out[rel] = h;
@@ -49,8 +46,7 @@ inline void copy_recorded(const std::filesystem::path& from, const std::filesyst
 }
 
 inline std::string read_file(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  return robocal::app::read_text_file(p);
 }
 
 }  // namespace robocal::test

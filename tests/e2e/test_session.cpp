@@ -49,9 +49,9 @@ void expect_same_numbers(const fs::path& a, const fs::path& b) {
 TEST(SessionEndToEnd, PipelineWithoutTruthThenValidateThenBatchEqualsSingleRuns) {
   const fs::path a = scratch("A"), b = scratch("B");
   const fs::path hidden = scratch("A_truth_hidden");
-  ASSERT_EQ(run_cli({"simulate", "--quick", "--poses", "16", "--seed", "3", "--out", a.string()}),
+  ASSERT_EQ(run_cli({"simulate", "--quick", "--poses", "24", "--seed", "3", "--out", a.string()}),
             0);
-  ASSERT_EQ(run_cli({"simulate", "--quick", "--poses", "16", "--seed", "4", "--out", b.string()}),
+  ASSERT_EQ(run_cli({"simulate", "--quick", "--poses", "24", "--seed", "4", "--out", b.string()}),
             0);
   ASSERT_TRUE(fs::exists(a / "truth" / "truth.json"));
   // simulate never writes into an existing session.
@@ -85,9 +85,9 @@ TEST(SessionEndToEnd, PipelineWithoutTruthThenValidateThenBatchEqualsSingleRuns)
     EXPECT_LT(cam["projection_vs_truth_px"].get<double>(), 0.2) << cam["camera"];
   // Every recorded pose was measured and used.
   const auto m = load_json(a / "results" / "measure.json");
-  EXPECT_EQ(m["poses"]["used"].get<int>(), 16);
+  EXPECT_EQ(m["poses"]["used"].get<int>(), 24);
   const auto pixels = load_json(a / "results" / "pixel_observations.json");
-  ASSERT_EQ(pixels["poses"].size(), 16U);
+  ASSERT_EQ(pixels["poses"].size(), 24U);
   EXPECT_EQ(pixels["poses"][0]["observations"].size(), 2U);
   EXPECT_EQ(pixels["poses"][0]["observations"][0]["corners"][0].size(), 4U);
 
@@ -113,7 +113,7 @@ TEST(SessionEndToEnd, PipelineWithoutTruthThenValidateThenBatchEqualsSingleRuns)
 
 TEST(SessionEndToEnd, BadInputIsExplainedAndRecordedDataIsKept) {
   const fs::path c = scratch("C");
-  ASSERT_EQ(run_cli({"simulate", "--quick", "--poses", "12", "--seed", "5", "--out", c.string()}),
+  ASSERT_EQ(run_cli({"simulate", "--quick", "--poses", "20", "--seed", "5", "--out", c.string()}),
             0);
   // A missing image and a pose with NaN readings: the damaged session as it was recorded.
   fs::remove(c / "poses" / "pose_003" / "cam1.png");
@@ -134,7 +134,7 @@ TEST(SessionEndToEnd, BadInputIsExplainedAndRecordedDataIsKept) {
 
   ASSERT_EQ(run_cli({"measure", c.string()}), 0);
   const auto poses = load_json(c / "results" / "measured_poses.json")["poses"];
-  ASSERT_EQ(poses.size(), 12U);
+  ASSERT_EQ(poses.size(), 20U);
   int used = 0;
   for (const auto& p : poses) {
     const std::string name = p["pose"];
@@ -151,7 +151,7 @@ TEST(SessionEndToEnd, BadInputIsExplainedAndRecordedDataIsKept) {
     }
     used += p["used"].get<bool>() ? 1 : 0;
   }
-  EXPECT_GE(used, 10);
+  EXPECT_GE(used, 18);
   ASSERT_EQ(run_cli({"identify", c.string()}), 0);
   testing::internal::CaptureStderr();
   EXPECT_EQ(run_cli({"identify", c.string(), "--robot", other}), 3);
