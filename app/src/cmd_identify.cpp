@@ -10,6 +10,8 @@
 #include "robocal/calib/pixel_observations.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal_version.hpp"
+#include "session.hpp"
+#include "session_pipeline.hpp"
 
 #include <fmt/core.h>
 #include <fnmatch.h>
@@ -25,9 +27,10 @@ namespace {
 using namespace robocal::calib;
 
 struct IdentifyOptions {
+  std::string session;
   std::string robot;
   std::string measurements;
-  std::string json = "-";
+  std::string json;  // "" = stdout in file mode, none in session mode
   std::string out_robot;
   std::vector<std::string> free_patterns;
   std::vector<std::string> fix_patterns;
@@ -137,7 +140,22 @@ int run_simulate(const IdentifyOptions& o) {
   return kExitOk;
 }
 
+// Session mode: results/measurements.yaml of a session folder -> results/identification.json
+// and results/calibrated_robot.yaml.
+int run_identify_session(const IdentifyOptions& o) {
+  if (!is_session(o.session))
+    throw InputError(o.session + ": not a session folder (no session.yaml; see app/SESSION.md)");
+  PipelineLog log;
+  log.out = human_stream(o.json);
+  const auto report = identify_session(o.session, o.robot, log);
+  if (!o.json.empty()) write_json(report, o.json);
+  if (report.value("status", "") != "ok")
+    fmt::print(stderr, "identification failed: {}\n", report.value("message", ""));
+  return exit_code_of(report);
+}
+
 int run_identify(const IdentifyOptions& o) {
+  if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
   if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
   const Mechanism model = load_robot(o.robot);
   MeasurementsFile file;
@@ -296,7 +314,17 @@ CommandSpec identify_command() {
   return {"identify", "Identify the robot's geometry from a measurements file (or simulate one)",
           [](CLI::App& cmd) -> CommandAction {
             auto o = std::make_shared<IdentifyOptions>();
-            cmd.add_option("--robot", o->robot, "Robot file (YAML)")->required();
+            cmd.footer(
+                "Two ways to call it:\n"
+                "  robocal identify SESSION   a session folder measured by `robocal measure "
+                "SESSION`: the base frame is first fitted to the measured poses, then the robot "
+                "file's free parameters are identified; writes SESSION/results/"
+                "identification.json and results/calibrated_robot.yaml (--robot: another robot "
+                "file, checked against the session).\n"
+                "  robocal identify --robot R --measurements M   any measurements file "
+                "(testdata/measurements/README.md); the options below apply to this mode.");
+            cmd.add_option("session", o->session, "Session folder (app/SESSION.md)");
+            cmd.add_option("--robot", o->robot, "Robot file (YAML)");
             cmd.add_option("--measurements", o->measurements,
                            "Measurements file (testdata/measurements/README.md)");
             cmd.add_option("--json", o->json, "Result JSON file ('-' = stdout)");
@@ -330,7 +358,11 @@ CommandSpec identify_command() {
                            "Simulation: perturbation sigma of lengths (m)");
             cmd.add_option("--angle-sigma-deg", o->angle_sigma_deg,
                            "Simulation: perturbation sigma of angles (deg)");
-            return [o]() { return o->simulate.empty() ? run_identify(*o) : run_simulate(*o); };
+            return [o]() {
+              if (!o->session.empty()) return run_identify_session(*o);
+              if (o->robot.empty()) throw InputError("--robot is required (or give a SESSION)");
+              return o->simulate.empty() ? run_identify(*o) : run_simulate(*o);
+            };
           }};
 }
 

@@ -1,6 +1,8 @@
 #include "cli_common.hpp"
 #include "command_registry.hpp"
 #include "rig_files.hpp"
+#include "session.hpp"
+#include "session_pipeline.hpp"
 
 #include "robocal/vision/pose_measurement.hpp"
 #include "robocal/vision/target_io.hpp"
@@ -14,6 +16,8 @@ namespace robocal::app {
 namespace {
 
 struct MeasureArgs {
+  std::string session, robot, json;
+  int threads = 2;
   std::string rig, target, poses, out = "-";
   double sigma_px = 0.0;
   bool no_raw = false;
@@ -116,22 +120,59 @@ int run_measure(const MeasureArgs& a) {
 
 }  // namespace
 
+// Session mode: intrinsics, rig and poses of a session folder into its results/.
+int run_measure_session(const MeasureArgs& a) {
+  PipelineLog log;
+  log.out = human_stream(a.json);
+  log.threads = a.threads;
+  const auto report = measure_session(a.session, a.robot, log);
+  if (!a.json.empty()) write_json(report, a.json);
+  return exit_code_of(report);
+}
+
+// `robocal measure SESSION` or
 // `robocal measure --rig rig.json --target ee.yaml --poses DIR --out measurements.json`
 CommandSpec measure_command() {
   return {
       "measure", "Measure the end-effector target pose (with covariance) per robot pose",
       [](CLI::App& cmd) -> CommandAction {
         auto a = std::make_shared<MeasureArgs>();
-        cmd.add_option("--rig", a->rig, "Rig JSON written by `robocal rig`")->required();
-        cmd.add_option("--target", a->target, "Target file of the end-effector board")->required();
+        cmd.footer(
+            "Two ways to call it:\n"
+            "  robocal measure SESSION   a session folder (app/SESSION.md): calibrates each "
+            "camera from its views, the rig from the shared views, then measures the board at "
+            "every pose; writes SESSION/results/ (cameras/, rig.json, measured_poses.json, "
+            "pixel_observations.json, measurements.yaml for `robocal identify SESSION`).\n"
+            "  robocal measure --rig R --target T --poses DIR   pose folders with a calibrated "
+            "rig (vision/README_rig.md); writes one JSON.\n"
+            "Each pose gets its own status; a missing image or unreadable readings exclude that "
+            "pose (named, with the reason) and the others go on. Recorded files are never "
+            "changed.");
+        cmd.add_option("session", a->session, "Session folder (app/SESSION.md)");
+        cmd.add_option("--robot", a->robot,
+                       "Session mode: robot file to use instead of the session's (checked)");
+        cmd.add_option("--threads", a->threads, "Session mode: detection threads")
+            ->check(CLI::Range(1, 64));
+        cmd.add_option("--json", a->json, "Session mode: also write the report here (- = stdout)");
+        cmd.add_option("--rig", a->rig, "Rig JSON written by `robocal rig`");
+        cmd.add_option("--target", a->target, "Target file of the end-effector board");
         cmd.add_option("--poses", a->poses,
-                       "Folder of pose sub-folders with NAME.png / NAME_<k>.png per camera")
-            ->required();
+                       "Folder of pose sub-folders with NAME.png / NAME_<k>.png per camera");
         cmd.add_option("--sigma-px", a->sigma_px,
                        "Corner noise sigma (default: the rig calibration's RMS)");
         cmd.add_flag("--no-raw", a->no_raw, "Leave the raw pixel observations out");
         cmd.add_option("--out", a->out, "JSON to write (- = stdout)");
-        return [a]() { return run_measure(*a); };
+        return [a]() {
+          if (!a->session.empty()) {
+            if (!is_session(a->session))
+              throw InputError(a->session +
+                               ": not a session folder (no session.yaml; see app/SESSION.md)");
+            return run_measure_session(*a);
+          }
+          if (a->rig.empty() || a->target.empty() || a->poses.empty())
+            throw InputError("give a SESSION folder, or all of --rig, --target and --poses");
+          return run_measure(*a);
+        };
       }};
 }
 

@@ -27,7 +27,7 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   ASSERT_EQ(run({"demo", "--quick", "--poses", "24", "--held-out", "200", "--seed", "3", "--out",
                  dir.string()}),
             0);
-  std::ifstream in(dir / "demo.json");
+  std::ifstream in(dir / "results" / "demo.json");
   ASSERT_TRUE(in) << "no demo.json";
   const auto report = nlohmann::json::parse(in);
   const double nominal = report["validate"]["nominal"]["rms_m"];
@@ -36,8 +36,15 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   EXPECT_GT(nominal, 5e-4) << "the perturbed robot should be millimetres off nominally";
   EXPECT_LT(calibrated, 0.6e-3) << "calibrated error against truth";
   EXPECT_LT(calibrated, nominal / 10.0);
+  // The demo went through a session folder: recorded data, results and the hidden truth.
+  for (const char* f :
+       {"session.yaml", "robot.yaml", "poses/pose_000/pose.yaml", "poses/pose_000/cam0.png",
+        "results/measurements.yaml", "results/calibrated_robot.yaml", "truth/truth.json"})
+    EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
+  for (const char* stage : {"simulate: cell", "measure: poses", "identify", "validate"})
+    EXPECT_TRUE(report["seconds"].contains(stage)) << stage;
   // The cameras were calibrated from rendered views, never given the truth.
-  for (const auto& cam : report["intrinsics"])
+  for (const auto& cam : report["validate"]["cameras"])
     EXPECT_LT(cam["projection_vs_truth_px"].get<double>(), 0.2);
 }
 

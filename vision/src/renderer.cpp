@@ -111,7 +111,11 @@ double clipped_area(const std::array<Eigen::Vector2d, 4>& q, double rx0, double 
     n = m;
     std::swap(in, out);
   }
-  if (n < 3) return 0.0;
+  if (n < 3) {
+    // Nothing left: still a defined centroid, the caller weights the (zero) area with it.
+    *centroid = q[0];
+    return 0.0;
+  }
   return polygon_moments(in, n, centroid);
 }
 

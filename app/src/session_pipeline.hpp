@@ -1,0 +1,70 @@
+#pragma once
+// The session pipeline, one function per stage, each reading and writing a session folder
+// (app/SESSION.md): simulate -> measure -> identify -> validate. `robocal simulate / measure /
+// identify / validate / batch / demo` are thin front ends over these.
+//
+// Each stage returns its report (also written to results/<stage>.json) with "status":
+//   "ok"        the stage produced its result
+//   "failed"    it ran but the result is not acceptable (e.g. a camera calibration refused)
+//   "no_truth"  validate only: the session has no truth/ folder (a recorded session)
+// Bad input (missing or malformed files, a robot file that does not match) throws InputError.
+#include "command_registry.hpp"
+#include "progress.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+namespace robocal::app {
+
+// Where a stage reports progress. out == nullptr: silent (parallel batch).
+struct PipelineLog {
+  std::FILE* out = stdout;
+  StageClock* clock = nullptr;  // optional: sub-stages are timed on it
+  int threads = 2;              // workers for rendering and detection
+};
+
+struct SimulateOptions {
+  std::string robot = "rotary_delta";  // library robot name or robot file
+  unsigned seed = 1;
+  int poses = 60;
+  int intrinsic_views = 16;  // per camera
+  int rig_views = 8;
+  bool quick = false;  // 1280x960 images (CI)
+  std::filesystem::path out;
+};
+
+// Library robot name (testdata/robots/NAME.yaml) or a robot file path -> path.
+std::string resolve_robot(const std::string& robot);
+
+nlohmann::json simulate_session(const SimulateOptions& options, const PipelineLog& log);
+
+// robot_override: a robot file to use instead of the session's (checked against the session).
+nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
+                               const PipelineLog& log);
+nlohmann::json identify_session(const std::filesystem::path& dir, const std::string& robot_override,
+                                const PipelineLog& log);
+nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
+                                const PipelineLog& log);
+
+// Human-readable closing summary of a validation report (nominal vs calibrated error, the
+// parameters that changed most, what could not be identified).
+void print_validation_summary(std::FILE* out, const nlohmann::json& validation,
+                              const nlohmann::json& identification);
+
+// Exit code of a stage report: ok 0, failed 1, no_truth 3 (a missing input).
+inline int exit_code_of(const nlohmann::json& report) {
+  const std::string status = report.value("status", "failed");
+  if (status == "ok") return kExitOk;
+  if (status == "no_truth") return kExitBadInput;
+  return kExitFailure;
+}
+
+// Where human-readable output goes: stdout, or stderr when the JSON report takes stdout.
+inline std::FILE* human_stream(const std::string& json_path) {
+  return json_path == "-" ? stderr : stdout;
+}
+
+}  // namespace robocal::app
