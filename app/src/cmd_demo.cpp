@@ -29,6 +29,7 @@ struct DemoOptions {
   int threads = 2;
   std::string out;
   std::string json;
+  std::string route = "both";  // pose | pixel | both (identification routes reported)
 };
 
 // A fresh folder for the session when --out is not given.
@@ -57,7 +58,7 @@ int run_demo(DemoOptions o) {
   report["measure"] = measure_session(dir, "", log);
   if (report["measure"]["status"] != "ok") return kExitFailure;
   fmt::print(out, "\nidentify\n");
-  report["identify"] = identify_session(dir, "", log);
+  report["identify"] = identify_session(dir, "", log, o.route);
   if (report["identify"]["status"] != "ok") return kExitFailure;
   fmt::print(out, "\nvalidate (against the truth, which only this stage reads)\n");
   report["validate"] = validate_session(dir, o.held_out, log);
@@ -112,6 +113,12 @@ CommandSpec demo_command() {
                          "Smaller images and fewer views (for CI); pair with --poses 20");
             cmd.add_option("--out", o->out,
                            "Session folder to create (default: a fresh folder in the temp dir)");
+            cmd.add_option("--route", o->route,
+                           "Identification routes: pose (from measured 6-D poses), or pixel / "
+                           "both (also camera-in-the-loop from the corner pixels, started from "
+                           "the pose route's base-frame alignment; both are reported)")
+                ->check(CLI::IsMember({"pose", "pixel", "both"}))
+                ->capture_default_str();
             cmd.add_option("--json", o->json,
                            "Write the JSON report here ('-' = stdout; default: "
                            "<session>/results/demo.json)");

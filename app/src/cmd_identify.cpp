@@ -30,7 +30,8 @@ struct IdentifyOptions {
   std::string session;
   std::string robot;
   std::string measurements;
-  std::string json;  // "" = stdout in file mode, none in session mode
+  std::string json;            // "" = stdout in file mode, none in session mode
+  std::string route = "both";  // session mode: pose | pixel | both
   std::string out_robot;
   std::vector<std::string> free_patterns;
   std::vector<std::string> fix_patterns;
@@ -147,7 +148,7 @@ int run_identify_session(const IdentifyOptions& o) {
     throw InputError(o.session + ": not a session folder (no session.yaml; see app/SESSION.md)");
   PipelineLog log;
   log.out = human_stream(o.json);
-  const auto report = identify_session(o.session, o.robot, log);
+  const auto report = identify_session(o.session, o.robot, log, o.route);
   if (!o.json.empty()) write_json(report, o.json);
   if (report.value("status", "") != "ok")
     fmt::print(stderr, "identification failed: {}\n", report.value("message", ""));
@@ -324,6 +325,12 @@ CommandSpec identify_command() {
                 "  robocal identify --robot R --measurements M   any measurements file "
                 "(testdata/measurements/README.md); the options below apply to this mode.");
             cmd.add_option("session", o->session, "Session folder (app/SESSION.md)");
+            cmd.add_option("--route", o->route,
+                           "Session mode: identify from the measured 6-D poses (pose), or also "
+                           "directly from the corner pixels with the camera poses estimated "
+                           "(camera-in-the-loop; pixel and both run both and report both)")
+                ->check(CLI::IsMember({"pose", "pixel", "both"}))
+                ->capture_default_str();
             cmd.add_option("--robot", o->robot, "Robot file (YAML)");
             cmd.add_option("--measurements", o->measurements,
                            "Measurements file (testdata/measurements/README.md)");

@@ -3,6 +3,7 @@
 #include "session_pipeline.hpp"
 
 #include "cli_common.hpp"
+#include "pixel_bridge.hpp"
 #include "pose_bridge.hpp"
 #include "rig_files.hpp"
 #include "session.hpp"
@@ -766,8 +767,86 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
 
 // ---- identify ------------------------------------------------------------------------------
 
+namespace {
+
+// The camera-in-the-loop route on a session: the corner pixels of results/pixel_observations.json
+// (the poses the pose route used, first frame per camera) with the measured rig's cameras, camera
+// 0 as the world, camera 1.. poses estimated with the robot; started from the pose route's
+// base-frame alignment. Returns the route's report (its estimate as {parameter: value}).
+nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& model,
+                                    const calib::FramePredictor& predictor,
+                                    const Eigen::VectorXd& start,
+                                    const calib::SolveOptions& options, const PipelineLog& log) {
+  const fs::path ppath = s.results() / "pixel_observations.json";
+  const nlohmann::json doc =
+      read_json_file(ppath, "run `robocal measure " + s.dir.string() + "` first");
+  double rig_sigma = 0.0;
+  const auto rig = load_rig_json(s.results() / "rig.json", &rig_sigma);
+  const auto target = board_points(load_board(s.path(s.ee_target)));
+  std::map<std::string, std::size_t> camera_index;
+  for (std::size_t c = 0; c < rig.size(); ++c) camera_index[rig[c].name] = c;
+  std::vector<PosePixels> poses;
+  try {
+    for (const auto& p : doc.at("poses")) {
+      if (!p.value("used", false)) continue;
+      const auto id = p.at("pose").get<std::string>();
+      const auto q = p.at("actuators").get<std::vector<double>>();
+      PosePixels pose{
+          id, Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size())),
+          std::vector<vision::CameraFrame>(rig.size())};
+      for (const auto& obs : p.at("observations")) {
+        if (obs.value("frame", 0) != 0) continue;  // settled frames: the first one is used
+        const auto name = obs.at("camera").get<std::string>();
+        const auto it = camera_index.find(name);
+        if (it == camera_index.end())
+          throw InputError(
+              fmt::format("{}: pose {} names camera '{}', which results/rig.json "
+                          "does not have",
+                          ppath.string(), id, name));
+        auto& frame = pose.cameras[it->second];
+        for (const auto& c : obs.at("corners")) {
+          const auto v = c.get<std::vector<double>>();
+          if (v.size() != 4)
+            throw InputError(fmt::format("{}: pose {} camera {}: a corner is not [id, u, v, sigma]",
+                                         ppath.string(), id, name));
+          frame.corners.push_back({static_cast<int>(v[0]), Eigen::Vector2d(v[1], v[2]), v[3]});
+        }
+      }
+      poses.push_back(std::move(pose));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: malformed ({})", ppath.string(), e.what()));
+  }
+  nlohmann::json report;
+  const auto route = identify_from_pixels(predictor, start, options, rig, target, poses);
+  const auto& r = route.result;
+  say(log,
+      "  pixels (camera-in-the-loop): {}: {} poses, {} parameters (robot + camera poses), {} "
+      "iterations, {:.2f} s, reprojection {:.3f} px RMS\n",
+      calib::to_string(r.status), r.residuals.poses.size(), r.estimated.size(), r.iterations,
+      r.solve_seconds, route.fit_pixels.rms_px);
+  report["result"] = calib::to_json(r);
+  report["reprojection_rms_px"] = route.fit_pixels.rms_px;
+  report["skipped"] = route.input.skipped;
+  report["estimate"] = params_json(model, route.robot_estimate);
+  nlohmann::json cams = nlohmann::json::array();
+  for (std::size_t c = 0; c < route.world_T_camera.size() && c < rig.size(); ++c)
+    cams.push_back(
+        {{"camera", rig[c].name}, {"world_T_camera", pose_to_json(route.world_T_camera[c])}});
+  report["cameras"] = cams;
+  const bool usable = r.status == calib::IdentificationStatus::kConverged ||
+                      r.status == calib::IdentificationStatus::kNotConverged;
+  report["status"] = usable ? "ok" : "failed";
+  if (!usable) report["message"] = r.message;
+  return report;
+}
+
+}  // namespace
+
 nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
-                                const PipelineLog& log) {
+                                const PipelineLog& log, const std::string& route) {
+  if (route != "pose" && route != "pixel" && route != "both")
+    throw InputError("identification route '" + route + "': expected pose, pixel or both");
   const Session s = load_session(dir);
   const SessionRobot robot = session_robot(s, robot_override);
   // The used poses of results/measured_poses.json, at full precision (measurements.yaml is the
@@ -890,6 +969,28 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     write_file_atomic(s.results() / "calibrated_robot.yaml", text, true);
     report["calibrated_robot"] = "results/calibrated_robot.yaml";
   }
+  if (usable && route != "pose") {
+    report["pixel_route"] = identify_pixel_route(s, model, predictor, start, solve_options, log);
+    const auto& pr = report["pixel_route"];
+    if (pr.value("status", "") == "ok") {
+      const std::string ident_file = (s.results() / "identification.json").string();
+      const Eigen::VectorXd pixel_estimate = params_from_json(model, pr.at("estimate"), ident_file);
+      std::vector<std::size_t> changed;
+      for (std::size_t i = 0; i < model.parameters.size(); ++i)
+        if (pixel_estimate[static_cast<Eigen::Index>(i)] !=
+            file_values[static_cast<Eigen::Index>(i)])
+          changed.push_back(i);
+      const std::string text = calib::calibrated_robot_yaml(
+          read_text_file(robot.file), model, pixel_estimate, changed,
+          {fmt::format("Calibrated by robocal {} identify (camera-in-the-loop, from corner "
+                       "pixels) from session {}.",
+                       kVersion, dir.filename().string()),
+           fmt::format("Reprojection RMS {:.3f} px.", pr.value("reprojection_rms_px", 0.0)),
+           "World frame: the session's rig frame (camera " + s.cameras[0].name + ")."});
+      write_file_atomic(s.results() / "calibrated_robot_pixels.yaml", text, true);
+      report["pixel_route"]["calibrated_robot"] = "results/calibrated_robot_pixels.yaml";
+    }
+  }
   write_json(report, (s.results() / "identification.json").string());
   return report;
 }
@@ -919,6 +1020,9 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   const std::string ident_file = (s.results() / "identification.json").string();
   const Eigen::VectorXd start = params_from_json(model, ident.at("start"), ident_file);
   const Eigen::VectorXd estimate = params_from_json(model, ident.at("estimate"), ident_file);
+  std::optional<Eigen::VectorXd> pixel_estimate;
+  if (ident.contains("pixel_route") && ident["pixel_route"].value("status", "") == "ok")
+    pixel_estimate = params_from_json(model, ident["pixel_route"].at("estimate"), ident_file);
   const std::string truth_file = (s.truth() / "truth.json").string();
   const nlohmann::json truth_doc = read_json_file(s.truth() / "truth.json", "simulation truth");
   const Eigen::VectorXd truth = params_from_json(model, truth_doc.at("truth"), truth_file);
@@ -991,27 +1095,35 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   // and calibrated model against the true robot, in camera 0's frame.
   calib::MechanismPredictor true_predictor(model, robot.frame);
   std::mt19937 validation_rng(s.seed + 7919);
+  std::vector<Eigen::VectorXd> must_solve = {truth, start, estimate};
+  if (pixel_estimate) must_solve.push_back(*pixel_estimate);
   const auto configurations = calib::sample_actuators(
-      true_predictor, {truth, start, estimate}, static_cast<std::size_t>(held_out), validation_rng);
-  std::vector<Eigen::Vector3d> truth_points, nominal_points, calibrated_points;
+      true_predictor, must_solve, static_cast<std::size_t>(held_out), validation_rng);
+  std::vector<Eigen::Vector3d> truth_points, nominal_points, calibrated_points, pixel_points;
   int branch_disagreements = 0;
   for (const auto& q : configurations) {
     const auto true_fk = calib::forward_kinematics(model, truth, q, robot.frame);
     const auto nominal_fk = calib::forward_kinematics(model, start, q, robot.frame);
     const auto calibrated_fk = calib::forward_kinematics(model, estimate, q, robot.frame);
     if (!true_fk.closure.ok() || !nominal_fk.closure.ok() || !calibrated_fk.closure.ok()) continue;
+    const auto pixel_fk = pixel_estimate
+                              ? calib::forward_kinematics(model, *pixel_estimate, q, robot.frame)
+                              : calibrated_fk;
+    if (!pixel_fk.closure.ok()) continue;
     // A prediction 5 cm off is not an accuracy figure but the closure solver on another
     // assembly mode (seen for the nominal model at extreme actuator values): count it apart.
     const Eigen::Vector3d t = cam0_T_world * true_fk.pose.translation();
     constexpr double kBranchGap = 0.05;
     if ((nominal_fk.pose.translation() - t).norm() > kBranchGap ||
-        (calibrated_fk.pose.translation() - t).norm() > kBranchGap) {
+        (calibrated_fk.pose.translation() - t).norm() > kBranchGap ||
+        (pixel_fk.pose.translation() - t).norm() > kBranchGap) {
       ++branch_disagreements;
       continue;
     }
     truth_points.push_back(t);
     nominal_points.push_back(nominal_fk.pose.translation());
     calibrated_points.push_back(calibrated_fk.pose.translation());
+    pixel_points.push_back(pixel_fk.pose.translation());
   }
   if (branch_disagreements > 0)
     say(log,
@@ -1028,6 +1140,11 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   report["calibrated"] = calibrated_errors.absolute.json();
   report["nominal_registered"] = nominal_errors.registered.json();
   report["calibrated_registered"] = calibrated_errors.registered.json();
+  if (pixel_estimate) {
+    const ErrorPair pixel_errors = position_errors(pixel_points, truth_points);
+    report["calibrated_pixels"] = pixel_errors.absolute.json();
+    report["calibrated_pixels_registered"] = pixel_errors.registered.json();
+  }
 
   // Parameters: estimated change next to the true change, largest (in tolerance sigmas) first.
   std::vector<std::size_t> order;
@@ -1074,6 +1191,12 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
       "  calibrated model:                  {:8.1f} µm RMS, {:8.1f} µm max  ({:.0f}x better)\n",
       after * 1e6, v.at("calibrated").at("max_m").get<double>() * 1e6,
       after > 0 ? before / after : 0.0);
+  if (v.contains("calibrated_pixels"))
+    fmt::print(out,
+               "  calibrated from pixels (camera-in-the-loop): {:5.1f} µm RMS, {:8.1f} µm max  "
+               "(line above: from measured 6-D poses)\n",
+               v["calibrated_pixels"].at("rms_m").get<double>() * 1e6,
+               v["calibrated_pixels"].at("max_m").get<double>() * 1e6);
   fmt::print(out, "  robot accuracy in its own frame (after best-fit rigid registration):\n");
   fmt::print(out, "    nominal {:.1f} µm RMS, calibrated {:.1f} µm RMS ({:.1f} µm max)\n",
              v.at("nominal_registered").at("rms_m").get<double>() * 1e6,

@@ -44,8 +44,10 @@ nlohmann::json simulate_session(const SimulateOptions& options, const PipelineLo
 // robot_override: a robot file to use instead of the session's (checked against the session).
 nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
                                const PipelineLog& log);
+// route: "pose" (from the measured 6-D poses), "pixel" or "both" (also camera-in-the-loop from
+// the corner pixels, started from the pose route's base-frame alignment; both reported).
 nlohmann::json identify_session(const std::filesystem::path& dir, const std::string& robot_override,
-                                const PipelineLog& log);
+                                const PipelineLog& log, const std::string& route = "both");
 nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
                                 const PipelineLog& log);
 

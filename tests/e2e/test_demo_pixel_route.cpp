@@ -26,12 +26,14 @@ TEST(DemoEndToEnd, PixelRouteCalibratesFromTheSameDetections) {
   ASSERT_EQ(run({"demo", "--quick", "--poses", "24", "--held-out", "200", "--seed", "3", "--route",
                  "both", "--out", dir.string()}),
             0);
-  std::ifstream in(dir / "demo.json");
-  ASSERT_TRUE(in) << "no demo.json";
+  std::ifstream in(dir / "results" / "demo.json");
+  ASSERT_TRUE(in) << "no results/demo.json";
   const auto report = nlohmann::json::parse(in);
-  EXPECT_EQ(report["identify_pixels"]["status"], "converged");
+  const auto& pixel_route = report["identify"]["pixel_route"];
+  EXPECT_EQ(pixel_route["result"]["status"], "converged");
   // Corner noise of rendered images: the fit reproduces the pixels to a fraction of a pixel.
-  EXPECT_LT(report["identify_pixels"]["reprojection_rms_px"].get<double>(), 0.3);
+  EXPECT_LT(pixel_route["reprojection_rms_px"].get<double>(), 0.3);
+  EXPECT_TRUE(std::filesystem::exists(dir / "results" / "calibrated_robot_pixels.yaml"));
   const double nominal = report["validate"]["nominal"]["rms_m"];
   const double pixels = report["validate"]["calibrated_pixels"]["rms_m"];
   EXPECT_LT(pixels, nominal / 5.0);
