@@ -33,12 +33,12 @@ struct CornerGroup {
 // What one camera saw of one board in one frame. An empty `corners` list means "not seen".
 struct CameraFrame {
   std::vector<CornerObservation> corners;
-  // Optional joint covariances of groups of `corners` (by id); a corner in a group uses the
-  // group's covariance instead of its sigma_px. Corners in no group are independent.
-  std::vector<CornerGroup> corner_groups;
   // Edge spread of the detected corners in px (e.g. TagDetection::edge_blur_px; ~0.3 sharp);
   // NaN when unknown. Used for the "blurred" quality flag only.
   double blur_px = std::numeric_limits<double>::quiet_NaN();
+  // Optional joint covariances of groups of `corners` (by id); a corner in a group uses the
+  // group's covariance instead of its sigma_px. Corners in no group are independent.
+  std::vector<CornerGroup> corner_groups;
 };
 
 // Board geometry for the estimators: corner id -> point in the board frame (metres, z = 0 for

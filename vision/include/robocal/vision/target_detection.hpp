@@ -33,12 +33,12 @@ struct TargetDetection {
   std::vector<int> corner_ids;          ///< TargetBoard corner ids
   std::vector<Eigen::Vector3d> board_points;
   std::vector<Eigen::Vector2d> pixels;  ///< OpenCV convention
-  /// Joint covariances of the corners of each refined tag (by corner id; see observations.hpp).
-  /// Empty for chessboards, ChArUco boards and unrefined tags.
-  std::vector<CornerGroup> corner_groups;
   /// Median fitted edge spread over the detected markers (px, ~0.3 when perfectly sharp); NaN if
   /// no marker could be refined.
   double edge_blur_px = 0.0;
+  /// Joint covariances of the corners of each refined tag (by corner id; see observations.hpp).
+  /// Empty for chessboards, ChArUco boards and unrefined tags.
+  std::vector<CornerGroup> corner_groups;
 };
 
 /// Detects an AprilTag grid board. Tags of other boards are ignored; a tag id seen twice rejects
