@@ -6,7 +6,9 @@
 //   intrinsics: 30 rendered views x trials: ours vs cv::calibrateCamera on the same detections.
 //   real_rct_charuco: ours vs OpenCV's own ChArUco calibration on the real images (informative).
 // Usage: bench_vision_accuracy [--trials N] [--quick] [--only nominal|sweep|timing|intrinsics|real]
+//                              [--corners detected|detected_unweighted|truth_iid]
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -258,14 +260,89 @@ json detection_time() {
   return out;
 }
 
-json intrinsics_trials(int trials) {
+// Error statistics of detected corners against the truth, per tag: the mean and radial bias,
+// and how the errors of a tag's four corners are correlated. Corners k and k+1 of a tag lie on
+// the same fitted edge; the components of their errors along that edge's normal are compared.
+// `centroid_variance_ratio` is var(tag centroid error) / (var(corner error) / 4): 1 for
+// independent corners, larger when corners of one tag move together.
+struct CornerErrorStats {
+  Accumulator all;
+  double edge_nn = 0.0, edge_n1 = 0.0, edge_n2 = 0.0;  // sum e_k.n e_{k+1}.n, e_k.n ^2, ...
+  double opposite = 0.0;  // sum of products of the normal components of opposite corners
+  double centroid_sq = 0.0, corner_sq = 0.0;
+  long tags = 0;
+  long gross_tags = 0;  // tags with a corner error > 0.1 px (left out of the statistics above)
+  double predicted_sq = 0.0;  // trace of the predicted corner covariance (refined tags)
+  double whitened_sq = 0.0;   // e^T C^-1 e over tags with a predicted covariance
+  long predicted_tags = 0;
+
+  void add_tag(const std::array<Eigen::Vector2d, 4>& err, const std::array<Eigen::Vector2d, 4>& px,
+               const std::array<Eigen::Vector2d, 4>& outward, const Eigen::MatrixXd* cov) {
+    for (const auto& e : err) {
+      if (e.norm() > 0.1) {
+        ++gross_tags;
+        return;
+      }
+    }
+    if (cov != nullptr && cov->rows() == 8) {
+      Eigen::Matrix<double, 8, 1> e8;
+      for (int k = 0; k < 4; ++k) e8.segment<2>(2 * k) = err[static_cast<size_t>(k)];
+      predicted_sq += cov->trace();
+      whitened_sq += e8.dot(cov->ldlt().solve(e8));
+      ++predicted_tags;
+    }
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (size_t k = 0; k < 4; ++k) {
+      all.add(err[k], outward[k]);
+      mean += err[k] / 4.0;
+      corner_sq += err[k].squaredNorm();
+    }
+    centroid_sq += mean.squaredNorm();
+    for (size_t k = 0; k < 4; ++k) {
+      const Eigen::Vector2d d = (px[(k + 1) % 4] - px[k]).normalized();
+      const Eigen::Vector2d n(-d.y(), d.x());
+      const double a = err[k].dot(n);
+      const double b = err[(k + 1) % 4].dot(n);
+      edge_nn += a * b;
+      edge_n1 += a * a;
+      edge_n2 += b * b;
+      opposite += err[k].dot(err[(k + 2) % 4]) / 2.0;
+    }
+    ++tags;
+  }
+  [[nodiscard]] json to_json() const {
+    json j = all.to_json();
+    j["tags"] = tags;
+    j["tags_with_a_corner_error_over_0.1px"] = gross_tags;
+    if (predicted_tags > 0) {
+      // Predicted (edge-fit propagation) vs actual per-axis corner RMS, and the mean whitened
+      // squared error per tag (expectation 8 when the predicted covariance is right).
+      j["predicted_corner_rms_px"] = std::sqrt(predicted_sq / (8.0 * predicted_tags));
+      j["whitened_tag_error_sq_mean"] = whitened_sq / static_cast<double>(predicted_tags);
+    }
+    j["same_edge_normal_correlation"] = edge_nn / std::sqrt(edge_n1 * edge_n2);
+    j["opposite_corner_correlation"] = opposite / (corner_sq / 4.0 * 2.0) * 2.0 / 2.0;
+    j["centroid_variance_ratio"] =
+        (centroid_sq / static_cast<double>(tags)) / (corner_sq / (4.0 * tags) / 4.0);
+    return j;
+  }
+};
+
+json intrinsics_trials(int trials, const std::string& corner_source) {
   const rt::SyntheticCamera cam{1280, 1024, 1200.0, 639.5, 511.5};
   const auto board = tag_board(8, 6, 0.03);
   rv::AprilTagDetector detector;
   const rv::CameraModel truth = rv::make_camera(rv::CameraKind::kPinholeRadtan, cam.width,
                                                 cam.height, cam.f, cam.f, cam.cx, cam.cy);
-  std::vector<double> ours_f, ours_c, cv_f, cv_c, ours_proj, cv_proj, z_fx, z_cx;
+  std::vector<double> ours_f, ours_c, cv_f, cv_c, ours_proj, cv_proj, z_fx, z_fy, z_cx, z_cy;
+  std::vector<double> err_fx, err_fy, err_cx, err_cy;
   json per_trial = json::array();
+  CornerErrorStats corner_stats;
+  // truth_iid: the detector's corners replaced by the truth plus independent Gaussian noise of
+  // the detector's measured per-axis RMS error (same corner ids): the estimator alone.
+  const double iid_sigma = 0.016;
+  std::mt19937 noise_rng(77);
+  std::normal_distribution<double> noise(0.0, iid_sigma);
   for (int trial = 0; trial < trials; ++trial) {
     std::mt19937 rng(1000 + static_cast<unsigned>(trial));
     std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -281,13 +358,32 @@ json intrinsics_trials(int trials) {
       const auto det = rv::detect_apriltag_board(v.image, board, detector);
       if (det.status == rv::DetectionStatus::kRejected || det.pixels.size() < 16) continue;
       views.push_back(rv::to_calibration_view(det, fmt::format("v{}", k)));
+      for (size_t i = 0; i + 3 < det.pixels.size(); i += 4) {
+        std::array<Eigen::Vector2d, 4> e, px, out;
+        for (size_t c = 0; c < 4; ++c) {
+          const Eigen::Vector2d truth_px = rt::apply_h(v.h, det.board_points[i + c].head<2>());
+          e[c] = det.pixels[i + c] - truth_px;
+          px[c] = truth_px;
+          out[c] = outward(board, v.h, det.corner_ids[i + c], det.board_points[i + c]);
+          if (corner_source == "truth_iid")
+            views.back().pixels[i + c] =
+                truth_px + Eigen::Vector2d(noise(noise_rng), noise(noise_rng));
+        }
+        const Eigen::MatrixXd* cov = nullptr;
+        for (const auto& g : det.corner_groups)
+          if (!g.corner_ids.empty() && g.corner_ids.front() == det.corner_ids[i])
+            cov = &g.covariance;
+        corner_stats.add_tag(e, px, out, cov);
+      }
+      // truth_iid / detected_unweighted: no corner covariances (independent, equal weights).
+      if (corner_source != "detected") views.back().corner_groups.clear();
+      const auto& det_px = views.back().pixels;
       std::vector<cv::Point3f> o;
       std::vector<cv::Point2f> p;
       for (size_t i = 0; i < det.pixels.size(); ++i) {
         o.emplace_back(static_cast<float>(det.board_points[i].x()),
                        static_cast<float>(det.board_points[i].y()), 0.0f);
-        p.emplace_back(static_cast<float>(det.pixels[i].x()),
-                       static_cast<float>(det.pixels[i].y()));
+        p.emplace_back(static_cast<float>(det_px[i].x()), static_cast<float>(det_px[i].y()));
       }
       obj.push_back(o);
       img.push_back(p);
@@ -335,7 +431,13 @@ json intrinsics_trials(int trials) {
     ours_proj.push_back(proj_rms(res.camera));
     cv_proj.push_back(proj_rms(cvcam));
     z_fx.push_back((p[0] - cam.f) / res.param_stddev[0]);
+    z_fy.push_back((p[1] - cam.f) / res.param_stddev[1]);
     z_cx.push_back((p[2] - cam.cx) / res.param_stddev[2]);
+    z_cy.push_back((p[3] - cam.cy) / res.param_stddev[3]);
+    err_fx.push_back(p[0] - cam.f);
+    err_fy.push_back(p[1] - cam.f);
+    err_cx.push_back(p[2] - cam.cx);
+    err_cy.push_back(p[3] - cam.cy);
     per_trial.push_back({{"views", views.size()},
                          {"ours_rms_px", res.rms_px},
                          {"opencv_rms_px", cv_rms},
@@ -356,18 +458,27 @@ json intrinsics_trials(int trials) {
     for (double x : v) s += x * x;
     return v.empty() ? NAN : std::sqrt(s / static_cast<double>(v.size()));
   };
-  return {{"truth", {{"f", cam.f}, {"cx", cam.cx}, {"cy", cam.cy}, {"distortion", "none"}}},
-          {"trials", ours_f.size()},
-          {"views_per_trial", 30},
-          {"ours_mean_abs_focal_error_px", mean(ours_f)},
-          {"opencv_mean_abs_focal_error_px", mean(cv_f)},
-          {"ours_mean_abs_principal_point_error_px", mean(ours_c)},
-          {"opencv_mean_abs_principal_point_error_px", mean(cv_c)},
-          {"ours_projection_rms_vs_truth_px", mean(ours_proj)},
-          {"opencv_projection_rms_vs_truth_px", mean(cv_proj)},
-          {"fx_error_over_predicted_sigma_rms", rms(z_fx)},
-          {"cx_error_over_predicted_sigma_rms", rms(z_cx)},
-          {"per_trial", per_trial}};
+  return {
+      {"truth", {{"f", cam.f}, {"cx", cam.cx}, {"cy", cam.cy}, {"distortion", "none"}}},
+      {"trials", ours_f.size()},
+      {"views_per_trial", 30},
+      {"ours_mean_abs_focal_error_px", mean(ours_f)},
+      {"opencv_mean_abs_focal_error_px", mean(cv_f)},
+      {"ours_mean_abs_principal_point_error_px", mean(ours_c)},
+      {"opencv_mean_abs_principal_point_error_px", mean(cv_c)},
+      {"ours_projection_rms_vs_truth_px", mean(ours_proj)},
+      {"opencv_projection_rms_vs_truth_px", mean(cv_proj)},
+      {"corner_source", corner_source},
+      {"detected_corner_errors", corner_stats.to_json()},
+      {"mean_signed_error_px",
+       {{"fx", mean(err_fx)}, {"fy", mean(err_fy)}, {"cx", mean(err_cx)}, {"cy", mean(err_cy)}}},
+      {"rms_error_px",
+       {{"fx", rms(err_fx)}, {"fy", rms(err_fy)}, {"cx", rms(err_cx)}, {"cy", rms(err_cy)}}},
+      {"fx_error_over_predicted_sigma_rms", rms(z_fx)},
+      {"fy_error_over_predicted_sigma_rms", rms(z_fy)},
+      {"cx_error_over_predicted_sigma_rms", rms(z_cx)},
+      {"cy_error_over_predicted_sigma_rms", rms(z_cy)},
+      {"per_trial", per_trial}};
 }
 
 json real_rct_charuco() {
@@ -456,10 +567,14 @@ int main(int argc, char** argv) {
   int trials = 20;
   bool quick = false;
   std::string only;  // nominal | sweep | timing | intrinsics | real
+  // intrinsics: detected (with the detector's corner covariances) | detected_unweighted |
+  // truth_iid (truth + independent noise of the detector's RMS: the estimator alone)
+  std::string corner_source = "detected";
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--trials") == 0 && i + 1 < argc) trials = std::atoi(argv[++i]);
     if (std::strcmp(argv[i], "--quick") == 0) quick = true;
     if (std::strcmp(argv[i], "--only") == 0 && i + 1 < argc) only = argv[++i];
+    if (std::strcmp(argv[i], "--corners") == 0 && i + 1 < argc) corner_source = argv[++i];
   }
   auto want = [&](const std::string& section) { return only.empty() || only == section; };
   json doc;
@@ -507,7 +622,8 @@ int main(int argc, char** argv) {
   }
   if (want("sweep")) doc["corner_accuracy_sweep_1280x1024"] = sweep;
   if (want("timing")) doc["detection_time"] = detection_time();
-  if (want("intrinsics")) doc["intrinsics_30_views"] = intrinsics_trials(quick ? 2 : trials);
+  if (want("intrinsics"))
+    doc["intrinsics_30_views"] = intrinsics_trials(quick ? 2 : trials, corner_source);
   if (want("real")) doc["real_rct_charuco"] = real_rct_charuco();
   std::printf("%s\n", doc.dump(2).c_str());
   return 0;

@@ -73,6 +73,7 @@ struct AprilTagDetector::Impl {
             tag.refined = true;
             tag.edge_blur_px = r->mean_blur_sigma;
             tag.edge_contrast = r->mean_contrast;
+            tag.corner_covariance = r->corner_covariance;
           }
         }
       };

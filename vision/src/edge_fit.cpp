@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace robocal::vision {
 namespace {
@@ -185,11 +186,20 @@ std::optional<EdgeLineFit> fit_edge(const std::vector<EdgeSample>& samples,
   const Eigen::Matrix<double, N, N> cov = jtj.inverse() * (cost / dof);
   fit.offset_stddev = std::sqrt(std::max(0.0, cov(1, 1)));
   if constexpr (N == 6) fit.curvature_stddev = std::sqrt(std::max(0.0, cov(5, 5)));
+  {
+    // (theta, offset[, curvature]) block; the sign flip below negates offset and curvature.
+    constexpr int kLine[3] = {0, 1, N == 6 ? 5 : -1};
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        fit.line_covariance(r, c) = kLine[r] < 0 || kLine[c] < 0 ? 0.0 : cov(kLine[r], kLine[c]);
+  }
   if (p.contrast < 0.0) {  // orient the normal from dark to bright
     fit.normal = -fit.normal;
     fit.offset = -fit.offset;
     fit.curvature = -fit.curvature;
     std::swap(fit.dark, fit.bright);
+    const Eigen::Matrix3d flip = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
+    fit.line_covariance = flip * fit.line_covariance * flip;
   }
   const double contrast = fit.bright - fit.dark;
   // Implausible fits: no real edge (contrast lost in noise) or a spread no lens produces.
@@ -292,6 +302,45 @@ std::vector<EdgeSample> quad_edge_samples(const cv::Mat& gray,
   return samples;
 }
 
+// First-order propagation of the four edges' (angle, offset, curvature) covariances to the
+// corners they intersect in (corner i = edge i-1 x edge i), by central differences.
+Eigen::Matrix<double, 8, 8> propagate_corner_covariance(const std::array<EdgeLineFit, 4>& edges,
+                                                        const std::array<Eigen::Vector2d, 4>& at) {
+  Eigen::Matrix<double, 8, 8> cov = Eigen::Matrix<double, 8, 8>::Zero();
+  for (size_t e = 0; e < 4; ++e) {
+    Eigen::Matrix<double, 8, 3> j = Eigen::Matrix<double, 8, 3>::Zero();
+    const double steps[3] = {1e-6, 1e-5, 1e-8};
+    for (int p = 0; p < 3; ++p) {
+      std::array<Eigen::Vector2d, 4> hi = at;
+      std::array<Eigen::Vector2d, 4> lo = at;
+      for (int sign : {1, -1}) {
+        EdgeLineFit f = edges[e];
+        const double h = sign * steps[p];
+        if (p == 0) {
+          const Eigen::Rotation2Dd rot(h);
+          // Rotate about the origin: the offset is measured from there along the normal.
+          f.normal = rot * f.normal;
+        } else if (p == 1) {
+          f.offset += h;
+        } else {
+          f.curvature += h;
+        }
+        for (size_t c : {e, (e + 1) % 4}) {
+          // Corner c is the intersection of edges c-1 and c.
+          const EdgeLineFit& a = c == e ? edges[(e + 3) % 4] : f;
+          const EdgeLineFit& b = c == e ? f : edges[(e + 1) % 4];
+          const auto q = intersect_lines(a, b);
+          (sign > 0 ? hi : lo)[c] = q ? *q : at[c];
+        }
+      }
+      for (size_t c : {e, (e + 1) % 4})
+        j.block<2, 1>(static_cast<Eigen::Index>(2 * c), p) = (hi[c] - lo[c]) / (2.0 * steps[p]);
+    }
+    cov += j * edges[e].line_covariance * j.transpose();
+  }
+  return 0.5 * (cov + cov.transpose());
+}
+
 }  // namespace
 
 std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
@@ -305,11 +354,30 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
     if (len < 8.0) return std::nullopt;
     side += len / 4.0;
   }
-  const double inner_cell = options.inner_band_fraction * side;
-  const double outer_cell = options.outer_band_fraction * side;
-  // The step model needs a uniform border at least a few pixels deep on both sides; narrower
-  // borders put the data bits inside the fitted band and would pull the line.
-  if (std::min(inner_cell, outer_cell) < options.min_border_px) return std::nullopt;
+  // Depth of the border cell behind each edge, measured across that edge: a fraction of the
+  // quad's extent perpendicular to it (the nearer end of the opposite edge). A tilted tag is
+  // foreshortened across two of its edges only; a band sized from the mean side length reached
+  // into the data bits there (a white bit pulls the fitted edge inwards: a shrink bias).
+  std::array<double, 4> extent{};
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d& a = corners[static_cast<size_t>(i)];
+    const Eigen::Vector2d d = (corners[static_cast<size_t>((i + 1) % 4)] - a).normalized();
+    double e = std::numeric_limits<double>::infinity();
+    for (int k = 2; k < 4; ++k) {
+      const Eigen::Vector2d q = corners[static_cast<size_t>((i + k) % 4)] - a;
+      e = std::min(e, std::abs(d.x() * q.y() - d.y() * q.x()));
+    }
+    extent[static_cast<size_t>(i)] = e;
+  }
+  std::array<double, 4> inner_cell{};
+  std::array<double, 4> outer_cell{};
+  for (size_t i = 0; i < 4; ++i) {
+    inner_cell[i] = options.inner_band_fraction * extent[i];
+    outer_cell[i] = options.outer_band_fraction * extent[i];
+    // The step model needs a uniform border at least a few pixels deep on both sides; narrower
+    // borders put the data bits inside the fitted band and would pull the line.
+    if (std::min(inner_cell[i], outer_cell[i]) < options.min_border_px) return std::nullopt;
+  }
 
   // Two passes: the first, with a conservative band, measures the blur; the second widens the
   // band as far as that blur allows without seeing the data bits or the neighbouring edges.
@@ -322,12 +390,14 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
     const double keep_off = pass == 0 ? std::max(2.0, 0.2 * side) : 0.5 + 2.5 * blur;
     // Beyond ~4 sigma from the edge pixels only repeat the plateau levels: skip them (speed).
     const double useful = 1.5 + 4.0 * blur;
-    const double inner = pass == 0 ? std::max(2.0, 0.8 * inner_cell)
-                                   : std::max(2.0, std::min(inner_cell - keep_off, useful));
-    const double outer = pass == 0 ? std::max(2.0, 0.8 * outer_cell)
-                                   : std::max(2.0, std::min(outer_cell - keep_off, useful));
     std::array<EdgeLineFit, 4> edges;
     for (int i = 0; i < 4; ++i) {
+      const double ic = inner_cell[static_cast<size_t>(i)];
+      const double oc = outer_cell[static_cast<size_t>(i)];
+      const double inner =
+          pass == 0 ? std::max(2.0, 0.8 * ic) : std::max(2.0, std::min(ic - keep_off, useful));
+      const double outer =
+          pass == 0 ? std::max(2.0, 0.8 * oc) : std::max(2.0, std::min(oc - keep_off, useful));
       // Pass 1 only locates the edge roughly: every other pixel (checkerboard) is enough.
       const auto samples =
           quad_edge_samples(gray, result.corners, i, inner, outer, keep_off, pass == 0);
@@ -351,6 +421,7 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
     }
     result.corners = refined;
     result.edges = edges;
+    if (pass == 1) result.corner_covariance = propagate_corner_covariance(edges, refined);
     double mean_blur = 0.0;
     double contrast = 0.0;
     for (const auto& e : edges) {

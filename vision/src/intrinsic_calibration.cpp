@@ -13,6 +13,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
+#include "corner_noise.hpp"
 #include "robocal/vision/pose.hpp"
 
 namespace robocal::vision {
@@ -23,6 +24,7 @@ template <class Model>
 struct ReprojectionCost {
   Eigen::Vector3d board;
   Eigen::Vector2d observed;
+  double inv_sigma = 1.0;  // 1: pixel residuals (whitened later as a group)
 
   template <class T>
   bool operator()(const T* intrinsics, const T* pose, T* residual) const {
@@ -34,8 +36,8 @@ struct ReprojectionCost {
     q[2] += pose[5];
     T pixel[2];
     if (!Model::project(intrinsics, q, pixel)) return false;
-    residual[0] = pixel[0] - T(observed.x());
-    residual[1] = pixel[1] - T(observed.y());
+    residual[0] = (pixel[0] - T(observed.x())) * T(inv_sigma);
+    residual[1] = (pixel[1] - T(observed.y())) * T(inv_sigma);
     return true;
   }
 };
@@ -130,22 +132,56 @@ struct Observation {
   bool outlier = false;
 };
 
-// One bundle adjustment over the non-outlier observations.
+// Typical corner sigma (px) of the grouped corners: the weight of corners in no group, so
+// that both kinds share one scale (1 when no view carries group covariances: plain pixels).
+double single_corner_sigma(const std::vector<const CalibrationView*>& used) {
+  std::vector<double> s;
+  for (const auto* v : used)
+    for (const auto& g : v->corner_groups)
+      if (g.covariance.rows() > 0 && g.covariance.allFinite())
+        s.push_back(std::sqrt(std::max(0.0, g.covariance.diagonal().mean())));
+  if (s.empty()) return 1.0;
+  std::nth_element(s.begin(), s.begin() + static_cast<long>(s.size() / 2), s.end());
+  return s[s.size() / 2] > 0.0 ? s[s.size() / 2] : 1.0;
+}
+
+// One bundle adjustment over the non-outlier observations. Corners of a CornerGroup form one
+// residual block whitened by the group's covariance; other corners are whitened by
+// `single_sigma`. The Huber scale is given in px and converted to those units.
 ceres::Solver::Summary solve(const std::vector<const CalibrationView*>& used,
                              const std::vector<Observation>& obs, CameraKind kind,
                              std::vector<double>& intrinsics, std::vector<Pose6>& poses,
-                             double huber_px, int max_iterations, ceres::Problem** keep) {
+                             double huber_px, int max_iterations, double single_sigma,
+                             ceres::Problem** keep) {
   auto* problem = new ceres::Problem();
+  std::vector<std::vector<bool>> use(used.size());
+  for (size_t vi = 0; vi < used.size(); ++vi) use[vi].assign(used[vi]->pixels.size(), false);
+  for (const auto& o : obs)
+    if (!o.outlier) use[static_cast<size_t>(o.view)][o.index] = true;
   visit_camera_kind(kind, [&](auto model) {
     using M = decltype(model);
-    for (const auto& o : obs) {
-      if (o.outlier) continue;
-      const CalibrationView& v = *used[static_cast<size_t>(o.view)];
-      auto* cost = new ceres::AutoDiffCostFunction<ReprojectionCost<M>, 2, M::kNumParams, 6>(
-          new ReprojectionCost<M>{v.board_points[o.index], v.pixels[o.index]});
-      ceres::LossFunction* loss = huber_px > 0.0 ? new ceres::HuberLoss(huber_px) : nullptr;
-      problem->AddResidualBlock(cost, loss, intrinsics.data(),
-                                poses[static_cast<size_t>(o.view)].data());
+    using Cost = ceres::AutoDiffCostFunction<ReprojectionCost<M>, 2, M::kNumParams, 6>;
+    auto loss = [&] {
+      return huber_px > 0.0 ? new ceres::HuberLoss(huber_px / single_sigma) : nullptr;
+    };
+    for (size_t vi = 0; vi < used.size(); ++vi) {
+      const CalibrationView& v = *used[vi];
+      const detail::CornerGrouping grouping =
+          detail::group_corners(v.corner_ids, use[vi], v.corner_groups);
+      for (size_t g = 0; g < grouping.groups.size(); ++g) {
+        std::vector<std::unique_ptr<ceres::CostFunction>> corners;
+        for (size_t i : grouping.groups[g])
+          corners.push_back(
+              std::make_unique<Cost>(new ReprojectionCost<M>{v.board_points[i], v.pixels[i]}));
+        problem->AddResidualBlock(
+            new detail::WhitenedGroupCost(std::move(corners), grouping.whitening[g]), loss(),
+            intrinsics.data(), poses[vi].data());
+      }
+      for (size_t i : grouping.singles) {
+        problem->AddResidualBlock(
+            new Cost(new ReprojectionCost<M>{v.board_points[i], v.pixels[i], 1.0 / single_sigma}),
+            loss(), intrinsics.data(), poses[vi].data());
+      }
     }
   });
   ceres::Solver::Options options;
@@ -347,6 +383,7 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
   }
 
   // 3. Bundle adjustment with outlier rounds.
+  const double single_sigma = single_corner_sigma(used);
   CameraModel init = make_camera(options.kind, options.width, options.height, fx0, fy0, cx0, cy0);
   std::vector<double> intrinsics = init.params;
   std::vector<Observation> obs;
@@ -365,7 +402,7 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
   };
   for (int round = 0; round < options.max_outlier_rounds; ++round) {
     const auto summary = solve(used, obs, options.kind, intrinsics, poses, options.huber_px,
-                               options.max_iterations, nullptr);
+                               options.max_iterations, single_sigma, nullptr);
     result.iterations += static_cast<int>(summary.iterations.size());
     if (summary.termination_type == ceres::FAILURE) {
       result.status = CalibrationStatus::kFailed;
@@ -400,8 +437,8 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
 
   // 4. Final plain least squares on the inliers; covariance from its Jacobian.
   ceres::Problem* problem = nullptr;
-  const auto summary =
-      solve(used, obs, options.kind, intrinsics, poses, 0.0, options.max_iterations, &problem);
+  const auto summary = solve(used, obs, options.kind, intrinsics, poses, 0.0,
+                             options.max_iterations, single_sigma, &problem);
   std::unique_ptr<ceres::Problem> owned(problem);
   result.iterations += static_cast<int>(summary.iterations.size());
   result.converged = summary.termination_type == ceres::CONVERGENCE;
@@ -451,6 +488,9 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
   const int n_params = static_cast<int>(intrinsics.size()) + 6 * static_cast<int>(used.size());
   const int dof = 2 * inliers - n_params;
   result.residual_sigma_px = dof > 0 ? std::sqrt(sq / dof) : 0.0;
+  // chi2 / dof of the weighted fit (whitened residuals): 1 when the corner covariances are
+  // right; the parameter covariance is scaled by it (a-posteriori variance factor).
+  result.variance_factor = dof > 0 ? 2.0 * summary.final_cost / dof : 1.0;
   std::vector<double> view_rms;
   for (size_t vi = 0; vi < used.size(); ++vi) {
     ViewReport& rep = result.views[used_index[vi]];
@@ -497,7 +537,7 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
     if (covariance.Compute(blocks, problem)) {
       Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(np, np);
       covariance.GetCovarianceBlock(intrinsics.data(), intrinsics.data(), c.data());
-      const double var = result.residual_sigma_px * result.residual_sigma_px;
+      const double var = result.variance_factor;
       result.param_covariance = c * var;
       for (size_t i = 0; i < np; ++i) {
         result.param_stddev[i] =

@@ -1,5 +1,6 @@
 #include "robocal/vision/pose_measurement.hpp"
 
+#include "corner_noise.hpp"
 #include "rig_internal.hpp"
 
 #include <ceres/ceres.h>
@@ -8,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <stdexcept>
 
@@ -21,9 +23,30 @@ using Vector6d = Eigen::Matrix<double, 6, 1>;
 // One observed corner with everything the residual needs.
 struct Corner {
   int camera = 0;
+  int frame = 0;
+  int id = 0;
   Eigen::Vector3d board_point;
   Eigen::Vector2d pixel;
-  double sigma = 0.1;
+  double sigma = 0.1;                // used when the corner is in no group
+  Eigen::Matrix2d marginal_inverse;  // inverse of its own 2x2 covariance (outlier test)
+  bool outlier = false;
+};
+
+// Residual blocks: one corner (whitened by its sigma) or a CornerGroup of one camera frame
+// (pixel residuals stacked and whitened by `whitening`).
+struct NoiseBlock {
+  std::vector<size_t> members;  // into the corner list
+  Eigen::MatrixXd whitening;    // empty: a single corner
+};
+
+struct Observations {
+  std::vector<Corner> corners;
+  // Per (frame, camera): the corner groups given with it and the indices of its corners.
+  struct Source {
+    const std::vector<CornerGroup>* groups = nullptr;
+    std::vector<size_t> indices;
+  };
+  std::vector<Source> sources;
 };
 
 // Whitened reprojection residual of one corner. Parameters: the target pose perturbation
@@ -75,7 +98,7 @@ struct TargetOnlyResidual {
 
 std::unique_ptr<ceres::CostFunction> make_cost(const RigCamera& cam, const Corner& corner,
                                                const Eigen::Isometry3d& world_T_target,
-                                               bool target_only = false) {
+                                               bool target_only = false, bool whiten = true) {
   return visit_camera_kind(cam.model.kind, [&](auto model) -> std::unique_ptr<ceres::CostFunction> {
     using M = decltype(model);
     auto* f = new TargetCornerResidual<M>();
@@ -86,7 +109,7 @@ std::unique_ptr<ceres::CostFunction> make_cost(const RigCamera& cam, const Corne
     f->rotated_point = world_T_target.linear() * corner.board_point;
     f->t0 = world_T_target.translation();
     f->pixel = corner.pixel;
-    f->inv_sigma = 1.0 / corner.sigma;
+    f->inv_sigma = whiten ? 1.0 / corner.sigma : 1.0;
     if (target_only) {
       auto* g = new TargetOnlyResidual<M>{*f};
       delete f;
@@ -103,6 +126,45 @@ Eigen::Isometry3d apply_delta(const Eigen::Isometry3d& pose, const double* d) {
   return out;
 }
 
+// Residual blocks over the non-outlier corners (groups re-formed from the members left).
+std::vector<NoiseBlock> noise_blocks(const Observations& obs) {
+  std::vector<NoiseBlock> blocks;
+  for (const auto& src : obs.sources) {
+    std::vector<int> ids;
+    std::vector<bool> use;
+    for (size_t i : src.indices) {
+      ids.push_back(obs.corners[i].id);
+      use.push_back(!obs.corners[i].outlier);
+    }
+    const detail::CornerGrouping g =
+        detail::group_corners(ids, use, src.groups ? *src.groups : std::vector<CornerGroup>{});
+    for (size_t k = 0; k < g.groups.size(); ++k) {
+      NoiseBlock b;
+      for (size_t m : g.groups[k]) b.members.push_back(src.indices[m]);
+      b.whitening = g.whitening[k];
+      blocks.push_back(std::move(b));
+    }
+    for (size_t m : g.singles) blocks.push_back({{src.indices[m]}, Eigen::MatrixXd()});
+  }
+  return blocks;
+}
+
+std::unique_ptr<ceres::CostFunction> make_block_cost(const std::vector<RigCamera>& rig,
+                                                     const Observations& obs, const NoiseBlock& b,
+                                                     const Eigen::Isometry3d& pose,
+                                                     bool target_only) {
+  if (b.whitening.size() == 0) {
+    const Corner& c = obs.corners[b.members.front()];
+    return make_cost(rig[static_cast<size_t>(c.camera)], c, pose, target_only);
+  }
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  for (size_t m : b.members) {
+    const Corner& c = obs.corners[m];
+    costs.push_back(make_cost(rig[static_cast<size_t>(c.camera)], c, pose, target_only, false));
+  }
+  return std::make_unique<detail::WhitenedGroupCost>(std::move(costs), b.whitening);
+}
+
 struct FitResult {
   bool converged = false;
   Eigen::Isometry3d world_T_target = Eigen::Isometry3d::Identity();
@@ -111,18 +173,19 @@ struct FitResult {
 
 // Levenberg-Marquardt over the 6 pose perturbation parameters (the covariance is evaluated
 // afterwards by linearise(), re-centred at the solution).
-FitResult refine(const std::vector<RigCamera>& rig, const std::vector<Corner>& corners,
-                 const Eigen::Isometry3d& start) {
+// huber_scale > 0: robust (Huber) loss on each block's whitened residual norm.
+FitResult refine(const std::vector<RigCamera>& rig, const Observations& obs,
+                 const Eigen::Isometry3d& start, double huber_scale = 0.0) {
   FitResult out;
   out.world_T_target = start;
   {
     double d_target[6] = {0, 0, 0, 0, 0, 0};
     ceres::Problem problem;
     problem.AddParameterBlock(d_target, 6);
-    for (const Corner& c : corners)
-      problem.AddResidualBlock(
-          make_cost(rig[static_cast<size_t>(c.camera)], c, out.world_T_target, true).release(),
-          nullptr, d_target);
+    for (const NoiseBlock& b : noise_blocks(obs))
+      problem.AddResidualBlock(make_block_cost(rig, obs, b, out.world_T_target, true).release(),
+                               huber_scale > 0.0 ? new ceres::HuberLoss(huber_scale) : nullptr,
+                               d_target);
     ceres::Solver::Options sopts;
     sopts.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
     sopts.max_num_iterations = 100;
@@ -151,7 +214,7 @@ struct Linearisation {
   bool ok = true;
 };
 
-Linearisation linearise(const std::vector<RigCamera>& rig, const std::vector<Corner>& corners,
+Linearisation linearise(const std::vector<RigCamera>& rig, const Observations& obs,
                         const Eigen::Isometry3d& pose) {
   Linearisation lin;
   lin.cross.assign(rig.size(), Matrix6d::Zero());
@@ -159,37 +222,101 @@ Linearisation linearise(const std::vector<RigCamera>& rig, const std::vector<Cor
   lin.count.assign(rig.size(), 0);
   const double zeros[6] = {0, 0, 0, 0, 0, 0};
   const double* params[2] = {zeros, zeros};
-  for (const Corner& c : corners) {
-    const auto cost = make_cost(rig[static_cast<size_t>(c.camera)], c, pose);
-    double r[2];
-    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> jt, jc;
-    double* jac[2] = {jt.data(), jc.data()};
-    if (!cost->Evaluate(params, r, jac)) {
+  for (const NoiseBlock& b : noise_blocks(obs)) {
+    // Pixel residuals and Jacobians of the members, stacked, then whitened.
+    const auto n = static_cast<Eigen::Index>(2 * b.members.size());
+    Eigen::VectorXd r(n);
+    Eigen::MatrixXd jt(n, 6), jc(n, 6);
+    bool ok = true;
+    for (size_t k = 0; k < b.members.size() && ok; ++k) {
+      const Corner& c = obs.corners[b.members[k]];
+      const auto cost = make_cost(rig[static_cast<size_t>(c.camera)], c, pose, false, false);
+      double rk[2];
+      Eigen::Matrix<double, 2, 6, Eigen::RowMajor> jtk, jck;
+      double* jac[2] = {jtk.data(), jck.data()};
+      ok = cost->Evaluate(params, rk, jac);
+      const auto row = static_cast<Eigen::Index>(2 * k);
+      r.segment<2>(row) = Eigen::Vector2d(rk[0], rk[1]);
+      jt.middleRows<2>(row) = jtk;
+      jc.middleRows<2>(row) = jck;
+    }
+    if (!ok) {
       lin.ok = false;
       continue;
     }
+    const int cam = obs.corners[b.members.front()].camera;
+    lin.sq_px[static_cast<size_t>(cam)] += r.squaredNorm();
+    lin.count[static_cast<size_t>(cam)] += static_cast<int>(b.members.size());
+    if (b.whitening.size() == 0) {
+      const double inv = 1.0 / obs.corners[b.members.front()].sigma;
+      r *= inv;
+      jt *= inv;
+      jc *= inv;
+    } else {
+      r = b.whitening * r;
+      jt = b.whitening * jt;
+      jc = b.whitening * jc;
+    }
     lin.information += jt.transpose() * jt;
-    lin.cross[static_cast<size_t>(c.camera)] += jt.transpose() * jc;
-    const double rr = r[0] * r[0] + r[1] * r[1];
-    lin.chi2 += rr;
-    lin.sq_px[static_cast<size_t>(c.camera)] += rr * c.sigma * c.sigma;
-    lin.count[static_cast<size_t>(c.camera)] += 1;
+    lin.cross[static_cast<size_t>(cam)] += jt.transpose() * jc;
+    lin.chi2 += r.squaredNorm();
   }
   return lin;
 }
 
-std::vector<Corner> gather(const std::vector<RigCamera>& rig, const BoardPoints& board,
-                           const std::vector<const std::vector<CameraFrame>*>& frames,
-                           double default_sigma) {
-  std::vector<Corner> out;
-  for (const auto* frame : frames) {
+// Squared Mahalanobis distance of each corner's pixel residual under its own 2x2 covariance.
+std::vector<double> corner_d2(const std::vector<RigCamera>& rig, const Observations& obs,
+                              const Eigen::Isometry3d& world_T_target) {
+  std::vector<double> d2(obs.corners.size(), std::numeric_limits<double>::infinity());
+  for (size_t i = 0; i < obs.corners.size(); ++i) {
+    const Corner& c = obs.corners[i];
+    const RigCamera& cam = rig[static_cast<size_t>(c.camera)];
+    const auto px = project(cam.model, cam.camera_T_world * (world_T_target * c.board_point));
+    if (!px) continue;
+    const Eigen::Vector2d r = *px - c.pixel;
+    d2[i] = r.dot(c.marginal_inverse * r);
+  }
+  return d2;
+}
+
+Observations gather(const std::vector<RigCamera>& rig, const BoardPoints& board,
+                    const std::vector<const std::vector<CameraFrame>*>& frames,
+                    double default_sigma) {
+  Observations out;
+  for (size_t f = 0; f < frames.size(); ++f) {
     for (size_t c = 0; c < rig.size(); ++c) {
-      for (const CornerObservation& obs : (*frame)[c].corners) {
-        const auto it = board.find(obs.id);
-        if (it == board.end() || !obs.pixel.allFinite()) continue;
-        out.push_back({static_cast<int>(c), it->second, obs.pixel,
-                       detail::sigma_or(obs.sigma_px, default_sigma)});
+      const CameraFrame& frame = (*frames[f])[c];
+      Observations::Source src;
+      src.groups = &frame.corner_groups;
+      std::map<int, size_t> by_id;
+      for (const CornerObservation& o : frame.corners) {
+        const auto it = board.find(o.id);
+        if (it == board.end() || !o.pixel.allFinite() || by_id.count(o.id)) continue;
+        Corner k;
+        k.camera = static_cast<int>(c);
+        k.frame = static_cast<int>(f);
+        k.id = o.id;
+        k.board_point = it->second;
+        k.pixel = o.pixel;
+        k.sigma = detail::sigma_or(o.sigma_px, default_sigma);
+        k.marginal_inverse = Eigen::Matrix2d::Identity() / (k.sigma * k.sigma);
+        by_id[o.id] = out.corners.size();
+        src.indices.push_back(out.corners.size());
+        out.corners.push_back(k);
       }
+      // A grouped corner's own 2x2 covariance, for the outlier test.
+      for (const CornerGroup& g : frame.corner_groups) {
+        if (g.covariance.rows() != static_cast<Eigen::Index>(2 * g.corner_ids.size())) continue;
+        for (size_t k = 0; k < g.corner_ids.size(); ++k) {
+          const auto it = by_id.find(g.corner_ids[k]);
+          if (it == by_id.end()) continue;
+          const Eigen::Matrix2d m = g.covariance.block<2, 2>(static_cast<Eigen::Index>(2 * k),
+                                                             static_cast<Eigen::Index>(2 * k));
+          if (m.allFinite() && m.determinant() > 0.0)
+            out.corners[it->second].marginal_inverse = m.inverse();
+        }
+      }
+      if (!src.indices.empty()) out.sources.push_back(std::move(src));
     }
   }
   return out;
@@ -203,11 +330,12 @@ void check_sizes(const std::vector<RigCamera>& rig, const std::vector<CameraFram
 }
 
 // Fills covariance, diagnostics and flags for a converged pose.
-void finish(const std::vector<RigCamera>& rig, const std::vector<Corner>& corners,
+void finish(const std::vector<RigCamera>& rig, const Observations& obs,
             const std::vector<const std::vector<CameraFrame>*>& frames,
             const PoseMeasurementOptions& options, PoseMeasurement& m) {
-  const Linearisation lin = linearise(rig, corners, m.world_T_target);
-  m.corners = static_cast<int>(corners.size());
+  const Linearisation lin = linearise(rig, obs, m.world_T_target);
+  m.corners = 0;
+  for (const auto& c : obs.corners) m.corners += c.outlier ? 0 : 1;
   m.dof = 2 * m.corners - 6;
   m.chi2 = lin.chi2;
   double sq = 0.0;
@@ -235,6 +363,8 @@ void finish(const std::vector<RigCamera>& rig, const std::vector<Corner>& corner
     CameraPoseDiagnostics d;
     d.camera = static_cast<int>(c);
     d.corners = lin.count[c];
+    for (const auto& k : obs.corners)
+      if (k.outlier && k.camera == static_cast<int>(c)) ++d.outliers;
     d.rms_px = lin.count[c] > 0 ? std::sqrt(lin.sq_px[c] / (2.0 * lin.count[c])) : 0.0;
     for (const auto* frame : frames) {
       const CameraFrame& f = (*frame)[c];
@@ -263,7 +393,8 @@ PoseMeasurement measure_frames(const std::vector<RigCamera>& rig, const BoardPoi
                                const PoseMeasurementOptions& options) {
   PoseMeasurement m;
   m.frames_used = static_cast<int>(frames.size());
-  const std::vector<Corner> corners = gather(rig, board, frames, options.default_sigma_px);
+  Observations obs = gather(rig, board, frames, options.default_sigma_px);
+  const std::vector<Corner>& corners = obs.corners;
   if (corners.empty()) {
     m.status = PoseStatus::kNotSeen;
     m.message = "no camera saw a corner of the target";
@@ -298,7 +429,7 @@ PoseMeasurement measure_frames(const std::vector<RigCamera>& rig, const BoardPoi
     for (const FitResult& r : minima)
       if (!distinct(r.world_T_target, start)) seen = true;
     if (seen) continue;
-    FitResult r = refine(rig, corners, start);
+    FitResult r = refine(rig, obs, start, options.huber_sigmas);
     if (!r.converged || !std::isfinite(r.chi2)) continue;
     bool dup = false;
     for (FitResult& q : minima) {
@@ -316,8 +447,64 @@ PoseMeasurement measure_frames(const std::vector<RigCamera>& rig, const BoardPoi
   }
   std::sort(minima.begin(), minima.end(),
             [](const FitResult& a, const FitResult& b) { return a.chi2 < b.chi2; });
+  // Outlier rounds on the best branch: corners whose residual exceeds k sigma (k scaled up by
+  // the robust spread of all corners when the given sigmas are too optimistic) are dropped and
+  // the pose re-fitted (Huber) until no more go.
+  if (options.outlier_sigmas > 0.0) {
+    for (int round = 0; round < options.max_outlier_rounds; ++round) {
+      const std::vector<double> d2 = corner_d2(rig, obs, minima[0].world_T_target);
+      std::vector<double> inl;
+      for (size_t i = 0; i < d2.size(); ++i)
+        if (!obs.corners[i].outlier) inl.push_back(d2[i]);
+      if (inl.empty()) break;
+      std::nth_element(inl.begin(), inl.begin() + static_cast<long>(inl.size() / 2), inl.end());
+      // The median of a chi-square with 2 dof is 2 ln 2.
+      const double spread = std::max(1.0, inl[inl.size() / 2] / (2.0 * std::log(2.0)));
+      const double limit = options.outlier_sigmas * options.outlier_sigmas * spread;
+      int newly = 0;
+      int left = 0;
+      for (size_t i = 0; i < d2.size(); ++i) {
+        if (obs.corners[i].outlier) continue;
+        if (d2[i] > limit) {
+          obs.corners[i].outlier = true;
+          ++newly;
+        } else {
+          ++left;
+        }
+      }
+      if (newly == 0) break;
+      if (left < 4) {
+        m.status = PoseStatus::kFailed;
+        m.message = fmt::format("{} of {} corners rejected as outliers: no consistent pose",
+                                corners.size() - static_cast<size_t>(left), corners.size());
+        return m;
+      }
+      const FitResult r = refine(rig, obs, minima[0].world_T_target, options.huber_sigmas);
+      if (r.converged && std::isfinite(r.chi2)) minima[0] = r;
+    }
+  }
+  // Final plain least squares on the inliers, for every branch (their costs are compared).
+  for (FitResult& r : minima) {
+    const FitResult plain = refine(rig, obs, r.world_T_target);
+    if (plain.converged && std::isfinite(plain.chi2)) r = plain;
+  }
+  std::sort(minima.begin(), minima.end(),
+            [](const FitResult& a, const FitResult& b) { return a.chi2 < b.chi2; });
   m.world_T_target = minima[0].world_T_target;
-  finish(rig, corners, frames, options, m);
+  for (const Corner& c : corners) {
+    if (!c.outlier) continue;
+    RejectedCorner rc;
+    rc.frame = c.frame;
+    rc.camera = c.camera;
+    rc.id = c.id;
+    const RigCamera& cam = rig[static_cast<size_t>(c.camera)];
+    const auto px = project(cam.model, cam.camera_T_world * (m.world_T_target * c.board_point));
+    rc.residual_px = px ? Eigen::Vector2d(*px - c.pixel)
+                        : Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+    m.rejected.push_back(rc);
+  }
+  m.outliers = static_cast<int>(m.rejected.size());
+  finish(rig, obs, frames, options, m);
   if (m.status == PoseStatus::kOk) {
     // The runner-up: the cheapest other local minimum that lies well outside the best pose's
     // own noise ellipsoid (a broad single basin is expressed by the covariance; a second
@@ -350,6 +537,7 @@ PoseMeasurement measure_frames(const std::vector<RigCamera>& rig, const BoardPoi
     if (m.few_corners)
       why.push_back(fmt::format("few corners ({} < {})", m.corners, options.min_corners));
     if (m.blurred) why.push_back("blurred image in at least one camera");
+    if (m.outliers > 0) why.push_back(fmt::format("{} corners rejected as outliers", m.outliers));
     m.message = fmt::format("{}", fmt::join(why, "; "));
   }
   return m;

@@ -1,5 +1,6 @@
 #include "robocal/vision/rig_calibration.hpp"
 
+#include "corner_noise.hpp"
 #include "rig_internal.hpp"
 
 #include <ceres/ceres.h>
@@ -13,6 +14,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <stdexcept>
 
 namespace robocal::vision {
@@ -50,9 +52,10 @@ struct BoardCornerResidual {
 
 ceres::CostFunction* make_board_cost(CameraKind kind, const Eigen::Vector3d& point,
                                      const Eigen::Vector2d& pixel, double sigma) {
+  // sigma <= 0: unwhitened pixel residuals (whitened later as a CornerGroup).
   return visit_camera_kind(kind, [&](auto model) -> ceres::CostFunction* {
     using M = decltype(model);
-    auto* f = new BoardCornerResidual<M>{point, pixel, 1.0 / sigma};
+    auto* f = new BoardCornerResidual<M>{point, pixel, sigma > 0.0 ? 1.0 / sigma : 1.0};
     return new ceres::AutoDiffCostFunction<BoardCornerResidual<M>, 2, 6, 6, M::kNumParams>(f);
   });
 }
@@ -230,44 +233,136 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
     }
   }
 
-  // 4. Bundle adjustment.
+  // 4. Bundle adjustment: robust (Huber) rounds rejecting corners beyond k sigma, then a plain
+  //    least-squares solve on the inliers (its Jacobian gives the covariance).
   std::vector<std::array<double, 6>> cam_param(nc);
   std::vector<std::vector<double>> intr(nc);
   for (size_t c = 0; c < nc; ++c) {
     detail::pose_to_vec6(*cam_T_rig[c], cam_param[c].data());
     intr[c] = cameras[c].model.params;
   }
-  ceres::Problem problem;
-  int residual_count = 0;
+  // outlier[v][c][k]: corner k of views[v][c] rejected; usable[v][c][k]: known id, finite.
+  std::vector<std::vector<std::vector<bool>>> outlier(nv), usable(nv);
   for (size_t v = 0; v < nv; ++v) {
-    if (!view_used[v]) continue;
+    outlier[v].resize(nc);
+    usable[v].resize(nc);
     for (size_t c = 0; c < nc; ++c) {
-      if (pnp[v][c].empty()) continue;
-      for (const CornerObservation& o : views[v][c].corners) {
-        const auto it = board.find(o.id);
-        if (it == board.end() || !o.pixel.allFinite()) continue;
-        problem.AddResidualBlock(
-            make_board_cost(cameras[c].model.kind, it->second, o.pixel,
-                            detail::sigma_or(o.sigma_px, options.default_sigma_px)),
-            nullptr, cam_param[c].data(), board_param[v].data(), intr[c].data());
-        residual_count += 2;
-      }
+      outlier[v][c].assign(views[v][c].corners.size(), false);
+      for (const CornerObservation& o : views[v][c].corners)
+        usable[v][c].push_back(board.count(o.id) != 0 && o.pixel.allFinite());
     }
   }
-  problem.SetParameterBlockConstant(cam_param[ref].data());
-  for (size_t c = 0; c < nc; ++c)
-    if (!options.refine_intrinsics) problem.SetParameterBlockConstant(intr[c].data());
-  ceres::Solver::Options sopts;
-  sopts.linear_solver_type = ceres::SPARSE_SCHUR;
-  sopts.max_num_iterations = options.max_iterations;
-  sopts.function_tolerance = 1e-14;
-  sopts.gradient_tolerance = 1e-14;
-  sopts.parameter_tolerance = 1e-14;
-  sopts.logging_type = ceres::SILENT;
+  const auto sigma_of = [&](const CornerObservation& o) {
+    return detail::sigma_or(o.sigma_px, options.default_sigma_px);
+  };
+  std::unique_ptr<ceres::Problem> problem;
+  int residual_count = 0;
   ceres::Solver::Summary summary;
-  ceres::Solve(sopts, &problem, &summary);
-  res.iterations = static_cast<int>(summary.iterations.size());
-  if (!summary.IsSolutionUsable()) {
+  const auto solve = [&](double huber) {
+    problem = std::make_unique<ceres::Problem>();
+    residual_count = 0;
+    for (size_t v = 0; v < nv; ++v) {
+      if (!view_used[v]) continue;
+      for (size_t c = 0; c < nc; ++c) {
+        if (pnp[v][c].empty()) continue;
+        const auto& corners = views[v][c].corners;
+        std::vector<int> ids;
+        std::vector<bool> use;
+        for (size_t k = 0; k < corners.size(); ++k) {
+          ids.push_back(corners[k].id);
+          use.push_back(usable[v][c][k] && !outlier[v][c][k]);
+        }
+        const detail::CornerGrouping grouping =
+            detail::group_corners(ids, use, views[v][c].corner_groups);
+        const auto cost_of = [&](size_t k, double sigma) {
+          return make_board_cost(cameras[c].model.kind, board.at(corners[k].id), corners[k].pixel,
+                                 sigma);
+        };
+        const auto add = [&](ceres::CostFunction* cost, int residuals) {
+          problem->AddResidualBlock(cost, huber > 0.0 ? new ceres::HuberLoss(huber) : nullptr,
+                                    cam_param[c].data(), board_param[v].data(), intr[c].data());
+          residual_count += residuals;
+        };
+        for (size_t g = 0; g < grouping.groups.size(); ++g) {
+          std::vector<std::unique_ptr<ceres::CostFunction>> members;
+          for (size_t k : grouping.groups[g]) members.emplace_back(cost_of(k, 0.0));
+          const int n = 2 * static_cast<int>(members.size());
+          add(new detail::WhitenedGroupCost(std::move(members), grouping.whitening[g]), n);
+        }
+        for (size_t k : grouping.singles) add(cost_of(k, sigma_of(corners[k])), 2);
+      }
+    }
+    for (size_t c = 0; c < nc; ++c) {
+      if (!problem->HasParameterBlock(cam_param[c].data())) continue;
+      if (c == ref) problem->SetParameterBlockConstant(cam_param[c].data());
+      if (!options.refine_intrinsics) problem->SetParameterBlockConstant(intr[c].data());
+    }
+    ceres::Solver::Options sopts;
+    sopts.linear_solver_type = ceres::SPARSE_SCHUR;
+    sopts.max_num_iterations = options.max_iterations;
+    sopts.function_tolerance = 1e-14;
+    sopts.gradient_tolerance = 1e-14;
+    sopts.parameter_tolerance = 1e-14;
+    sopts.logging_type = ceres::SILENT;
+    ceres::Solve(sopts, problem.get(), &summary);
+    res.iterations += static_cast<int>(summary.iterations.size());
+    return summary.IsSolutionUsable();
+  };
+  // Squared Mahalanobis distance of a corner's residual under its own 2x2 covariance.
+  const auto corner_d2 = [&](size_t v, size_t c, size_t k) {
+    const CornerObservation& o = views[v][c].corners[k];
+    const Eigen::Isometry3d cam_T_board =
+        detail::pose_from_vec6(cam_param[c].data()) * detail::pose_from_vec6(board_param[v].data());
+    CameraModel model = cameras[c].model;
+    model.params = intr[c];
+    const auto px = project(model, cam_T_board * board.at(o.id));
+    if (!px) return std::numeric_limits<double>::infinity();
+    const Eigen::Vector2d r = *px - o.pixel;
+    for (const CornerGroup& g : views[v][c].corner_groups) {
+      for (size_t i = 0; i < g.corner_ids.size(); ++i) {
+        if (g.corner_ids[i] != o.id ||
+            g.covariance.rows() != static_cast<Eigen::Index>(2 * g.corner_ids.size()))
+          continue;
+        const Eigen::Matrix2d m = g.covariance.block<2, 2>(static_cast<Eigen::Index>(2 * i),
+                                                           static_cast<Eigen::Index>(2 * i));
+        if (m.allFinite() && m.determinant() > 0.0) return r.dot(m.inverse() * r);
+      }
+    }
+    const double s = sigma_of(o);
+    return r.squaredNorm() / (s * s);
+  };
+  if (options.outlier_sigmas > 0.0) {
+    for (int round = 0; round < options.max_outlier_rounds; ++round) {
+      if (!solve(options.huber_sigmas)) break;
+      std::vector<double> d2s;
+      for (size_t v = 0; v < nv; ++v)
+        for (size_t c = 0; c < nc; ++c)
+          if (view_used[v] && !pnp[v][c].empty())
+            for (size_t k = 0; k < views[v][c].corners.size(); ++k)
+              if (usable[v][c][k] && !outlier[v][c][k]) d2s.push_back(corner_d2(v, c, k));
+      if (d2s.empty()) break;
+      std::vector<double> sorted = d2s;
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
+                       sorted.end());
+      // The median of a chi-square with 2 dof is 2 ln 2; a larger one means optimistic sigmas.
+      const double spread = std::max(1.0, sorted[sorted.size() / 2] / (2.0 * std::log(2.0)));
+      const double limit = options.outlier_sigmas * options.outlier_sigmas * spread;
+      int newly = 0;
+      size_t i = 0;
+      for (size_t v = 0; v < nv; ++v)
+        for (size_t c = 0; c < nc; ++c)
+          if (view_used[v] && !pnp[v][c].empty())
+            for (size_t k = 0; k < views[v][c].corners.size(); ++k)
+              if (usable[v][c][k] && !outlier[v][c][k]) {
+                if (d2s[i++] > limit) {
+                  outlier[v][c][k] = true;
+                  ++newly;
+                }
+              }
+      if (newly == 0) break;
+    }
+  }
+  if (!solve(0.0)) {
     res.message = "rig calibration: bundle adjustment failed: " + summary.message;
     return res;
   }
@@ -283,16 +378,18 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
   //    whitened). The gauge is fixed by the constant reference camera, so J^T J is regular.
   std::vector<double*> free_blocks;
   for (size_t c = 0; c < nc; ++c) {
+    if (!problem->HasParameterBlock(cam_param[c].data())) continue;
     if (c != ref) free_blocks.push_back(cam_param[c].data());
     if (options.refine_intrinsics) free_blocks.push_back(intr[c].data());
   }
   for (size_t v = 0; v < nv; ++v)
-    if (view_used[v]) free_blocks.push_back(board_param[v].data());
+    if (view_used[v] && problem->HasParameterBlock(board_param[v].data()))
+      free_blocks.push_back(board_param[v].data());
   std::map<const double*, int> offset;
   int n_free = 0;
   for (double* blk : free_blocks) {
     offset[blk] = n_free;
-    n_free += problem.ParameterBlockSize(blk);
+    n_free += problem->ParameterBlockSize(blk);
   }
   Eigen::MatrixXd cov_all;
   bool have_cov = false;
@@ -300,7 +397,7 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
     ceres::Problem::EvaluateOptions eopts;
     eopts.parameter_blocks = free_blocks;
     ceres::CRSMatrix J;
-    if (n_free > 0 && problem.Evaluate(eopts, nullptr, nullptr, nullptr, &J)) {
+    if (n_free > 0 && problem->Evaluate(eopts, nullptr, nullptr, nullptr, &J)) {
       Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n_free, n_free);
       for (int r = 0; r < J.num_rows; ++r) {
         const int b0 = J.rows[static_cast<size_t>(r)], b1 = J.rows[static_cast<size_t>(r) + 1];
@@ -333,6 +430,7 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
   for (size_t v = 0; v < nv; ++v)
     if (view_used[v]) res.rig_T_board[v] = detail::pose_from_vec6(board_param[v].data());
   res.view_rms_px.assign(nv, std::vector<double>(nc, std::numeric_limits<double>::quiet_NaN()));
+  res.view_outliers.assign(nv, std::vector<int>(nc, 0));
   double total_sq = 0.0;
   int total_n = 0;
   const Eigen::Vector3d ref_centre = centre_of(cam_param[ref].data());
@@ -344,7 +442,7 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
     cc.camera_T_rig = detail::pose_from_vec6(cam_param[c].data());
     cc.position = centre_of(cam_param[c].data());
     cc.baseline_m = (cc.position - ref_centre).norm();
-    if (c != ref && have_cov) {
+    if (c != ref && have_cov && offset.count(cam_param[c].data()) != 0) {
       const Matrix6d P = inflate * cov_block(cam_param[c].data(), 6);
       Matrix6d A = Matrix6d::Identity();
       A.topLeftCorner<3, 3>() =
@@ -363,7 +461,7 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
       const Eigen::Vector3d dir = (cc.position - ref_centre).normalized();
       cc.baseline_sigma_m = std::sqrt(std::max(0.0, dir.dot(cc.position_covariance * dir)));
     }
-    if (options.refine_intrinsics && have_cov) {
+    if (options.refine_intrinsics && have_cov && offset.count(intr[c].data()) != 0) {
       const int n = static_cast<int>(intr[c].size());
       const Eigen::MatrixXd P = cov_block(intr[c].data(), n);
       for (int i = 0; i < n; ++i)
@@ -375,9 +473,15 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
       const Eigen::Isometry3d cam_T_board = cc.camera_T_rig * *res.rig_T_board[v];
       double vsq = 0.0;
       int vn = 0;
-      for (const CornerObservation& o : views[v][c].corners) {
+      for (size_t k = 0; k < views[v][c].corners.size(); ++k) {
+        const CornerObservation& o = views[v][c].corners[k];
         const auto it = board.find(o.id);
         if (it == board.end() || !o.pixel.allFinite()) continue;
+        if (outlier[v][c][k]) {
+          ++cc.outliers;
+          ++res.view_outliers[v][c];
+          continue;
+        }
         const auto px = visit_camera_kind(cc.model.kind, [&](auto model) {
           Eigen::Vector2d out(std::numeric_limits<double>::quiet_NaN(), 0.0);
           const Eigen::Vector3d p = cam_T_board * it->second;
@@ -400,8 +504,25 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
     res.cameras.push_back(cc);
   }
   res.rms_px = total_n > 0 ? std::sqrt(total_sq / (2.0 * total_n)) : 0.0;
+  for (size_t v = 0; v < nv; ++v)
+    for (size_t c = 0; c < nc; ++c)
+      for (size_t k = 0; k < outlier[v][c].size(); ++k)
+        if (outlier[v][c][k]) {
+          const CornerObservation& o = views[v][c].corners[k];
+          RigRejectedCorner rc;
+          rc.view = static_cast<int>(v);
+          rc.camera = static_cast<int>(c);
+          rc.id = o.id;
+          const CameraCalibration& cc = res.cameras[c];
+          const auto px = project(cc.model, cc.camera_T_rig * *res.rig_T_board[v] * board.at(o.id));
+          rc.residual_px = px ? Eigen::Vector2d(*px - o.pixel)
+                              : Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+          res.rejected.push_back(rc);
+        }
   res.ok = true;
   std::vector<std::string> notes;
+  if (!res.rejected.empty())
+    notes.push_back(fmt::format("{} corners rejected as outliers", res.rejected.size()));
   if (!have_cov) notes.push_back("covariance could not be computed (degenerate geometry)");
   const int unused = static_cast<int>(std::count(view_used.begin(), view_used.end(), false));
   if (unused > 0) notes.push_back(fmt::format("{} views seen by no camera were skipped", unused));

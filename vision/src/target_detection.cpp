@@ -131,7 +131,15 @@ TargetDetection detect_apriltag_board(const cv::Mat& gray, const TargetBoard& bo
       out.board_points.push_back(it->second->corners[k]);
       out.pixels.push_back(t.corners[k]);
     }
-    if (t.refined) blurs.push_back(t.edge_blur_px);
+    if (t.refined) {
+      blurs.push_back(t.edge_blur_px);
+      if (t.corner_covariance.allFinite() && t.corner_covariance.trace() > 0.0) {
+        CornerGroup g;
+        for (int k = 0; k < 4; ++k) g.corner_ids.push_back(t.id * 4 + k);
+        g.covariance = t.corner_covariance;
+        out.corner_groups.push_back(std::move(g));
+      }
+    }
   }
   if (!blurs.empty()) {
     std::nth_element(blurs.begin(), blurs.begin() + static_cast<long>(blurs.size() / 2),
@@ -164,6 +172,7 @@ CalibrationView to_calibration_view(const TargetDetection& detection, std::strin
   v.corner_ids = detection.corner_ids;
   v.board_points = detection.board_points;
   v.pixels = detection.pixels;
+  v.corner_groups = detection.corner_groups;
   return v;
 }
 

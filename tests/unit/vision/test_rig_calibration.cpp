@@ -189,5 +189,39 @@ TEST(RigCalibration, ViewsSeenByNoCameraAreSkipped) {
   EXPECT_NE(res.message.find("1 views seen by no camera"), std::string::npos) << res.message;
 }
 
+TEST(RigCalibration, GrossCornerOutliersAreRejectedPerCameraAndView) {
+  const auto rig = stereo_rig();
+  const auto board = bench_board();
+  std::mt19937_64 rng(41);
+  const auto views = calibration_views(rig, board, 12, 0.1, rng);
+  auto bad = views;
+  // 3 corners moved by 5 px in view 2 (right camera) and 2 in view 5 (left camera).
+  for (int k = 0; k < 3; ++k)
+    bad[2][1].corners[static_cast<size_t>(10 + 17 * k)].pixel += Eigen::Vector2d(5.0, -2.0 + k);
+  for (int k = 0; k < 2; ++k)
+    bad[5][0].corners[static_cast<size_t>(3 + 40 * k)].pixel += Eigen::Vector2d(-3.0, 4.0);
+  const auto clean = calibrate_rig(rig, board, views);
+  const auto res = calibrate_rig(rig, board, bad);
+  ASSERT_TRUE(clean.ok) << clean.message;
+  ASSERT_TRUE(res.ok) << res.message;
+  EXPECT_TRUE(clean.rejected.empty());
+  ASSERT_EQ(res.rejected.size(), 5u) << res.message;
+  EXPECT_EQ(res.view_outliers[2][1], 3);
+  EXPECT_EQ(res.view_outliers[5][0], 2);
+  EXPECT_EQ(res.cameras[0].outliers, 2);
+  EXPECT_EQ(res.cameras[1].outliers, 3);
+  for (const auto& rc : res.rejected) EXPECT_GT(rc.residual_px.norm(), 4.0);
+  EXPECT_NE(res.message.find("outliers"), std::string::npos) << res.message;
+  // The extrinsics keep their accuracy: error within 1.2x of the clean calibration's (plus a
+  // tenth of its sigma, as both are random).
+  const double clean_err = std::abs(clean.cameras[1].baseline_m - 0.5);
+  const double bad_err = std::abs(res.cameras[1].baseline_m - 0.5);
+  EXPECT_LE(bad_err, 1.2 * clean_err + 0.1 * clean.cameras[1].baseline_sigma_m);
+  const double clean_rot =
+      pose_error(clean.cameras[1].camera_T_rig, relative(rig, 1)).head<3>().norm();
+  const double bad_rot = pose_error(res.cameras[1].camera_T_rig, relative(rig, 1)).head<3>().norm();
+  EXPECT_LE(bad_rot, 1.2 * clean_rot + 1e-6);
+}
+
 }  // namespace
 }  // namespace robocal::vision

@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 
 namespace robocal::vision {
 namespace {
@@ -200,6 +202,152 @@ TEST(PoseMeasurement, BadInputGivesAStatusNotACrash) {
   EXPECT_LT(pose_error(ok.world_T_target, truth).tail<3>().norm(), 1e-4);
   // Frame count not matching the rig.
   EXPECT_THROW(measure_target_pose(rig, board, {CameraFrame{}}), std::invalid_argument);
+}
+
+// Moves `count` corners of camera 0 by 5 px in varying directions; returns their ids.
+std::vector<int> inject_outliers(std::vector<CameraFrame>& frame, int count) {
+  std::vector<int> ids;
+  auto& corners = frame[0].corners;
+  for (int k = 0; k < count; ++k) {
+    auto& c = corners[static_cast<size_t>(7 + 31 * k) % corners.size()];
+    const double a = 1.3 + 2.1 * k;
+    c.pixel += 5.0 * Eigen::Vector2d(std::cos(a), std::sin(a));
+    ids.push_back(c.id);
+  }
+  return ids;
+}
+
+TEST(PoseMeasurement, GrossCornerOutliersAreRejectedAndThePoseKeepsItsAccuracy) {
+  const auto rig = stereo_rig();
+  const auto board = bench_board();
+  std::mt19937_64 rng(23);
+  double clean_sq[2] = {0, 0}, bad_sq[2] = {0, 0};  // stereo, mono
+  for (int t = 0; t < 6; ++t) {
+    const Eigen::Isometry3d truth = random_target_pose(rng);
+    const auto frame = observe(rig, truth, board, 0.1, rng);
+    auto bad = frame;
+    std::vector<int> moved = inject_outliers(bad, 3);
+    std::sort(moved.begin(), moved.end());
+    for (int mono = 0; mono < 2; ++mono) {
+      const std::vector<RigCamera> r = mono ? std::vector<RigCamera>{rig[0]} : rig;
+      const auto f_clean = mono ? std::vector<CameraFrame>{frame[0]} : frame;
+      const auto f_bad = mono ? std::vector<CameraFrame>{bad[0]} : bad;
+      const auto clean = measure_target_pose(r, board, f_clean);
+      const auto m = measure_target_pose(r, board, f_bad);
+      ASSERT_EQ(clean.status, PoseStatus::kOk) << clean.message;
+      ASSERT_EQ(m.status, PoseStatus::kOk) << m.message;
+      EXPECT_EQ(clean.outliers, 0);
+      ASSERT_EQ(m.outliers, 3) << m.message;
+      EXPECT_EQ(m.cameras[0].outliers, 3);
+      std::vector<int> flagged;
+      for (const auto& rc : m.rejected) {
+        EXPECT_EQ(rc.camera, 0);
+        EXPECT_GT(rc.residual_px.norm(), 4.0);
+        flagged.push_back(rc.id);
+      }
+      std::sort(flagged.begin(), flagged.end());
+      EXPECT_EQ(flagged, moved);
+      EXPECT_NE(m.message.find("outliers"), std::string::npos) << m.message;
+      EXPECT_EQ(m.corners, clean.corners - 3);
+      clean_sq[mono] += pose_error(clean.world_T_target, truth).tail<3>().squaredNorm();
+      bad_sq[mono] += pose_error(m.world_T_target, truth).tail<3>().squaredNorm();
+    }
+  }
+  for (int mono = 0; mono < 2; ++mono)
+    EXPECT_LE(std::sqrt(bad_sq[mono]), 1.2 * std::sqrt(clean_sq[mono])) << "mono " << mono;
+}
+
+TEST(PoseMeasurement, NoFalseOutlierRejectionsOnCleanCorners) {
+  const auto rig = stereo_rig();
+  const auto board = bench_board();
+  std::mt19937_64 rng(29);
+  int rejected = 0;
+  for (int t = 0; t < 20; ++t) {
+    // The given sigma is right (0.1) or optimistic by 2x (0.2 px noise): neither rejects.
+    const double noise = t % 2 == 0 ? 0.1 : 0.2;
+    const auto m =
+        measure_target_pose(rig, board, observe(rig, random_target_pose(rng), board, noise, rng));
+    ASSERT_EQ(m.status, PoseStatus::kOk) << m.message;
+    rejected += m.outliers;
+  }
+  EXPECT_EQ(rejected, 0);
+}
+
+// Corner noise correlated within each tag (as the four corners of a refined AprilTag share
+// its fitted edges): with the joint covariance given as CornerGroups the predicted covariance
+// matches the actual error (NEES ~ 1); treating the corners as independent with the same
+// per-corner sigma does not.
+TEST(PoseMeasurement, CorrelatedCornerGroupsGiveAConsistentCovariance) {
+  const auto rig = stereo_rig();
+  const auto board = bench_board();
+  std::mt19937_64 rng(31);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  // A fixed 8x8 covariance with strong positive correlation between corners.
+  Eigen::Matrix<double, 8, 8> a = Eigen::Matrix<double, 8, 8>::Identity();
+  for (int i = 0; i < 8; ++i)
+    for (int j = 0; j < 8; ++j) a(i, j) += (i % 2 == j % 2) ? 0.8 : 0.0;
+  const Eigen::Matrix<double, 8, 8> cov = 0.05 * 0.05 * a * a.transpose() / 4.0;
+  const Eigen::Matrix<double, 8, 8> l = cov.llt().matrixL();
+  const double iid_sigma = std::sqrt(cov.diagonal().mean());
+  double nees_grouped = 0.0, nees_iid = 0.0;
+  const int poses = 30;
+  for (int t = 0; t < poses; ++t) {
+    const Eigen::Isometry3d truth = random_target_pose(rng);
+    auto frame = observe(rig, truth, board, 0.0, rng);
+    for (auto& f : frame) {
+      std::map<int, size_t> index;
+      for (size_t i = 0; i < f.corners.size(); ++i) index[f.corners[i].id] = i;
+      for (int tag = 0; tag < 36; ++tag) {
+        CornerGroup g;
+        Eigen::Matrix<double, 8, 1> z;
+        for (int k = 0; k < 8; ++k) z(k) = gauss(rng);
+        const Eigen::Matrix<double, 8, 1> e = l * z;
+        for (int k = 0; k < 4; ++k) {
+          const auto it = index.find(tag * 4 + k);
+          ASSERT_NE(it, index.end());
+          f.corners[it->second].pixel += e.segment<2>(2 * k);
+          g.corner_ids.push_back(tag * 4 + k);
+        }
+        g.covariance = cov;
+        f.corner_groups.push_back(g);
+      }
+    }
+    PoseMeasurementOptions opt;
+    opt.default_sigma_px = iid_sigma;
+    const auto grouped = measure_target_pose(rig, board, frame, opt);
+    for (auto& f : frame) f.corner_groups.clear();
+    const auto iid = measure_target_pose(rig, board, frame, opt);
+    ASSERT_EQ(grouped.status, PoseStatus::kOk) << grouped.message;
+    ASSERT_EQ(iid.status, PoseStatus::kOk) << iid.message;
+    EXPECT_EQ(grouped.outliers, 0);
+    const auto e1 = pose_error(grouped.world_T_target, truth);
+    const auto e2 = pose_error(iid.world_T_target, truth);
+    nees_grouped += e1.dot(grouped.covariance.ldlt().solve(e1)) / 6.0 / poses;
+    nees_iid += e2.dot(iid.covariance.ldlt().solve(e2)) / 6.0 / poses;
+  }
+  EXPECT_GT(nees_grouped, 0.7);
+  EXPECT_LT(nees_grouped, 1.4);
+  EXPECT_GT(nees_iid, 2.0);  // independent-corner covariance far too small
+}
+
+TEST(PoseMeasurement, DiagonalCornerGroupsEqualIndependentCorners) {
+  const auto rig = stereo_rig();
+  const auto board = bench_board();
+  std::mt19937_64 rng(37);
+  const Eigen::Isometry3d truth = random_target_pose(rng);
+  auto frame = observe(rig, truth, board, 0.1, rng);
+  const auto plain = measure_target_pose(rig, board, frame);
+  for (auto& f : frame) {
+    CornerGroup g;
+    for (size_t i = 0; i < 8 && i < f.corners.size(); ++i) g.corner_ids.push_back(f.corners[i].id);
+    g.covariance = Eigen::MatrixXd::Identity(16, 16) * 0.01;  // = the default sigma 0.1
+    f.corner_groups.push_back(g);
+  }
+  const auto grouped = measure_target_pose(rig, board, frame);
+  ASSERT_EQ(grouped.status, PoseStatus::kOk);
+  EXPECT_LT(pose_error(grouped.world_T_target, plain.world_T_target).norm(), 1e-10);
+  EXPECT_LT((grouped.covariance - plain.covariance).norm(), 1e-9 * plain.covariance.norm());
+  EXPECT_NEAR(grouped.chi2, plain.chi2, 1e-8 * plain.chi2);
 }
 
 TEST(Chi2, SurvivalMatchesKnownValues) {

@@ -44,6 +44,9 @@ struct TagDetection {
   /// sharp image). Grows monotonically with defocus. NaN when refinement was off or failed.
   double edge_blur_px = 0.0;
   double edge_contrast = 0.0;  ///< DN between the black border and the white surround (or NaN)
+  /// Joint covariance of the refined corners (u0, v0, ..., u3, v3; px^2) from the edge fits'
+  /// pixel noise (edge_fit.hpp); zero when not refined.
+  Eigen::Matrix<double, 8, 8> corner_covariance = Eigen::Matrix<double, 8, 8>::Zero();
 };
 
 /// Reusable detector (building the tag family's decode table costs tens of ms). Not thread safe:

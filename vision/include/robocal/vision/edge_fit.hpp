@@ -38,6 +38,10 @@ struct EdgeLineFit {
   double bright = 0.0;            ///< grey level on the bright side
   double rms_residual = 0.0;      ///< DN
   double offset_stddev = 0.0;     ///< 1-sigma of the line offset from the fit (px)
+  /// Covariance of (angle of the normal (rad), offset (px), curvature (1/px)) from the pixel
+  /// noise (residual variance x (J^T J)^-1), for perturbations of this fit about `origin`;
+  /// the curvature row and column are zero for a straight fit.
+  Eigen::Matrix3d line_covariance = Eigen::Matrix3d::Zero();
   int samples = 0;
   bool converged = false;
 
@@ -84,6 +88,10 @@ struct QuadRefinement {
   std::array<EdgeLineFit, 4> edges;        ///< edge i runs from corner i to corner i+1
   double mean_blur_sigma = 0.0;            ///< mean fitted edge spread (px): the sharpness measure
   double mean_contrast = 0.0;              ///< mean |bright - dark| (DN)
+  /// Joint covariance of the corners (u0, v0, u1, v1, ..., px^2), propagated from the four edge
+  /// fits. Adjacent corners share an edge, so their errors are correlated: treating the corners
+  /// as independent misstates how well a tag's position, size and shape are known.
+  Eigen::Matrix<double, 8, 8> corner_covariance = Eigen::Matrix<double, 8, 8>::Zero();
 };
 
 /// Refines the corners of a quadrilateral with uniform border (an AprilTag's black border) by

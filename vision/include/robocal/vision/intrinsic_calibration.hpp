@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "robocal/vision/camera_model.hpp"
+#include "robocal/vision/observations.hpp"
 
 namespace robocal::vision {
 
@@ -23,6 +24,10 @@ struct CalibrationView {
   std::vector<int> corner_ids;
   std::vector<Eigen::Vector3d> board_points;  ///< metres, z = 0
   std::vector<Eigen::Vector2d> pixels;        ///< OpenCV convention
+  /// Optional joint covariances of groups of corners (by id, see observations.hpp): with them the
+  /// bundle adjustment weights each group by its inverse covariance (generalised least squares)
+  /// instead of treating all corners as independent and equally noisy.
+  std::vector<CornerGroup> corner_groups;
 };
 
 struct IntrinsicCalibrationOptions {
@@ -86,7 +91,10 @@ struct IntrinsicCalibrationResult {
   std::vector<double> param_stddev;  ///< 1-sigma, same order as camera.params
   Eigen::MatrixXd param_covariance;
   double rms_px = 0.0;             ///< over all inlier corners
-  double residual_sigma_px = 0.0;  ///< per-axis residual std used to scale the covariance
+  double residual_sigma_px = 0.0;  ///< per-axis residual std (px, dof-corrected)
+  /// chi2 / dof of the weighted fit; the parameter covariance is (J^T W J)^-1 times this. With
+  /// no corner covariances (unit weights) it is residual_sigma_px^2.
+  double variance_factor = 1.0;
   int corners_used = 0;
   int corners_rejected = 0;
   int iterations = 0;

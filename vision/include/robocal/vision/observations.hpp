@@ -20,12 +20,25 @@ struct CornerObservation {
   double sigma_px = 0.0;  // 1-sigma noise per axis; <= 0: unknown (the caller's default applies)
 };
 
+// Joint noise covariance of corners measured together, px^2, ordered (u0, v0, u1, v1, ...)
+// like `corner_ids`. The four corners of a refined AprilTag are intersections of its four fitted
+// edges: adjacent corners share an edge, so their errors are correlated, and an estimator that
+// treats them as independent misjudges how well the tag's position and size are known (its
+// covariance comes out too small). Estimators whiten each group by its covariance.
+struct CornerGroup {
+  std::vector<int> corner_ids;
+  Eigen::MatrixXd covariance;
+};
+
 // What one camera saw of one board in one frame. An empty `corners` list means "not seen".
 struct CameraFrame {
   std::vector<CornerObservation> corners;
   // Edge spread of the detected corners in px (e.g. TagDetection::edge_blur_px; ~0.3 sharp);
   // NaN when unknown. Used for the "blurred" quality flag only.
   double blur_px = std::numeric_limits<double>::quiet_NaN();
+  // Optional joint covariances of groups of `corners` (by id); a corner in a group uses the
+  // group's covariance instead of its sigma_px. Corners in no group are independent.
+  std::vector<CornerGroup> corner_groups;
 };
 
 // Board geometry for the estimators: corner id -> point in the board frame (metres, z = 0 for

@@ -7,6 +7,12 @@
 // is flagged ambiguous when the runner-up explains the corners nearly as well (typical of a
 // single camera at an oblique or distant view; a second camera usually resolves it).
 //
+// NOISE: corners carry a sigma (or the default), or a joint covariance per CornerGroup of a
+// camera frame (e.g. the four corners of a refined AprilTag, whose errors are correlated); each
+// group is one residual block whitened by its covariance.
+// ROBUSTNESS: Huber loss and rejection of corners beyond k sigma (options), reported per pose
+// and per camera.
+//
 // COVARIANCE: 6x6 over [d_theta (rad); d_t (m)] with the perturbation applied in the world
 // frame: world_T_target = [exp(d_theta) R, t + d_t]. So the lower-right 3x3 block is the
 // covariance of the target origin's position in world coordinates. It comes from the corner
@@ -38,6 +44,22 @@ struct PoseMeasurementOptions {
   bool include_extrinsic_covariance = true;
   // Settled-frame test: false-alarm probability of the chi-square test on the pose difference.
   double motion_false_alarm = 1e-4;
+  // Robust fitting: Huber loss on each residual block (whitened, in sigmas; <= 0: plain least
+  // squares), then rounds rejecting corners whose residual exceeds outlier_sigmas times their
+  // own sigma (Mahalanobis under their 2x2 covariance; the limit grows with the robust spread of
+  // all residuals when the sigmas are too optimistic). outlier_sigmas <= 0: no rejection. The
+  // final pose and covariance are a plain least-squares fit on the inliers.
+  double huber_sigmas = 3.0;
+  double outlier_sigmas = 5.0;
+  int max_outlier_rounds = 5;
+};
+
+// A corner rejected as an outlier: where it was seen and its residual at the final pose.
+struct RejectedCorner {
+  int frame = 0;   // index of the frame (measure_settled_pose: all frames)
+  int camera = 0;  // index in the rig
+  int id = 0;      // board corner id
+  Eigen::Vector2d residual_px = Eigen::Vector2d::Zero();  // projected - observed
 };
 
 enum class PoseStatus {
@@ -57,6 +79,7 @@ struct CameraPoseDiagnostics {
   // only one solution). Values near 1 mean this camera alone cannot tell the two apart.
   double ippe_rms_ratio = std::numeric_limits<double>::infinity();
   bool blurred = false;
+  int outliers = 0;  // corners of this camera rejected as outliers
 };
 
 struct PoseMeasurement {
@@ -68,7 +91,9 @@ struct PoseMeasurement {
   double chi2 = 0.0;  // sum of squared whitened residuals at the solution
   int dof = 0;        // 2 * corners - 6
   double rms_px = 0.0;
-  int corners = 0;
+  int corners = 0;   // inlier corners used
+  int outliers = 0;  // corners rejected (listed in `rejected`)
+  std::vector<RejectedCorner> rejected;
   int frames_used = 0;
   // Runner-up (another planar-PnP branch: a local minimum well outside the best pose's noise
   // ellipsoid) and its chi2; inf when none exists.

@@ -5,8 +5,10 @@
 // 2. Extrinsics are chained from the reference camera through shared views (a camera that
 //    shares views only with a non-reference camera is reached through it); for each link, the
 //    view whose relative pose best explains all shared views is taken.
-// 3. Bundle adjustment (Ceres) over every camera pose except the reference one (the gauge: the
-//    rig frame IS the reference camera's frame), every board pose and, optionally, intrinsics.
+// 3. Bundle adjustment (Ceres; corners whitened by their sigma or, for a CornerGroup, by the
+//    group's joint covariance; Huber loss and rejection of corners beyond k sigma) over every
+//    camera pose except the reference one (the gauge: the rig frame IS the reference camera's
+//    frame), every board pose and, optionally, intrinsics.
 // 4. Covariance of the extrinsics from the corner noise (ceres::Covariance), reported in
 //    RigCamera's convention, and the baseline (distance to the reference camera) +- sigma.
 //
@@ -32,6 +34,21 @@ struct RigCalibrationOptions {
   // Multiply the covariance by the variance factor chi2 / dof when it exceeds 1 (the corner
   // sigma was too optimistic). Off: the covariance trusts the given sigmas.
   bool inflate_covariance_by_residual = false;
+  // Robust fitting: Huber loss on each residual block (whitened, in sigmas; <= 0: none) while
+  // corners beyond outlier_sigmas times their own sigma are rejected round by round (the limit
+  // grows with the robust spread of all residuals when the sigmas are optimistic); then a plain
+  // least-squares solve on the inliers. outlier_sigmas <= 0: no rejection, plain least squares.
+  double huber_sigmas = 3.0;
+  double outlier_sigmas = 5.0;
+  int max_outlier_rounds = 5;
+};
+
+// A corner rejected as an outlier and its residual (projected - observed, px) at the solution.
+struct RigRejectedCorner {
+  int view = 0;
+  int camera = 0;
+  int id = 0;
+  Eigen::Vector2d residual_px = Eigen::Vector2d::Zero();
 };
 
 struct CameraCalibration {
@@ -48,7 +65,8 @@ struct CameraCalibration {
   double baseline_sigma_m = 0.0;
   std::vector<double> intrinsic_sigma;  // per model parameter (empty if not refined)
   int views = 0;                        // views this camera contributed
-  int corners = 0;
+  int corners = 0;                      // inlier corners
+  int outliers = 0;                     // corners rejected
   double rms_px = 0.0;
 };
 
@@ -60,6 +78,9 @@ struct RigCalibrationResult {
   std::vector<std::optional<Eigen::Isometry3d>> rig_T_board;
   // view_rms_px[v][c]: reprojection RMS of camera c in view v; NaN when it did not see it.
   std::vector<std::vector<double>> view_rms_px;
+  // view_outliers[v][c]: corners of camera c in view v rejected as outliers; all in `rejected`.
+  std::vector<std::vector<int>> view_outliers;
+  std::vector<RigRejectedCorner> rejected;
   double rms_px = 0.0;
   double chi2 = 0.0;
   int dof = 0;

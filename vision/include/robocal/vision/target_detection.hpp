@@ -10,6 +10,7 @@
 
 #include "robocal/vision/apriltag_detector.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
+#include "robocal/vision/observations.hpp"
 #include "robocal/vision/target.hpp"
 
 namespace robocal::vision {
@@ -35,6 +36,9 @@ struct TargetDetection {
   /// Median fitted edge spread over the detected markers (px, ~0.3 when perfectly sharp); NaN if
   /// no marker could be refined.
   double edge_blur_px = 0.0;
+  /// Joint covariances of the corners of each refined tag (by corner id; see observations.hpp).
+  /// Empty for chessboards, ChArUco boards and unrefined tags.
+  std::vector<CornerGroup> corner_groups;
 };
 
 /// Detects an AprilTag grid board. Tags of other boards are ignored; a tag id seen twice rejects
