@@ -291,8 +291,6 @@ TEST(RobotFile, WorkspaceEntryIsParsedAndChecked) {
   expect_error(head + "workspace:\n  radius: 0.3\n", 5, "unknown key 'radius' in workspace");
   expect_error(head + "workspace: {}\n", 4, "workspace needs 'min_task_conditioning'");
   expect_error(head + "workspace: 0.3\n", 4, "workspace must be a map");
-  // The library's Delta declares its good-conditioning working volume.
-  EXPECT_DOUBLE_EQ(load("rotary_delta.yaml").workspace.min_task_conditioning, 0.3);
 }
 
 TEST(RobotFile, MissingFileIsReported) {
