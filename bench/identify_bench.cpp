@@ -17,6 +17,11 @@
 // at a time (fit RMS, held-out median/p90/max, parameters moved); "rank" = rank and singular values
 // of the scaled identification Jacobian at nominal and at the all-perturbed truth. Environment
 // ROBOCAL_NOMINAL_BODIES=body6,body9 keeps those bodies nominal in the truth.
+// With a working volume (robot file `workspace:` or ROBOCAL_MIN_TASK_CONDITIONING=X) the figures
+// are printed twice: design and held-out poses inside it ("working_volume") and over the full
+// reachable set; each with the held-out error binned by the pose's task conditioning
+// (σ_min/σ_max of d(position)/d(actuators)) and by the closure's, and the five worst poses.
+#include "robocal/calib/closure.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
@@ -41,7 +46,8 @@ struct HeldOut {
 };
 
 double heldout_rms(const MechanismPredictor& pred, const Eigen::VectorXd& params, const HeldOut& h,
-                   double* max_err = nullptr, double* median_err = nullptr) {
+                   double* max_err = nullptr, double* median_err = nullptr,
+                   std::vector<double>* per_pose = nullptr) {
   double sum = 0.0;
   double worst = 0.0;
   std::vector<double> errors;
@@ -55,6 +61,7 @@ double heldout_rms(const MechanismPredictor& pred, const Eigen::VectorXd& params
     worst = std::max(worst, e);
     errors.push_back(e);
   }
+  if (per_pose) *per_pose = errors;
   if (max_err) *max_err = worst;
   if (median_err && !errors.empty()) {
     std::nth_element(errors.begin(), errors.begin() + static_cast<long>(errors.size() / 2),
@@ -64,13 +71,48 @@ double heldout_rms(const MechanismPredictor& pred, const Eigen::VectorXd& params
   return std::sqrt(sum / static_cast<double>(h.readings.size()));
 }
 
+// Held-out error against the pose's conditioning (σ_min/σ_max of the task Jacobian at the truth).
+const std::vector<double> kConditioningEdges = {0.0, 0.03, 0.1, 0.2, 0.3, 0.5, 1.01};
+
+// Same against σ_min/σ_max of the closure's constraint Jacobian (the sampler admits ≥ 0.01).
+const std::vector<double> kClosureEdges = {0.0, 0.02, 0.05, 0.1, 0.2, 1.01};
+
+nlohmann::json by_conditioning(const std::vector<double>& conditioning,
+                               const std::vector<std::vector<double>>& errors_per_draw,
+                               const std::vector<double>& edges = kConditioningEdges) {
+  nlohmann::json rows;
+  for (std::size_t b = 0; b + 1 < edges.size(); ++b) {
+    double sum = 0.0;
+    double worst = 0.0;
+    std::size_t n = 0;
+    std::size_t poses = 0;
+    for (std::size_t k = 0; k < conditioning.size(); ++k) {
+      if (conditioning[k] < edges[b] || conditioning[k] >= edges[b + 1]) continue;
+      ++poses;
+      for (const auto& e : errors_per_draw) {
+        sum += e[k] * e[k];
+        worst = std::max(worst, e[k]);
+        ++n;
+      }
+    }
+    rows.push_back({{"conditioning", {edges[b], edges[b + 1]}},
+                    {"poses", poses},
+                    {"rms_m", n ? std::sqrt(sum / static_cast<double>(n)) : NAN},
+                    {"max_m", worst}});
+  }
+  return rows;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const std::string path =
       argc > 1 ? argv[1] : std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml";
   const int draws = argc > 2 ? std::stoi(argv[2]) : 20;
-  const Mechanism model = load_robot_file(path);
+  Mechanism model = load_robot_file(path);
+  // Experiment: ROBOCAL_MIN_TASK_CONDITIONING=X acts as `workspace: {min_task_conditioning: X}`.
+  if (const char* c = std::getenv("ROBOCAL_MIN_TASK_CONDITIONING"))
+    model.workspace.min_task_conditioning = std::stod(c);
   const MechanismPredictor pred(model);
   const Eigen::VectorXd nominal = model.nominal_parameters();
   std::mt19937 rng(20261122);
@@ -78,7 +120,7 @@ int main(int argc, char** argv) {
   Eigen::VectorXd truth = perturb_parameters(nominal, sig, rng);
 
   Eigen::VectorXd truth_all = truth;
-  auto design = sample_actuators(pred, {nominal, truth_all}, 60, rng);
+  auto design = sample_actuators(pred, {nominal, truth_all}, 60, rng, 0.01, false);
   // Scenario "identifiable" (default): the truth differs from nominal in the identifiable base
   // set only (the redundant parameters' true deviations are absorbed into it, exactly as a real
   // calibration reports them). Scenario "all": every free parameter perturbed; redundancies
@@ -106,7 +148,7 @@ int main(int argc, char** argv) {
     }
   }
   HeldOut held;
-  held.readings = sample_actuators(pred, {nominal, truth}, 500, rng);
+  held.readings = sample_actuators(pred, {nominal, truth}, 500, rng, 0.01, false);
   for (std::size_t k = 0; k < held.readings.size(); ++k) {
     FramePrediction fp;
     std::string why;
@@ -204,161 +246,236 @@ int main(int argc, char** argv) {
   }
   nlohmann::json out;
   out["robot"] = model.name;
-  out["truth"] = perturb_all ? "all free parameters perturbed" : "identifiable base set perturbed";
-  out["parameters"] = model.parameters.size();
-  out["design_poses"] = design.size();
-  out["heldout_poses"] = held.readings.size();
+  out["workspace_min_task_conditioning"] = model.workspace.min_task_conditioning;
+  // Figures over the robot file's working volume (design AND held-out poses sampled inside it),
+  // and over the full reachable set (σ_min/σ_max of the closure Jacobian ≥ 0.01 only).
+  const auto full_design = design;
+  const auto full_held = held.readings;
+  for (const bool inside : {false, true}) {
+    if (!inside || model.workspace.min_task_conditioning > 0.0) {
+      // The full reachable set reuses the poses drawn above (the identifiable truth is defined
+      // on that design); the working volume draws its own inside it.
+      design = full_design;
+      held = HeldOut{};
+      held.readings = full_held;
+      if (inside) {
+        design = sample_actuators(pred, {nominal, truth_all}, 60, rng);
+        held.readings = sample_actuators(pred, {nominal, truth}, 500, rng);
+      }
+      std::vector<double> conditioning;
+      std::vector<double> closure_conditioning;
+      for (const auto& r : held.readings) {
+        FramePrediction fp;
+        std::string why;
+        pred.predict(truth, r, -1, false, fp, why);
+        held.truth.push_back(fp.pose.translation());
+        conditioning.push_back(task_conditioning(pred, truth, r));
+        ClosureOptions diag;
+        diag.diagnose = true;
+        const ClosureResult c = solve_closure(model, truth, r, {}, diag);
+        closure_conditioning.push_back(c.sigma_max > 0.0 ? c.sigma_min / c.sigma_max : 0.0);
+      }
+      nlohmann::json& region = out[inside ? "working_volume" : "full_reachable_set"];
+      region["truth"] =
+          perturb_all ? "all free parameters perturbed" : "identifiable base set perturbed";
+      region["parameters"] = model.parameters.size();
+      region["design_poses"] = design.size();
+      region["heldout_poses"] = held.readings.size();
+      {
+        std::vector<double> sorted = conditioning;
+        std::sort(sorted.begin(), sorted.end());
+        if (!sorted.empty())
+          region["heldout_conditioning_min_median"] = {sorted.front(), sorted[sorted.size() / 2]};
+      }
 
-  const double sigma = 20e-6;
-  SolveOptions opt = solve_options_from_model(model, false);
+      const double sigma = 20e-6;
+      SolveOptions opt = solve_options_from_model(model, false);
 
-  // Noise-free recovery.
-  {
-    SimulationOptions sim;
-    sim.add_noise = false;
-    const auto meas = simulate_measurements(pred, truth, design, sim, rng);
-    const auto res = identify(pred, nominal, meas, opt);
-    double worst = 0.0;
-    double median = 0.0;
-    const double rms = heldout_rms(pred, res.estimate, held, &worst, &median);
-    out["noise_free"] = {{"status", to_string(res.status)},
-                         {"estimated", res.estimated.size()},
-                         {"heldout_rms_m", rms},
-                         {"heldout_median_m", median},
-                         {"heldout_max_m", worst},
-                         {"identify_seconds", res.solve_seconds}};
-  }
+      // Noise-free recovery.
+      {
+        SimulationOptions sim;
+        sim.add_noise = false;
+        const auto meas = simulate_measurements(pred, truth, design, sim, rng);
+        const auto res = identify(pred, nominal, meas, opt);
+        double worst = 0.0;
+        double median = 0.0;
+        std::vector<double> per_pose;
+        const double rms = heldout_rms(pred, res.estimate, held, &worst, &median, &per_pose);
+        region["noise_free_by_conditioning"] = by_conditioning(conditioning, {per_pose});
+        // The five worst held-out poses: conditioning and the plate ball joint's (3R) angles.
+        std::vector<std::size_t> order(per_pose.size());
+        for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+        std::sort(order.begin(), order.end(),
+                  [&](std::size_t a, std::size_t b) { return per_pose[a] > per_pose[b]; });
+        for (std::size_t w = 0; w < std::min<std::size_t>(5, order.size()); ++w) {
+          const std::size_t k = order[w];
+          const ClosureResult c = solve_closure(model, truth, held.readings[k]);
+          nlohmann::json joints;
+          for (std::size_t j = 0; j < model.passive.size(); ++j) {
+            const std::string& name = model.bodies[static_cast<std::size_t>(model.passive[j])].name;
+            if (name == "body7" || name == "body8" || name == "body9")
+              joints[name] = c.passive(static_cast<Eigen::Index>(j));
+          }
+          region["noise_free_worst_poses"].push_back(
+              {{"error_m", per_pose[k]},
+               {"task_conditioning", conditioning[k]},
+               {"readings", std::vector<double>(held.readings[k].data(),
+                                                held.readings[k].data() + held.readings[k].size())},
+               {"ball_joint_3r", joints}});
+        }
+        region["noise_free_by_closure_conditioning"] =
+            by_conditioning(closure_conditioning, {per_pose}, kClosureEdges);
+        region["noise_free"] = {{"status", to_string(res.status)},
+                                {"estimated", res.estimated.size()},
+                                {"heldout_rms_m", rms},
+                                {"heldout_median_m", median},
+                                {"heldout_max_m", worst},
+                                {"identify_seconds", res.solve_seconds}};
+      }
 
-  // Noisy draws.
-  std::vector<double> rms_draws;
-  std::vector<double> median_draws;
-  std::vector<double> base_tool_draws;
-  std::vector<std::size_t> estimated;
-  double seconds = 0.0;
-  int failures = 0;
-  SimulationOptions sim;
-  sim.position_sigma = sigma;
-  SolveOptions frames_only = opt;
-  frames_only.candidates.clear();
-  {
-    std::vector<bool> tool_chain(model.bodies.size(), false);
-    for (int b = model.tool;
-         b >= 0 && model.bodies[static_cast<std::size_t>(b)].joint == JointType::kFixed;
-         b = model.bodies[static_cast<std::size_t>(b)].parent)
-      tool_chain[static_cast<std::size_t>(b)] = true;
-    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
-      const Parameter& p = model.parameters[i];
-      if (!p.free || p.group != ParamGroup::kFrame || p.body < 0) continue;
-      const Body& b = model.bodies[static_cast<std::size_t>(p.body)];
-      if (b.parent < 0 || tool_chain[static_cast<std::size_t>(p.body)])
-        frames_only.candidates.push_back(i);
-    }
-  }
-  for (int d = 0; d < draws; ++d) {
-    const auto meas = simulate_measurements(pred, truth, design, sim, rng);
-    const auto res = identify(pred, nominal, meas, opt);
-    seconds += res.solve_seconds;
-    if (res.status != IdentificationStatus::kConverged &&
-        res.status != IdentificationStatus::kNotConverged) {
-      ++failures;
-      continue;
-    }
-    if (estimated.empty()) estimated = res.estimated;
-    double median = 0.0;
-    rms_draws.push_back(heldout_rms(pred, res.estimate, held, nullptr, &median));
-    median_draws.push_back(median);
-    const auto bt = identify(pred, nominal, meas, frames_only);
-    base_tool_draws.push_back(heldout_rms(pred, bt.estimate, held));
-  }
-  auto mean_square_root = [](const std::vector<double>& v) {
-    double s = 0.0;
-    for (double x : v) s += x * x;
-    return v.empty() ? NAN : std::sqrt(s / static_cast<double>(v.size()));
-  };
-  auto stddev = [](const std::vector<double>& v) {
-    double m = 0.0;
-    for (double x : v) m += x;
-    m /= static_cast<double>(v.size());
-    double s = 0.0;
-    for (double x : v) s += (x - m) * (x - m);
-    return std::sqrt(s / static_cast<double>(v.size() > 1 ? v.size() - 1 : 1));
-  };
+      // Noisy draws.
+      std::vector<double> rms_draws;
+      std::vector<double> median_draws;
+      std::vector<double> base_tool_draws;
+      std::vector<std::vector<double>> per_pose_draws;
+      std::vector<std::size_t> estimated;
+      double seconds = 0.0;
+      int failures = 0;
+      SimulationOptions sim;
+      sim.position_sigma = sigma;
+      SolveOptions frames_only = opt;
+      frames_only.candidates.clear();
+      {
+        std::vector<bool> tool_chain(model.bodies.size(), false);
+        for (int b = model.tool;
+             b >= 0 && model.bodies[static_cast<std::size_t>(b)].joint == JointType::kFixed;
+             b = model.bodies[static_cast<std::size_t>(b)].parent)
+          tool_chain[static_cast<std::size_t>(b)] = true;
+        for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+          const Parameter& p = model.parameters[i];
+          if (!p.free || p.group != ParamGroup::kFrame || p.body < 0) continue;
+          const Body& b = model.bodies[static_cast<std::size_t>(p.body)];
+          if (b.parent < 0 || tool_chain[static_cast<std::size_t>(p.body)])
+            frames_only.candidates.push_back(i);
+        }
+      }
+      for (int d = 0; d < draws; ++d) {
+        const auto meas = simulate_measurements(pred, truth, design, sim, rng);
+        const auto res = identify(pred, nominal, meas, opt);
+        seconds += res.solve_seconds;
+        if (res.status != IdentificationStatus::kConverged &&
+            res.status != IdentificationStatus::kNotConverged) {
+          ++failures;
+          continue;
+        }
+        if (estimated.empty()) estimated = res.estimated;
+        double median = 0.0;
+        per_pose_draws.emplace_back();
+        rms_draws.push_back(
+            heldout_rms(pred, res.estimate, held, nullptr, &median, &per_pose_draws.back()));
+        median_draws.push_back(median);
+        const auto bt = identify(pred, nominal, meas, frames_only);
+        base_tool_draws.push_back(heldout_rms(pred, bt.estimate, held));
+      }
+      auto mean_square_root = [](const std::vector<double>& v) {
+        double s = 0.0;
+        for (double x : v) s += x * x;
+        return v.empty() ? NAN : std::sqrt(s / static_cast<double>(v.size()));
+      };
+      auto stddev = [](const std::vector<double>& v) {
+        double m = 0.0;
+        for (double x : v) m += x;
+        m /= static_cast<double>(v.size());
+        double s = 0.0;
+        for (double x : v) s += (x - m) * (x - m);
+        return std::sqrt(s / static_cast<double>(v.size() > 1 ? v.size() - 1 : 1));
+      };
 
-  // Cramér–Rao: Fisher information of the design at the truth over a parameter set (the
-  // estimator's own set; and, for reference, the base set chosen AT the truth, i.e. what an
-  // estimator that could represent this truth exactly would have to estimate).
-  auto cramer_rao_over = [&](const std::vector<std::size_t>& set) -> double {
-    if (set.empty()) return NAN;
-    const auto n = static_cast<Eigen::Index>(set.size());
-    Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()), n);
-    for (std::size_t k = 0; k < design.size(); ++k) {
-      FramePrediction fp;
-      std::string why;
-      pred.predict(truth, design[k], -1, true, fp, why);
-      for (Eigen::Index c = 0; c < n; ++c)
-        J.block(3 * static_cast<Eigen::Index>(k), c, 3, 1) =
-            fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)])).head<3>() /
-            sigma;
+      // Cramér–Rao: Fisher information of the design at the truth over a parameter set (the
+      // estimator's own set; and, for reference, the base set chosen AT the truth, i.e. what an
+      // estimator that could represent this truth exactly would have to estimate).
+      auto cramer_rao_over = [&](const std::vector<std::size_t>& set) -> double {
+        if (set.empty()) return NAN;
+        const auto n = static_cast<Eigen::Index>(set.size());
+        Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()), n);
+        for (std::size_t k = 0; k < design.size(); ++k) {
+          FramePrediction fp;
+          std::string why;
+          pred.predict(truth, design[k], -1, true, fp, why);
+          for (Eigen::Index c = 0; c < n; ++c)
+            J.block(3 * static_cast<Eigen::Index>(k), c, 3, 1) =
+                fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)]))
+                    .head<3>() /
+                sigma;
+        }
+        std::vector<std::string> names(set.size(), "p");
+        const auto u = parameter_uncertainty(J, names);
+        if (!u.ok) {
+          std::cerr << "Cramér–Rao over " << set.size() << " parameters: " << u.message << "\n";
+          return NAN;
+        }
+        std::vector<Eigen::MatrixXd> hj;
+        for (const auto& r : held.readings) {
+          FramePrediction fp;
+          std::string why;
+          pred.predict(truth, r, -1, true, fp, why);
+          Eigen::MatrixXd Jh(3, n);
+          for (Eigen::Index c = 0; c < n; ++c)
+            Jh.col(c) = fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)]))
+                            .head<3>();
+          hj.push_back(Jh);
+        }
+        return predict_accuracy(hj, u.covariance).position_rms_overall;
+      };
+      const double cramer_rao = cramer_rao_over(estimated);
+      std::vector<std::size_t> truth_base;
+      {
+        Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()),
+                          static_cast<Eigen::Index>(opt.candidates.size()));
+        for (std::size_t k = 0; k < design.size(); ++k) {
+          FramePrediction fp;
+          std::string why;
+          pred.predict(truth, design[k], -1, true, fp, why);
+          for (std::size_t c = 0; c < opt.candidates.size(); ++c)
+            J.block(3 * static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(c), 3, 1) =
+                fp.jacobian.col(static_cast<Eigen::Index>(opt.candidates[c])).head<3>() / sigma;
+        }
+        std::vector<std::string> names;
+        std::vector<int> pref;
+        for (std::size_t c : opt.candidates) {
+          names.push_back(model.parameters[c].name);
+          pref.push_back(opt.preference[c]);
+        }
+        for (std::size_t k :
+             analyze_identifiability(J, names, opt.identifiability, pref).identifiable)
+          truth_base.push_back(opt.candidates[k]);
+      }
+      const double calibrated = mean_square_root(rms_draws);
+      region["noisy_by_conditioning"] = by_conditioning(conditioning, per_pose_draws);
+      region["noisy_by_closure_conditioning"] =
+          by_conditioning(closure_conditioning, per_pose_draws, kClosureEdges);
+      region["noisy"] = {
+          {"point_sigma_m", sigma},
+          {"draws", rms_draws.size()},
+          {"failed_draws", failures},
+          {"estimated_parameters", estimated.size()},
+          {"calibrated_heldout_rms_m", calibrated},
+          {"calibrated_heldout_rms_spread_m", rms_draws.empty() ? NAN : stddev(rms_draws)},
+          {"calibrated_heldout_median_error_m", mean_square_root(median_draws)},
+          {"cramer_rao_rms_m", cramer_rao},
+          {"rank_at_truth", truth_base.size()},
+          {"cramer_rao_over_base_set_at_truth_rms_m", cramer_rao_over(truth_base)},
+          {"ratio_to_cramer_rao", calibrated / cramer_rao},
+          {"base_tool_only_heldout_rms_m", mean_square_root(base_tool_draws)},
+          {"raw_nominal_heldout_rms_m", heldout_rms(pred, nominal, held)},
+          {"mean_identify_seconds",
+           rms_draws.empty() ? NAN : seconds / static_cast<double>(draws)}};
     }
-    std::vector<std::string> names(set.size(), "p");
-    const auto u = parameter_uncertainty(J, names);
-    if (!u.ok) {
-      std::cerr << "Cramér–Rao over " << set.size() << " parameters: " << u.message << "\n";
-      return NAN;
-    }
-    std::vector<Eigen::MatrixXd> hj;
-    for (const auto& r : held.readings) {
-      FramePrediction fp;
-      std::string why;
-      pred.predict(truth, r, -1, true, fp, why);
-      Eigen::MatrixXd Jh(3, n);
-      for (Eigen::Index c = 0; c < n; ++c)
-        Jh.col(c) =
-            fp.jacobian.col(static_cast<Eigen::Index>(set[static_cast<std::size_t>(c)])).head<3>();
-      hj.push_back(Jh);
-    }
-    return predict_accuracy(hj, u.covariance).position_rms_overall;
-  };
-  const double cramer_rao = cramer_rao_over(estimated);
-  std::vector<std::size_t> truth_base;
-  {
-    Eigen::MatrixXd J(3 * static_cast<Eigen::Index>(design.size()),
-                      static_cast<Eigen::Index>(opt.candidates.size()));
-    for (std::size_t k = 0; k < design.size(); ++k) {
-      FramePrediction fp;
-      std::string why;
-      pred.predict(truth, design[k], -1, true, fp, why);
-      for (std::size_t c = 0; c < opt.candidates.size(); ++c)
-        J.block(3 * static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(c), 3, 1) =
-            fp.jacobian.col(static_cast<Eigen::Index>(opt.candidates[c])).head<3>() / sigma;
-    }
-    std::vector<std::string> names;
-    std::vector<int> pref;
-    for (std::size_t c : opt.candidates) {
-      names.push_back(model.parameters[c].name);
-      pref.push_back(opt.preference[c]);
-    }
-    for (std::size_t k : analyze_identifiability(J, names, opt.identifiability, pref).identifiable)
-      truth_base.push_back(opt.candidates[k]);
   }
-  const double calibrated = mean_square_root(rms_draws);
-  out["noisy"] = {
-      {"point_sigma_m", sigma},
-      {"draws", rms_draws.size()},
-      {"failed_draws", failures},
-      {"estimated_parameters", estimated.size()},
-      {"calibrated_heldout_rms_m", calibrated},
-      {"calibrated_heldout_rms_spread_m", rms_draws.empty() ? NAN : stddev(rms_draws)},
-      {"calibrated_heldout_median_error_m", mean_square_root(median_draws)},
-      {"cramer_rao_rms_m", cramer_rao},
-      {"rank_at_truth", truth_base.size()},
-      {"cramer_rao_over_base_set_at_truth_rms_m", cramer_rao_over(truth_base)},
-      {"ratio_to_cramer_rao", calibrated / cramer_rao},
-      {"base_tool_only_heldout_rms_m", mean_square_root(base_tool_draws)},
-      {"raw_nominal_heldout_rms_m", heldout_rms(pred, nominal, held)},
-      {"mean_identify_seconds", rms_draws.empty() ? NAN : seconds / static_cast<double>(draws)}};
 
   // Speed: full-pose observations, 125 and 500 poses.
+  const double sigma = 20e-6;
+  const SolveOptions opt = solve_options_from_model(model, false);
   for (std::size_t count : {std::size_t{125}, std::size_t{500}}) {
     const auto qs = sample_actuators(pred, {nominal, truth}, count, rng);
     SimulationOptions ps;

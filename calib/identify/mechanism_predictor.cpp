@@ -147,10 +147,39 @@ Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, do
   return s;
 }
 
+double task_conditioning(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
+                         const Eigen::VectorXd& readings) {
+  // Readings → joint values is affine per actuator (q = scale·r + offset); differentiate w.r.t.
+  // the joint value by stepping the reading by h / scale.
+  const Mechanism& m = predictor.model();
+  const auto A = readings.size();
+  Eigen::MatrixXd J(3, A);
+  const double h = 1e-6;
+  for (Eigen::Index i = 0; i < A; ++i) {
+    const Body& b = m.bodies[static_cast<std::size_t>(m.actuated[static_cast<std::size_t>(i)])];
+    const double scale = b.encoder_scale_param >= 0 ? params(b.encoder_scale_param) : 1.0;
+    const double step = h / (std::abs(scale) > 1e-12 ? scale : 1.0);
+    Eigen::Vector3d x[2];
+    for (int s = 0; s < 2; ++s) {
+      Eigen::VectorXd r = readings;
+      r(i) += (s == 0 ? step : -step);
+      FramePrediction fp;
+      std::string why;
+      if (!predictor.predict(params, r, -1, false, fp, why)) return 0.0;
+      x[s] = fp.pose.translation();
+    }
+    J.col(i) = (x[0] - x[1]) / (2.0 * h);
+  }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
+  const Eigen::VectorXd sv = svd.singularValues();
+  if (sv.size() == 0 || sv(0) <= 0.0) return 0.0;
+  return sv(sv.size() - 1) / sv(0);
+}
+
 std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predictor,
                                               const std::vector<Eigen::VectorXd>& must_solve,
                                               std::size_t count, std::mt19937& rng,
-                                              double min_relative_sigma) {
+                                              double min_relative_sigma, bool within_workspace) {
   const Mechanism& m = predictor.model();
   const auto A = static_cast<Eigen::Index>(m.actuated.size());
   Eigen::VectorXd lo(A);
@@ -179,6 +208,8 @@ std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predicto
       const ClosureResult c = solve_closure(m, params, readings, {}, diag);
       ok = c.ok() && (c.unknowns == 0 ||
                       (c.rank == c.unknowns && c.sigma_min >= min_relative_sigma * c.sigma_max));
+      if (ok && within_workspace && m.workspace.min_task_conditioning > 0.0)
+        ok = task_conditioning(predictor, params, readings) >= m.workspace.min_task_conditioning;
     }
     // Where the robot has a closed form, the nominal tree solution must be the intended
     // assembly mode (the exact construction agrees with it to machine precision).

@@ -172,7 +172,7 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   if (!root.IsMap()) fail(source, root, "a robot file must be a YAML mapping");
   check_keys(source, root, "robot file",
              {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool", "task",
-              "closed_form", "bodies", "closures", "rods"});
+              "closed_form", "workspace", "bodies", "closures", "rods"});
   Mechanism m;
   m.source = source;
   if (!root["robot"]) fail(source, root, "missing 'robot' (the robot's name)");
@@ -614,6 +614,19 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
     } else {
       fail(source, cf["type"], "closed_form.type must be rotary_delta or rails");
     }
+  }
+  // --- working volume
+  if (const YAML::Node w = root["workspace"]) {
+    if (!w.IsMap()) fail(source, w, "workspace must be a map {min_task_conditioning: X}");
+    check_keys(source, w, "workspace", {"min_task_conditioning"});
+    m.workspace.line = w.Mark().line + 1;
+    if (!w["min_task_conditioning"]) fail(source, w, "workspace needs 'min_task_conditioning'");
+    const double c = number(source, w["min_task_conditioning"], "workspace.min_task_conditioning");
+    if (!(c > 0.0 && c < 1.0))
+      fail(source, w["min_task_conditioning"],
+           "workspace.min_task_conditioning must be in (0, 1) (sigma_min/sigma_max), got " +
+               std::to_string(c));
+    m.workspace.min_task_conditioning = c;
   }
   return m;
 }

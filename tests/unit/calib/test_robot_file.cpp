@@ -280,6 +280,19 @@ TEST(RobotFile, ParameterOverrideNamesFileAndParameter) {
   EXPECT_THROW(apply_parameter_override(m, p, "body26.d1"), RobotFileError);
 }
 
+TEST(RobotFile, WorkspaceEntryIsParsedAndChecked) {
+  const std::string head = "robot: x\nbodies:\n  - {name: a, convention: mcpc}\n";
+  EXPECT_EQ(parse_robot_yaml(head, "x").workspace.min_task_conditioning, 0.0);
+  const Mechanism m = parse_robot_yaml(head + "workspace: {min_task_conditioning: 1/4}\n", "x");
+  EXPECT_DOUBLE_EQ(m.workspace.min_task_conditioning, 0.25);
+  EXPECT_EQ(m.workspace.line, 4);
+  expect_error(head + "workspace:\n  min_task_conditioning: 1.5\n", 5, "must be in (0, 1)");
+  expect_error(head + "workspace:\n  min_task_conditioning: 0\n", 5, "must be in (0, 1)");
+  expect_error(head + "workspace:\n  radius: 0.3\n", 5, "unknown key 'radius' in workspace");
+  expect_error(head + "workspace: {}\n", 4, "workspace needs 'min_task_conditioning'");
+  expect_error(head + "workspace: 0.3\n", 4, "workspace must be a map");
+}
+
 TEST(RobotFile, MissingFileIsReported) {
   try {
     load_robot_file("/nonexistent/robot.yaml");

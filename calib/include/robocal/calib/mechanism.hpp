@@ -167,6 +167,15 @@ struct ClosedFormSpec {
   double branch_sign = -1.0;
 };
 
+// The working volume the robot is specified over (robot file `workspace:`): poses sampled for
+// calibration design and validation stay inside it. min_task_conditioning bounds
+// σ_min/σ_max of d(task-frame position)/d(actuated joint values) (the dexterity / local
+// conditioning index); 0 = the whole reachable set.
+struct WorkspaceSpec {
+  double min_task_conditioning = 0.0;
+  int line = 0;
+};
+
 struct Mechanism {
   std::string name;
   std::string source;  // file the model was read from (for messages)
@@ -179,6 +188,7 @@ struct Mechanism {
   int tool = -1;              // default frame (tool); body index
   TaskSpace task;
   ClosedFormSpec closed_form;
+  WorkspaceSpec workspace;
 
   int constraint_rows() const;  // sum of closure_rows over closures
   // -1 if absent.

@@ -64,10 +64,19 @@ Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, do
 // unit where a limit is open) that every model in `must_solve` can assemble, away from
 // singularities: closure converged and σ_min/σ_max of the constraint Jacobian ≥
 // `min_relative_sigma` (0.01 keeps the Delta's plate clear of its stretched-arm and
-// parallel-rod singularities). Gives up after 100·count draws and returns what it has.
+// parallel-rod singularities). When the robot file declares a working volume (`workspace:`) and
+// `within_workspace`, every model in `must_solve` must also have task_conditioning ≥ its
+// min_task_conditioning there. Gives up after 100·count draws and returns what it has.
 std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predictor,
                                               const std::vector<Eigen::VectorXd>& must_solve,
                                               std::size_t count, std::mt19937& rng,
-                                              double min_relative_sigma = 0.01);
+                                              double min_relative_sigma = 0.01,
+                                              bool within_workspace = true);
+
+// σ_min/σ_max of the Jacobian of the task frame's position w.r.t. the actuated joint values at
+// `readings` (central differences through the closure; 1 / the velocity amplification spread);
+// 0 where the closure cannot be solved.
+double task_conditioning(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
+                         const Eigen::VectorXd& readings);
 
 }  // namespace robocal::calib
