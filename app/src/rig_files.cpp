@@ -192,6 +192,8 @@ vision::CameraFrame detect_frame(const fs::path& image, const vision::RigCamera&
   frame.blur_px = det.edge_blur_px;
   for (size_t i = 0; i < det.corner_ids.size(); ++i)
     frame.corners.push_back({det.corner_ids[i], det.pixels[i], 0.0});
+  // Corners of one tag share edge fits: their joint covariance (vision/README.md).
+  frame.corner_groups = det.corner_groups;
   return frame;
 }
 

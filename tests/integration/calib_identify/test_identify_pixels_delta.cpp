@@ -119,7 +119,9 @@ TEST_F(DeltaRig, PixelNoiseGivesTheAccuracyTheCovariancePredicts) {
   noisy.pixel_sigma = 0.1;
   double predicted_ms = 0;
   double actual_ms = 0;
-  const int draws = 3;
+  // 12 draws: with 3, the ratio of two RMS figures is itself too noisy for a factor-1.5 test
+  // (0.43 seen on one seed; 0.92 with 12 draws on the same design).
+  const int draws = 12;
   for (int d = 0; d < draws; ++d) {
     const auto meas = simulate_pixel_measurements(*rig, full(truth), design, target(), noisy, rng);
     const auto res = identify(*rig, rig->initial_parameters(nominal), meas, opt);
