@@ -3,6 +3,7 @@
 // reaches today (about 0.3 mm on this small configuration, limited by the camera intrinsics'
 // systematic error); the product target (issue 7) is 50 µm on the default demo.
 #include "command_registry.hpp"
+#include "run_robocal.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -14,12 +15,7 @@
 
 namespace {
 
-int run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-}
+constexpr auto& run = robocal::test::run_robocal;
 
 TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   const auto dir = std::filesystem::temp_directory_path() / "robocal_e2e_demo";

@@ -2,6 +2,7 @@
 // detections twice, from measured 6-D poses and directly from the corner pixels
 // (camera-in-the-loop, camera 1's pose estimated), and reports both against the hidden truth.
 #include "command_registry.hpp"
+#include "run_robocal.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -13,12 +14,7 @@
 
 namespace {
 
-int run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-}
+constexpr auto& run = robocal::test::run_robocal;
 
 TEST(DemoEndToEnd, PixelRouteCalibratesFromTheSameDetections) {
   const auto dir = std::filesystem::temp_directory_path() / "robocal_e2e_demo_pixels";

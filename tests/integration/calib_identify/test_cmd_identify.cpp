@@ -2,6 +2,7 @@
 // read the calibrated robot file back; bad measurement files give exit code 3 with the reason.
 #include "command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "run_robocal.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -18,12 +19,7 @@ std::string replaced(std::string text, const std::string& from, const std::strin
   return text;
 }
 
-int run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-}
+constexpr auto& run = robocal::test::run_robocal;
 
 std::string read(const std::string& path) {
   std::ifstream in(path);

@@ -3,6 +3,7 @@
 // pixels; a pixel naming an unknown camera is refused with file and line.
 #include "command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "run_robocal.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -13,12 +14,7 @@
 
 namespace {
 
-int run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-}
+constexpr auto& run = robocal::test::run_robocal;
 
 std::string read(const std::string& path) {
   std::ifstream in(path);

@@ -1,4 +1,5 @@
 #include "command_registry.hpp"
+#include "run_robocal.hpp"
 
 #include <gtest/gtest.h>
 
@@ -8,12 +9,7 @@
 
 namespace {
 
-int run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-}
+constexpr auto& run = robocal::test::run_robocal;
 
 TEST(CommandRegistry, NamesAreUniqueAndDocumented) {
   std::set<std::string> seen;
