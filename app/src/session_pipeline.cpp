@@ -933,11 +933,14 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   say(log, "  fit residual: {:.1f} µm RMS position, {:.4f} deg RMS orientation, {} outliers\n",
       result.residuals.position_rms * 1e6, result.residuals.orientation_rms * kRadToDeg,
       result.residuals.outliers);
+  if (result.relinearisation.attempted) say(log, "  {}\n", result.relinearisation.message);
   report["result"] = calib::to_json(result);
   report["robot"] = relative_to(robot.file, dir);
   report["measurements"] = "results/measured_poses.json";
   report["not_identified"] = result.identifiability.messages;
-  report["held_at_nominal"] = result.identifiability.redundant.size();
+  if (result.relinearisation.attempted)
+    report["not_identified"].push_back(result.relinearisation.message);
+  report["held_at_nominal"] = result.candidates.size() - result.estimated.size();
   report["start"] = params_json(model, start);
   report["estimate"] = params_json(model, result.estimate);
   report["parameter_units"] = nlohmann::json::object();

@@ -79,6 +79,19 @@ nlohmann::json to_json(const IdentificationResult& r) {
   for (const auto& e : r.excluded)
     j["excluded_poses"].push_back({{"id", e.id}, {"reason", e.reason}});
   j["identifiability"] = to_json(r.identifiability);
+  {
+    const RelinearisationReport& rl = r.relinearisation;
+    nlohmann::json added = nlohmann::json::array();
+    for (std::size_t i : rl.added) added.push_back(r.names[i]);
+    j["relinearisation"] = {{"attempted", rl.attempted},
+                            {"accepted", rl.accepted},
+                            {"added", added},
+                            {"cost_before", num(rl.cost_before)},
+                            {"cost_after", num(rl.cost_after)},
+                            {"predicted_position_rms_before_m", num(rl.predicted_before)},
+                            {"predicted_position_rms_after_m", num(rl.predicted_after)},
+                            {"message", rl.message}};
+  }
 
   // Per parameter: nominal, estimate, change, and (when estimated) σ and confidence interval.
   j["parameters"] = nlohmann::json::array();
