@@ -74,21 +74,7 @@ int run_measure(const MeasureArgs& a) {
     pj["message"] = m.message;
     pj["problems"] = problems;
     pj["frames"] = n_frames;
-    if (m.status == vision::PoseStatus::kOk || m.status == vision::PoseStatus::kMoving) {
-      pj["rig_T_target"] = pose_to_json(m.world_T_target);
-      pj["covariance"] = matrix_to_json(m.covariance);
-      pj["covariance_convention"] =
-          "[d_theta (rad); d_t (m)], rig_T_target = [exp(d_theta) R, t + d_t]";
-      pj["flags"] = {{"ambiguous", m.ambiguous},
-                     {"few_corners", m.few_corners},
-                     {"blurred", m.blurred},
-                     {"moving", m.moving}};
-      pj["chi2"] = m.chi2;
-      pj["dof"] = m.dof;
-      pj["rms_px"] = m.rms_px;
-      pj["corners"] = m.corners;
-      pj["motion_chi2"] = m.motion_chi2;
-    }
+    pj.update(pose_measurement_to_json(m));
     if (!a.no_raw) {
       // The raw observations, for camera-in-the-loop identification.
       nlohmann::json raw = nlohmann::json::array();

@@ -32,6 +32,26 @@ nlohmann::json matrix_to_json(const Eigen::MatrixXd& m) {
   return rows;
 }
 
+nlohmann::json pose_measurement_to_json(const vision::PoseMeasurement& m) {
+  nlohmann::json j = nlohmann::json::object();
+  if (m.status != vision::PoseStatus::kOk && m.status != vision::PoseStatus::kMoving) return j;
+  j["rig_T_target"] = pose_to_json(m.world_T_target);
+  // Full precision (JSON doubles round-trip exactly): what identify reads.
+  j["rig_T_target_matrix"] = matrix_to_json(m.world_T_target.matrix().topRows<3>());
+  j["covariance"] = matrix_to_json(m.covariance);
+  j["covariance_convention"] = "[d_theta (rad); d_t (m)], rig_T_target = [exp(d_theta) R, t + d_t]";
+  j["flags"] = {{"ambiguous", m.ambiguous},
+                {"few_corners", m.few_corners},
+                {"blurred", m.blurred},
+                {"moving", m.moving}};
+  j["chi2"] = m.chi2;
+  j["dof"] = m.dof;
+  j["rms_px"] = m.rms_px;
+  j["corners"] = m.corners;
+  j["motion_chi2"] = m.motion_chi2;
+  return j;
+}
+
 nlohmann::json rig_to_json(const std::vector<vision::RigCamera>& rig) {
   nlohmann::json cams = nlohmann::json::array();
   for (const auto& c : rig) {

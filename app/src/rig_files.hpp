@@ -2,6 +2,7 @@
 // Files of `robocal rig` and `robocal measure`: the rig JSON (written by `rig`, read by
 // `measure`) and image folders of per-view / per-pose sub-folders. Format: vision/README_rig.md.
 #include "robocal/vision/observations.hpp"
+#include "robocal/vision/pose_measurement.hpp"
 #include "robocal/vision/rig_calibration.hpp"
 #include "robocal/vision/target.hpp"
 
@@ -38,5 +39,11 @@ vision::BoardPoints board_points(const vision::TargetBoard& board);
 
 nlohmann::json pose_to_json(const Eigen::Isometry3d& pose);
 nlohmann::json matrix_to_json(const Eigen::MatrixXd& m);
+
+// The measured board pose of one robot pose as `robocal measure` writes it (app/SESSION.md,
+// results/measured_poses.json): rig_T_target (rvec/tvec), rig_T_target_matrix (3x4, full
+// precision), the 6x6 covariance and its convention, quality flags, chi2, dof, rms_px, corners,
+// motion_chi2. Only for a measurement with a pose (status kOk or kMoving); else an empty object.
+nlohmann::json pose_measurement_to_json(const vision::PoseMeasurement& m);
 
 }  // namespace robocal::app

@@ -693,18 +693,7 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
     if (rec.problem.empty()) pj["actuators"] = vector_json(rec.actuators);
     if (m.status == vision::PoseStatus::kOk || m.status == vision::PoseStatus::kMoving) {
       ++measured;
-      pj["rig_T_target"] = pose_to_json(m.world_T_target);
-      // Full precision (JSON doubles round-trip exactly): what identify reads.
-      pj["rig_T_target_matrix"] = matrix_to_json(m.world_T_target.matrix().topRows<3>());
-      pj["covariance"] = matrix_to_json(m.covariance);
-      pj["flags"] = {{"ambiguous", m.ambiguous},
-                     {"few_corners", m.few_corners},
-                     {"blurred", m.blurred},
-                     {"moving", m.moving}};
-      pj["chi2"] = m.chi2;
-      pj["dof"] = m.dof;
-      pj["rms_px"] = m.rms_px;
-      pj["corners"] = m.corners;
+      pj.update(pose_measurement_to_json(m));
     }
     // Why a pose does not go to identification, in words.
     std::string excluded;

@@ -134,15 +134,15 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   cell.nominal = cell.model.nominal_parameters();
   cell.target_frame = cell.model.tool;
 
-  // Boards: a 4x4-tag target on the end-effector (~19 cm), a larger hand-held calibration board
-  // with its own id range so the two can never be confused.
+  // Boards: the end-effector target (CellOptions::ee_tags, 29 cm by default), a hand-held
+  // calibration board with its own id range so the two can never be confused.
   vision::TargetSpec ee;
   ee.kind = vision::TargetKind::kAprilTagGrid;
   ee.name = "end_effector";
-  ee.cols = 4;
-  ee.rows = 4;
-  ee.tag_size = 0.04;
-  ee.tag_spacing = 0.012;
+  ee.cols = options.ee_tags;
+  ee.rows = options.ee_tags;
+  ee.tag_size = options.ee_tag_size;
+  ee.tag_spacing = options.ee_tag_spacing;
   ee.first_id = 0;
   cell.ee_board = vision::build_target(ee);
   vision::TargetSpec cal = ee;
