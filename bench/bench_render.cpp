@@ -5,7 +5,10 @@
 #include <benchmark/benchmark.h>
 #include <opencv2/core/utility.hpp>
 
+#include "target_boards.hpp"
+
 namespace rv = robocal::vision;
+namespace rt = robocal::testing;
 
 namespace {
 
@@ -21,20 +24,11 @@ const Scene& scene() {
     const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 2448, 2048, 2400, 2400, 1223.5,
                                      1023.5, {-0.12, 0.08, 0.0004, -0.0002, -0.01});
     sc.rays = rv::precompute_rays(cam);
-    rv::TargetSpec spec;
-    spec.kind = rv::TargetKind::kAprilTagGrid;
-    spec.cols = 10;
-    spec.rows = 6;
-    spec.tag_size = 0.04;
-    const auto board = rv::build_target(spec);
-    const Eigen::Vector3d centre(0.5 * (board.extent_min + board.extent_max).x(),
-                                 0.5 * (board.extent_min + board.extent_max).y(), 0);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = (Eigen::AngleAxisd(0.52, Eigen::Vector3d::UnitY()) *
-                     Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()))
-                        .toRotationMatrix();
-    pose.translation() = Eigen::Vector3d(0, 0, 0.75) - pose.linear() * centre;
-    sc.targets = {{board, pose}};
+    const auto board = rt::apriltag_grid_board(10, 6, 0.04);
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.52, Eigen::Vector3d::UnitY()) *
+                                  Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()))
+                                     .toRotationMatrix();
+    sc.targets = {{board, rt::centred_board_pose(board, tilt, 0.75)}};
     sc.options.blur_sigma = 0.8;
     sc.options.read_noise = 2.0;
     sc.options.shot_noise_gain = 10.0;

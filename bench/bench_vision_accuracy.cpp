@@ -24,6 +24,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "board_views.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
 #include "robocal/vision/target_detection.hpp"
@@ -64,54 +65,6 @@ struct Accumulator {
   }
 };
 
-rv::TargetBoard tag_board(int cols, int rows, double tag) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kAprilTagGrid;
-  s.cols = cols;
-  s.rows = rows;
-  s.tag_size = tag;
-  return rv::build_target(s);
-}
-rv::TargetBoard chess_board(int cols, int rows, double square) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kChessboard;
-  s.cols = cols;
-  s.rows = rows;
-  s.square_size = square;
-  return rv::build_target(s);
-}
-rv::TargetBoard charuco_board(int cols, int rows, double square) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kCharuco;
-  s.cols = cols;
-  s.rows = rows;
-  s.square_size = square;
-  s.marker_size = 0.6 * square;
-  s.dictionary = "DICT_6X6_250";
-  return rv::build_target(s);
-}
-
-struct View {
-  cv::Mat image;
-  Eigen::Matrix3d h;
-};
-
-View render(const rv::TargetBoard& board, const rt::SyntheticCamera& cam, double dist, double tilt,
-            double axis, double roll, double u, double v, double blur, double noise,
-            unsigned seed) {
-  const Eigen::Vector2d centre = (board.extent_min + board.extent_max) / 2;
-  const auto [r, t] = rt::look_at_pose(cam, centre, dist, tilt, axis, roll, u, v);
-  rt::SyntheticImageOptions opt;
-  opt.blur_sigma = blur;
-  opt.noise_sigma = noise;
-  opt.seed = seed;
-  View out;
-  out.h = rt::board_homography(cam, r, t);
-  out.image = rt::render_planar(
-      cam, out.h, opt, [&](double x, double y) { return rv::is_black(board, x, y) ? 0.0 : 1.0; });
-  return out;
-}
-
 // Outward direction of a corner from its tag / square centre (board frame, mapped to image).
 Eigen::Vector2d outward(const rv::TargetBoard& board, const Eigen::Matrix3d& h, int id,
                         const Eigen::Vector3d& p) {
@@ -130,8 +83,8 @@ Eigen::Vector2d outward(const rv::TargetBoard& board, const Eigen::Matrix3d& h, 
   return (a - c).normalized();
 }
 
-void accumulate(const rv::TargetBoard& board, const View& v, const rv::TargetDetection& det,
-                Accumulator& acc) {
+void accumulate(const rv::TargetBoard& board, const rt::BoardView& v,
+                const rv::TargetDetection& det, Accumulator& acc) {
   for (size_t i = 0; i < det.pixels.size(); ++i) {
     const Eigen::Vector2d truth = rt::apply_h(v.h, det.board_points[i].head<2>());
     acc.add(det.pixels[i] - truth, outward(board, v.h, det.corner_ids[i], det.board_points[i]));
@@ -167,7 +120,8 @@ void run_condition(const rt::SyntheticCamera& cam, double dist, double tilt, dou
     const double cv_ = cam.cy + 0.05 * cam.height * u(rng);
     const unsigned s = seed * 100 + static_cast<unsigned>(k);
     {
-      const View v = render(tags, cam, dist, tilt, axis, roll, cu, cv_, blur, noise, s);
+      const rt::BoardView v =
+          rt::render_board_view(tags, cam, dist, tilt, axis, roll, cu, cv_, blur, noise, s);
       const auto det = rv::detect_apriltag_board(v.image, tags, detector);
       m.ours.expected += visible_corners(tags, cam, v.h);
       m.library.expected += visible_corners(tags, cam, v.h);
@@ -187,12 +141,14 @@ void run_condition(const rt::SyntheticCamera& cam, double dist, double tilt, dou
       accumulate(tags, v, libdet, m.library);
     }
     {
-      const View v = render(chess, cam, dist, tilt, axis, roll, cu, cv_, blur, noise, s + 7);
+      const rt::BoardView v =
+          rt::render_board_view(chess, cam, dist, tilt, axis, roll, cu, cv_, blur, noise, s + 7);
       m.chess.expected += visible_corners(chess, cam, v.h);
       accumulate(chess, v, rv::detect_chessboard_board(v.image, chess), m.chess);
     }
     {
-      const View v = render(charuco, cam, dist, tilt, axis, roll, cu, cv_, blur, noise, s + 13);
+      const rt::BoardView v =
+          rt::render_board_view(charuco, cam, dist, tilt, axis, roll, cu, cv_, blur, noise, s + 13);
       m.charuco.expected += visible_corners(charuco, cam, v.h);
       accumulate(charuco, v, rv::detect_charuco_board(v.image, charuco), m.charuco);
     }
@@ -220,8 +176,9 @@ double min_ms(const std::function<void()>& f, int reps) {
 
 json detection_time() {
   const rt::SyntheticCamera cam{2448, 2048, 2300.0, 1223.5, 1023.5};
-  const auto board = tag_board(10, 6, 0.03);  // 60 tags, ~70 px at 0.9 m
-  const View v = render(board, cam, 0.9, 25.0, 30.0, 5.0, cam.cx, cam.cy, 0.8, 2.0, 5);
+  const auto board = rt::apriltag_grid_board(10, 6, 0.03);  // 60 tags, ~70 px at 0.9 m
+  const rt::BoardView v =
+      rt::render_board_view(board, cam, 0.9, 25.0, 30.0, 5.0, cam.cx, cam.cy, 0.8, 2.0, 5);
   json out = json::array();
   for (int threads : {1, 2}) {
     rv::AprilTagDetectorOptions opt;
@@ -330,7 +287,7 @@ struct CornerErrorStats {
 
 json intrinsics_trials(int trials, const std::string& corner_source) {
   const rt::SyntheticCamera cam{1280, 1024, 1200.0, 639.5, 511.5};
-  const auto board = tag_board(8, 6, 0.03);
+  const auto board = rt::apriltag_grid_board(8, 6, 0.03);
   rv::AprilTagDetector detector;
   const rv::CameraModel truth = rv::make_camera(rv::CameraKind::kPinholeRadtan, cam.width,
                                                 cam.height, cam.f, cam.f, cam.cx, cam.cy);
@@ -351,10 +308,10 @@ json intrinsics_trials(int trials, const std::string& corner_source) {
     std::vector<std::vector<cv::Point2f>> img;
     for (int k = 0; k < 30; ++k) {
       const double tilt = 10.0 + 40.0 * std::abs(u(rng));
-      const View v =
-          render(board, cam, 0.45 + 0.15 * std::abs(u(rng)), tilt, 180.0 * u(rng), 20.0 * u(rng),
-                 cam.cx + 0.3 * cam.width * u(rng), cam.cy + 0.3 * cam.height * u(rng), 0.8, 2.0,
-                 static_cast<unsigned>(trial * 100 + k));
+      const rt::BoardView v = rt::render_board_view(
+          board, cam, 0.45 + 0.15 * std::abs(u(rng)), tilt, 180.0 * u(rng), 20.0 * u(rng),
+          cam.cx + 0.3 * cam.width * u(rng), cam.cy + 0.3 * cam.height * u(rng), 0.8, 2.0,
+          static_cast<unsigned>(trial * 100 + k));
       const auto det = rv::detect_apriltag_board(v.image, board, detector);
       if (det.status == rv::DetectionStatus::kRejected || det.pixels.size() < 16) continue;
       views.push_back(rv::to_calibration_view(det, fmt::format("v{}", k)));
@@ -486,14 +443,7 @@ json real_rct_charuco() {
       std::filesystem::path(ROBOCAL_SHARED_DATA_DIR) / "real" / "rct_charuco";
   if (!std::filesystem::exists(dir))
     return {{"skipped", fmt::format("shared data absent: {}", dir.string())}};
-  rv::TargetSpec spec;
-  spec.kind = rv::TargetKind::kCharuco;
-  spec.cols = 5;
-  spec.rows = 7;
-  spec.square_size = 0.036195;
-  spec.marker_size = 0.018256;
-  spec.dictionary = "DICT_6X6_250";
-  const auto board = rv::build_target(spec);
+  const auto board = rt::rct_charuco_board();
   std::vector<rv::CalibrationView> views;
   std::vector<cv::Mat> cv_corners;
   std::vector<cv::Mat> cv_ids;
@@ -586,9 +536,10 @@ int main(int argc, char** argv) {
   };
   const std::vector<Res> resolutions = {{{1280, 1024, 1200.0, 639.5, 511.5}, 0.6},
                                         {{2448, 2048, 2300.0, 1223.5, 1023.5}, 0.9}};
-  const auto tags = tag_board(10, 8, 0.025);  // tags 50 px (1280) / 64 px (2448) across
-  const auto chess = chess_board(12, 9, 0.025);
-  const auto charuco = charuco_board(12, 9, 0.025);
+  const auto tags =
+      rt::apriltag_grid_board(10, 8, 0.025);  // tags 50 px (1280) / 64 px (2448) across
+  const auto chess = rt::chessboard_board(12, 9, 0.025);
+  const auto charuco = rt::charuco_board(12, 9, 0.025, 0.6 * 0.025);
   rv::AprilTagDetector detector;
   for (const auto& r : resolutions) {
     if (!want("nominal")) break;

@@ -104,6 +104,30 @@ std::string target_to_yaml(const TargetSpec& s) {
   return out.str();
 }
 
+namespace {
+
+// Calls emit(patch, u, v, end) for every horizontal run of black modules u..end-1 in row v of
+// every patch: one rectangle per run keeps the SVG and PDF files small.
+template <typename Emit>
+void for_each_black_run(const TargetBoard& board, Emit&& emit) {
+  for (const PatternPatch& p : board.patches) {
+    for (int v = 0; v < p.ny; ++v) {
+      for (int u = 0; u < p.nx;) {
+        if (!p.black[static_cast<size_t>(v * p.nx + u)]) {
+          ++u;
+          continue;
+        }
+        int end = u;
+        while (end < p.nx && p.black[static_cast<size_t>(v * p.nx + end)]) ++end;
+        emit(p, u, v, end);
+        u = end;
+      }
+    }
+  }
+}
+
+}  // namespace
+
 std::string target_to_svg(const TargetBoard& board) {
   const double mm = 1000.0;
   const Eigen::Vector2d size = board.extent_max - board.extent_min;
@@ -118,24 +142,12 @@ std::string target_to_svg(const TargetBoard& board) {
       << "\" shape-rendering=\"crispEdges\">\n";
   out << "<rect x=\"0\" y=\"0\" width=\"" << size.x() * mm << "\" height=\"" << size.y() * mm
       << "\" fill=\"#ffffff\"/>\n<g fill=\"#000000\">\n";
-  for (const PatternPatch& p : board.patches) {
-    for (int v = 0; v < p.ny; ++v) {
-      // One rectangle per horizontal run of black modules keeps the file small.
-      for (int u = 0; u < p.nx;) {
-        if (!p.black[static_cast<size_t>(v * p.nx + u)]) {
-          ++u;
-          continue;
-        }
-        int end = u;
-        while (end < p.nx && p.black[static_cast<size_t>(v * p.nx + end)]) ++end;
-        const double x = (p.x0 + u * p.module - board.extent_min.x()) * mm;
-        const double y = (p.y0 + v * p.module - board.extent_min.y()) * mm;
-        out << "<rect x=\"" << x << "\" y=\"" << y << "\" width=\"" << (end - u) * p.module * mm
-            << "\" height=\"" << p.module * mm << "\"/>\n";
-        u = end;
-      }
-    }
-  }
+  for_each_black_run(board, [&](const PatternPatch& p, int u, int v, int end) {
+    const double x = (p.x0 + u * p.module - board.extent_min.x()) * mm;
+    const double y = (p.y0 + v * p.module - board.extent_min.y()) * mm;
+    out << "<rect x=\"" << x << "\" y=\"" << y << "\" width=\"" << (end - u) * p.module * mm
+        << "\" height=\"" << p.module * mm << "\"/>\n";
+  });
   out << "</g>\n</svg>\n";
   return out.str();
 }
@@ -151,24 +163,13 @@ std::string target_to_pdf(const TargetBoard& board) {
   content.setf(std::ios::fixed);
   content.precision(4);
   content << "0 g\n";
-  for (const PatternPatch& p : board.patches) {
-    for (int v = 0; v < p.ny; ++v) {
-      for (int u = 0; u < p.nx;) {
-        if (!p.black[static_cast<size_t>(v * p.nx + u)]) {
-          ++u;
-          continue;
-        }
-        int end = u;
-        while (end < p.nx && p.black[static_cast<size_t>(v * p.nx + end)]) ++end;
-        // PDF's origin is the bottom-left corner of the page, y up.
-        const double x = (p.x0 + u * p.module - board.extent_min.x()) * pt;
-        const double y = (board.extent_max.y() - (p.y0 + (v + 1) * p.module)) * pt;
-        content << x << " " << y << " " << (end - u) * p.module * pt << " " << p.module * pt
-                << " re f\n";
-        u = end;
-      }
-    }
-  }
+  for_each_black_run(board, [&](const PatternPatch& p, int u, int v, int end) {
+    // PDF's origin is the bottom-left corner of the page, y up.
+    const double x = (p.x0 + u * p.module - board.extent_min.x()) * pt;
+    const double y = (board.extent_max.y() - (p.y0 + (v + 1) * p.module)) * pt;
+    content << x << " " << y << " " << (end - u) * p.module * pt << " " << p.module * pt
+            << " re f\n";
+  });
   const std::string stream = content.str();
   std::ostringstream pdf;
   pdf.setf(std::ios::fixed);

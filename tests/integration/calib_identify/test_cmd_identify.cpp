@@ -3,13 +3,12 @@
 #include "command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "run_robocal.hpp"
+#include "scratch_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <filesystem>
 #include <fstream>
-#include <sstream>
 
 namespace {
 
@@ -20,25 +19,11 @@ std::string replaced(std::string text, const std::string& from, const std::strin
 }
 
 constexpr auto& run = robocal::test::run_robocal;
+using robocal::test::read_text;
 
-std::string read(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-struct IdentifyCli : ::testing::Test {
-  std::filesystem::path dir;
+struct IdentifyCli : robocal::test::ScratchDirTest {
+  IdentifyCli() : ScratchDirTest("robocal_identify_cli_") {}
   std::string robot = std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml";
-  void SetUp() override {
-    dir = std::filesystem::temp_directory_path() /
-          ("robocal_identify_cli_" + std::to_string(::getpid()) + "_" +
-           ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir); }
-  std::string file(const std::string& name) const { return (dir / name).string(); }
 };
 
 TEST_F(IdentifyCli, SimulateIdentifyAndWriteCalibratedRobot) {
@@ -48,7 +33,7 @@ TEST_F(IdentifyCli, SimulateIdentifyAndWriteCalibratedRobot) {
   ASSERT_EQ(run({"identify", "--robot", robot, "--measurements", file("m.yaml"), "--json",
                  file("r.json"), "--out-robot", file("cal.yaml"), "--holdout-every", "4"}),
             0);
-  const auto doc = nlohmann::json::parse(read(file("r.json")));
+  const auto doc = nlohmann::json::parse(read_text(file("r.json")));
   EXPECT_EQ(doc["status"], "converged");
   const double before = doc["heldout_validation"]["before"]["position_rms_m"];
   const double after = doc["heldout_validation"]["after"]["position_rms_m"];
@@ -61,14 +46,14 @@ TEST_F(IdentifyCli, SimulateIdentifyAndWriteCalibratedRobot) {
     ASSERT_GE(i, 0);
     EXPECT_NEAR(cal.parameters[static_cast<std::size_t>(i)].value, p["value"].get<double>(), 1e-15);
   }
-  EXPECT_NE(read(file("cal.yaml")).find("# Calibrated by robocal"), std::string::npos);
+  EXPECT_NE(read_text(file("cal.yaml")).find("# Calibrated by robocal"), std::string::npos);
 }
 
 TEST_F(IdentifyCli, BadMeasurementFilesAreRefusedWithTheReason) {
   ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--poses", "30",
                  "--json", file("sim.json")}),
             0);
-  const std::string good = read(file("m.yaml"));
+  const std::string good = read_text(file("m.yaml"));
   // Duplicate pose id.
   std::ofstream(file("dup.yaml")) << replaced(good, "id: p0003", "id: p0002");
   testing::internal::CaptureStderr();

@@ -4,48 +4,33 @@
 #include "command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "run_robocal.hpp"
+#include "scratch_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <filesystem>
 #include <fstream>
-#include <sstream>
 
 namespace {
 
 constexpr auto& run = robocal::test::run_robocal;
+using robocal::test::read_text;
 
-std::string read(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-struct IdentifyPixelsCli : ::testing::Test {
-  std::filesystem::path dir;
+struct IdentifyPixelsCli : robocal::test::ScratchDirTest {
+  IdentifyPixelsCli() : ScratchDirTest("robocal_identify_pixels_") {}
   std::string robot = std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml";
-  void SetUp() override {
-    dir = std::filesystem::temp_directory_path() /
-          ("robocal_identify_pixels_" + std::to_string(::getpid()) + "_" +
-           ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir); }
-  std::string file(const std::string& name) const { return (dir / name).string(); }
 };
 
 TEST_F(IdentifyPixelsCli, SimulatedPixelsCalibrateRobotAndCamera) {
   ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "pixel",
                  "--poses", "40", "--json", file("sim.json")}),
             0);
-  const auto sim = nlohmann::json::parse(read(file("sim.json")));
+  const auto sim = nlohmann::json::parse(read_text(file("sim.json")));
   ASSERT_GE(sim["poses"].get<int>(), 30);
   ASSERT_EQ(run({"identify", "--robot", robot, "--measurements", file("m.yaml"), "--json",
                  file("r.json"), "--out-robot", file("cal.yaml"), "--holdout-every", "4"}),
             0);
-  const auto doc = nlohmann::json::parse(read(file("r.json")));
+  const auto doc = nlohmann::json::parse(read_text(file("r.json")));
   EXPECT_EQ(doc["status"], "converged");
   // Held-out reprojection: from many pixels off to the noise level (0.1 px per axis).
   const double before = doc["heldout_pixels"]["before"]["rms_px"];
@@ -82,7 +67,7 @@ TEST_F(IdentifyPixelsCli, UnknownCameraIsRefusedWithFileAndLine) {
   ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "pixel",
                  "--poses", "12", "--json", file("sim.json")}),
             0);
-  std::string text = read(file("m.yaml"));
+  std::string text = read_text(file("m.yaml"));
   const auto pos = text.find("camera: camera1,");
   ASSERT_NE(pos, std::string::npos);
   text.replace(pos, 16, "camera: camera7,");

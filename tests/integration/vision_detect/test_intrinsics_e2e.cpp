@@ -11,8 +11,10 @@
 #include "robocal/vision/intrinsics_pipeline.hpp"
 #include "robocal/vision/pose.hpp"
 #include "robocal/vision/renderer.hpp"
+#include "target_boards.hpp"
 
 namespace rv = robocal::vision;
+namespace rt = robocal::testing;
 
 namespace {
 
@@ -29,18 +31,12 @@ TEST(IntrinsicsEndToEnd, RenderedDistortedCameraWithBadFilesInTheFolder) {
   const rv::CameraModel truth =
       rv::make_camera(rv::CameraKind::kPinholeRadtan, 960, 720, 820.0, 818.0, 483.2, 355.9,
                       {-0.18, 0.07, 0.0004, -0.0003, 0.0});
-  rv::TargetSpec spec;
-  spec.kind = rv::TargetKind::kAprilTagGrid;
-  spec.cols = 7;
-  spec.rows = 5;
-  spec.tag_size = 0.03;
-  const auto board = rv::build_target(spec);
+  const auto board = rt::apriltag_grid_board(7, 5, 0.03);
   const auto rays = rv::precompute_rays(truth);
   const auto dir = fresh_dir("rendered");
   std::mt19937 rng(4);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const Eigen::Vector3d centre((board.extent_min.x() + board.extent_max.x()) / 2,
-                               (board.extent_min.y() + board.extent_max.y()) / 2, 0.0);
+  const Eigen::Vector3d centre(rt::board_centre(board).x(), rt::board_centre(board).y(), 0.0);
   for (int k = 0; k < 16; ++k) {
     const double tilt = (15.0 + 30.0 * std::abs(u(rng))) * M_PI / 180.0;
     const double az = M_PI * u(rng);
@@ -106,12 +102,7 @@ TEST(IntrinsicsEndToEnd, RenderedDistortedCameraWithBadFilesInTheFolder) {
 
 TEST(IntrinsicsEndToEnd, EmptyAndMissingFolders) {
   const auto dir = fresh_dir("empty");
-  rv::TargetSpec spec;
-  spec.kind = rv::TargetKind::kChessboard;
-  spec.cols = 6;
-  spec.rows = 5;
-  spec.square_size = 0.02;
-  const auto board = rv::build_target(spec);
+  const auto board = rt::chessboard_board(6, 5, 0.02);
   EXPECT_THROW(rv::calibrate_from_folder(dir, board, {}), std::invalid_argument);
   EXPECT_THROW(rv::calibrate_from_folder(dir / "missing", board, {}), std::invalid_argument);
   std::filesystem::remove_all(dir);
@@ -123,14 +114,7 @@ TEST(IntrinsicsEndToEnd, RealRctCharucoSet) {
   const std::filesystem::path dir =
       std::filesystem::path(ROBOCAL_SHARED_DATA_DIR) / "real" / "rct_charuco" / "images";
   if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir;
-  rv::TargetSpec spec;
-  spec.kind = rv::TargetKind::kCharuco;
-  spec.cols = 5;
-  spec.rows = 7;
-  spec.square_size = 0.036195;
-  spec.marker_size = 0.018256;
-  spec.dictionary = "DICT_6X6_250";
-  const auto run = rv::calibrate_from_folder(dir, rv::build_target(spec), {});
+  const auto run = rv::calibrate_from_folder(dir, rt::rct_charuco_board(), {});
   const auto& c = run.calibration;
   ASSERT_EQ(c.status, rv::CalibrationStatus::kOk) << c.reason;
   int used = 0;

@@ -131,4 +131,37 @@ inline Eigen::VectorXd planar_truth() {
   return t;
 }
 
+// The true planar arm measured as `sim` says at `count` actuator draws; `seed` seeds both the
+// draws and the simulation's noise.
+inline Measurements simulate_planar(const SimulationOptions& sim, int count, unsigned seed) {
+  PlanarPredictor model;
+  std::mt19937 rng(seed);
+  return simulate_measurements(model, planar_truth(), planar_actuators(count, seed), sim, rng);
+}
+
+// Solve order that fixes the base and geometry before the offsets and the tool.
+inline SolveOptions planar_geometry_first() {
+  SolveOptions opt;
+  opt.preference = {1, 1, 1, 1, 0, 0, 0, 0, 2, 2};
+  return opt;
+}
+
+// Held-out prediction error of `estimate` against `truth` (tool positions over 100 fresh
+// actuator draws), metres RMS.
+inline double planar_heldout_rms(const Eigen::VectorXd& estimate, const Eigen::VectorXd& truth,
+                                 unsigned seed = 99) {
+  PlanarPredictor model;
+  double sum = 0.0;
+  const auto qs = planar_actuators(100, seed);
+  for (const auto& q : qs) {
+    FramePrediction a;
+    FramePrediction b;
+    std::string why;
+    model.predict(estimate, q, 0, false, a, why);
+    model.predict(truth, q, 0, false, b, why);
+    sum += (a.pose.translation() - b.pose.translation()).squaredNorm();
+  }
+  return std::sqrt(sum / static_cast<double>(qs.size()));
+}
+
 }  // namespace robocal::calib::testing

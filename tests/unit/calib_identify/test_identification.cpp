@@ -11,40 +11,17 @@ namespace {
 using namespace robocal::calib;
 using namespace robocal::calib::testing;
 
-// Held-out prediction error of `estimate` against `truth` (tool positions), metres RMS.
-double heldout_rms(const Eigen::VectorXd& estimate, const Eigen::VectorXd& truth,
-                   unsigned seed = 99) {
-  PlanarPredictor model;
-  double sum = 0.0;
-  const auto qs = planar_actuators(100, seed);
-  for (const auto& q : qs) {
-    FramePrediction a;
-    FramePrediction b;
-    std::string why;
-    model.predict(estimate, q, 0, false, a, why);
-    model.predict(truth, q, 0, false, b, why);
-    sum += (a.pose.translation() - b.pose.translation()).squaredNorm();
-  }
-  return std::sqrt(sum / static_cast<double>(qs.size()));
-}
-
-SolveOptions geometry_first() {
-  SolveOptions opt;
-  opt.preference = {1, 1, 1, 1, 0, 0, 0, 0, 2, 2};
-  return opt;
-}
-
 TEST(Identification, NoiseFreePointsRecoverTruthPredictions) {
   PlanarPredictor model;
-  std::mt19937 rng(1);
   SimulationOptions sim;
   sim.add_noise = false;
-  const auto meas = simulate_measurements(model, planar_truth(), planar_actuators(20, 1), sim, rng);
-  const auto res = identify(model, planar_nominal(), meas, geometry_first());
+  const auto meas = simulate_planar(sim, 20, 1);
+  const auto res = identify(model, planar_nominal(), meas, planar_geometry_first());
   ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
   EXPECT_EQ(res.estimated.size(), 7u);
-  EXPECT_LT(heldout_rms(res.estimate, planar_truth()), 1e-9);
-  EXPECT_LT(heldout_rms(planar_nominal(), planar_truth()), 1e-2);  // the fixture is really off
+  EXPECT_LT(planar_heldout_rms(res.estimate, planar_truth()), 1e-9);
+  EXPECT_LT(planar_heldout_rms(planar_nominal(), planar_truth()),
+            1e-2);  // the fixture is really off
   // Redundancies are reported: tool length is absorbed by link 2.
   EXPECT_EQ(res.identifiability.redundancies.size(), 3u);
   EXPECT_NEAR(res.estimate(kL2) + res.estimate(kToolLen),
@@ -53,14 +30,13 @@ TEST(Identification, NoiseFreePointsRecoverTruthPredictions) {
 
 TEST(Identification, NoiseFreePosesRecoverTruthIncludingOrientation) {
   PlanarPredictor model;
-  std::mt19937 rng(2);
   SimulationOptions sim;
   sim.kind = SimulatedObservation::kPose;
   sim.add_noise = false;
-  const auto meas = simulate_measurements(model, planar_truth(), planar_actuators(15, 2), sim, rng);
-  const auto res = identify(model, planar_nominal(), meas, geometry_first());
+  const auto meas = simulate_planar(sim, 15, 2);
+  const auto res = identify(model, planar_nominal(), meas, planar_geometry_first());
   ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
-  EXPECT_LT(heldout_rms(res.estimate, planar_truth()), 1e-9);
+  EXPECT_LT(planar_heldout_rms(res.estimate, planar_truth()), 1e-9);
   const auto v = validate(model, planar_nominal(), res.estimate, meas.poses);
   EXPECT_LT(v.after.orientation_max, 1e-10);
   EXPECT_GT(v.before.orientation_max, 1e-3);
@@ -75,7 +51,7 @@ TEST(Identification, ProbeHeightsOnATiltedPlaneRecoverWhatTheySee) {
   sim.plane_offset = 0.1;
   sim.add_noise = false;
   const auto meas = simulate_measurements(model, planar_truth(), planar_actuators(40, 3), sim, rng);
-  const auto res = identify(model, planar_nominal(), meas, geometry_first());
+  const auto res = identify(model, planar_nominal(), meas, planar_geometry_first());
   ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
   // Heights only see one combination of the base translation.
   EXPECT_LT(res.estimated.size(), 7u);
@@ -87,10 +63,9 @@ TEST(Identification, ProbeHeightsOnATiltedPlaneRecoverWhatTheySee) {
 
 TEST(Identification, BallBarDistancesRecoverShapeButNotPlacement) {
   PlanarPredictor model;
-  std::mt19937 rng(4);
   SimulationOptions sim;
   sim.add_noise = false;
-  auto meas = simulate_measurements(model, planar_truth(), planar_actuators(40, 4), sim, rng);
+  auto meas = simulate_planar(sim, 40, 4);
   // Replace the point observations by ball-bar distances between consecutive poses.
   Measurements bar;
   for (auto p : meas.poses) {
@@ -112,7 +87,7 @@ TEST(Identification, BallBarDistancesRecoverShapeButNotPlacement) {
             {bar.poses[i].id,
              bar.poses[i + step].id,
              {.measured_distance = dist_between(planar_truth(), i, i + step), .sigma = 1e-5}});
-  const auto res = identify(model, planar_nominal(), bar, geometry_first());
+  const auto res = identify(model, planar_nominal(), bar, planar_geometry_first());
   ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
   EXPECT_FALSE(res.identifiability.is_identifiable(kBx));  // placement is invisible to a bar
   for (std::size_t i = 0; i + 5 < bar.poses.size(); i += 2)
@@ -133,8 +108,8 @@ TEST(Identification, RobustLossFlagsOutliersAndKeepsAccuracy) {
     obs.measured += Eigen::Vector3d(4e-3, -3e-3, 2e-3);
     is_outlier[k] = true;
   }
-  const auto base = identify(model, planar_nominal(), clean, geometry_first());
-  auto robust_opt = geometry_first();
+  const auto base = identify(model, planar_nominal(), clean, planar_geometry_first());
+  auto robust_opt = planar_geometry_first();
   robust_opt.robust_loss = RobustLoss::kCauchy;
   robust_opt.robust_scale = 3.0;
   const auto robust = identify(model, planar_nominal(), dirty, robust_opt);
@@ -142,21 +117,20 @@ TEST(Identification, RobustLossFlagsOutliersAndKeepsAccuracy) {
   ASSERT_EQ(robust.residuals.poses.size(), is_outlier.size());
   for (std::size_t k = 0; k < is_outlier.size(); ++k)
     EXPECT_EQ(robust.residuals.poses[k].outlier, is_outlier[k]) << robust.residuals.poses[k].id;
-  const double e0 = heldout_rms(base.estimate, planar_truth());
-  const double e1 = heldout_rms(robust.estimate, planar_truth());
+  const double e0 = planar_heldout_rms(base.estimate, planar_truth());
+  const double e1 = planar_heldout_rms(robust.estimate, planar_truth());
   EXPECT_LT(e1, 1.2 * e0) << "outlier-free " << e0 << " robust " << e1;
   // Without the robust loss the same data is visibly worse.
-  const auto plain = identify(model, planar_nominal(), dirty, geometry_first());
-  EXPECT_GT(heldout_rms(plain.estimate, planar_truth()), 2.0 * e0);
+  const auto plain = identify(model, planar_nominal(), dirty, planar_geometry_first());
+  EXPECT_GT(planar_heldout_rms(plain.estimate, planar_truth()), 2.0 * e0);
 }
 
 TEST(Identification, MultiStartEscapesABadStart) {
   PlanarPredictor model;
-  std::mt19937 rng(6);
   SimulationOptions sim;
   sim.position_sigma = 1e-5;
-  const auto meas = simulate_measurements(model, planar_truth(), planar_actuators(30, 6), sim, rng);
-  auto opt = geometry_first();
+  const auto meas = simulate_planar(sim, 30, 6);
+  auto opt = planar_geometry_first();
   // Bounds keep the links positive, so the flipped elbow (l2 < 0, o2 + π) is not a way out.
   opt.lower_bound.assign(kPlanarCount, std::numeric_limits<double>::quiet_NaN());
   opt.upper_bound.assign(kPlanarCount, std::numeric_limits<double>::quiet_NaN());
@@ -175,19 +149,18 @@ TEST(Identification, MultiStartEscapesABadStart) {
   const auto multi = identify(model, planar_nominal(), meas, opt);
   ASSERT_EQ(multi.status, IdentificationStatus::kConverged) << multi.message;
   EXPECT_EQ(multi.starts_run, 13);
-  EXPECT_LT(heldout_rms(multi.estimate, planar_truth()), 1e-4);
-  EXPECT_GT(heldout_rms(single.estimate, planar_truth()), 1e-2) << single.message;
+  EXPECT_LT(planar_heldout_rms(multi.estimate, planar_truth()), 1e-4);
+  EXPECT_GT(planar_heldout_rms(single.estimate, planar_truth()), 1e-2) << single.message;
   // The stuck solve says its residuals do not match the stated noise.
   EXPECT_FALSE(single.warnings.empty());
 }
 
 TEST(Identification, KFoldReportsBeforeAndAfter) {
   PlanarPredictor model;
-  std::mt19937 rng(7);
   SimulationOptions sim;
   sim.position_sigma = 5e-5;
-  const auto meas = simulate_measurements(model, planar_truth(), planar_actuators(40, 7), sim, rng);
-  const auto kf = k_fold_validation(model, planar_nominal(), meas, 4, geometry_first());
+  const auto meas = simulate_planar(sim, 40, 7);
+  const auto kf = k_fold_validation(model, planar_nominal(), meas, 4, planar_geometry_first());
   EXPECT_EQ(kf.per_fold.size(), 4u);
   EXPECT_EQ(kf.after.poses, 40u);
   EXPECT_GT(kf.before.position_rms, 1e-3);
@@ -196,11 +169,10 @@ TEST(Identification, KFoldReportsBeforeAndAfter) {
 
 TEST(Identification, CovarianceAndPredictedAccuracyReported) {
   PlanarPredictor model;
-  std::mt19937 rng(8);
   SimulationOptions sim;
   sim.position_sigma = 1e-4;
-  const auto meas = simulate_measurements(model, planar_truth(), planar_actuators(40, 8), sim, rng);
-  const auto res = identify(model, planar_nominal(), meas, geometry_first());
+  const auto meas = simulate_planar(sim, 40, 8);
+  const auto res = identify(model, planar_nominal(), meas, planar_geometry_first());
   ASSERT_TRUE(res.uncertainty.ok) << res.uncertainty.message;
   EXPECT_EQ(res.uncertainty.names.size(), res.estimated.size());
   EXPECT_GT(res.predicted.position_rms_overall, 0.0);
@@ -211,11 +183,9 @@ TEST(Identification, CovarianceAndPredictedAccuracyReported) {
 // ---- bad input ----
 
 Measurements noise_free(int n, unsigned seed) {
-  PlanarPredictor model;
-  std::mt19937 rng(seed);
   SimulationOptions sim;
   sim.add_noise = false;
-  return simulate_measurements(model, planar_truth(), planar_actuators(n, seed), sim, rng);
+  return simulate_planar(sim, n, seed);
 }
 
 TEST(IdentificationInput, TooFewPosesSaysHowManyAreNeeded) {
@@ -232,7 +202,7 @@ TEST(IdentificationInput, NanReadingAndUnsolvablePoseAreExcludedWithReason) {
   auto meas = noise_free(12, 10);
   meas.poses[2].actuators(0) = std::numeric_limits<double>::quiet_NaN();
   meas.poses[5].actuators(1) = 3.1;  // beyond the joint range: "closure" fails
-  const auto res = identify(model, planar_nominal(), meas, geometry_first());
+  const auto res = identify(model, planar_nominal(), meas, planar_geometry_first());
   ASSERT_EQ(res.excluded.size(), 2u);
   EXPECT_EQ(res.excluded[0].id, meas.poses[2].id);
   EXPECT_NE(res.excluded[0].reason.find("not finite"), std::string::npos);
@@ -275,7 +245,7 @@ class FragilePredictor : public PlanarPredictor {
 
 TEST(IdentificationInput, DivergingSolveKeepsNominal) {
   FragilePredictor model;
-  auto opt = geometry_first();
+  auto opt = planar_geometry_first();
   opt.start = planar_nominal();
   opt.start(kL1) += 1.0;
   const auto res = identify(model, planar_nominal(), noise_free(12, 13), opt);

@@ -1,5 +1,6 @@
 #include "robocal/calib/measurements_file.hpp"
 
+#include "measurements_text.hpp"
 #include "planar_fixture.hpp"
 
 #include <fmt/core.h>
@@ -9,15 +10,6 @@ namespace {
 
 using namespace robocal::calib;
 using namespace robocal::calib::testing;
-
-std::string error_of(const std::string& text) {
-  try {
-    parse_measurements_yaml(text, "m.yaml");
-  } catch (const MeasurementsFileError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 TEST(MeasurementsFile, RoundTripKeepsEveryObservationExactly) {
   PlanarPredictor model;
@@ -91,22 +83,23 @@ poses:
 }
 
 TEST(MeasurementsFile, ErrorsNameFileLineAndItem) {
-  EXPECT_NE(error_of("poses:\n  - id: a\n    actuators: [1, x2]\n    point: [0, 0, 0]\n")
+  EXPECT_NE(measurements_error("poses:\n  - id: a\n    actuators: [1, x2]\n    point: [0, 0, 0]\n")
                 .find("m.yaml:3"),
             std::string::npos);
-  const std::string mismatch = error_of(
+  const std::string mismatch = measurements_error(
       "noise: {position_sigma: 1e-5}\nposes:\n  - id: a\n    actuators: [1, 2]\n    point: [0, 0, "
       "0]\n"
       "  - id: b\n    actuators: [1, 2, 3]\n    point: [0, 0, 0]\n");
   EXPECT_NE(mismatch.find("m.yaml:7"), std::string::npos) << mismatch;
   EXPECT_NE(mismatch.find("pose 'b' has 3 actuator readings"), std::string::npos) << mismatch;
-  EXPECT_NE(error_of("poses:\n  - id: a\n    actuators: [1]\n").find("no observation"),
+  EXPECT_NE(measurements_error("poses:\n  - id: a\n    actuators: [1]\n").find("no observation"),
             std::string::npos);
-  EXPECT_NE(
-      error_of("poses:\n  - id: a\n    actuators: [1]\n    point: [0, 0, 0]\n").find("point_sigma"),
-      std::string::npos);
-  EXPECT_NE(error_of("poses: []\ncolour: red\n").find("unknown key 'colour'"), std::string::npos);
-  EXPECT_NE(error_of("poses: [\n").find("not valid YAML"), std::string::npos);
+  EXPECT_NE(measurements_error("poses:\n  - id: a\n    actuators: [1]\n    point: [0, 0, 0]\n")
+                .find("point_sigma"),
+            std::string::npos);
+  EXPECT_NE(measurements_error("poses: []\ncolour: red\n").find("unknown key 'colour'"),
+            std::string::npos);
+  EXPECT_NE(measurements_error("poses: [\n").find("not valid YAML"), std::string::npos);
 }
 
 TEST(MeasurementsFile, NanReadingIsLoadedThenExcludedByIdentification) {

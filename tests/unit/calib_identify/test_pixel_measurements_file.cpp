@@ -2,6 +2,7 @@
 // from the re-read file is the same) and file:line errors for every kind of bad camera or pixel.
 #include "robocal/calib/measurements_file.hpp"
 
+#include "measurements_text.hpp"
 #include "pixel_fixture.hpp"
 
 #include <gtest/gtest.h>
@@ -10,15 +11,6 @@ namespace {
 
 using namespace robocal::calib;
 using namespace robocal::calib::testing;
-
-std::string error_of(const std::string& text) {
-  try {
-    parse_measurements_yaml(text, "m.yaml");
-  } catch (const MeasurementsFileError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 const char* kHeader = R"(robot: planar
 units: {length: mm, angle: deg}
@@ -119,22 +111,23 @@ TEST(PixelMeasurementsFile, RoundTripGivesTheSameIdentification) {
 TEST(PixelMeasurementsFile, BadCamerasAndPixelsNameFileAndLine) {
   const std::string h = kHeader;
   auto with_pixels = [&](const std::string& px) { return h + "    pixels:\n" + px; };
-  EXPECT_EQ(error_of(with_pixels("      - {camera: middle, corner: 0, pixel: [1, 2]}\n")),
+  EXPECT_EQ(measurements_error(with_pixels("      - {camera: middle, corner: 0, pixel: [1, 2]}\n")),
             "m.yaml:24: pose 'a': unknown camera 'middle'");
-  EXPECT_EQ(error_of(with_pixels("      - {camera: left, corner: 7, pixel: [1, 2]}\n")),
+  EXPECT_EQ(measurements_error(with_pixels("      - {camera: left, corner: 7, pixel: [1, 2]}\n")),
             "m.yaml:24: pose 'a': corner 7 has no 'point' and is not in 'target'");
-  EXPECT_EQ(error_of(with_pixels("      - {camera: left, corner: 0, pixel: [1]}\n")),
+  EXPECT_EQ(measurements_error(with_pixels("      - {camera: left, corner: 0, pixel: [1]}\n")),
             "m.yaml:24: pixel [u, v] must have 2 numbers (has 1)");
-  EXPECT_EQ(error_of(with_pixels(
+  EXPECT_EQ(measurements_error(with_pixels(
                 "      - {camera: left, corner: 0, pixel: [1, 2], covariance: [1, 2, 2, 1]}\n")),
             "m.yaml:24: pose 'a': pixel covariance must be positive definite");
-  EXPECT_EQ(error_of(with_pixels("      - {camera: left, corner: 0, pixel: [1, 2], sigma: 0}\n")),
+  EXPECT_EQ(measurements_error(
+                with_pixels("      - {camera: left, corner: 0, pixel: [1, 2], sigma: 0}\n")),
             "m.yaml:24: pixel sigma must be > 0");
   // Camera definitions.
   auto replaced = [&](const std::string& from, const std::string& to) {
     std::string t = with_pixels("      - {camera: left, corner: 0, pixel: [1, 2]}\n");
     t.replace(t.find(from), from.size(), to);
-    return error_of(t);
+    return measurements_error(t);
   };
   EXPECT_EQ(replaced("model: fisheye_kb4", "model: orthographic"),
             "m.yaml:12: camera 'right': unknown model 'orthographic' (pinhole_radtan, "
@@ -151,7 +144,8 @@ TEST(PixelMeasurementsFile, BadCamerasAndPixelsNameFileAndLine) {
   const std::string no_cams =
       "poses:\n  - id: a\n    actuators: [0, 0]\n    pixels:\n"
       "      - {camera: left, point: [0, 0, 0], pixel: [1, 2], sigma: 1}\n";
-  EXPECT_EQ(error_of(no_cams), "m.yaml:5: pose 'a' has pixels but the file lists no cameras");
+  EXPECT_EQ(measurements_error(no_cams),
+            "m.yaml:5: pose 'a' has pixels but the file lists no cameras");
 }
 
 TEST(PixelMeasurementsFile, NanPixelsAreKeptForTheIdentificationToExclude) {

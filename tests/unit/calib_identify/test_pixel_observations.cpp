@@ -13,12 +13,6 @@ namespace {
 using namespace robocal::calib;
 using namespace robocal::calib::testing;
 
-SolveOptions geometry_first() {
-  SolveOptions opt;
-  opt.preference = {1, 1, 1, 1, 0, 0, 0, 0, 2, 2};
-  return opt;
-}
-
 // Full truth vector of `rig`: the planar truth and the true camera poses (and intrinsics).
 Eigen::VectorXd rig_truth(const CameraRigPredictor& rig) {
   Eigen::VectorXd x = rig.initial_parameters(planar_truth());
@@ -29,19 +23,15 @@ Eigen::VectorXd rig_truth(const CameraRigPredictor& rig) {
   return x;
 }
 
-double heldout_rms(const Eigen::VectorXd& estimate, const Eigen::VectorXd& truth) {
-  PlanarPredictor model;
-  double sum = 0.0;
-  const auto qs = planar_actuators(100, 99);
-  for (const auto& q : qs) {
-    FramePrediction a;
-    FramePrediction b;
-    std::string why;
-    model.predict(estimate, q, 0, false, a, why);
-    model.predict(truth, q, 0, false, b, why);
-    sum += (a.pose.translation() - b.pose.translation()).squaredNorm();
-  }
-  return std::sqrt(sum / static_cast<double>(qs.size()));
+// Noise-free pixels that `rig` with parameters `truth` sees at 20 actuator draws (`seed` seeds
+// both the draws and the simulation).
+Measurements noise_free_pixels(const CameraRigPredictor& rig, const Eigen::VectorXd& truth,
+                               unsigned seed) {
+  std::mt19937 rng(seed);
+  PixelSimulationOptions sim;
+  sim.add_noise = false;
+  return simulate_pixel_measurements(rig, truth, planar_actuators(20, seed), planar_target(), sim,
+                                     rng);
 }
 
 double pose_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
@@ -108,7 +98,7 @@ TEST(PixelObservation, LayoutNamesAndGauge) {
   const auto names = rig.parameter_names();
   EXPECT_EQ(names[10], "camera0.x");
   EXPECT_EQ(names[21], "camera1.rz");
-  const SolveOptions opt = rig.solve_options(geometry_first());
+  const SolveOptions opt = rig.solve_options(planar_geometry_first());
   // Camera 0 is the gauge: its pose is never a candidate; camera 1's is, kept first.
   for (std::size_t i = 10; i < 16; ++i)
     EXPECT_EQ(std::count(opt.candidates.begin(), opt.candidates.end(), i), 0) << names[i];
@@ -131,20 +121,16 @@ TEST(PixelObservation, NoiseFreePixelsRecoverRobotAndCameraPoses) {
   PlanarPredictor planar;
   const CameraRigPredictor rig(planar, planar_start_cameras());
   const Eigen::VectorXd truth = rig_truth(rig);
-  std::mt19937 rng(5);
-  PixelSimulationOptions sim;
-  sim.add_noise = false;
-  const auto meas =
-      simulate_pixel_measurements(rig, truth, planar_actuators(20, 5), planar_target(), sim, rng);
+  const auto meas = noise_free_pixels(rig, truth, 5);
   ASSERT_GE(meas.poses.size(), 15u);
   const auto res = identify(rig, rig.initial_parameters(planar_nominal()), meas,
-                            rig.solve_options(geometry_first()));
+                            rig.solve_options(planar_geometry_first()));
   ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
   // 7 robot parameters (as with points: 3 redundancies) + camera 1's 6.
   EXPECT_EQ(res.estimated.size(), 13u);
   EXPECT_EQ(res.identifiability.redundancies.size(), 3u);
-  EXPECT_LT(heldout_rms(rig.robot_parameters(res.estimate), planar_truth()), 1e-9);
-  EXPECT_GT(heldout_rms(planar_nominal(), planar_truth()), 1e-3);
+  EXPECT_LT(planar_heldout_rms(rig.robot_parameters(res.estimate), planar_truth()), 1e-9);
+  EXPECT_GT(planar_heldout_rms(planar_nominal(), planar_truth()), 1e-3);
   EXPECT_LT(
       pose_error(rig.world_T_camera(res.estimate, 1), planar_true_cameras()[1].world_T_camera),
       1e-9);
@@ -159,7 +145,7 @@ TEST(PixelObservation, CovarianceMatchesTheSpreadOfNoisyEstimates) {
   const CameraRigPredictor rig(planar, planar_start_cameras());
   const Eigen::VectorXd truth = rig_truth(rig);
   const Eigen::VectorXd start = rig.initial_parameters(planar_nominal());
-  const SolveOptions opt = rig.solve_options(geometry_first());
+  const SolveOptions opt = rig.solve_options(planar_geometry_first());
   const auto qs = planar_actuators(14, 6);
   std::mt19937 rng(6);
   PixelSimulationOptions sim;
@@ -216,16 +202,12 @@ TEST(PixelObservation, PosesWithUnusablePixelsAreExcludedWithAReason) {
   PlanarPredictor planar;
   const CameraRigPredictor rig(planar, planar_start_cameras());
   const Eigen::VectorXd truth = rig_truth(rig);
-  std::mt19937 rng(7);
-  PixelSimulationOptions sim;
-  sim.add_noise = false;
-  auto meas =
-      simulate_pixel_measurements(rig, truth, planar_actuators(20, 7), planar_target(), sim, rng);
+  auto meas = noise_free_pixels(rig, truth, 7);
   std::get<PixelObservation>(meas.poses[0].observations[0]).camera = 5;       // no such camera
   std::get<PixelObservation>(meas.poses[1].observations[0]).point.z() = 5.0;  // behind camera
   std::get<PixelObservation>(meas.poses[2].observations[0]).measured.x() = std::nan("");
   const auto res = identify(rig, rig.initial_parameters(planar_nominal()), meas,
-                            rig.solve_options(geometry_first()));
+                            rig.solve_options(planar_geometry_first()));
   ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
   ASSERT_EQ(res.excluded.size(), 3u);
   EXPECT_NE(res.excluded[0].reason.find("camera 5 does not exist"), std::string::npos)
@@ -234,7 +216,7 @@ TEST(PixelObservation, PosesWithUnusablePixelsAreExcludedWithAReason) {
       << res.excluded[1].reason;
   EXPECT_NE(res.excluded[2].reason.find("not finite"), std::string::npos);
   // A model without cameras cannot explain pixels: every such pose says so.
-  const auto plain = identify(planar, planar_nominal(), meas, geometry_first());
+  const auto plain = identify(planar, planar_nominal(), meas, planar_geometry_first());
   EXPECT_EQ(plain.status, IdentificationStatus::kInvalidInput);
   ASSERT_FALSE(plain.excluded.empty());
   EXPECT_NE(plain.excluded.back().reason.find("no cameras"), std::string::npos);

@@ -11,32 +11,12 @@
 
 #include <map>
 
+#include "target_boards.hpp"
+
 namespace rv = robocal::vision;
+namespace rt = robocal::testing;
 
 namespace {
-
-rv::TargetBoard chessboard(int cols, int rows, double square) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kChessboard;
-  s.cols = cols;
-  s.rows = rows;
-  s.square_size = square;
-  return rv::build_target(s);
-}
-
-// camera_T_board placing the board's centre at `distance` on the optical axis, tilted.
-Eigen::Isometry3d board_pose(const rv::TargetBoard& b, double distance, double tilt_x_deg,
-                             double tilt_y_deg, double roll_deg) {
-  const Eigen::Vector3d centre(0.5 * (b.extent_min + b.extent_max).x(),
-                               0.5 * (b.extent_min + b.extent_max).y(), 0);
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = (Eigen::AngleAxisd(roll_deg * M_PI / 180, Eigen::Vector3d::UnitZ()) *
-                   Eigen::AngleAxisd(tilt_x_deg * M_PI / 180, Eigen::Vector3d::UnitX()) *
-                   Eigen::AngleAxisd(tilt_y_deg * M_PI / 180, Eigen::Vector3d::UnitY()))
-                      .toRotationMatrix();
-  pose.translation() = Eigen::Vector3d(0, 0, distance) - pose.linear() * centre;
-  return pose;
-}
 
 // Position of a single edge crossing a row (or column) segment, from the intensities alone:
 // for an ideal area-sampled image, sum over pixels a..b of I = cL (e - (a - 1/2)) +
@@ -126,7 +106,7 @@ struct CornerCheck {
 };
 
 CornerCheck check_chessboard_corners(const rv::CameraModel& cam, const Eigen::Isometry3d& pose) {
-  const rv::TargetBoard board = chessboard(9, 7, 0.03);
+  const rv::TargetBoard board = rt::chessboard_board(9, 7, 0.03);
   const rv::CameraRays rays = rv::precompute_rays(cam);
   std::vector<rv::RenderTarget> targets = {{board, pose}};
   rv::RenderOptions opt;
@@ -157,8 +137,9 @@ CornerCheck check_chessboard_corners(const rv::CameraModel& cam, const Eigen::Is
 TEST(Renderer, CornersLieWhereTheModelProjectsThem_Radtan) {
   const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 800, 600, 820.0, 818.0, 401.3,
                                    297.8, {-0.28, 0.12, 0.0008, -0.0005, -0.02});
-  const auto board = chessboard(9, 7, 0.03);
-  const CornerCheck r = check_chessboard_corners(cam, board_pose(board, 0.42, 20, -25, 4));
+  const auto board = rt::chessboard_board(9, 7, 0.03);
+  const CornerCheck r =
+      check_chessboard_corners(cam, rt::tilted_board_pose(board, 0.42, 20, -25, 4));
   EXPECT_GE(r.measured, 40);
   EXPECT_LT(r.worst, 0.002) << "rms " << r.rms;
   RecordProperty("worst_px", std::to_string(r.worst));
@@ -169,8 +150,9 @@ TEST(Renderer, CornersLieWhereTheModelProjectsThem_Radtan) {
 TEST(Renderer, CornersLieWhereTheModelProjectsThem_Fisheye) {
   const auto cam = rv::make_camera(rv::CameraKind::kFisheyeKB4, 800, 600, 380.0, 379.0, 399.2,
                                    301.1, {0.02, -0.01, 0.003, -0.0005});
-  const auto board = chessboard(9, 7, 0.03);
-  const CornerCheck r = check_chessboard_corners(cam, board_pose(board, 0.22, -15, 30, -3));
+  const auto board = rt::chessboard_board(9, 7, 0.03);
+  const CornerCheck r =
+      check_chessboard_corners(cam, rt::tilted_board_pose(board, 0.22, -15, 30, -3));
   EXPECT_GE(r.measured, 40);
   EXPECT_LT(r.worst, 0.002) << "rms " << r.rms;
   RecordProperty("worst_px", std::to_string(r.worst));
@@ -180,14 +162,9 @@ TEST(Renderer, CornersLieWhereTheModelProjectsThem_Fisheye) {
 
 TEST(Renderer, BlurKeepsEdgePositions) {
   const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 200, 120, 300, 300, 99.5, 59.5);
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kChessboard;
-  s.cols = 2;
-  s.rows = 2;
-  s.square_size = 0.2;
-  const auto board = rv::build_target(s);
+  const auto board = rt::chessboard_board(2, 2, 0.2);
   // The vertical edge of the board's centre slightly right of the image centre, tilted.
-  auto pose = board_pose(board, 1.0, 0, 0, 3);
+  auto pose = rt::tilted_board_pose(board, 1.0, 0, 0, 3);
   pose.translation().x() += 0.0013;
   const auto rays = rv::precompute_rays(cam);
   rv::RenderOptions opt;
@@ -208,13 +185,7 @@ TEST(Renderer, BlurKeepsEdgePositions) {
 
 namespace {
 rv::TargetBoard april_board() {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kAprilTagGrid;
-  s.cols = 4;
-  s.rows = 3;
-  s.tag_size = 0.03;
-  s.first_id = 20;
-  return rv::build_target(s);
+  return rt::apriltag_grid_board(4, 3, 0.03, 20);
 }
 }  // namespace
 
@@ -222,7 +193,7 @@ TEST(Renderer, AprilTagDecodesRenderWithTruthCorners) {
   const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 640, 480, 600, 600, 319.5, 239.5,
                                    {-0.1, 0.02, 0, 0, 0});
   const auto board = april_board();
-  std::vector<rv::RenderTarget> targets = {{board, board_pose(board, 0.25, 25, 15, 10)}};
+  std::vector<rv::RenderTarget> targets = {{board, rt::tilted_board_pose(board, 0.25, 25, 15, 10)}};
   rv::RenderOptions opt;
   opt.blur_sigma = 0.6;
   opt.read_noise = 1.0;
@@ -259,16 +230,10 @@ TEST(Renderer, AprilTagDecodesRenderWithTruthCorners) {
 }
 
 TEST(Renderer, CharucoDecodesRender) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kCharuco;
-  s.cols = 5;
-  s.rows = 4;
-  s.square_size = 0.03;
-  s.marker_size = 0.022;
-  const auto board = rv::build_target(s);
+  const auto board = rt::charuco_board(5, 4, 0.03, 0.022);
   const auto cam =
       rv::make_camera(rv::CameraKind::kPinholeRadtan, 640, 480, 600, 600, 319.5, 239.5);
-  const auto pose = board_pose(board, 0.3, -20, 10, 0);
+  const auto pose = rt::tilted_board_pose(board, 0.3, -20, 10, 0);
   const auto res = rv::render(rv::precompute_rays(cam), {{board, pose}}, rv::RenderOptions{});
   const auto dict = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_6X6_250);
   std::vector<std::vector<cv::Point2f>> corners;
@@ -303,7 +268,7 @@ TEST(Renderer, DeterministicWithSeed) {
   const auto cam =
       rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
   const auto board = april_board();
-  std::vector<rv::RenderTarget> targets = {{board, board_pose(board, 0.3, 10, 10, 0)}};
+  std::vector<rv::RenderTarget> targets = {{board, rt::tilted_board_pose(board, 0.3, 10, 10, 0)}};
   const auto rays = rv::precompute_rays(cam);
   rv::RenderOptions opt;
   opt.read_noise = 2.0;
@@ -359,7 +324,7 @@ TEST(Renderer, OcclusionAndVisibility) {
   const auto cam =
       rv::make_camera(rv::CameraKind::kPinholeRadtan, 640, 480, 600, 600, 319.5, 239.5);
   const auto board = april_board();
-  const auto pose = board_pose(board, 0.25, 0, 0, 0);
+  const auto pose = rt::tilted_board_pose(board, 0.25, 0, 0, 0);
   rv::RenderOptions opt;
   rv::Occluder occ;
   const int hidden_id = 25 * 4 + 2;
@@ -368,7 +333,7 @@ TEST(Renderer, OcclusionAndVisibility) {
   occ.level = 5;
   opt.occluders = {occ};
   // A second board in front covering the left part of the first.
-  const auto front = chessboard(3, 3, 0.01);
+  const auto front = rt::chessboard_board(3, 3, 0.01);
   Eigen::Isometry3d front_pose = Eigen::Isometry3d::Identity();
   front_pose.translation() = Eigen::Vector3d(-0.08, -0.03, 0.2);
   const std::vector<rv::RenderTarget> targets = {{board, pose}, {front, front_pose}};
@@ -395,7 +360,8 @@ TEST(Renderer, OcclusionAndVisibility) {
   }
   EXPECT_GT(occluded_by_target, 0);
   // Corners outside the image are not visible.
-  const auto far = rv::corner_truth(cam, {{board, board_pose(board, 0.05, 0, 0, 0)}}, opt);
+  const auto far =
+      rv::corner_truth(cam, {{board, rt::tilted_board_pose(board, 0.05, 0, 0, 0)}}, opt);
   int outside = 0;
   for (const auto& c : far) outside += !rv::in_image(cam, c.pixel) && !c.visible;
   EXPECT_GT(outside, 0);
@@ -404,8 +370,8 @@ TEST(Renderer, OcclusionAndVisibility) {
 TEST(Renderer, CornersLieWhereTheModelProjectsThem_SteepTilt) {
   const auto cam = rv::make_camera(rv::CameraKind::kPinholeRational, 800, 600, 820.0, 818.0, 401.3,
                                    297.8, {0.3, -0.1, 0.0008, -0.0005, 0.02, 0.6, -0.05, 0.04});
-  const auto board = chessboard(9, 7, 0.03);
-  const CornerCheck r = check_chessboard_corners(cam, board_pose(board, 0.40, 5, 58, 2));
+  const auto board = rt::chessboard_board(9, 7, 0.03);
+  const CornerCheck r = check_chessboard_corners(cam, rt::tilted_board_pose(board, 0.40, 5, 58, 2));
   EXPECT_GE(r.measured, 30);
   EXPECT_LT(r.worst, 0.002) << "rms " << r.rms;
   RecordProperty("worst_px", std::to_string(r.worst));

@@ -11,11 +11,7 @@
 namespace robocal::vision {
 namespace {
 
-using testing::bench_board;
-using testing::observe;
-using testing::pose_error;
-using testing::random_target_pose;
-using testing::stereo_rig;
+using namespace testing;  // the shared stereo scene (rig_test_scene.hpp)
 
 std::vector<std::vector<CameraFrame>> calibration_views(const std::vector<RigCamera>& rig,
                                                         const BoardPoints& board, int n,

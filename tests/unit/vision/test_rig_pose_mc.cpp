@@ -10,11 +10,7 @@
 namespace robocal::vision {
 namespace {
 
-using testing::bench_board;
-using testing::observe;
-using testing::pose_error;
-using testing::random_target_pose;
-using testing::stereo_rig;
+using namespace testing;  // the shared stereo scene (rig_test_scene.hpp)
 
 // Monte-Carlo: the predicted covariance must match the actual error spread. The normalised error
 // squared e^T C^-1 e is chi-square with 6 dof (mean 6) when the covariance is right.

@@ -13,11 +13,7 @@
 namespace robocal::vision {
 namespace {
 
-using testing::bench_board;
-using testing::observe;
-using testing::pose_error;
-using testing::random_target_pose;
-using testing::stereo_rig;
+using namespace testing;  // the shared stereo scene (rig_test_scene.hpp)
 
 TEST(PoseMeasurement, ExactObservationsRecoverThePoseMonoAndStereo) {
   const auto rig = stereo_rig();

@@ -12,10 +12,7 @@
 namespace robocal::vision {
 namespace {
 
-using testing::bench_board;
-using testing::observe;
-using testing::random_target_pose;
-using testing::stereo_rig;
+using namespace testing;  // the shared stereo scene (rig_test_scene.hpp)
 
 constexpr double kBarLength = 0.5;
 

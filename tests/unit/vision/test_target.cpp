@@ -12,7 +12,10 @@
 
 #include <map>
 
+#include "target_boards.hpp"
+
 namespace rv = robocal::vision;
+namespace rt = robocal::testing;
 
 namespace {
 
@@ -38,10 +41,7 @@ Eigen::Vector2d raster_pixel(const rv::TargetBoard& board, const Eigen::Vector3d
 }
 
 rv::TargetSpec april_spec() {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kAprilTagGrid;
-  s.cols = 4;
-  s.rows = 3;
+  auto s = rt::grid_spec(rv::TargetKind::kAprilTagGrid, 4, 3);
   s.tag_size = 0.04;
   s.tag_spacing = 0.01;
   s.first_id = 5;
@@ -122,12 +122,7 @@ TEST(Target, AprilTag33DecodesBoardWithDocumentedCornerOrder) {
 }
 
 TEST(Target, ChessboardFoundByOpenCV) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kChessboard;
-  s.cols = 7;
-  s.rows = 5;
-  s.square_size = 0.02;
-  const auto board = rv::build_target(s);
+  const auto board = rt::chessboard_board(7, 5, 0.02);
   ASSERT_EQ(board.corners.size(), 24u);
   const double px = 0.02 / 24;
   const cv::Mat img = frontal_raster(board, px);
@@ -147,13 +142,8 @@ TEST(Target, ChessboardFoundByOpenCV) {
 }
 
 TEST(Target, CharucoMatchesOpenCV46DetectionWithHalfPixelOffset) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kCharuco;
-  s.cols = 5;
-  s.rows = 4;  // even row count: the layout that changed in 4.6
-  s.square_size = 0.04;
-  s.marker_size = 0.03;
-  const auto board = rv::build_target(s);
+  // Even row count: the layout that changed in 4.6.
+  const auto board = rt::charuco_board(5, 4, 0.04, 0.03);
   ASSERT_EQ(board.corners.size(), 12u);
   ASSERT_EQ(board.markers.size(), 10u);
   const double px = 0.03 / 8 / 6;
@@ -238,10 +228,7 @@ TEST(TargetFile, ErrorsNameFileAndLine) {
 }
 
 TEST(TargetFile, SvgIsTrueScale) {
-  rv::TargetSpec s;
-  s.kind = rv::TargetKind::kChessboard;
-  s.cols = 3;
-  s.rows = 2;
+  auto s = rt::grid_spec(rv::TargetKind::kChessboard, 3, 2);
   s.square_size = 0.025;
   s.margin = 0.01;
   const std::string svg = rv::target_to_svg(rv::build_target(s));

@@ -6,8 +6,8 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "board_views.hpp"
 #include "robocal/vision/target_detection.hpp"
-#include "synthetic_tags.hpp"
 
 namespace rv = robocal::vision;
 namespace rt = robocal::testing;
@@ -15,32 +15,14 @@ namespace rt = robocal::testing;
 namespace {
 
 rv::TargetBoard tag_board() {
-  rv::TargetSpec spec;
-  spec.kind = rv::TargetKind::kAprilTagGrid;
-  spec.cols = 4;
-  spec.rows = 3;
-  spec.tag_size = 0.04;
-  spec.first_id = 10;
-  return rv::build_target(spec);
+  return rt::apriltag_grid_board(4, 3, 0.04, 10);
 }
 
-struct Rendered {
-  cv::Mat image;
-  Eigen::Matrix3d h;
-};
+using Rendered = rt::BoardView;
 
 Rendered render_board(const rv::TargetBoard& board, double tilt, double blur, double noise) {
   const rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
-  const Eigen::Vector2d centre = (board.extent_min + board.extent_max) / 2;
-  const auto [r, t] = rt::look_at_pose(cam, centre, 0.5, tilt, 20.0, 5.0, 319.5, 255.5);
-  rt::SyntheticImageOptions opt;
-  opt.blur_sigma = blur;
-  opt.noise_sigma = noise;
-  Rendered out;
-  out.h = rt::board_homography(cam, r, t);
-  out.image = rt::render_planar(
-      cam, out.h, opt, [&](double x, double y) { return rv::is_black(board, x, y) ? 0.0 : 1.0; });
-  return out;
+  return rt::render_board_view(board, cam, 0.5, tilt, 20.0, 5.0, 319.5, 255.5, blur, noise);
 }
 
 std::filesystem::path temp_dir() {
@@ -163,39 +145,18 @@ TEST(ImageLoading, ClearErrorsPerFile) {
 namespace {
 
 rv::TargetBoard charuco_board() {
-  rv::TargetSpec spec;
-  spec.kind = rv::TargetKind::kCharuco;
-  spec.cols = 7;
-  spec.rows = 5;
-  spec.square_size = 0.036195;
-  spec.marker_size = 0.018256;
-  spec.dictionary = "DICT_6X6_250";
-  return rv::build_target(spec);
+  return rt::charuco_board(7, 5, 0.036195, 0.018256);
 }
 
 rv::TargetBoard chessboard(int cols, int rows) {
-  rv::TargetSpec spec;
-  spec.kind = rv::TargetKind::kChessboard;
-  spec.cols = cols;
-  spec.rows = rows;
-  spec.square_size = 0.03;
-  return rv::build_target(spec);
+  return rt::chessboard_board(cols, rows, 0.03);
 }
 
 // Rendered at 1280x1024 so squares are ~60-90 px.
 Rendered render_large(const rv::TargetBoard& board, double tilt, double roll, double blur,
                       double noise) {
   const rt::SyntheticCamera cam{1280, 1024, 1200.0, 639.5, 511.5};
-  const Eigen::Vector2d centre = (board.extent_min + board.extent_max) / 2;
-  const auto [r, t] = rt::look_at_pose(cam, centre, 0.5, tilt, 20.0, roll, 639.5, 511.5);
-  rt::SyntheticImageOptions opt;
-  opt.blur_sigma = blur;
-  opt.noise_sigma = noise;
-  Rendered out;
-  out.h = rt::board_homography(cam, r, t);
-  out.image = rt::render_planar(
-      cam, out.h, opt, [&](double x, double y) { return rv::is_black(board, x, y) ? 0.0 : 1.0; });
-  return out;
+  return rt::render_board_view(board, cam, 0.5, tilt, 20.0, roll, 639.5, 511.5, blur, noise);
 }
 
 struct Errors {
