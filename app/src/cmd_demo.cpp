@@ -30,6 +30,7 @@ struct DemoOptions {
   std::string out;
   std::string json;
   std::string route = "both";  // pose | pixel | both (identification routes reported)
+  bool no_priors = false;
 };
 
 // A fresh folder for the session when --out is not given.
@@ -58,7 +59,7 @@ int run_demo(DemoOptions o) {
   report["measure"] = measure_session(dir, "", log);
   if (report["measure"]["status"] != "ok") return kExitFailure;
   fmt::print(out, "\nidentify\n");
-  report["identify"] = identify_session(dir, "", log, o.route);
+  report["identify"] = identify_session(dir, "", log, o.route, !o.no_priors);
   if (report["identify"]["status"] != "ok") return kExitFailure;
   fmt::print(out, "\nvalidate (against the truth, which only this stage reads)\n");
   report["validate"] = validate_session(dir, o.held_out, log);
@@ -119,6 +120,9 @@ CommandSpec demo_command() {
                            "the pose route's base-frame alignment; both are reported)")
                 ->check(CLI::IsMember({"pose", "pixel", "both"}))
                 ->capture_default_str();
+            cmd.add_flag("--no-priors", o->no_priors,
+                         "Identify by maximum likelihood from the measurements alone (default: "
+                         "the robot file's tolerances as priors, base frame free)");
             cmd.add_option("--json", o->json,
                            "Write the JSON report here ('-' = stdout; default: "
                            "<session>/results/demo.json)");

@@ -35,7 +35,8 @@ struct IdentifyOptions {
   std::string out_robot;
   std::vector<std::string> free_patterns;
   std::vector<std::string> fix_patterns;
-  bool priors = false;
+  bool priors = false;     // measurements-file mode: opt in
+  bool no_priors = false;  // session mode: opt out
   std::string robust = "none";
   double robust_scale = 3.0;
   int multi_start = 0;
@@ -148,7 +149,7 @@ int run_identify_session(const IdentifyOptions& o) {
     throw InputError(o.session + ": not a session folder (no session.yaml; see app/SESSION.md)");
   PipelineLog log;
   log.out = human_stream(o.json);
-  const auto report = identify_session(o.session, o.robot, log, o.route);
+  const auto report = identify_session(o.session, o.robot, log, o.route, !o.no_priors);
   if (!o.json.empty()) write_json(report, o.json);
   if (report.value("status", "") != "ok")
     fmt::print(stderr, "identification failed: {}\n", report.value("message", ""));
@@ -341,7 +342,12 @@ CommandSpec identify_command() {
                            "Parameters to estimate (glob on names, repeatable; default: the robot "
                            "file's free parameters)");
             cmd.add_option("--fix", o->fix_patterns, "Parameters to hold (glob, repeatable)");
-            cmd.add_flag("--priors", o->priors, "Use the robot file's tolerances as priors (MAP)");
+            cmd.add_flag("--priors", o->priors,
+                         "Measurements file: use the robot file's tolerances as priors (MAP); a "
+                         "SESSION always does unless --no-priors");
+            cmd.add_flag("--no-priors", o->no_priors,
+                         "SESSION: maximum likelihood from the measurements alone (default: the "
+                         "robot file's tolerances as priors, base frame free)");
             cmd.add_option("--robust", o->robust, "Robust loss: none, huber or cauchy");
             cmd.add_option("--robust-scale", o->robust_scale, "Robust loss scale in sigmas");
             cmd.add_option("--multi-start", o->multi_start, "Extra perturbed starts");

@@ -48,8 +48,11 @@ nlohmann::json measure_session(const std::filesystem::path& dir, const std::stri
                                const PipelineLog& log);
 // route: "pose" (from the measured 6-D poses), "pixel" or "both" (also camera-in-the-loop from
 // the corner pixels, started from the pose route's base-frame alignment; both reported).
+// priors: the robot file's tolerances as priors (MAP) on every geometric parameter except the
+// base frame (see app/SESSION.md); false = maximum likelihood from the measurements alone.
 nlohmann::json identify_session(const std::filesystem::path& dir, const std::string& robot_override,
-                                const PipelineLog& log, const std::string& route = "both");
+                                const PipelineLog& log, const std::string& route = "both",
+                                bool priors = true);
 nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
                                 const PipelineLog& log);
 
