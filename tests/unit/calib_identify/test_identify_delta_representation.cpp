@@ -25,30 +25,42 @@ Eigen::Index parameter_index(const Mechanism& model, const std::string& name) {
   return 0;
 }
 
-TEST(DeltaRepresentation, PlateChainElbowOffsetsAreRecoveredNoiseFree) {
+// The library Delta and noise-free 3-D point data of a truth: design poses to identify from and
+// held-out poses to check on.
+class DeltaRepresentation : public ::testing::Test {
+ protected:
   const Mechanism model =
       load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
-  const MechanismPredictor pred(model);
+  const MechanismPredictor pred{model};
   const Eigen::VectorXd nominal = model.nominal_parameters();
+  Measurements meas;
+  Measurements check;
+
+  void simulate(const Eigen::VectorXd& truth, std::size_t design_poses, std::size_t held_poses,
+                std::mt19937& rng) {
+    const auto design = sample_actuators(pred, {nominal, truth}, design_poses, rng);
+    const auto held = sample_actuators(pred, {nominal, truth}, held_poses, rng);
+    ASSERT_EQ(design.size(), design_poses);
+    ASSERT_EQ(held.size(), held_poses);
+    SimulationOptions sim;
+    sim.add_noise = false;
+    meas = simulate_measurements(pred, truth, design, sim, rng);
+    check = simulate_measurements(pred, truth, held, sim, rng);
+    ASSERT_EQ(check.poses.size(), held_poses);
+  }
+};
+
+TEST_F(DeltaRepresentation, PlateChainElbowOffsetsAreRecoveredNoiseFree) {
   Eigen::VectorXd truth = nominal;
   truth(parameter_index(model, "body6.d1")) += 0.4e-3;
   truth(parameter_index(model, "body6.d2")) -= 0.6e-3;
-
   std::mt19937 rng(7);
-  const auto design = sample_actuators(pred, {nominal, truth}, 40, rng);
-  const auto held = sample_actuators(pred, {nominal, truth}, 150, rng);
-  ASSERT_EQ(design.size(), 40u);
-  ASSERT_EQ(held.size(), 150u);
-  SimulationOptions sim;
-  sim.add_noise = false;
-  const auto meas = simulate_measurements(pred, truth, design, sim, rng);
+  ASSERT_NO_FATAL_FAILURE(simulate(truth, 40, 150, rng));
   const auto res = identify(pred, nominal, meas, solve_options_from_model(model, false));
   ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
 
-  const auto check = simulate_measurements(pred, truth, held, sim, rng);
-  ASSERT_EQ(check.poses.size(), held.size());
   const ErrorStatistics after = prediction_errors(pred, res.estimate, check.poses);
-  EXPECT_EQ(after.poses, held.size());  // every held-out pose assembles with the estimate
+  EXPECT_EQ(after.poses, check.poses.size());  // every held-out pose assembles with the estimate
   EXPECT_LT(after.position_max, 1e-6);
   EXPECT_GT(prediction_errors(pred, nominal, check.poses).position_max, 1e-4);  // really off
 }
@@ -58,23 +70,11 @@ TEST(DeltaRepresentation, PlateChainElbowOffsetsAreRecoveredNoiseFree) {
 // never rotates, so they move the measurements like the elbows and the base tilt); the perturbed
 // plate tilts slightly from pose to pose and that stand-in leaves tens of µm of model error on
 // held-out poses. The relinearised second solve identifies them at the first estimate.
-TEST(DeltaRepresentation, EveryParameterPerturbedIsRecoveredNoiseFreeAfterRelinearising) {
-  const Mechanism model =
-      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
-  const MechanismPredictor pred(model);
-  const Eigen::VectorXd nominal = model.nominal_parameters();
+TEST_F(DeltaRepresentation, EveryParameterPerturbedIsRecoveredNoiseFreeAfterRelinearising) {
   std::mt19937 rng(20261122);
   const Eigen::VectorXd truth =
       perturb_parameters(nominal, tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
-  const auto design = sample_actuators(pred, {nominal, truth}, 60, rng);
-  const auto held = sample_actuators(pred, {nominal, truth}, 200, rng);
-  ASSERT_EQ(design.size(), 60u);
-  ASSERT_EQ(held.size(), 200u);
-  SimulationOptions sim;
-  sim.add_noise = false;
-  const auto meas = simulate_measurements(pred, truth, design, sim, rng);
-  const auto check = simulate_measurements(pred, truth, held, sim, rng);
-  ASSERT_EQ(check.poses.size(), held.size());
+  ASSERT_NO_FATAL_FAILURE(simulate(truth, 60, 200, rng));
 
   SolveOptions first_only = solve_options_from_model(model, false);
   first_only.relinearise = false;
@@ -92,7 +92,7 @@ TEST(DeltaRepresentation, EveryParameterPerturbedIsRecoveredNoiseFreeAfterReline
   // The plain-words analysis stays the one at the nominal model.
   EXPECT_EQ(res.identifiability.rank, first.identifiability.rank);
   const ErrorStatistics after = prediction_errors(pred, res.estimate, check.poses);
-  EXPECT_EQ(after.poses, held.size());
+  EXPECT_EQ(after.poses, check.poses.size());
   EXPECT_LT(after.position_rms, 1e-6);
 }
 

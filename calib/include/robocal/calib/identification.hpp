@@ -121,6 +121,7 @@ struct SolveOptions {
   bool relinearise = true;
   double relinearise_rank_tolerance = 1e-3;
   double relinearise_max_uncertainty_growth = 2.0;
+  int relinearise_max_iterations = 50;
   // Optional bounds per parameter (NaN = unbounded).
   std::vector<double> lower_bound;
   std::vector<double> upper_bound;
