@@ -147,8 +147,11 @@ nlohmann::json edge_phase_bias(double blur_sigma) {
   };
   const int width = 24, rows = 16;
   nlohmann::json out = nlohmann::json::array();
-  const char* names[] = {"gauss_at_centres", "gauss_box", "renderer", "renderer_8bit"};
-  for (int kind = 0; kind < 4; ++kind) {
+  // (e, f): the renderer's order (area sampling, then the discrete kernel) on a grid 2x / 4x
+  // finer, area-averaged down to the pixels: what supersampling the blur would buy.
+  const char* names[] = {"gauss_at_centres", "gauss_box",         "renderer",
+                         "renderer_8bit",    "renderer_2x_finer", "renderer_4x_finer"};
+  for (int kind = 0; kind < 6; ++kind) {
     double sq = 0.0, worst = 0.0;
     int n = 0;
     for (int k = 0; k < 20; ++k) {
@@ -160,13 +163,18 @@ nlohmann::json edge_phase_bias(double blur_sigma) {
               kind == 0 ? dark + (bright - dark) * cdf((i - x0) / blur_sigma)
                         : dark + (bright - dark) * int_cdf(i - 0.5, i + 0.5, x0, blur_sigma);
       } else {
-        cv::Mat ideal(1, width, CV_32F), blurred;
-        for (int i = 0; i < width; ++i)
-          ideal.at<float>(0, i) =
-              static_cast<float>(dark + (bright - dark) * std::clamp(i + 0.5 - x0, 0.0, 1.0));
-        cv::GaussianBlur(ideal, blurred, cv::Size(0, 0), blur_sigma, 0.0, cv::BORDER_REFLECT);
+        const int f = kind == 4 ? 2 : kind == 5 ? 4 : 1;  // fine samples per pixel
+        cv::Mat ideal(1, width * f, CV_32F), blurred;
+        for (int i = 0; i < width * f; ++i) {
+          // Fine sample i covers [i / f - 0.5, (i + 1) / f - 0.5] in pixel coordinates.
+          const double lo = static_cast<double>(i) / f - 0.5;
+          ideal.at<float>(0, i) = static_cast<float>(
+              dark + (bright - dark) * std::clamp((lo + 1.0 / f - x0) * f, 0.0, 1.0));
+        }
+        cv::GaussianBlur(ideal, blurred, cv::Size(0, 0), f * blur_sigma, 0.0, cv::BORDER_REFLECT);
         for (int i = 0; i < width; ++i) {
-          const double v = blurred.at<float>(0, i);
+          double v = 0.0;
+          for (int j = 0; j < f; ++j) v += blurred.at<float>(0, i * f + j) / f;
           row[static_cast<size_t>(i)] = kind == 3 ? std::round(v) : v;
         }
       }
@@ -176,8 +184,7 @@ nlohmann::json edge_phase_bias(double blur_sigma) {
           samples.push_back({Vector2d(i, y), row[static_cast<size_t>(i)]});
       const auto fit = rv::fit_edge_line(samples, Vector2d(x0, 0.0), Vector2d(x0, rows - 1.0));
       if (!fit) continue;
-      const double e = fit->point().x() + fit->direction().x() * 0.0 - x0;
-      // The fitted line is vertical; its x at any row is point().x().
+      const double e = fit->point().x() - x0;  // the fitted line is vertical
       sq += e * e;
       worst = std::max(worst, std::abs(e));
       ++n;
