@@ -211,6 +211,42 @@ TEST(AprilTagDetector, EdgeBlurMeasureGrowsWithBlur) {
   }
 }
 
+// An axis-aligned edge puts every sample at the same sub-pixel phase, so any mismatch between
+// the fit's model and the image's profile shows as a bias that follows the phase ("pixel
+// locking"), shared by every corner whose edges have that phase. The profile of a camera (a
+// continuous Gaussian lens blur integrated over the pixel's box) fits without bias at every
+// phase; the fitted spread is sqrt(sigma^2 + 1/12).
+TEST(EdgeFit, UnbiasedAtEverySubPixelPhaseOfAPixelIntegratedGaussianEdge) {
+  const double dark = 20.0, bright = 220.0;
+  const auto cdf = [](double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); };
+  const auto pdf = [](double x) { return std::exp(-0.5 * x * x) / std::sqrt(2.0 * M_PI); };
+  for (double sigma : {0.5, 0.8, 1.2}) {
+    // Integral over [lo, hi] of Phi((t - x0) / sigma) dt: the pixel's box.
+    const auto box = [&](double lo, double hi, double x0) {
+      const auto F = [&](double t) {
+        const double z = (t - x0) / sigma;
+        return (t - x0) * cdf(z) + sigma * pdf(z);
+      };
+      return F(hi) - F(lo);
+    };
+    for (int k = 0; k < 10; ++k) {
+      const double x0 = 11.0 + 0.1 * k;
+      std::vector<rv::EdgeSample> samples;
+      for (int y = 0; y < 16; ++y)
+        for (int x = 7; x < 17; ++x)
+          samples.push_back(
+              {Eigen::Vector2d(x, y), dark + (bright - dark) * box(x - 0.5, x + 0.5, x0)});
+      const auto fit = rv::fit_edge_line(samples, {x0 + 0.3, 0.0}, {x0 + 0.3, 15.0});
+      ASSERT_TRUE(fit.has_value()) << "sigma " << sigma << " x0 " << x0;
+      EXPECT_NEAR(std::abs(fit->normal.x()), 1.0, 1e-9);
+      // Renderer-style blur applied after area sampling (cv::GaussianBlur on the pixel grid)
+      // gives up to 0.018 px here at sigma 0.8 (bench_corner_bias --edge-phase 1).
+      EXPECT_NEAR(fit->point().x(), x0, 2e-3) << "sigma " << sigma << " x0 " << x0;
+      EXPECT_NEAR(fit->blur_sigma, std::sqrt(sigma * sigma + 1.0 / 12.0), 0.02) << sigma;
+    }
+  }
+}
+
 TEST(AprilTagDetector, RejectsWrongImageTypeAndBadOptions) {
   rv::AprilTagDetector detector;
   EXPECT_THROW(detector.detect(cv::Mat()), std::invalid_argument);
