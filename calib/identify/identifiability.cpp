@@ -26,6 +26,109 @@ Eigen::MatrixXd compress_rows(const Eigen::MatrixXd& scaled) {
   return qr.matrixQR().topRows(scaled.cols()).triangularView<Eigen::Upper>();
 }
 
+// Two remaining norms within this relative distance count as equal and the lower parameter index
+// wins. Rounding-level differences of the input (1e-16; a YAML round trip of the measured poses)
+// must not change the base set, real differences in independence (>= 1e-6) still decide.
+constexpr double kTieTolerance = 1e-6;
+
+// stable_tie_break: greedy base set = column-pivoted Householder QR of R with our own pivot rule:
+// preference classes in ascending order; within a class the open column with the largest part
+// outside the span of the kept columns (remaining norm) is kept next, ties within kTieTolerance
+// broken by index. When the largest remaining norm of a class is <= rank_tolerance, the class's
+// open columns are redundant. Eigen's pivot order is not used because among exactly confounded
+// columns (equal remaining norms) it follows the rounding of the input. Cost O(rank * rows * p).
+std::vector<bool> select_base_set(const Eigen::MatrixXd& R, const std::vector<bool>& has_effect,
+                                  const std::vector<int>& preference, double rank_tolerance) {
+  const auto p = static_cast<std::size_t>(R.cols());
+  const Eigen::Index rows = R.rows();
+  auto class_of = [&](std::size_t j) { return preference.empty() ? 0 : preference[j]; };
+  std::vector<int> classes;
+  for (std::size_t j = 0; j < p; ++j) classes.push_back(class_of(j));
+  std::sort(classes.begin(), classes.end());
+  classes.erase(std::unique(classes.begin(), classes.end()), classes.end());
+
+  Eigen::MatrixXd W = R;  // rows [0, step) hold the kept columns' coordinates, the rest remains
+  Eigen::VectorXd workspace(R.cols());
+  std::vector<bool> kept(p, false);
+  std::vector<bool> open = has_effect;
+  Eigen::Index step = 0;
+  std::vector<double> remaining(p, 0.0);
+  for (const int cls : classes) {
+    while (true) {
+      double largest = 0.0;
+      bool any = false;
+      for (std::size_t j = 0; j < p; ++j) {
+        if (!open[j] || class_of(j) != cls) continue;
+        remaining[j] =
+            step < rows ? W.col(static_cast<Eigen::Index>(j)).tail(rows - step).norm() : 0.0;
+        largest = std::max(largest, remaining[j]);
+        any = true;
+      }
+      if (!any) break;
+      if (largest <= rank_tolerance) {
+        for (std::size_t j = 0; j < p; ++j)
+          if (class_of(j) == cls) open[j] = false;
+        break;
+      }
+      std::size_t pick = p;
+      for (std::size_t j = 0; j < p && pick == p; ++j)
+        if (open[j] && class_of(j) == cls && remaining[j] >= (1.0 - kTieTolerance) * largest)
+          pick = j;
+      kept[pick] = true;
+      open[pick] = false;
+      // Reflect rows [step, rows) so the picked column has no part left there: the tails of the
+      // other columns are then exactly their parts outside the span of the kept columns.
+      const Eigen::Index n = rows - step;
+      Eigen::VectorXd essential(n - 1);
+      double tau = 0.0;
+      double beta = 0.0;
+      W.col(static_cast<Eigen::Index>(pick)).tail(n).makeHouseholder(essential, tau, beta);
+      W.bottomRows(n).applyHouseholderOnTheLeft(essential, tau, workspace.data());
+      ++step;
+    }
+  }
+  return kept;
+}
+
+// The original rule (default): visiting order = preference, then the pivot order of Eigen's
+// column-pivoted QR of R; a column is kept when its part outside the span of the columns kept
+// before it exceeds rank_tolerance (modified Gram-Schmidt, applied twice for orthogonality).
+// Among exactly confounded columns of equal preference the pivot order follows the rounding of
+// the input, see IdentifiabilityOptions::stable_tie_break.
+std::vector<bool> select_base_set_qr_order(const Eigen::MatrixXd& R,
+                                           const std::vector<bool>& has_effect,
+                                           const std::vector<int>& preference,
+                                           double rank_tolerance) {
+  const auto p = static_cast<std::size_t>(R.cols());
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> pivoted(R);
+  std::vector<std::size_t> pivot_rank(p);
+  for (Eigen::Index k = 0; k < pivoted.colsPermutation().indices().size(); ++k)
+    pivot_rank[static_cast<std::size_t>(pivoted.colsPermutation().indices()(k))] =
+        static_cast<std::size_t>(k);
+  std::vector<std::size_t> order(p);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const int pa = preference.empty() ? 0 : preference[a];
+    const int pb = preference.empty() ? 0 : preference[b];
+    if (pa != pb) return pa < pb;
+    return pivot_rank[a] < pivot_rank[b];
+  });
+  std::vector<Eigen::VectorXd> basis;
+  std::vector<bool> kept(p, false);
+  for (std::size_t j : order) {
+    if (!has_effect[j]) continue;
+    Eigen::VectorXd r = R.col(static_cast<Eigen::Index>(j));
+    for (int pass = 0; pass < 2; ++pass)
+      for (const auto& q : basis) r -= q.dot(r) * q;
+    const double outside = r.norm();
+    if (outside > rank_tolerance) {
+      basis.push_back(r / outside);
+      kept[j] = true;
+    }
+  }
+  return kept;
+}
+
 std::string join_combination(const std::vector<std::string>& names,
                              const std::vector<std::size_t>& partners,
                              const std::vector<double>& coefficients) {
@@ -75,35 +178,10 @@ IdentifiabilityReport analyze_identifiability(const Eigen::MatrixXd& J,
   const Eigen::MatrixXd R = compress_rows(scaled);
   report.singular_values = Eigen::JacobiSVD<Eigen::MatrixXd>(R).singularValues();
 
-  // Visiting order: preference first, then the pivot order of a column-pivoted QR.
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> pivoted(R);
-  std::vector<std::size_t> pivot_rank(p);
-  for (Eigen::Index k = 0; k < pivoted.colsPermutation().indices().size(); ++k)
-    pivot_rank[static_cast<std::size_t>(pivoted.colsPermutation().indices()(k))] =
-        static_cast<std::size_t>(k);
-  std::vector<std::size_t> order(p);
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    const int pa = preference.empty() ? 0 : preference[a];
-    const int pb = preference.empty() ? 0 : preference[b];
-    if (pa != pb) return pa < pb;
-    return pivot_rank[a] < pivot_rank[b];
-  });
-
-  // Greedy base set by modified Gram-Schmidt (applied twice for orthogonality).
-  std::vector<Eigen::VectorXd> basis;
-  std::vector<bool> kept(p, false);
-  for (std::size_t j : order) {
-    if (!has_effect[j]) continue;
-    Eigen::VectorXd r = R.col(static_cast<Eigen::Index>(j));
-    for (int pass = 0; pass < 2; ++pass)
-      for (const auto& q : basis) r -= q.dot(r) * q;
-    const double outside = r.norm();
-    if (outside > options.rank_tolerance) {
-      basis.push_back(r / outside);
-      kept[j] = true;
-    }
-  }
+  const std::vector<bool> kept =
+      options.stable_tie_break
+          ? select_base_set(R, has_effect, preference, options.rank_tolerance)
+          : select_base_set_qr_order(R, has_effect, preference, options.rank_tolerance);
   for (std::size_t j = 0; j < p; ++j) {
     if (kept[j])
       report.identifiable.push_back(j);
@@ -178,6 +256,7 @@ IdentifiabilityReport analyze_identifiability(const Eigen::MatrixXd& J,
         return std::abs(v(static_cast<Eigen::Index>(a))) >
                std::abs(v(static_cast<Eigen::Index>(b)));
       });
+      if (idx.empty()) continue;  // cannot happen (rank > 0); tells GCC's -Wnull-dereference
       dir.first = report.identifiable[idx[0]];
       dir.second = report.identifiable[idx.size() > 1 ? idx[1] : idx[0]];
       std::string others;
