@@ -38,6 +38,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <set>
 #include <thread>
@@ -1108,6 +1109,7 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   const auto configurations = calib::sample_actuators(
       true_predictor, must_solve, static_cast<std::size_t>(held_out), validation_rng);
   std::vector<Eigen::Vector3d> truth_points, nominal_points, calibrated_points, pixel_points;
+  std::vector<Eigen::VectorXd> kept_configurations;
   int branch_disagreements = 0;
   for (const auto& q : configurations) {
     const auto true_fk = calib::forward_kinematics(model, truth, q, robot.frame);
@@ -1132,6 +1134,7 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     nominal_points.push_back(nominal_fk.pose.translation());
     calibrated_points.push_back(calibrated_fk.pose.translation());
     pixel_points.push_back(pixel_fk.pose.translation());
+    kept_configurations.push_back(q);
   }
   if (branch_disagreements > 0)
     say(log,
@@ -1148,6 +1151,33 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   report["calibrated"] = calibrated_errors.absolute.json();
   report["nominal_registered"] = nominal_errors.registered.json();
   report["calibrated_registered"] = calibrated_errors.registered.json();
+  // The worst held-out configurations with the true robot's task conditioning there
+  // (σ_min/σ_max of d(position)/d(actuators)): one pose near a singularity can carry most of the
+  // RMS, and the user should see that rather than a mean.
+  {
+    std::vector<std::size_t> order(truth_points.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    auto worst_of = [&](std::size_t k) {
+      double e = (calibrated_points[k] - truth_points[k]).norm();
+      if (pixel_estimate) e = std::max(e, (pixel_points[k] - truth_points[k]).norm());
+      return e;
+    };
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return worst_of(a) > worst_of(b); });
+    nlohmann::json worst = nlohmann::json::array();
+    for (std::size_t w = 0; w < std::min<std::size_t>(5, order.size()); ++w) {
+      const std::size_t k = order[w];
+      const Eigen::VectorXd& q = kept_configurations[k];
+      nlohmann::json row = {
+          {"actuators", std::vector<double>(q.data(), q.data() + q.size())},
+          {"calibrated_error_m", (calibrated_points[k] - truth_points[k]).norm()},
+          {"task_conditioning", calib::task_conditioning(true_predictor, truth, q)}};
+      if (pixel_estimate)
+        row["calibrated_pixels_error_m"] = (pixel_points[k] - truth_points[k]).norm();
+      worst.push_back(row);
+    }
+    report["worst_held_out"] = worst;
+  }
   if (pixel_estimate) {
     const ErrorPair pixel_errors = position_errors(pixel_points, truth_points);
     report["calibrated_pixels"] = pixel_errors.absolute.json();

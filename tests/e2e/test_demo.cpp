@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -32,6 +33,18 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   EXPECT_GT(nominal, 5e-4) << "the perturbed robot should be millimetres off nominally";
   EXPECT_LT(calibrated, 0.6e-3) << "calibrated error against truth";
   EXPECT_LT(calibrated, nominal / 10.0);
+  // The worst held-out configurations, worst first; the first is the pose route's max unless the
+  // pixel route is worse there.
+  const auto& worst = report["validate"]["worst_held_out"];
+  ASSERT_EQ(worst.size(), 5u);
+  auto worst_error = [](const nlohmann::json& w) {
+    return std::max(w["calibrated_error_m"].get<double>(),
+                    w.value("calibrated_pixels_error_m", 0.0));
+  };
+  for (std::size_t k = 1; k < worst.size(); ++k)
+    EXPECT_GE(worst_error(worst[k - 1]), worst_error(worst[k]));
+  EXPECT_GE(worst_error(worst[0]), report["validate"]["calibrated"]["max_m"].get<double>());
+  EXPECT_GT(worst[0]["task_conditioning"].get<double>(), 0.0);
   // The demo went through a session folder: recorded data, results and the hidden truth.
   for (const char* f :
        {"session.yaml", "robot.yaml", "poses/pose_000/pose.yaml", "poses/pose_000/cam0.png",
