@@ -702,28 +702,27 @@ IdentificationResult relinearise_once(const FramePredictor& model, const Eigen::
     if (std::find(first.estimated.begin(), first.estimated.end(), i) == first.estimated.end())
       report.added.push_back(i);
   const double seconds = first.solve_seconds + second.solve_seconds;
-  if (report.added.empty()) {
-    report.message = "relinearised at the estimate: no further parameter became identifiable";
+  // The first result stands; the report says why (nothing is added then).
+  auto keep_first = [&](std::string why) {
+    report.added.clear();
+    report.message = std::move(why);
     first.relinearisation = report;
     first.solve_seconds = seconds;
-    return first;
-  }
+    return std::move(first);
+  };
+  if (report.added.empty())
+    return keep_first("relinearised at the estimate: no further parameter became identifiable");
   std::string added_names;
   for (std::size_t i : report.added)
     added_names += (added_names.empty() ? "" : ", ") + first.names[i];
   // A second solve that does not converge is crawling along a curved valley of weakly
   // determined directions (seen with a tool orientation that only the plate's slight rotation
   // separates from the base's): its end point is arbitrary, keep the first estimate.
-  if (second.status != IdentificationStatus::kConverged) {
-    report.added.clear();
-    report.message = fmt::format(
+  if (second.status != IdentificationStatus::kConverged)
+    return keep_first(fmt::format(
         "relinearised at the estimate, {} became identifiable, but the second solve did not "
         "converge ({}); the first estimate is kept",
-        added_names, second.message);
-    first.relinearisation = report;
-    first.solve_seconds = seconds;
-    return first;
-  }
+        added_names, second.message));
   report.cost_before = first.final_cost;
   report.cost_after = second.final_cost;
   report.predicted_before = first.predicted.position_rms_overall;
@@ -733,7 +732,7 @@ IdentificationResult relinearise_once(const FramePredictor& model, const Eigen::
       (first.uncertainty.ok && report.predicted_after > options.relinearise_max_uncertainty_growth *
                                                             report.predicted_before);
   report.accepted = !inflated;
-  report.message = fmt::format(
+  const std::string message = fmt::format(
       "relinearised at the estimate: {} parameter(s) held at nominal by the first analysis became "
       "identifiable ({}); cost {:.6g} -> {:.6g}, predicted end-effector uncertainty {:.3g} -> "
       "{:.3g} mm: {}",
@@ -741,12 +740,8 @@ IdentificationResult relinearise_once(const FramePredictor& model, const Eigen::
       1e3 * report.predicted_before, 1e3 * report.predicted_after,
       report.accepted ? "estimated"
                       : "they are too weakly determined by this data and stay at nominal");
-  if (!report.accepted) {
-    report.added.clear();
-    first.relinearisation = report;
-    first.solve_seconds = seconds;
-    return first;
-  }
+  if (!report.accepted) return keep_first(message);
+  report.message = message;
   // The plain-words analysis stays the one at the nominal model (what the design can separate);
   // the estimated set and everything after it come from the second solve.
   second.identifiability = std::move(first.identifiability);
