@@ -237,6 +237,13 @@ bool intersect(const TargetGeometry& g, const TargetBoard& board, const Eigen::V
   return true;
 }
 
+// Board point where a camera ray (any length) meets a target's plane; the caller knows it does.
+Eigen::Vector2d plane_point(const TargetGeometry& g, const Eigen::Vector3d& ray) {
+  const Eigen::Vector3d d = g.board_R_camera * ray;
+  const double t = -g.camera_in_board.z() / d.z();
+  return {g.camera_in_board.x() + t * d.x(), g.camera_in_board.y() + t * d.y()};
+}
+
 struct CornerHit {
   int target = -1;  // -1: no target, -2: invalid ray
   Eigen::Vector2d xy = Eigen::Vector2d::Zero();
@@ -321,8 +328,10 @@ CameraRays precompute_rays(const CameraModel& camera) {
   return r;
 }
 
-cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& targets,
-                     const RenderOptions& o) {
+namespace {
+
+SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                             const RenderOptions& o, bool with_subcells) {
   const int W = rays.cols - 1, H = rays.rows - 1;
   if (W <= 0 || H <= 0) throw std::invalid_argument("render: empty camera rays");
   std::vector<TargetGeometry> geo;
@@ -334,7 +343,15 @@ cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& ta
     index.emplace_back(t.board);
   }
   const double contrast = o.white_level - o.black_level;
-  cv::Mat img(H, W, CV_32F);
+  SceneIrradiance scene;
+  scene.subcells = with_subcells ? o.blur_subcells : 1;
+  const int s = scene.subcells;
+  if (s < 1 || s > 8) throw std::invalid_argument("blur_subcells must be in 1..8");
+  with_subcells = with_subcells && s > 1;
+  scene.pixels.create(H, W, CV_32F);
+  cv::Mat& img = scene.pixels;
+  std::vector<Eigen::Vector2d> subcorner(static_cast<size_t>((s + 1) * (s + 1)));
+  std::vector<float> subcell(static_cast<size_t>(s * s));
   std::vector<CornerHit> upper(static_cast<size_t>(W + 1)), lower(static_cast<size_t>(W + 1));
   auto ray_at = [&](int i, int j) -> const Eigen::Vector3d& {
     return rays
@@ -355,11 +372,38 @@ cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& ta
       const CornerHit* c[4] = {&upper[static_cast<size_t>(i)], &upper[static_cast<size_t>(i + 1)],
                                &lower[static_cast<size_t>(i + 1)], &lower[static_cast<size_t>(i)]};
       double value;
+      bool edge = false;  // subcell holds this pixel's sub-cell means
       const int t0 = c[0]->target;
       if (t0 == c[1]->target && t0 == c[2]->target && t0 == c[3]->target) {
         if (t0 >= 0) {
+          const PatternIndex& pattern = index[static_cast<size_t>(t0)];
           const std::array<Eigen::Vector2d, 4> q = {c[0]->xy, c[1]->xy, c[2]->xy, c[3]->xy};
-          value = o.white_level - contrast * index[static_cast<size_t>(t0)].black_fraction(q);
+          const double black = pattern.black_fraction(q);
+          value = o.white_level - contrast * black;
+          if (with_subcells && black > 0.0 && black < 1.0) {
+            // An edge crosses the pixel: the black fraction of each sub-cell, whose corners
+            // are the board points of bilinearly interpolated corner rays (their footprints
+            // tile the pixel's exactly: a plane cuts the span of two rays in a straight line).
+            const TargetGeometry& g = geo[static_cast<size_t>(t0)];
+            for (int b = 0; b <= s; ++b)
+              for (int a = 0; a <= s; ++a) {
+                const double fx = double(a) / s, fy = double(b) / s;
+                subcorner[static_cast<size_t>(b * (s + 1) + a)] = plane_point(
+                    g, (1 - fy) * ((1 - fx) * ray_at(i, j) + fx * ray_at(i + 1, j)) +
+                           fy * ((1 - fx) * ray_at(i, j + 1) + fx * ray_at(i + 1, j + 1)));
+              }
+            for (int b = 0; b < s; ++b)
+              for (int a = 0; a < s; ++a) {
+                const auto corner = [&](int da, int db) {
+                  return subcorner[static_cast<size_t>((b + db) * (s + 1) + a + da)];
+                };
+                const std::array<Eigen::Vector2d, 4> qs = {corner(0, 0), corner(1, 0), corner(1, 1),
+                                                           corner(0, 1)};
+                subcell[static_cast<size_t>(b * s + a)] =
+                    static_cast<float>(o.white_level - contrast * pattern.black_fraction(qs));
+              }
+            edge = true;
+          }
         } else {
           value = o.background_level;
         }
@@ -372,6 +416,7 @@ cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& ta
         const Eigen::Vector3d& r01 = ray_at(i, j + 1);
         const Eigen::Vector3d& r11 = ray_at(i + 1, j + 1);
         double sum = 0;
+        std::fill(subcell.begin(), subcell.end(), 0.0f);
         for (int sy = 0; sy < kSuper; ++sy) {
           const double fy = (sy + 0.5) / kSuper;
           for (int sx = 0; sx < kSuper; ++sx) {
@@ -380,16 +425,28 @@ cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& ta
                 ((1 - fy) * ((1 - fx) * r00 + fx * r10) + fy * ((1 - fx) * r01 + fx * r11))
                     .normalized();
             const CornerHit h = nearest_hit(geo, targets, ray);
-            if (h.target >= 0) {
-              sum += index[static_cast<size_t>(h.target)].black_at(h.xy.x(), h.xy.y())
-                         ? o.black_level
-                         : o.white_level;
-            } else {
-              sum += o.background_level;
-            }
+            double sample = o.background_level;
+            if (h.target >= 0)
+              sample = index[static_cast<size_t>(h.target)].black_at(h.xy.x(), h.xy.y())
+                           ? o.black_level
+                           : o.white_level;
+            sum += sample;
+            // Sample (sx, sy) falls in sub-cell (sx s / kSuper, sy s / kSuper); with s <= kSuper
+            // every sub-cell gets (kSuper / s)^2 samples or, for s not dividing kSuper, 1-4.
+            subcell[static_cast<size_t>((sy * s / kSuper) * s + sx * s / kSuper)] +=
+                static_cast<float>(sample);
           }
         }
         value = sum / (kSuper * kSuper);
+        if (with_subcells) {
+          for (int b = 0; b < s; ++b)
+            for (int a = 0; a < s; ++a) {
+              const int na = (a + 1) * kSuper / s - a * kSuper / s;  // samples per column
+              const int nb = (b + 1) * kSuper / s - b * kSuper / s;
+              subcell[static_cast<size_t>(b * s + a)] /= static_cast<float>(na * nb);
+            }
+          edge = true;
+        }
       }
       double gain = 1.0 + o.lighting_gradient.x() * ((i + 0.5) / W - 0.5) +
                     o.lighting_gradient.y() * ((j + 0.5) / H - 0.5);
@@ -398,11 +455,23 @@ cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& ta
         gain *= 1.0 - o.vignetting * (du * du + dv * dv) / half_diag2;
       }
       row[i] = static_cast<float>(value * gain);
+      if (edge) {
+        scene.edge_pixels.push_back(j * W + i);
+        for (const float v : subcell) scene.subcell_values.push_back(static_cast<float>(v * gain));
+      }
     }
     std::swap(upper, lower);
   }
 
-  // Occluders: 4x4 supersampled coverage of the shape, painted over the scene.
+  // Occluders: 4x4 supersampled coverage of the shape, painted over the scene (and over the
+  // sub-cells of edge pixels with the pixel's coverage: occluder borders are not resolved
+  // below a pixel).
+  std::vector<int> slot_of_pixel;
+  if (!o.occluders.empty() && !scene.edge_pixels.empty()) {
+    slot_of_pixel.assign(static_cast<size_t>(W) * static_cast<size_t>(H), -1);
+    for (std::size_t k = 0; k < scene.edge_pixels.size(); ++k)
+      slot_of_pixel[static_cast<size_t>(scene.edge_pixels[k])] = static_cast<int>(k);
+  }
   for (const Occluder& occ : o.occluders) {
     const Eigen::Vector2d ext = occ.shape == Occluder::Shape::kDisc
                                     ? Eigen::Vector2d(occ.radius, occ.radius)
@@ -422,21 +491,119 @@ cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& ta
         const double a = n_in / 16.0;
         float& px = img.at<float>(v, u);
         px = static_cast<float>((1 - a) * px + a * occ.level);
+        if (slot_of_pixel.empty()) continue;
+        const int slot = slot_of_pixel[static_cast<size_t>(v * W + u)];
+        if (slot < 0) continue;
+        for (int k = 0; k < s * s; ++k) {
+          float& sub = scene.subcell_values[static_cast<size_t>(slot * s * s + k)];
+          sub = static_cast<float>((1 - a) * sub + a * occ.level);
+        }
       }
   }
-  return img;
+  return scene;
+}
+
+// Share of the light of a uniform strip [x0, x1] (1-D, pixel units) that the Gaussian blur
+// puts into the pixel [n - 1/2, n + 1/2]: the double integral of g_sigma(y - x), in closed form
+// with Psi(t) = t Phi(t) + phi(t), the antiderivative of the normal CDF Phi.
+double strip_to_pixel(double n, double x0, double x1, double sigma) {
+  const auto psi = [](double t) {
+    return t * 0.5 * std::erfc(-t / std::numbers::sqrt2) +
+           std::exp(-0.5 * t * t) / std::sqrt(2.0 * std::numbers::pi);
+  };
+  const double lo = n - 0.5, hi = n + 0.5;
+  return sigma * (psi((hi - x0) / sigma) - psi((lo - x0) / sigma) - psi((hi - x1) / sigma) +
+                  psi((lo - x1) / sigma));
+}
+
+// Weights of the s sub-strips of pixel 0 on pixels -r..r: row a is sub-strip a.
+std::vector<float> substrip_weights(int s, int r, double sigma) {
+  std::vector<float> w(static_cast<size_t>(s * (2 * r + 1)));
+  for (int a = 0; a < s; ++a)
+    for (int d = -r; d <= r; ++d)
+      w[static_cast<size_t>(a * (2 * r + 1) + d + r)] = static_cast<float>(
+          strip_to_pixel(d, -0.5 + double(a) / s, -0.5 + double(a + 1) / s, sigma));
+  return w;
+}
+
+// The lens blur acting before the pixels integrate: each uniform pixel spreads its light with
+// the pixel-to-pixel kernel (Gaussian convolved with two pixel boxes, separable); an edge pixel
+// spreads each of its sub-cells with that sub-cell's exact kernel. Beyond the image border the
+// scene is taken as the mirror image of the scene inside (cv::BORDER_REFLECT).
+cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma) {
+  const cv::Mat& pixels = scene.pixels;
+  const int W = pixels.cols, H = pixels.rows;
+  const int r = static_cast<int>(std::ceil(5.0 * sigma)) + 1;  // the kernel below 1e-6
+  const int taps = 2 * r + 1;
+  const std::vector<float> pixel_kernel = substrip_weights(1, r, sigma);
+  cv::Mat uniform = pixels.clone();
+  for (const int k : scene.edge_pixels) uniform.at<float>(k / W, k % W) = 0.0f;
+  cv::Mat out;
+  const cv::Mat kernel(taps, 1, CV_32F, const_cast<float*>(pixel_kernel.data()));
+  cv::sepFilter2D(uniform, out, CV_32F, kernel, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REFLECT);
+  if (scene.edge_pixels.empty()) return out;
+
+  const int s = scene.subcells;
+  const std::vector<float> w = substrip_weights(s, r, sigma);
+  // Light of edge pixels, on the image grown by r on each side, then folded back (a mirrored
+  // source lands on the pixel mirrored from where the direct source lands).
+  cv::Mat grown = cv::Mat::zeros(H + 2 * r, W + 2 * r, CV_32F);
+  std::vector<float> across(static_cast<size_t>(s * taps));  // sub-row b spread across columns
+  for (std::size_t e = 0; e < scene.edge_pixels.size(); ++e) {
+    const int u = scene.edge_pixels[e] % W, v = scene.edge_pixels[e] / W;
+    const float* f = &scene.subcell_values[e * static_cast<size_t>(s * s)];
+    for (int b = 0; b < s; ++b)
+      for (int d = 0; d < taps; ++d) {
+        float acc = 0.0f;
+        for (int a = 0; a < s; ++a) acc += f[b * s + a] * w[static_cast<size_t>(a * taps + d)];
+        across[static_cast<size_t>(b * taps + d)] = acc;
+      }
+    for (int dy = 0; dy < taps; ++dy) {
+      float* row = grown.ptr<float>(v + dy) + u;  // grown row v + dy = image row v + dy - r
+      for (int b = 0; b < s; ++b) {
+        const float wy = w[static_cast<size_t>(b * taps + dy)];
+        const float* a_row = &across[static_cast<size_t>(b * taps)];
+        for (int dx = 0; dx < taps; ++dx) row[dx] += wy * a_row[dx];
+      }
+    }
+  }
+  for (int y = 0; y < H + 2 * r; ++y) {
+    const int iy = cv::borderInterpolate(y - r, H, cv::BORDER_REFLECT);
+    const float* src = grown.ptr<float>(y);
+    float* dst = out.ptr<float>(iy);
+    for (int x = 0; x < W + 2 * r; ++x)
+      dst[cv::borderInterpolate(x - r, W, cv::BORDER_REFLECT)] += src[x];
+  }
+  return out;
+}
+
+}  // namespace
+
+SceneIrradiance render_irradiance(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                                  const RenderOptions& options) {
+  return render_scene(rays, targets, options, options.blur_sigma > 0.0);
+}
+
+cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                     const RenderOptions& options) {
+  return render_scene(rays, targets, options, false).pixels;
 }
 
 cv::Mat apply_sensor(const cv::Mat& ideal, const RenderOptions& o) {
-  if (ideal.type() != CV_32F) throw std::invalid_argument("apply_sensor: expects a CV_32F image");
+  SceneIrradiance scene;
+  scene.pixels = ideal;
+  return apply_sensor(scene, o);
+}
+
+cv::Mat apply_sensor(const SceneIrradiance& scene, const RenderOptions& o) {
+  if (scene.pixels.type() != CV_32F)
+    throw std::invalid_argument("apply_sensor: expects a CV_32F image");
   if (o.bit_depth != 8 && o.bit_depth != 16)
     throw std::invalid_argument("bit_depth must be 8 or 16");
-  cv::Mat img;
-  if (o.blur_sigma > 0.0) {
-    cv::GaussianBlur(ideal, img, cv::Size(0, 0), o.blur_sigma, o.blur_sigma, cv::BORDER_REFLECT);
-  } else {
-    img = ideal;
-  }
+  if (scene.subcell_values.size() !=
+      scene.edge_pixels.size() * static_cast<size_t>(scene.subcells * scene.subcells))
+    throw std::invalid_argument("apply_sensor: sub-cell values do not match the edge pixels");
+  const cv::Mat img = o.blur_sigma > 0.0 ? blur_before_sampling(scene, o.blur_sigma) : scene.pixels;
   const double scale = o.bit_depth == 16 ? 257.0 : 1.0;
   const double max_value = o.bit_depth == 16 ? 65535.0 : 255.0;
   cv::Mat out(img.rows, img.cols, o.bit_depth == 16 ? CV_16U : CV_8U);
@@ -511,7 +678,7 @@ std::vector<CornerTruth> corner_truth(const CameraModel& camera,
 RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& targets,
                     const RenderOptions& options) {
   RenderResult r;
-  r.image = apply_sensor(render_ideal(rays, targets, options), options);
+  r.image = apply_sensor(render_irradiance(rays, targets, options), options);
   r.corners = corner_truth(rays.camera, targets, options);
   return r;
 }

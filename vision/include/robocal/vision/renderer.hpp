@@ -61,7 +61,8 @@ struct RenderOptions {
   // r measured from the image centre, r_corner = distance to the centre of a corner pixel.
   double vignetting = 0.0;
   std::vector<Occluder> occluders;
-  double blur_sigma = 0.0;       // Gaussian defocus blur, pixels (0 = none)
+  double blur_sigma = 0.0;       // Gaussian defocus blur (lens PSF sigma), pixels (0 = none)
+  int blur_subcells = 4;         // sub-cells per side of a pixel an edge crosses (1..8; 1: none)
   double read_noise = 0.0;       // Gaussian read noise sigma, DN
   double shot_noise_gain = 0.0;  // electrons per DN; shot-noise variance = signal / gain (0: off)
   int bit_depth = 8;             // 8 or 16
@@ -83,11 +84,24 @@ struct RenderResult {
   std::vector<CornerTruth> corners;
 };
 
-// The ideal image: CV_32F in DN, exact area sampling, lighting, vignetting and occluders
-// applied; no blur, noise or quantisation.
+// The light reaching the sensor before the lens blur: each pixel's mean (exact area sampling,
+// lighting, vignetting and occluders applied) and, for the pixels an edge crosses, the means of
+// their sub-cells.
+struct SceneIrradiance {
+  cv::Mat pixels;                     // CV_32F, DN
+  int subcells = 1;                   // sub-cells per pixel side
+  std::vector<int> edge_pixels;       // v * width + u of the pixels with sub-cells
+  std::vector<float> subcell_values;  // subcells^2 per edge pixel, row-major, DN
+};
+// With sub-cells when options.blur_sigma > 0 (without blur the pixel means are all it takes).
+SceneIrradiance render_irradiance(const CameraRays& rays, const std::vector<RenderTarget>& targets,
+                                  const RenderOptions& options);
+// The ideal image: the pixel means alone; no blur, noise or quantisation.
 cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& targets,
                      const RenderOptions& options);
-// Blur, noise and quantisation of an ideal image (deterministic for a given seed).
+// Blur, noise and quantisation (deterministic for a given seed).
+cv::Mat apply_sensor(const SceneIrradiance& scene, const RenderOptions& options);
+// The same for an image of pixel means alone: every pixel taken as uniform.
 cv::Mat apply_sensor(const cv::Mat& ideal, const RenderOptions& options);
 // Ground-truth pixel positions and visibility of every corner of every target.
 std::vector<CornerTruth> corner_truth(const CameraModel& camera,
