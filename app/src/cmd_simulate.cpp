@@ -36,7 +36,7 @@ CommandSpec simulate_command() {
                 ->check(CLI::Range(3, 1000))
                 ->capture_default_str();
             cmd.add_option("--intrinsic-views", o->intrinsic_views,
-                           "Calibration-board views per camera (default 24, 12 with --quick)");
+                           "Calibration-board views per camera (default 48, 12 with --quick)");
             cmd.add_option("--rig-views", o->rig_views,
                            "Board views both cameras see (default 12, 6 with --quick)");
             cmd.add_flag("--quick", o->quick, "Smaller images and fewer views (for CI)");
