@@ -254,6 +254,7 @@ struct Errors {
 struct ErrorPair {
   Errors absolute;
   Errors registered;
+  std::vector<Eigen::Vector3d> registered_points;  // predicted, after the best-fit transform
 };
 ErrorPair position_errors(const std::vector<Eigen::Vector3d>& predicted,
                           const std::vector<Eigen::Vector3d>& truth) {
@@ -267,8 +268,10 @@ ErrorPair position_errors(const std::vector<Eigen::Vector3d>& predicted,
   }
   if (P.cols() >= 3) {
     const Eigen::Isometry3d align(Eigen::umeyama(P, T, false));
-    for (Eigen::Index i = 0; i < P.cols(); ++i)
-      out.registered.add((align * Eigen::Vector3d(P.col(i)) - T.col(i)).norm());
+    for (Eigen::Index i = 0; i < P.cols(); ++i) {
+      out.registered_points.push_back(align * Eigen::Vector3d(P.col(i)));
+      out.registered.add((out.registered_points.back() - T.col(i)).norm());
+    }
   }
   out.absolute.finish();
   out.registered.finish();
@@ -1155,6 +1158,12 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   report["calibrated"] = calibrated_errors.absolute.json();
   report["nominal_registered"] = nominal_errors.registered.json();
   report["calibrated_registered"] = calibrated_errors.registered.json();
+  ErrorPair pixel_errors;
+  if (pixel_estimate) {
+    pixel_errors = position_errors(pixel_points, truth_points);
+    report["calibrated_pixels"] = pixel_errors.absolute.json();
+    report["calibrated_pixels_registered"] = pixel_errors.registered.json();
+  }
   // Interpolation or extrapolation: where each held-out position lies relative to the measured
   // region (the convex hull of the measured board positions). Far outside it, the model is
   // extrapolated along directions the measured poses constrain weakly.
@@ -1184,6 +1193,14 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     std::vector<NamedPoints> predictions = {{"nominal", &nominal_points},
                                             {"calibrated", &calibrated_points}};
     if (pixel_estimate) predictions.push_back({"calibrated_pixels", &pixel_points});
+    // The registered figures keep the one transform fitted over all held-out configurations.
+    const auto add_registered = [&](const char* name, const ErrorPair& e) {
+      if (e.registered_points.size() == truth_points.size())
+        predictions.push_back({name, &e.registered_points});
+    };
+    add_registered("nominal_registered", nominal_errors);
+    add_registered("calibrated_registered", calibrated_errors);
+    if (pixel_estimate) add_registered("calibrated_pixels_registered", pixel_errors);
     report["held_out_by_region"] =
         split_errors_by_region(inside, outside_m, truth_points, predictions);
   }
@@ -1218,11 +1235,6 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
       worst.push_back(row);
     }
     report["worst_held_out"] = worst;
-  }
-  if (pixel_estimate) {
-    const ErrorPair pixel_errors = position_errors(pixel_points, truth_points);
-    report["calibrated_pixels"] = pixel_errors.absolute.json();
-    report["calibrated_pixels_registered"] = pixel_errors.registered.json();
   }
 
   // Parameters: estimated change next to the true change, largest (in tolerance sigmas) first.
