@@ -1185,8 +1185,9 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
         {"definition",
          "convex hull of the measured end-effector board positions (results/measured_poses.json, "
          "used poses) in camera 0's frame; a held-out configuration is inside when its true board "
-         "position lies in the hull (within inside_tolerance_m), outside otherwise, and "
-         "distance_m is its distance to the hull"},
+         "position lies in the hull (within inside_tolerance_m), outside otherwise; "
+         "outside_measured_region_m (worst_held_out) and distance_*_m (held_out_by_region) are "
+         "distances to the hull"},
         {"measured_poses", measured_positions.size()},
         {"inside_tolerance_m", kRegionInsideTolerance},
         {"bounding_box_m", {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}}}};
@@ -1320,6 +1321,16 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
              v.at("nominal_registered").at("rms_m").get<double>() * 1e6,
              v.at("calibrated_registered").at("rms_m").get<double>() * 1e6,
              v.at("calibrated_registered").at("max_m").get<double>() * 1e6);
+  if (v.contains("held_out_by_region")) {
+    const auto& in = v["held_out_by_region"].at("inside");
+    const auto& out_part = v["held_out_by_region"].at("outside");
+    if (in.contains("calibrated_registered") && out_part.contains("calibrated_registered"))
+      fmt::print(out,
+                 "    calibrated inside the measured region {:.1f} µm RMS, outside {:.1f} µm "
+                 "RMS\n",
+                 in["calibrated_registered"].at("rms_m").get<double>() * 1e6,
+                 out_part["calibrated_registered"].at("rms_m").get<double>() * 1e6);
+  }
   fmt::print(out,
              "\n  parameters that changed most (estimated change; true change in brackets):\n");
   const auto& params = v.at("parameters");
