@@ -22,7 +22,11 @@ CommandSpec validate_command() {
                 "frame fitted to the measurements) and the calibrated model with the true robot "
                 "at --held-out random reachable actuator configurations the fit never used: "
                 "position error RMS / max in the camera frame, and after a best-fit rigid "
-                "registration (the robot's accuracy in its own frame). Also the calibrated "
+                "registration (the robot's accuracy in its own frame); the absolute figures also "
+                "split into "
+                "configurations inside the measured region (the convex hull of the measured "
+                "board positions: interpolation) and outside it (extrapolation), with each worst "
+                "configuration's distance to that region. Also the calibrated "
                 "cameras, the rig baseline and the measured board poses against the truth, and "
                 "each parameter's estimated vs true change. Writes results/validation.json.\n\n"
                 "A recorded session has no truth/: validate says so and exits with 3.");

@@ -3,6 +3,7 @@
 #include "session_pipeline.hpp"
 
 #include "cli_common.hpp"
+#include "measured_region.hpp"
 #include "pixel_bridge.hpp"
 #include "pose_bridge.hpp"
 #include "rig_files.hpp"
@@ -253,6 +254,7 @@ struct Errors {
 struct ErrorPair {
   Errors absolute;
   Errors registered;
+  std::vector<Eigen::Vector3d> registered_points;  // predicted, after the best-fit transform
 };
 ErrorPair position_errors(const std::vector<Eigen::Vector3d>& predicted,
                           const std::vector<Eigen::Vector3d>& truth) {
@@ -266,8 +268,10 @@ ErrorPair position_errors(const std::vector<Eigen::Vector3d>& predicted,
   }
   if (P.cols() >= 3) {
     const Eigen::Isometry3d align(Eigen::umeyama(P, T, false));
-    for (Eigen::Index i = 0; i < P.cols(); ++i)
-      out.registered.add((align * Eigen::Vector3d(P.col(i)) - T.col(i)).norm());
+    for (Eigen::Index i = 0; i < P.cols(); ++i) {
+      out.registered_points.push_back(align * Eigen::Vector3d(P.col(i)));
+      out.registered.add((out.registered_points.back() - T.col(i)).norm());
+    }
   }
   out.absolute.finish();
   out.registered.finish();
@@ -1079,7 +1083,9 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     say(log, "  baseline {:.5f} m (true {:.5f} m, error {:+.1f} µm)\n", baseline, true_baseline,
         (baseline - true_baseline) * 1e6);
   }
-  // The measured board poses against the truth (camera 0's frame).
+  // The measured board poses against the truth (camera 0's frame); their measured positions
+  // span the measured region (measured_region.hpp).
+  std::vector<Eigen::Vector3d> measured_positions;
   if (fs::exists(s.results() / "measured_poses.json")) {
     std::map<std::string, Eigen::Isometry3d> true_poses;
     for (const auto& p : truth_doc.at("poses"))
@@ -1089,9 +1095,10 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     const auto measured_poses = read_json_file(s.results() / "measured_poses.json", "");
     for (const auto& p : measured_poses.at("poses")) {
       if (!p.value("used", false) || !p.contains("rig_T_target")) continue;
+      const auto m = pose_from_json(p.at("rig_T_target"), "measured_poses.json");
+      measured_positions.push_back(m.translation());
       const auto it = true_poses.find(p.at("pose").get<std::string>());
       if (it == true_poses.end()) continue;
-      const auto m = pose_from_json(p.at("rig_T_target"), "measured_poses.json");
       measured.add((m.translation() - cam0_T_world * it->second.translation()).norm());
     }
     measured.finish();
@@ -1151,6 +1158,53 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   report["calibrated"] = calibrated_errors.absolute.json();
   report["nominal_registered"] = nominal_errors.registered.json();
   report["calibrated_registered"] = calibrated_errors.registered.json();
+  ErrorPair pixel_errors;
+  if (pixel_estimate) {
+    pixel_errors = position_errors(pixel_points, truth_points);
+    report["calibrated_pixels"] = pixel_errors.absolute.json();
+    report["calibrated_pixels_registered"] = pixel_errors.registered.json();
+  }
+  // Interpolation or extrapolation: where each held-out position lies relative to the measured
+  // region (the convex hull of the measured board positions). Far outside it, the model is
+  // extrapolated along directions the measured poses constrain weakly.
+  std::vector<RegionDistance> region(truth_points.size());
+  if (!measured_positions.empty()) {
+    std::vector<bool> inside(truth_points.size());
+    std::vector<double> outside_m(truth_points.size());
+    for (std::size_t k = 0; k < truth_points.size(); ++k) {
+      region[k] = distance_to_region(measured_positions, truth_points[k]);
+      inside[k] = region[k].inside;
+      outside_m[k] = region[k].outside_m;
+    }
+    Eigen::Vector3d lo = measured_positions[0], hi = measured_positions[0];
+    for (const auto& m : measured_positions) {
+      lo = lo.cwiseMin(m);
+      hi = hi.cwiseMax(m);
+    }
+    report["measured_region"] = {
+        {"definition",
+         "convex hull of the measured end-effector board positions (results/measured_poses.json, "
+         "used poses) in camera 0's frame; a held-out configuration is inside when its true board "
+         "position lies in the hull (within inside_tolerance_m), outside otherwise; "
+         "outside_measured_region_m (worst_held_out) and distance_*_m (held_out_by_region) are "
+         "distances to the hull"},
+        {"measured_poses", measured_positions.size()},
+        {"inside_tolerance_m", kRegionInsideTolerance},
+        {"bounding_box_m", {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}}}};
+    std::vector<NamedPoints> predictions = {{"nominal", &nominal_points},
+                                            {"calibrated", &calibrated_points}};
+    if (pixel_estimate) predictions.push_back({"calibrated_pixels", &pixel_points});
+    // The registered figures keep the one transform fitted over all held-out configurations.
+    const auto add_registered = [&](const char* name, const ErrorPair& e) {
+      if (e.registered_points.size() == truth_points.size())
+        predictions.push_back({name, &e.registered_points});
+    };
+    add_registered("nominal_registered", nominal_errors);
+    add_registered("calibrated_registered", calibrated_errors);
+    if (pixel_estimate) add_registered("calibrated_pixels_registered", pixel_errors);
+    report["held_out_by_region"] =
+        split_errors_by_region(inside, outside_m, truth_points, predictions);
+  }
   // The worst held-out configurations with the true robot's task conditioning there
   // (σ_min/σ_max of d(position)/d(actuators)): one pose near a singularity can carry most of the
   // RMS, and the user should see that rather than a mean.
@@ -1174,14 +1228,14 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
           {"task_conditioning", calib::task_conditioning(true_predictor, truth, q)}};
       if (pixel_estimate)
         row["calibrated_pixels_error_m"] = (pixel_points[k] - truth_points[k]).norm();
+      if (!measured_positions.empty()) {
+        row["inside_measured_region"] = region[k].inside;
+        row["outside_measured_region_m"] = region[k].outside_m;
+        row["nearest_measured_pose_m"] = region[k].nearest_measured_m;
+      }
       worst.push_back(row);
     }
     report["worst_held_out"] = worst;
-  }
-  if (pixel_estimate) {
-    const ErrorPair pixel_errors = position_errors(pixel_points, truth_points);
-    report["calibrated_pixels"] = pixel_errors.absolute.json();
-    report["calibrated_pixels_registered"] = pixel_errors.registered.json();
   }
 
   // Parameters: estimated change next to the true change, largest (in tolerance sigmas) first.
@@ -1235,11 +1289,48 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
                "(line above: from measured 6-D poses)\n",
                v["calibrated_pixels"].at("rms_m").get<double>() * 1e6,
                v["calibrated_pixels"].at("max_m").get<double>() * 1e6);
+  if (v.contains("held_out_by_region") && v.contains("measured_region")) {
+    const auto& by_region = v["held_out_by_region"];
+    fmt::print(out,
+               "  by region (measured region = convex hull of the {} measured board positions):\n",
+               v["measured_region"].value("measured_poses", 0));
+    for (const char* side : {"inside", "outside"}) {
+      const auto& part = by_region.at(side);
+      const int n = part.value("held_out_poses", 0);
+      const bool in = std::string(side) == "inside";
+      std::string line = fmt::format(
+          "    {:<24} {:4} poses", in ? "inside (interpolation):" : "outside (extrapolation):", n);
+      if (n > 0) {
+        line += fmt::format(": calibrated {:.1f} µm RMS, {:.1f} µm max",
+                            part.at("calibrated").at("rms_m").get<double>() * 1e6,
+                            part.at("calibrated").at("max_m").get<double>() * 1e6);
+        if (part.contains("calibrated_pixels"))
+          line += fmt::format("; from pixels {:.1f} µm RMS, {:.1f} µm max",
+                              part["calibrated_pixels"].at("rms_m").get<double>() * 1e6,
+                              part["calibrated_pixels"].at("max_m").get<double>() * 1e6);
+        if (!in)
+          line += fmt::format(" (up to {:.0f} mm outside, median {:.0f} mm)",
+                              part.value("distance_max_m", 0.0) * 1e3,
+                              part.value("distance_median_m", 0.0) * 1e3);
+      }
+      fmt::print(out, "{}\n", line);
+    }
+  }
   fmt::print(out, "  robot accuracy in its own frame (after best-fit rigid registration):\n");
   fmt::print(out, "    nominal {:.1f} µm RMS, calibrated {:.1f} µm RMS ({:.1f} µm max)\n",
              v.at("nominal_registered").at("rms_m").get<double>() * 1e6,
              v.at("calibrated_registered").at("rms_m").get<double>() * 1e6,
              v.at("calibrated_registered").at("max_m").get<double>() * 1e6);
+  if (v.contains("held_out_by_region")) {
+    const auto& in = v["held_out_by_region"].at("inside");
+    const auto& out_part = v["held_out_by_region"].at("outside");
+    if (in.contains("calibrated_registered") && out_part.contains("calibrated_registered"))
+      fmt::print(out,
+                 "    calibrated inside the measured region {:.1f} µm RMS, outside {:.1f} µm "
+                 "RMS\n",
+                 in["calibrated_registered"].at("rms_m").get<double>() * 1e6,
+                 out_part["calibrated_registered"].at("rms_m").get<double>() * 1e6);
+  }
   fmt::print(out,
              "\n  parameters that changed most (estimated change; true change in brackets):\n");
   const auto& params = v.at("parameters");

@@ -45,6 +45,38 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
     EXPECT_GE(worst_error(worst[k - 1]), worst_error(worst[k]));
   EXPECT_GE(worst_error(worst[0]), report["validate"]["calibrated"]["max_m"].get<double>());
   EXPECT_GT(worst[0]["task_conditioning"].get<double>(), 0.0);
+  // Inside / outside the measured region: the parts add up to the all-configurations figures,
+  // and each worst configuration says where it lies.
+  const auto& v = report["validate"];
+  ASSERT_TRUE(v.contains("measured_region"));
+  EXPECT_EQ(v["measured_region"]["measured_poses"].get<int>(), 24);
+  const auto& inside = v["held_out_by_region"]["inside"];
+  const auto& outside = v["held_out_by_region"]["outside"];
+  const int n_in = inside["held_out_poses"], n_out = outside["held_out_poses"];
+  EXPECT_EQ(n_in + n_out, v["held_out_poses"].get<int>());
+  for (const char* route : {"nominal", "calibrated", "calibrated_pixels", "nominal_registered",
+                            "calibrated_registered", "calibrated_pixels_registered"}) {
+    if (std::string(route).starts_with("calibrated_pixels") && !v.contains(route)) continue;
+    ASSERT_TRUE(inside.contains(route) && outside.contains(route)) << route;
+    const double rms_in = inside[route]["rms_m"], rms_out = outside[route]["rms_m"];
+    const double rms = v[route]["rms_m"];
+    EXPECT_NEAR(n_in * rms_in * rms_in + n_out * rms_out * rms_out, (n_in + n_out) * rms * rms,
+                1e-9 * (n_in + n_out) * rms * rms)
+        << route;
+    EXPECT_DOUBLE_EQ(
+        std::max(inside[route]["max_m"].get<double>(), outside[route]["max_m"].get<double>()),
+        v[route]["max_m"].get<double>())
+        << route;
+  }
+  for (const auto& w : worst) {
+    ASSERT_TRUE(w.contains("inside_measured_region"));
+    const double distance = w["outside_measured_region_m"];
+    EXPECT_EQ(w["inside_measured_region"].get<bool>(), distance <= 1e-6);
+    EXPECT_LE(distance, w["nearest_measured_pose_m"].get<double>() + 1e-12);
+    if (n_out > 0) {
+      EXPECT_LE(distance, outside["distance_max_m"].get<double>() + 1e-12);
+    }
+  }
   // The demo went through a session folder: recorded data, results and the hidden truth.
   for (const char* f :
        {"session.yaml", "robot.yaml", "poses/pose_000/pose.yaml", "poses/pose_000/cam0.png",
