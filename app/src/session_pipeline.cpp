@@ -1249,13 +1249,32 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   };
   std::stable_sort(order.begin(), order.end(),
                    [&](std::size_t a, std::size_t b) { return score(a) > score(b); });
+  // A parameter that stands in for confounded ones (identifiability redundancies name it as a
+  // partner) carries their combination: its change is not comparable with its own true change.
+  // The base frame is the cell's placement (camera 0 <- robot base), not a robot dimension.
+  std::map<std::string, int> carries;
+  const nlohmann::json no_redundancies = nlohmann::json::array();
+  const nlohmann::json& analysis = ident.contains("result") ? ident.at("result") : ident;
+  const nlohmann::json& redundancies =
+      analysis.contains("identifiability") &&
+              analysis.at("identifiability").contains("redundancies")
+          ? analysis.at("identifiability").at("redundancies")
+          : no_redundancies;
+  for (const auto& red : redundancies)
+    for (const auto& partner : red.value("partners", nlohmann::json::array()))
+      ++carries[partner.value("name", "")];
   nlohmann::json params = nlohmann::json::array();
   for (std::size_t i : order) {
     const auto k = static_cast<Eigen::Index>(i);
+    const int body = model.parameters[i].body;
+    const bool base_frame = body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0;
+    const auto carried = carries.find(model.parameters[i].name);
     params.push_back({{"name", model.parameters[i].name},
                       {"unit", unit_name(model.parameters[i].unit)},
                       {"estimated_change", estimate[k] - start[k]},
-                      {"true_change", truth[k] - true_nominal[k]}});
+                      {"true_change", truth[k] - true_nominal[k]},
+                      {"base_frame", base_frame},
+                      {"stands_in_for", carried == carries.end() ? 0 : carried->second}});
   }
   report["parameters"] = params;
   report["status"] = calibrated_errors.absolute.n > 0 ? "ok" : "failed";
@@ -1331,16 +1350,29 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
                  in["calibrated_registered"].at("rms_m").get<double>() * 1e6,
                  out_part["calibrated_registered"].at("rms_m").get<double>() * 1e6);
   }
-  fmt::print(out,
-             "\n  parameters that changed most (estimated change; true change in brackets):\n");
-  const auto& params = v.at("parameters");
-  for (std::size_t k = 0; k < std::min<std::size_t>(8, params.size()); ++k) {
-    const auto& p = params[k];
+  fmt::print(
+      out,
+      "\n  robot dimensions that changed most (estimated change; true change in brackets;"
+      "\n  the base frame, i.e. where the robot stands in the cameras' world, is left out):\n");
+  int listed = 0;
+  bool any_stand_in = false;
+  for (const auto& p : v.at("parameters")) {
+    if (listed == 8) break;
+    if (p.value("base_frame", false)) continue;
     const auto unit = p.at("unit").get<std::string>();
-    fmt::print(out, "    {:<24} {}  ({})\n", p.at("name").get<std::string>(),
+    const int stands_in_for = p.value("stands_in_for", 0);
+    any_stand_in = any_stand_in || stands_in_for > 0;
+    fmt::print(out, "    {:<24} {}  ({}){}\n", p.at("name").get<std::string>(),
                fmt_param_change(unit, p.at("estimated_change").get<double>()),
-               fmt_param_change(unit, p.at("true_change").get<double>()));
+               fmt_param_change(unit, p.at("true_change").get<double>()),
+               stands_in_for > 0 ? fmt::format("  *{}", stands_in_for) : std::string());
+    ++listed;
   }
+  if (any_stand_in)
+    fmt::print(out,
+               "    *N: also carries N parameters it cannot be told apart from (held at nominal), "
+               "so its change is\n       their combination, not comparable with its own true "
+               "change\n");
   if (ident.contains("not_identified") && !ident["not_identified"].empty()) {
     const auto& messages = ident["not_identified"];
     fmt::print(out, "\n  what could not be identified ({} parameters held at nominal):\n",

@@ -77,6 +77,18 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
       EXPECT_LE(distance, outside["distance_max_m"].get<double>() + 1e-12);
     }
   }
+  // Changed parameters: the base frame (the Delta's root body, body1: where the robot stands in
+  // camera 0's world) is flagged apart from robot dimensions; stand-ins say how many confounded
+  // parameters they carry.
+  int base_frame = 0, stand_ins = 0;
+  for (const auto& p : v["parameters"]) {
+    const bool flagged = p["base_frame"].get<bool>();
+    EXPECT_EQ(flagged, p["name"].get<std::string>().starts_with("body1.")) << p["name"];
+    base_frame += flagged;
+    stand_ins += p["stands_in_for"].get<int>() > 0;
+  }
+  EXPECT_GT(base_frame, 0);
+  EXPECT_GT(stand_ins, 0);
   // The demo went through a session folder: recorded data, results and the hidden truth.
   for (const char* f :
        {"session.yaml", "robot.yaml", "poses/pose_000/pose.yaml", "poses/pose_000/cam0.png",
