@@ -112,7 +112,7 @@ int run_simulate(const IdentifyOptions& o) {
     for (const auto& q : qs) {
       FramePrediction fp;
       std::string why;
-      if (pred.predict(nominal, q, -1, false, fp, why)) reach.push_back(fp.pose.translation());
+      if (pred.predict(nominal, q, -1, false, fp, why)) reach.emplace_back(fp.pose.translation());
     }
     if (reach.empty()) throw InputError("no reachable pose to place the cameras around");
     file.cameras = cameras_below(reach);

@@ -33,6 +33,7 @@ int run_measure(const MeasureArgs& a) {
     throw InputError(e.what());
   }
   std::vector<std::string> names;
+  names.reserve(rig.size());
   for (const auto& c : rig) names.push_back(c.name);
   const auto sets = scan_image_folder(a.poses, names);
   const vision::BoardPoints points = board_points(board);

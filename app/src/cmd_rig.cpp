@@ -41,6 +41,7 @@ int run_rig(const RigArgs& a) {
   }
   if (cams.empty()) throw InputError("give at least one --camera NAME=camera.yaml");
   std::vector<std::string> names;
+  names.reserve(cams.size());
   for (const auto& c : cams) names.push_back(c.name);
   vision::RigCalibrationOptions opt;
   opt.refine_intrinsics = a.refine_intrinsics;

@@ -128,7 +128,7 @@ std::vector<vision::RigCamera> load_rig_json(const fs::path& path, double* corne
     c.model.height = j.value("height", 0);
     c.model.params = numbers(j.value("params", nlohmann::json()), 0, where + ".params");
     const std::string bad = vision::validate_camera(c.model);
-    if (!bad.empty()) throw InputError(where + ": " + bad);
+    if (!bad.empty()) throw InputError(fmt::format("{}: {}", where, bad));
     if (!j.contains("camera_T_rig")) throw InputError(where + ": missing camera_T_rig");
     const auto r =
         numbers(j["camera_T_rig"].value("rvec", nlohmann::json()), 3, where + ".camera_T_rig.rvec");

@@ -896,7 +896,7 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
       const auto fk = calib::forward_kinematics(model, start, pose.actuators, robot.frame);
       const auto* obs = std::get_if<calib::PoseObservation>(&pose.observations.at(0));
       if (!fk.closure.ok() || obs == nullptr) continue;
-      predicted.push_back(fk.pose.translation());
+      predicted.emplace_back(fk.pose.translation());
       measured.push_back(obs->measured_position);
     }
     if (predicted.size() >= 3) {
@@ -1096,7 +1096,7 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     for (const auto& p : measured_poses.at("poses")) {
       if (!p.value("used", false) || !p.contains("rig_T_target")) continue;
       const auto m = pose_from_json(p.at("rig_T_target"), "measured_poses.json");
-      measured_positions.push_back(m.translation());
+      measured_positions.emplace_back(m.translation());
       const auto it = true_poses.find(p.at("pose").get<std::string>());
       if (it == true_poses.end()) continue;
       measured.add((m.translation() - cam0_T_world * it->second.translation()).norm());
@@ -1138,9 +1138,9 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
       continue;
     }
     truth_points.push_back(t);
-    nominal_points.push_back(nominal_fk.pose.translation());
-    calibrated_points.push_back(calibrated_fk.pose.translation());
-    pixel_points.push_back(pixel_fk.pose.translation());
+    nominal_points.emplace_back(nominal_fk.pose.translation());
+    calibrated_points.emplace_back(calibrated_fk.pose.translation());
+    pixel_points.emplace_back(pixel_fk.pose.translation());
     kept_configurations.push_back(q);
   }
   if (branch_disagreements > 0)

@@ -211,7 +211,7 @@ std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, i
     for (int attempt = 0; attempt < 100; ++attempt) {
       const int region = v % 9;
       const double px = ((region % 3) + u(rng)) / 3.0 * cam.width;
-      const double py = ((region / 3) + u(rng)) / 3.0 * cam.height;
+      const double py = (static_cast<double>(region / 3) + u(rng)) / 3.0 * cam.height;
       const auto ray = vision::unproject(cam, Eigen::Vector2d(px, py));
       if (!ray) continue;
       const double distance = 0.6 + 0.5 * u(rng);

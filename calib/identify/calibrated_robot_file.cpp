@@ -72,7 +72,7 @@ bool insert_into_flow_map(std::string& line, const std::string& map_key, const s
     if (line[i] == '{') ++depth;
     if (line[i] == '}' && --depth == 0) {
       const bool empty = line.find_first_not_of(' ', open + 1) == i;
-      line.insert(i, (empty ? "" : ", ") + key + ": " + value);
+      line.insert(i, fmt::format("{}{}: {}", empty ? "" : ", ", key, value));
       return true;
     }
   }
@@ -128,12 +128,12 @@ std::string calibrated_robot_yaml(const std::string& original, const Mechanism& 
     if (first.find('{') != std::string::npos && brace != std::string::npos &&
         first.find("- {") != std::string::npos) {
       // A whole body written as one flow map: add the map before its closing brace.
-      lines[li].insert(brace, ", " + map_key + ": {" + file_key + ": " + number(v) + "}");
+      lines[li].insert(brace, fmt::format(", {}: {{{}: {}}}", map_key, file_key, number(v)));
     } else {
       // Block-style body: a new line at the body's key indentation.
       const int key_indent = item_indent + 2;
-      after[li].push_back(std::string(static_cast<std::size_t>(key_indent), ' ') + map_key + ": {" +
-                          file_key + ": " + number(v) + "}");
+      after[li].push_back(
+          fmt::format("{:{}}{}: {{{}: {}}}", "", key_indent, map_key, file_key, number(v)));
     }
   }
 

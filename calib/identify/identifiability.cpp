@@ -122,7 +122,7 @@ std::vector<bool> select_base_set_qr_order(const Eigen::MatrixXd& R,
       for (const auto& q : basis) r -= q.dot(r) * q;
     const double outside = r.norm();
     if (outside > rank_tolerance) {
-      basis.push_back(r / outside);
+      basis.emplace_back(r / outside);
       kept[j] = true;
     }
   }

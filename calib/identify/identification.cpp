@@ -251,7 +251,7 @@ bool evaluate_all(const Assembly& as, const Eigen::VectorXd& params, bool with_j
   return true;
 }
 
-ErrorStatistics finish(std::vector<double> pos, std::vector<double> ori) {
+ErrorStatistics finish(const std::vector<double>& pos, const std::vector<double>& ori) {
   ErrorStatistics s;
   s.poses = pos.size();
   for (double e : pos) {
@@ -345,7 +345,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     for (const auto& obs : pose.observations)
       if (auto p = observed_position(obs)) {
         measured_pts.push_back(*p);
-        predicted_pts.push_back(pred.pose.translation());
+        predicted_pts.emplace_back(pred.pose.translation());
       }
   }
   std::map<std::string, const PoseMeasurement*> by_id;
@@ -454,7 +454,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
   std::vector<std::pair<std::size_t, double>> prior_terms;
   if (!options.prior_sigma.empty())
     for (std::size_t i : result.estimated)
-      if (options.prior_sigma[i] > 0.0) prior_terms.push_back({i, options.prior_sigma[i]});
+      if (options.prior_sigma[i] > 0.0) prior_terms.emplace_back(i, options.prior_sigma[i]);
 
   Eigen::VectorXd start = options.start.size() ? options.start : linearisation;
   if (static_cast<std::size_t>(start.size()) != P)
@@ -866,7 +866,7 @@ Measurements simulate_measurements(const FramePredictor& model, const Eigen::Vec
     const Eigen::Vector3d p = pred.pose.translation() + noise * options.position_sigma * dp;
     switch (options.kind) {
       case SimulatedObservation::kPoint:
-        m.observations.push_back(PointObservation::with_sigma(p, options.position_sigma));
+        m.observations.emplace_back(PointObservation::with_sigma(p, options.position_sigma));
         break;
       case SimulatedObservation::kPose: {
         const Eigen::Vector3d dphi =
@@ -876,7 +876,7 @@ Measurements simulate_measurements(const FramePredictor& model, const Eigen::Vec
         if (dphi.norm() > 0)
           T.linear() = Eigen::AngleAxisd(dphi.norm(), dphi.normalized()).toRotationMatrix() *
                        pred.pose.linear();
-        m.observations.push_back(
+        m.observations.emplace_back(
             PoseObservation::with_sigmas(T, options.position_sigma, options.rotation_sigma));
         break;
       }
@@ -887,7 +887,7 @@ Measurements simulate_measurements(const FramePredictor& model, const Eigen::Vec
         ph.sigma = options.position_sigma;
         ph.measured_height = ph.normal.dot(pred.pose.translation()) - ph.offset +
                              noise * options.position_sigma * n01(rng);
-        m.observations.push_back(ph);
+        m.observations.emplace_back(ph);
         break;
       }
     }

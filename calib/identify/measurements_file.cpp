@@ -233,7 +233,7 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
       PointObservation o;
       o.measured = x;
       o.weight = Eigen::Matrix3d::Identity() / sigma;
-      m.observations.push_back(o);
+      m.observations.emplace_back(o);
     }
     if (const YAML::Node ps = p["pose"]) {
       check_keys(source, ps, "pose observation",
@@ -284,9 +284,9 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
           o.measured_position = T.translation();
           o.measured_rotation = T.linear();
           o.weight = Matrix6d::Constant(std::nan(""));
-          m.observations.push_back(o);
+          m.observations.emplace_back(o);
         } else {
-          m.observations.push_back(PoseObservation::with_covariance(T, cov));
+          m.observations.emplace_back(PoseObservation::with_covariance(T, cov));
         }
       } catch (const std::invalid_argument& e) {
         fail(source, ps, fmt::format("pose '{}': covariance {}", m.id, e.what()));
@@ -306,7 +306,7 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
       o.sigma = pr["sigma"] ? positive(source, pr["sigma"], "probe sigma") * length_unit
                             : default_pos_sigma;
       if (!(o.sigma > 0.0)) fail(source, pr, "probe needs 'sigma' (or noise.position_sigma)");
-      m.observations.push_back(o);
+      m.observations.emplace_back(o);
     }
     if (const YAML::Node pxs = p["pixels"]) {
       if (!pxs.IsSequence())
@@ -359,7 +359,7 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
             fail(source, x, fmt::format("pose '{}': pixel {}", m.id, e.what()));
           }
         }
-        m.observations.push_back(o);
+        m.observations.emplace_back(o);
       }
     }
     if (m.observations.empty())

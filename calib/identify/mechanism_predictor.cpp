@@ -171,7 +171,7 @@ double task_conditioning(const MechanismPredictor& predictor, const Eigen::Vecto
     J.col(i) = (x[0] - x[1]) / (2.0 * h);
   }
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
-  const Eigen::VectorXd sv = svd.singularValues();
+  const Eigen::VectorXd& sv = svd.singularValues();
   if (sv.size() == 0 || sv(0) <= 0.0) return 0.0;
   return sv(sv.size() - 1) / sv(0);
 }

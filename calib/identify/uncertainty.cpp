@@ -48,7 +48,7 @@ ParameterUncertainty parameter_uncertainty(const Eigen::MatrixXd& whitened_jacob
         s(n - 1) / s(0));
     return out;
   }
-  const Eigen::MatrixXd V = svd.matrixV();
+  const Eigen::MatrixXd& V = svd.matrixV();
   Eigen::MatrixXd cov_scaled = V * s.cwiseAbs2().cwiseInverse().asDiagonal() * V.transpose();
   out.covariance =
       norms.cwiseInverse().asDiagonal() * cov_scaled * norms.cwiseInverse().asDiagonal();

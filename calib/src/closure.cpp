@@ -190,9 +190,7 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   result.iterations = lm.iterations;
   if (lm.converged) {
     result.status = SolveStatus::kConverged;
-  } else if (!std::isfinite(lm.residual)) {
-    result.status = SolveStatus::kNoSolution;
-  } else if (lm.stalled && lm.residual > 1e-6) {
+  } else if (!std::isfinite(lm.residual) || (lm.stalled && lm.residual > 1e-6)) {
     result.status = SolveStatus::kNoSolution;
   } else {
     result.status = SolveStatus::kNotConverged;

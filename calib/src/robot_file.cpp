@@ -137,7 +137,9 @@ void check_keys(const std::string& source, const YAML::Node& map, const std::str
         if (!list.empty()) list += ", ";
         list += a;
       }
-      fail(source, kv.first, "unknown key '" + key + "' in " + what + " (allowed: " + list + ")");
+      std::ostringstream message;
+      message << "unknown key '" << key << "' in " << what << " (allowed: " << list << ")";
+      fail(source, kv.first, message.str());
     }
   }
 }
