@@ -82,7 +82,7 @@ CornerGrouping group_corners(const std::vector<int>& ids, const std::vector<bool
     const Eigen::MatrixXd l = llt.matrixL();
     // A near-singular covariance would give a huge weight to one combination of corners.
     if (l.diagonal().minCoeff() < 1e-4 * l.diagonal().maxCoeff()) continue;
-    out.whitening.push_back(
+    out.whitening.emplace_back(
         l.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(sub.rows(), sub.cols())));
     for (size_t m : members) grouped[m] = true;
     out.groups.push_back(std::move(members));

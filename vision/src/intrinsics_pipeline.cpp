@@ -124,8 +124,8 @@ std::string coverage_svg(const IntrinsicCalibrationResult& result, int width, in
     s += fmt::format(
         "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\"><title>no corners "
         "({})</title></rect>\n",
-        (idx % 3) * width / 3.0 - 0.5, (idx / 3) * height / 3.0 - 0.5, width / 3.0, height / 3.0,
-        u);
+        (idx % 3) * width / 3.0 - 0.5, static_cast<double>(idx / 3) * height / 3.0 - 0.5,
+        width / 3.0, height / 3.0, u);
   }
   s += "</g>\n</svg>\n";
   return s;

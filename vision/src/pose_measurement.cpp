@@ -536,7 +536,7 @@ PoseMeasurement measure_frames(const std::vector<RigCamera>& rig, const BoardPoi
                       rotation_angle_deg(m.world_T_target, m.world_T_target_alternative)));
     if (m.few_corners)
       why.push_back(fmt::format("few corners ({} < {})", m.corners, options.min_corners));
-    if (m.blurred) why.push_back("blurred image in at least one camera");
+    if (m.blurred) why.emplace_back("blurred image in at least one camera");
     if (m.outliers > 0) why.push_back(fmt::format("{} corners rejected as outliers", m.outliers));
     m.message = fmt::format("{}", fmt::join(why, "; "));
   }
@@ -638,6 +638,7 @@ PoseMeasurement measure_settled_pose(const std::vector<RigCamera>& rig, const Bo
     return first;
   }
   std::vector<const std::vector<CameraFrame>*> all;
+  all.reserve(frames.size());
   for (const auto& f : frames) all.push_back(&f);
   PoseMeasurement joint = measure_frames(rig, board, all, &first.world_T_target, options);
   joint.motion_chi2 = worst;

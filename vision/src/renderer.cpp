@@ -640,6 +640,7 @@ std::vector<CornerTruth> corner_truth(const CameraModel& camera,
                                       const std::vector<RenderTarget>& targets,
                                       const RenderOptions& o) {
   std::vector<TargetGeometry> geo;
+  geo.reserve(targets.size());
   for (const RenderTarget& t : targets) geo.push_back(geometry_of(t));
   std::vector<CornerTruth> out;
   for (int k = 0; k < static_cast<int>(targets.size()); ++k) {

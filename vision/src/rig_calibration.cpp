@@ -523,7 +523,7 @@ RigCalibrationResult calibrate_rig(const std::vector<RigCamera>& cameras, const 
   std::vector<std::string> notes;
   if (!res.rejected.empty())
     notes.push_back(fmt::format("{} corners rejected as outliers", res.rejected.size()));
-  if (!have_cov) notes.push_back("covariance could not be computed (degenerate geometry)");
+  if (!have_cov) notes.emplace_back("covariance could not be computed (degenerate geometry)");
   const int unused = static_cast<int>(std::count(view_used.begin(), view_used.end(), false));
   if (unused > 0) notes.push_back(fmt::format("{} views seen by no camera were skipped", unused));
   res.message = fmt::format("{}", fmt::join(notes, "; "));
