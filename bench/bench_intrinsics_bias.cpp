@@ -26,6 +26,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -87,10 +88,22 @@ std::vector<ViewData> render_and_detect(const Scene& scene, const std::string& c
   const std::uint64_t offset = at == std::string::npos ? 0 : std::stoull(condition.substr(at + 1));
   rv::CameraModel camera = scene.camera;
   rv::RenderOptions render = scene.render;
-  if (images == "no_distortion")
-    for (std::size_t i = 4; i < camera.params.size(); ++i) camera.params[i] = 0.0;
-  if (images == "no_noise" || images == "no_blur") render.read_noise = 0.0;
-  if (images == "no_blur") render.blur_sigma = 0.0;
+  // Tokens joined by '+': demo, no_distortion, no_noise, no_blur (noise off too), no_lighting,
+  // blur=SIGMA, sub=N (renderer sub-cells per edge pixel).
+  std::stringstream tokens(images);
+  std::string token;
+  while (std::getline(tokens, token, '+')) {
+    if (token == "no_distortion")
+      for (std::size_t i = 4; i < camera.params.size(); ++i) camera.params[i] = 0.0;
+    if (token == "no_noise" || token == "no_blur") render.read_noise = 0.0;
+    if (token == "no_blur") render.blur_sigma = 0.0;
+    if (token == "no_lighting") {
+      render.vignetting = 0.0;
+      render.lighting_gradient.setZero();
+    }
+    if (token.starts_with("blur=")) render.blur_sigma = std::stod(token.substr(5));
+    if (token.starts_with("sub=")) render.blur_subcells = std::stoi(token.substr(4));
+  }
   const rv::CameraRays rays = rv::precompute_rays(camera);
   std::vector<ViewData> out(scene.poses.size());
   std::vector<std::thread> workers;
@@ -206,6 +219,10 @@ struct TagExpansion {
   // side: < 0.7, 0.7-0.85, >= 0.85): is a tilted tag seen too square or too narrow?
   std::array<double, 3> short_error{}, long_error{};
   std::array<int, 3> count_by_ratio{};
+  // Mean error of the taper (length difference of opposite sides; > 0: exaggerated) by the
+  // true taper: < 1 px, 1-3 px, >= 3 px.
+  std::array<double, 3> keystone_error{};
+  std::array<int, 3> count_by_taper{};
   json to_json() const {
     return {{"tags", tags},
             {"mean_px", mean},
@@ -218,7 +235,9 @@ struct TagExpansion {
             {"tags_by_side", count_by_size},
             {"short_side_error_px_by_ratio", short_error},
             {"long_side_error_px_by_ratio", long_error},
-            {"tags_by_ratio", count_by_ratio}};
+            {"tags_by_ratio", count_by_ratio},
+            {"taper_error_px_by_taper", keystone_error},
+            {"sides_by_taper", count_by_taper}};
   }
 };
 
@@ -255,6 +274,21 @@ TagExpansion tag_expansion(const std::vector<ViewData>& views) {
       const int short_axis = len(truth, 0) < len(truth, 1) ? 0 : 1;
       const double ratio = len(truth, short_axis) / len(truth, 1 - short_axis);
       const auto rb = static_cast<std::size_t>(ratio < 0.7 ? 0 : ratio < 0.85 ? 1 : 2);
+      // Keystone: the length difference of opposite sides (the tag's perspective taper),
+      // detected minus true, signed so that > 0 exaggerates the true taper.
+      for (std::size_t pair = 0; pair < 2; ++pair) {
+        const auto side_len = [&](const std::array<Vector2d, 4>& q, std::size_t k) {
+          return (q[(k + 1) % 4] - q[k]).norm();
+        };
+        const double taper_true = side_len(truth, pair) - side_len(truth, pair + 2);
+        const double taper_det = side_len(det, pair) - side_len(det, pair + 2);
+        const double sign = taper_true >= 0 ? 1.0 : -1.0;
+        const auto kb = static_cast<std::size_t>(std::abs(taper_true) < 1.0   ? 0
+                                                 : std::abs(taper_true) < 3.0 ? 1
+                                                                              : 2);
+        t.keystone_error[kb] += sign * (taper_det - taper_true);
+        ++t.count_by_taper[kb];
+      }
       t.short_error[rb] += len(det, short_axis) - len(truth, short_axis);
       t.long_error[rb] += len(det, 1 - short_axis) - len(truth, 1 - short_axis);
       ++t.count_by_ratio[rb];
@@ -270,6 +304,8 @@ TagExpansion tag_expansion(const std::vector<ViewData>& views) {
   t.rms = std::sqrt(sq / std::max(1, t.tags));
   for (std::size_t b = 0; b < 4; ++b)
     if (t.count_by_size[b] > 0) t.mean_by_size[b] /= t.count_by_size[b];
+  for (std::size_t b = 0; b < 3; ++b)
+    if (t.count_by_taper[b] > 0) t.keystone_error[b] /= t.count_by_taper[b];
   for (std::size_t b = 0; b < 3; ++b)
     if (t.count_by_ratio[b] > 0) {
       t.short_error[b] /= t.count_by_ratio[b];
@@ -437,6 +473,51 @@ json fx_attribution(const std::vector<ViewData>& data, const Scene& scene,
     const bool border = tc == 0 || tr == 0 || tc == cols_board - 1 || tr == rows_board - 1;
     (border ? border_tags : inner_tags) += share;
   }
+  // Per tag: its four corner errors split into orthonormal modes of the tag's true corners
+  // (translation x, y; scale; rotation; the other two affine modes; the two projective ones),
+  // each mode's share of the fx error summed over all tags.
+  const std::array<const char*, 8> mode_names = {
+      "translation_x", "translation_y", "scale", "rotation", "affine_a", "affine_b",
+      "projective_a",  "projective_b"};
+  std::array<double, 8> mode_share{};
+  std::map<std::pair<std::size_t, int>, std::array<std::size_t, 4>> tags;
+  std::map<std::pair<std::size_t, int>, int> tag_count;
+  for (std::size_t r = 0; r < rows.size(); ++r) {
+    const std::pair<std::size_t, int> key{rows[r].view, rows[r].corner_id / 4};
+    tags[key][static_cast<std::size_t>(rows[r].corner_id % 4)] = r;
+    ++tag_count[key];
+  }
+  for (const auto& [key, idx] : tags) {
+    if (tag_count[key] != 4) continue;
+    Vector2d centre = Vector2d::Zero();
+    for (std::size_t k : idx) centre += 0.25 * rows[k].pixel;
+    Eigen::Matrix<double, 8, 8> basis = Eigen::Matrix<double, 8, 8>::Zero();
+    for (std::size_t k = 0; k < 4; ++k) {
+      const Vector2d d = rows[idx[k]].pixel - centre;
+      const auto row = static_cast<Eigen::Index>(2 * k);
+      basis.block<2, 1>(row, 0) = Vector2d(1, 0);
+      basis.block<2, 1>(row, 1) = Vector2d(0, 1);
+      basis.block<2, 1>(row, 2) = d;
+      basis.block<2, 1>(row, 3) = Vector2d(-d.y(), d.x());
+      basis.block<2, 1>(row, 4) = Vector2d(d.x(), -d.y());
+      basis.block<2, 1>(row, 5) = Vector2d(d.y(), d.x());
+      // Projective: displacement quadratic in the corner offset.
+      basis.block<2, 1>(row, 6) = d.x() * d;
+      basis.block<2, 1>(row, 7) = d.y() * d;
+    }
+    const Eigen::HouseholderQR<Eigen::Matrix<double, 8, 8>> qr(basis);
+    const Eigen::Matrix<double, 8, 8> q = qr.householderQ();
+    Eigen::Matrix<double, 8, 1> ek, gk;
+    for (std::size_t k = 0; k < 4; ++k) {
+      ek.segment<2>(static_cast<Eigen::Index>(2 * k)) = rows[idx[k]].error;
+      gk.segment<2>(static_cast<Eigen::Index>(2 * k)) =
+          g.segment<2>(static_cast<Eigen::Index>(2 * idx[k]));
+    }
+    for (int m = 0; m < 8; ++m) mode_share[static_cast<std::size_t>(m)] +=
+        gk.dot(q.col(m)) * q.col(m).dot(ek);
+  }
+  json modes;
+  for (std::size_t m = 0; m < 8; ++m) modes[mode_names[m]] = mode_share[m];
   json views = json::array();
   for (std::size_t v = 0; v < data.size(); ++v) {
     // Tilt of the board against the line of sight to its centre.
@@ -454,7 +535,7 @@ json fx_attribution(const std::vector<ViewData>& data, const Scene& scene,
       {"fx_error_linear_px", g.dot(e)},   {"sigma_fx_iid_unit_px", std::sqrt(ldlt.solve(unit)(0))},
       {"by_radius", by_radius},           {"radial_part_px", radial},
       {"tangential_part_px", tangential}, {"border_tags_px", border_tags},
-      {"inner_tags_px", inner_tags},      {"by_view", views}};
+      {"inner_tags_px", inner_tags},      {"tag_modes_px", modes}, {"by_view", views}};
 }
 
 std::vector<std::string> split(const std::string& s) {
@@ -499,9 +580,13 @@ int main(int argc, char** argv) {
       std::vector<ViewData> noise_free;  // the no_noise detections, when rendered (first)
       for (const auto& img : images) {
         rv::CameraModel truth = scene.camera;
-        if (img.starts_with("no_distortion"))
+        if (img.find("no_distortion") != std::string::npos)
           for (std::size_t i = 4; i < truth.params.size(); ++i) truth.params[i] = 0.0;
+        const auto t0 = std::chrono::steady_clock::now();
         const auto data = render_and_detect(scene, img, threads);
+        std::cerr << "  render+detect "
+                  << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()
+                  << " s\n";
         if (img == "no_noise") noise_free = data;
         const CornerErrors errors = corner_errors(data, truth, true);
         const TagExpansion expansion = tag_expansion(data);
