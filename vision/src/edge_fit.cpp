@@ -16,7 +16,8 @@ double normal_cdf(double z) {
 }
 
 // Parameters of the blurred-step model: angle of the normal, line offset, dark level, contrast,
-// log of the blur sigma (log keeps sigma positive without constraints).
+// log of the blur sigma (log keeps sigma positive without constraints), the gain slopes and the
+// bend.
 struct StepParams {
   double theta = 0.0;
   double offset = 0.0;
@@ -24,7 +25,19 @@ struct StepParams {
   double contrast = 0.0;
   double log_sigma = 0.0;
   double curvature = 0.0;  // px^-1: the edge bends by curvature * t^2 at t px along it
+  // Relative gain slope (1/px) along the edge about the origin: vignetting and uneven lighting
+  // multiply the image by a gain that changes over the band, and with constant levels a ramp
+  // along the edge rotates the fitted line (its brighter end looks like more bright paper). A
+  // ramp across the edge moves it by only ~slope * sigma^2 and is left out: over the narrow
+  // bands of foreshortened tags it would trade against the offset.
+  double gain = 0.0;
 };
+
+// Parameter indices of the fit: theta, offset, dark, contrast, log sigma, gain slope, and the
+// curvature last when it is fitted.
+constexpr int kGain = 5;
+constexpr int kStraightParams = 6;
+constexpr int kCurvature = 6;
 
 // Phi(z) and phi(z) sharing one exp(): erfc by Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7,
 // i.e. < 3e-5 DN at 200 DN contrast). The fit spends nearly all its time here.
@@ -64,15 +77,19 @@ double evaluate(const std::vector<EdgeSample>& samples, const Eigen::Vector2d& o
     double cdf = 0.0;
     double pdf = 0.0;
     cdf_pdf(z, &cdf, &pdf);
-    const double r = p.dark + p.contrast * cdf - s.value;
-    const double g = p.contrast * pdf * inv_sigma;
+    const double base = p.dark + p.contrast * cdf;
+    const double gain = 1.0 + p.gain * along;
+    const double r = base * gain - s.value;
+    const double g = gain * p.contrast * pdf * inv_sigma;
     Eigen::Matrix<double, N, 1> j;
-    j(0) = g * (along + 2.0 * p.curvature * along * across);
+    // d along / d theta = -across: the gain ramp turns with the line.
+    j(0) = g * (along + 2.0 * p.curvature * along * across) - base * p.gain * across;
     j(1) = -g;
-    j(2) = 1.0;
-    j(3) = cdf;
+    j(2) = gain;
+    j(3) = gain * cdf;
     j(4) = -g * sigma * z;
-    if constexpr (N == 6) j(5) = -g * along * along;
+    j(kGain) = base * along;
+    if constexpr (N > kStraightParams) j(kCurvature) = -g * along * along;
     jtj->template selfadjointView<Eigen::Lower>().rankUpdate(j);
     *jtr += j * r;
     cost += r * r;
@@ -128,47 +145,89 @@ std::optional<EdgeLineFit> fit_edge(const std::vector<EdgeSample>& samples,
   p.log_sigma = std::log(std::clamp(initial_sigma, 0.1, 8.0));
   if (!solve_levels(samples, origin, p)) return std::nullopt;
 
-  // Levenberg-Marquardt on the five parameters; the problem is small (a few hundred samples).
+  // Levenberg-Marquardt on the N parameters; the problem is small (a few hundred samples).
   Eigen::Matrix<double, N, N> jtj;
   Eigen::Matrix<double, N, 1> jtr;
   double cost = evaluate<N>(samples, origin, p, &jtj, &jtr);
   double lambda = 1e-3;
   bool converged = false;
   double last_offset_step = 1.0;
-  for (int iter = 0; iter < 100 && !converged; ++iter) {
-    bool stepped = false;
-    for (int attempt = 0; attempt < 10 && !stepped; ++attempt) {
-      Eigen::Matrix<double, N, N> damped = jtj;
-      for (int k = 0; k < N; ++k) damped(k, k) += lambda * std::max(jtj(k, k), 1e-12);
-      const Eigen::Matrix<double, N, 1> delta = damped.ldlt().solve(-jtr);
-      if (!delta.allFinite()) return std::nullopt;
-      StepParams trial = p;
-      trial.theta += delta(0);
-      trial.offset += delta(1);
-      trial.dark += delta(2);
-      trial.contrast += delta(3);
-      trial.log_sigma = std::clamp(p.log_sigma + delta(4), std::log(0.05), std::log(20.0));
-      if constexpr (N == 6) trial.curvature += delta(5);
-      Eigen::Matrix<double, N, N> trial_jtj;
-      Eigen::Matrix<double, N, 1> trial_jtr;
-      const double trial_cost = evaluate<N>(samples, origin, trial, &trial_jtj, &trial_jtr);
-      if (trial_cost <= cost) {
-        // 1e-4 px / 1e-6 rad steps are far below any accuracy that matters here.
-        const bool small = std::abs(delta(1)) < 1e-4 && std::abs(delta(0)) < 1e-6;
-        const bool flat = cost - trial_cost <= 1e-10 * std::max(cost, 1.0);
-        last_offset_step = std::abs(delta(1));
-        p = trial;
-        cost = trial_cost;
-        jtj = trial_jtj;
-        jtr = trial_jtr;
-        lambda = std::max(lambda / 4.0, 1e-9);
-        stepped = true;
-        if (small || flat) converged = true;
-      } else {
-        lambda *= 8.0;
-      }
+  // Stage 0 holds the gain slope at zero (the constant-level fit, robust from a rough start);
+  // stage 1 frees it from there. Freed from the start, the extra freedom let some fits on real,
+  // JPEG-compressed tags run off to a degenerate, needle-sharp step.
+  StepParams constant_levels;
+  double constant_cost = 0.0;
+  bool constant_converged = false;
+  Eigen::Matrix<double, N, N> constant_jtj = jtj;
+  for (int stage = 0; stage < 2; ++stage) {
+    if (stage == 1) {
+      constant_levels = p;
+      constant_cost = cost;
+      constant_converged = converged;
+      constant_jtj = jtj;
     }
-    if (!stepped) converged = true;  // no decrease possible: at a minimum to machine precision
+    converged = false;
+    lambda = 1e-3;
+    for (int iter = 0; iter < 100 && !converged; ++iter) {
+      bool stepped = false;
+      for (int attempt = 0; attempt < 10 && !stepped; ++attempt) {
+        Eigen::Matrix<double, N, N> damped = jtj;
+        for (int k = 0; k < N; ++k) damped(k, k) += lambda * std::max(jtj(k, k), 1e-12);
+        Eigen::Matrix<double, N, 1> rhs = -jtr;
+        if (stage == 0) {
+          damped.row(kGain).setZero();
+          damped.col(kGain).setZero();
+          damped(kGain, kGain) = 1.0;
+          rhs(kGain) = 0.0;
+        }
+        const Eigen::Matrix<double, N, 1> delta = damped.ldlt().solve(rhs);
+        if (!delta.allFinite()) return std::nullopt;
+        StepParams trial = p;
+        trial.theta += delta(0);
+        trial.offset += delta(1);
+        trial.dark += delta(2);
+        trial.contrast += delta(3);
+        trial.log_sigma = std::clamp(p.log_sigma + delta(4), std::log(0.05), std::log(20.0));
+        trial.gain += delta(kGain);
+        if constexpr (N > kStraightParams) trial.curvature += delta(kCurvature);
+        Eigen::Matrix<double, N, N> trial_jtj;
+        Eigen::Matrix<double, N, 1> trial_jtr;
+        const double trial_cost = evaluate<N>(samples, origin, trial, &trial_jtj, &trial_jtr);
+        if (trial_cost <= cost) {
+          // 1e-4 px / 1e-6 rad steps are far below any accuracy that matters here.
+          const bool small = std::abs(delta(1)) < 1e-4 && std::abs(delta(0)) < 1e-6;
+          const bool flat = cost - trial_cost <= 1e-10 * std::max(cost, 1.0);
+          last_offset_step = std::abs(delta(1));
+          p = trial;
+          cost = trial_cost;
+          jtj = trial_jtj;
+          jtr = trial_jtr;
+          lambda = std::max(lambda / 4.0, 1e-9);
+          stepped = true;
+          if (small || flat) converged = true;
+        } else {
+          lambda *= 8.0;
+        }
+      }
+      if (!stepped) converged = true;  // no decrease possible: at a minimum to machine precision
+    }
+  }
+  // A gain slope that ran off (the step collapsing to a needle, or a gain change of over 50%
+  // across the band) is not illumination: keep the constant-level fit.
+  double half_length = 0.0;
+  {
+    const Eigen::Vector2d t(-std::sin(p.theta), std::cos(p.theta));
+    for (const auto& smp : samples)
+      half_length = std::max(half_length, std::abs(t.dot(smp.position - origin)));
+  }
+  if (std::exp(p.log_sigma) < 0.1 || std::abs(p.gain) * half_length > 0.5) {
+    p = constant_levels;
+    cost = constant_cost;
+    converged = constant_converged;
+    jtj = constant_jtj;
+    jtj.row(kGain).setZero();
+    jtj.col(kGain).setZero();
+    jtj(kGain, kGain) = 1.0;
   }
   if (!converged && last_offset_step > 1e-3) return std::nullopt;
 
@@ -180,15 +239,17 @@ std::optional<EdgeLineFit> fit_edge(const std::vector<EdgeSample>& samples,
   fit.blur_sigma = std::exp(p.log_sigma);
   fit.dark = p.dark;
   fit.bright = p.dark + p.contrast;
+  fit.gain_slope = p.gain;
   fit.samples = static_cast<int>(samples.size());
   const double dof = std::max(1.0, static_cast<double>(samples.size()) - N);
   fit.rms_residual = std::sqrt(cost / static_cast<double>(samples.size()));
   const Eigen::Matrix<double, N, N> cov = jtj.inverse() * (cost / dof);
   fit.offset_stddev = std::sqrt(std::max(0.0, cov(1, 1)));
-  if constexpr (N == 6) fit.curvature_stddev = std::sqrt(std::max(0.0, cov(5, 5)));
+  if constexpr (N > kStraightParams)
+    fit.curvature_stddev = std::sqrt(std::max(0.0, cov(kCurvature, kCurvature)));
   {
     // (theta, offset[, curvature]) block; the sign flip below negates offset and curvature.
-    constexpr int kLine[3] = {0, 1, N == 6 ? 5 : -1};
+    constexpr int kLine[3] = {0, 1, N > kStraightParams ? kCurvature : -1};
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c)
         fit.line_covariance(r, c) = kLine[r] < 0 || kLine[c] < 0 ? 0.0 : cov(kLine[r], kLine[c]);
@@ -219,8 +280,8 @@ std::optional<EdgeLineFit> fit_edge_line(const std::vector<EdgeSample>& samples,
   // The bend is always kept when asked for: dropping insignificant bends (a significance test)
   // was measured to leave a 0.15 px (8 sigma) focal-length bias on a k1 = -0.18 lens; the bend
   // costs some noise instead, which averages out over many corners.
-  if (curved) return fit_edge<6>(samples, a, b, initial_sigma);
-  return fit_edge<5>(samples, a, b, initial_sigma);
+  if (curved) return fit_edge<kStraightParams + 1>(samples, a, b, initial_sigma);
+  return fit_edge<kStraightParams>(samples, a, b, initial_sigma);
 }
 
 std::optional<Eigen::Vector2d> intersect_lines(const EdgeLineFit& l1, const EdgeLineFit& l2) {

@@ -233,6 +233,10 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
   if (options.width <= 0 || options.height <= 0) {
     throw std::invalid_argument("calibrate_intrinsics: image width and height must be positive");
   }
+  if (!options.initial_params.empty() &&
+      static_cast<int>(options.initial_params.size()) != num_params(options.kind)) {
+    throw std::invalid_argument("calibrate_intrinsics: initial_params has the wrong size");
+  }
   IntrinsicCalibrationResult result;
   result.param_names = camera_param_names(options.kind);
   const double w = options.width;
@@ -301,13 +305,19 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
         fx0 = fy0 = std::max(w, h);
     }
   }
+  if (!options.initial_params.empty()) {
+    fx0 = options.initial_params[0];
+    fy0 = options.initial_params[1];
+  }
+  const double cx_init = options.initial_params.empty() ? cx0 : options.initial_params[2];
+  const double cy_init = options.initial_params.empty() ? cy0 : options.initial_params[3];
   std::vector<Pose6> poses;
   std::vector<const CalibrationView*> posed;
   std::vector<size_t> posed_index;
   int tilted = 0;
   double max_tilt = 0.0;
   for (size_t i = 0; i < used.size(); ++i) {
-    auto pose = init_pose(*used[i], fx0, fy0, cx0, cy0);
+    auto pose = init_pose(*used[i], fx0, fy0, cx_init, cy_init);
     ViewReport& rep = result.views[used_index[i]];
     if (!pose) {
       rep.rejection = "no pose could be computed (degenerate point layout)";
@@ -385,6 +395,7 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
   // 3. Bundle adjustment with outlier rounds.
   const double single_sigma = single_corner_sigma(used);
   CameraModel init = make_camera(options.kind, options.width, options.height, fx0, fy0, cx0, cy0);
+  if (!options.initial_params.empty()) init.params = options.initial_params;
   std::vector<double> intrinsics = init.params;
   std::vector<Observation> obs;
   for (size_t vi = 0; vi < used.size(); ++vi) {

@@ -247,6 +247,59 @@ TEST(EdgeFit, UnbiasedAtEverySubPixelPhaseOfAPixelIntegratedGaussianEdge) {
   }
 }
 
+// Vignetting and uneven lighting multiply the image by a gain that changes across an edge. A
+// step model with constant levels turns a gain ramp ALONG the edge into a rotation of the
+// fitted line (the brighter end looks like more bright paper): at the demo's vignetting
+// (relative gain slope ~2e-4 / px at mid radius) the corners of a 60 px tag edge moved by
+// ~0.01 px, in the pattern of a tag's perspective taper, and the calibrated focal length came
+// out ~1 sigma short (issue 7, bench_intrinsics_bias). The fit models the gain as linear over
+// the edge, so the line stays where it is.
+TEST(EdgeFit, UnbiasedUnderAGainRampAlongAndAcrossTheEdge) {
+  const double dark = 20.0, bright = 220.0, sigma = 0.8;
+  const auto cdf = [](double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); };
+  const auto pdf = [](double x) { return std::exp(-0.5 * x * x) / std::sqrt(2.0 * M_PI); };
+  const auto box = [&](double lo, double hi, double x0) {
+    const auto F = [&](double t) {
+      const double z = (t - x0) / sigma;
+      return (t - x0) * cdf(z) + sigma * pdf(z);
+    };
+    return F(hi) - F(lo);
+  };
+  for (bool curved : {false, true}) {
+    for (const Eigen::Vector2d& gain :
+         {Eigen::Vector2d(0.0, 3e-4), Eigen::Vector2d(0.0, -3e-4), Eigen::Vector2d(3e-4, 2e-4)}) {
+      const double x0 = 11.37;  // a vertical edge x = x0, dark left, 60 px long
+      std::vector<rv::EdgeSample> samples;
+      for (int y = 0; y < 60; ++y)
+        for (int x = 6; x < 17; ++x) {
+          const double g = 1.0 + gain.x() * (x - 11.0) + gain.y() * (y - 30.0);
+          samples.push_back(
+              {Eigen::Vector2d(x, y), g * (dark + (bright - dark) * box(x - 0.5, x + 0.5, x0))});
+        }
+      const auto fit = rv::fit_edge_line(samples, {x0 + 0.3, 0.0}, {x0 - 0.3, 59.0}, 1.0, curved);
+      ASSERT_TRUE(fit.has_value());
+      // Where the fitted edge crosses the first and last rows (the corners' lever arm).
+      std::array<double, 2> at{};
+      for (int end = 0; end < 2; ++end) {
+        rv::EdgeLineFit row;
+        row.origin = Eigen::Vector2d(0.0, end == 0 ? 0.0 : 59.0);
+        row.normal = Eigen::Vector2d(0.0, 1.0);
+        const auto p = rv::intersect_lines(*fit, row);
+        ASSERT_TRUE(p.has_value());
+        at[static_cast<size_t>(end)] = p->x();
+      }
+      // Before the gain was modelled, a 3e-4 / px ramp along the edge turned the line by
+      // 5e-4 rad: 0.016 px at either end, in opposite directions.
+      EXPECT_NEAR(at[0], at[1], 3e-4) << "gain " << gain.transpose() << " curved " << curved;
+      // A ramp across the edge (not modelled: it moves the line by ~slope * sigma^2 only, the
+      // same at both ends) shifts it by about 1 mpx here.
+      const double tolerance = gain.x() == 0.0 ? 3e-4 : 2e-3;
+      for (double x : at)
+        EXPECT_NEAR(x, x0, tolerance) << "gain " << gain.transpose() << " curved " << curved;
+    }
+  }
+}
+
 TEST(AprilTagDetector, RejectsWrongImageTypeAndBadOptions) {
   rv::AprilTagDetector detector;
   EXPECT_THROW(detector.detect(cv::Mat()), std::invalid_argument);

@@ -5,10 +5,12 @@
 // covers [-0.5, w - 0.5] x [-0.5, h - 0.5].
 //
 // The model is a blurred step across a straight line, evaluated at pixel centres:
-//   I(p) = dark + (bright - dark) * Phi((n . (p - origin) - offset) / sigma)
-// with Phi the standard normal CDF. Fitting it directly on pixel values (no interpolation) keeps
-// the estimate unbiased: the Gaussian blur of the lens and the box integration of the pixel are
-// both symmetric about the edge, so they widen sigma but do not move the line.
+//   I(p) = [dark + (bright - dark) * Phi((n . (p - origin) - offset) / sigma)] * (1 + g t)
+// with Phi the standard normal CDF, t = direction() . (p - origin) and g a fitted relative gain
+// slope along the edge (vignetting and uneven lighting multiply the image; with constant levels
+// a gain ramp along the edge would rotate the line). Fitting it directly on pixel values (no
+// interpolation) keeps the estimate unbiased: the Gaussian blur of the lens and the box integration
+// of the pixel are both symmetric about the edge, so they widen sigma but do not move the line.
 #include <Eigen/Core>
 #include <array>
 #include <optional>
@@ -34,10 +36,12 @@ struct EdgeLineFit {
   double curvature = 0.0;
   double curvature_stddev = 0.0;  ///< 1-sigma of the bend (0 for a straight fit)
   double blur_sigma = 0.0;        ///< fitted edge spread in px (lens blur + pixel integration)
-  double dark = 0.0;              ///< grey level on the dark side
-  double bright = 0.0;            ///< grey level on the bright side
-  double rms_residual = 0.0;      ///< DN
-  double offset_stddev = 0.0;     ///< 1-sigma of the line offset from the fit (px)
+  double dark = 0.0;              ///< grey level on the dark side (at the origin)
+  double bright = 0.0;            ///< grey level on the bright side (at the origin)
+  /// Fitted relative gain slope of the illumination along the edge (1/px, along direction()).
+  double gain_slope = 0.0;
+  double rms_residual = 0.0;   ///< DN
+  double offset_stddev = 0.0;  ///< 1-sigma of the line offset from the fit (px)
   /// Covariance of (angle of the normal (rad), offset (px), curvature (1/px)) from the pixel
   /// noise (residual variance x (J^T J)^-1), for perturbations of this fit about `origin`;
   /// the curvature row and column are zero for a straight fit.

@@ -48,6 +48,9 @@ struct IntrinsicCalibrationOptions {
   int coverage_cols = 16;            ///< resolution of the coverage / uncertainty map
   int coverage_rows = 12;
   int max_iterations = 200;
+  /// Start from these parameters (same layout as CameraModel::params) instead of the
+  /// homography initialisation; empty: initialise from the views.
+  std::vector<double> initial_params;
 };
 
 enum class CalibrationStatus { kOk, kRefused, kFailed };
@@ -107,7 +110,8 @@ struct IntrinsicCalibrationResult {
 
 /// Calibrates. Never throws for bad data: bad views are reported per view, and the whole
 /// calibration is refused (with reason and advice) when the remaining views cannot determine
-/// the intrinsics. Throws std::invalid_argument only for invalid options (no image size).
+/// the intrinsics. Throws std::invalid_argument only for invalid options (no image size,
+/// initial_params of the wrong size).
 IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationView>& views,
                                                 const IntrinsicCalibrationOptions& options);
 
