@@ -363,7 +363,7 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
                               used.size(), options.min_views));
   }
   if (max_tilt < options.min_max_tilt_deg) {
-    result.advice.push_back("tilt the board by 30-45 deg about different axes");
+    result.advice.emplace_back("tilt the board by 30-45 deg about different axes");
     return refuse(fmt::format(
         "all views are nearly fronto-parallel (largest tilt {:.1f} deg < {:.0f}): the focal length "
         "is not observable",
@@ -389,7 +389,7 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
     result.warnings.push_back(fmt::format(
         "only {} views tilted by {:.0f} deg or more: the focal length is weakly determined", tilted,
         options.good_tilt_deg));
-    result.advice.push_back("add views with the board tilted ~45 deg");
+    result.advice.emplace_back("add views with the board tilted ~45 deg");
   }
 
   // 3. Bundle adjustment with outlier rounds.
@@ -556,7 +556,7 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
                                                             static_cast<Eigen::Index>(i))));
       }
     } else {
-      result.warnings.push_back("parameter covariance could not be computed (rank deficient)");
+      result.warnings.emplace_back("parameter covariance could not be computed (rank deficient)");
     }
   }
 
