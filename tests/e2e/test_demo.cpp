@@ -1,7 +1,8 @@
 // End to end: `robocal demo --quick` on rendered images must calibrate the simulated Delta far
-// better than the nominal model, against the hidden truth. The bound below is what the pipeline
-// reaches today (about 0.3 mm on this small configuration, limited by the camera intrinsics'
-// systematic error); the product target (issue 7) is 50 µm on the default demo.
+// better than the nominal model, against the hidden truth. The bound below is about twice what the
+// pipeline reaches on this small configuration (0.18 mm: 12 calibration views per camera leave
+// camera 0's frame uncertain, and 24 poses); the default demo (48 views, 60 poses) reaches
+// 21-44 µm on seeds 1-3, the product target (issue 7) being 50 µm.
 #include "command_registry.hpp"
 #include "run_robocal.hpp"
 
@@ -31,7 +32,7 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   const double calibrated = report["validate"]["calibrated"]["rms_m"];
   EXPECT_GE(report["validate"]["held_out_poses"].get<int>(), 150);
   EXPECT_GT(nominal, 5e-4) << "the perturbed robot should be millimetres off nominally";
-  EXPECT_LT(calibrated, 0.6e-3) << "calibrated error against truth";
+  EXPECT_LT(calibrated, 0.4e-3) << "calibrated error against truth";
   EXPECT_LT(calibrated, nominal / 10.0);
   // The worst held-out configurations, worst first; the first is the pose route's max unless the
   // pixel route is worse there.
