@@ -210,8 +210,9 @@ std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, i
   for (int v = 0; v < count; ++v) {
     for (int attempt = 0; attempt < 100; ++attempt) {
       const int region = v % 9;
-      const double px = ((region % 3) + u(rng)) / 3.0 * cam.width;
-      const double py = (static_cast<double>(region / 3) + u(rng)) / 3.0 * cam.height;
+      const int region_column = region % 3, region_row = region / 3;
+      const double px = (region_column + u(rng)) / 3.0 * cam.width;
+      const double py = (region_row + u(rng)) / 3.0 * cam.height;
       const auto ray = vision::unproject(cam, Eigen::Vector2d(px, py));
       if (!ray) continue;
       const double distance = 0.6 + 0.5 * u(rng);

@@ -787,7 +787,7 @@ ErrorStatistics prediction_errors(const FramePredictor& model, const Eigen::Vect
             std::abs(ph->normal.dot(pred.pose.translation()) - ph->offset - ph->measured_height));
     }
   }
-  return finish(std::move(pos), std::move(ori));
+  return finish(pos, ori);
 }
 
 ValidationReport validate(const FramePredictor& model, const Eigen::VectorXd& nominal,

@@ -121,11 +121,11 @@ std::string coverage_svg(const IntrinsicCalibrationResult& result, int width, in
     const auto it = std::find(names.begin(), names.end(), u);
     if (it == names.end()) continue;
     const int idx = static_cast<int>(it - names.begin());
+    const int column = idx % 3, row = idx / 3;
     s += fmt::format(
         "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\"><title>no corners "
         "({})</title></rect>\n",
-        (idx % 3) * width / 3.0 - 0.5, static_cast<double>(idx / 3) * height / 3.0 - 0.5,
-        width / 3.0, height / 3.0, u);
+        column * width / 3.0 - 0.5, row * height / 3.0 - 0.5, width / 3.0, height / 3.0, u);
   }
   s += "</g>\n</svg>\n";
   return s;
