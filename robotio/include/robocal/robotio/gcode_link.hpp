@@ -1,0 +1,109 @@
+#pragma once
+// G-code link to a printer-style controller (Marlin, RepRapFirmware) over a serial port or TCP.
+//
+// Actuator-space moves: the firmware runs in raw-axis mode, one G-code axis per motor
+// (RepRapFirmware `M669 K0` Cartesian with the motors mapped to X, Y, Z, U, V, W, A, B, C;
+// Marlin built for Cartesian kinematics), so `G1 X.. Y.. Z..` positions each motor directly and
+// robocal does the robot's kinematics. The alternative for a firmware configured with the
+// robot's own kinematics (e.g. a linear delta) is RepRapFirmware's `G1 H2`, which moves
+// individual motors without kinematics; it is not used because Marlin has no equivalent and
+// H2 moves are relative to an unhomed position in some versions. See robotio/README.md.
+//
+// Protocol: every command carries a line number and checksum; the link waits for `ok`, accepts
+// `busy:` keep-alives, resends on `Resend:`/`rs`, re-sends the same numbered line after a lost
+// `ok` (the firmware's line-number check answers a duplicate with a resend request for the next
+// line, so nothing executes twice), reconnects after a lost connection and checks the
+// controller's position before re-issuing a move (so no motion is duplicated or lost).
+#include "robocal/robotio/robot_link.hpp"
+#include "robocal/robotio/transport.hpp"
+
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace robocal::robotio {
+
+// How actuator readings map to G-code axes: value_in_gcode_units = reading * unit_factor;
+// counts = value_in_gcode_units * steps_per_unit.
+struct ActuatorAxes {
+  std::string letters;               // one per actuator, e.g. "XYZ"
+  std::vector<double> unit_factor;   // reading -> G-code unit (1000 for m -> mm, 180/pi rad -> deg)
+  std::vector<double> steps_per_unit;
+  int size() const { return static_cast<int>(letters.size()); }
+};
+// Axes for a robot: letters X Y Z U V W A B C in actuator order; prismatic actuators in mm,
+// revolute in degrees. Throws std::invalid_argument for more than 9 actuators.
+ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
+                            double steps_per_degree);
+
+struct GcodeLinkOptions {
+  std::string address;  // serial device path, or tcp:HOST:PORT
+  int baud = 115200;
+  ActuatorAxes axes;
+  std::chrono::milliseconds reply_timeout{1000};    // silence allowed before a command's ok
+  std::chrono::milliseconds identify_timeout{3000}; // for the banner / M115
+  int attempts = 4;            // per command: timeouts, resend requests, error replies
+  int reconnect_attempts = 6;  // connection re-opened this many times, 250 ms apart
+  bool accept_unknown_firmware = false;
+  // Marlin's host keep-alive interval (M113 S<n>, sent on connect): `busy:` lines come this
+  // often while a blocking command (M400, G28) runs.
+  std::chrono::seconds keepalive{1};
+};
+
+class GcodeLink final : public RobotLink {
+ public:
+  GcodeLink(SafetyGuard& guard, GcodeLinkOptions options);
+  // Test hook / custom transports: the link owns `transport`.
+  GcodeLink(SafetyGuard& guard, GcodeLinkOptions options, std::unique_ptr<Transport> transport);
+  ~GcodeLink() override;
+
+  FirmwareInfo connect() override;
+  void reconnect() override;
+  void disconnect() override;
+  LinkStatus status() const override { return status_; }
+  int actuator_count() const override { return options_.axes.size(); }
+
+  // Sends one command and returns the lines received before its ok (position reports, echo).
+  // Public for tools (`robocal sim-controller` tests, the wizard's console).
+  std::vector<std::string> command(const std::string& gcode,
+                                   std::chrono::milliseconds silence_timeout,
+                                   std::chrono::milliseconds total_timeout);
+
+  // Counts a reading vector converts to (what the firmware will count at that target).
+  std::vector<long> counts_for(const Eigen::VectorXd& readings) const;
+
+ protected:
+  void do_home() override;
+  void do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) override;
+  void do_wait_settled(std::chrono::milliseconds timeout) override;
+  std::chrono::milliseconds settle_silence() const;
+  ActuatorReadings do_read() override;
+  void do_stop(StopKind kind) override;
+  bool at_target(const ActuatorReadings& readings, const Eigen::VectorXd& target) const override;
+  double expected_seconds(const Eigen::VectorXd& from, const Eigen::VectorXd& to,
+                          const MoveSpeed& speed) const override;
+
+ private:
+  struct Sent;
+  std::vector<std::string> exchange(const std::string& gcode,
+                                    std::chrono::milliseconds silence_timeout,
+                                    std::chrono::milliseconds total_timeout, bool interruptible,
+                                    Clock::time_point quiet_until = {});
+  void handshake();
+  FirmwareInfo identify();
+  void send_stop_during_wait();
+  std::string move_gcode(const Eigen::VectorXd& target, const MoveSpeed& speed) const;
+  ActuatorReadings parse_readings(const std::vector<std::string>& lines) const;
+
+  GcodeLinkOptions options_;
+  std::unique_ptr<Transport> transport_;
+  LinkStatus status_;
+  long line_number_ = 0;
+  int stale_oks_ = 0;           // oks still owed for lines the firmware rejected
+  double acceleration_sent_ = -1.0;
+  mutable double expected_move_seconds_ = 0.0;  // of the move being waited for
+  std::string last_line_;       // last line received (for error messages)
+};
+
+}  // namespace robocal::robotio

@@ -1,0 +1,39 @@
+#pragma once
+// Runs `robocal sim-controller` as a separate process (tests, benches, the demo) and reads the
+// endpoints it announces on stdout ("tcp 127.0.0.1:P", "pty /dev/pts/N", "pose 127.0.0.1:P",
+// "ready"). The process is stopped (SIGTERM, then SIGKILL) when this object goes away.
+#include <chrono>
+#include <string>
+#include <sys/types.h>
+#include <vector>
+
+namespace robocal::robotio {
+
+class SimControllerProcess {
+ public:
+  // `robocal` = path of the robocal binary; `args` after "sim-controller". Throws
+  // std::runtime_error (with what the process printed) when it does not announce "ready"
+  // within `timeout`.
+  SimControllerProcess(const std::string& robocal, const std::vector<std::string>& args,
+                       std::chrono::milliseconds timeout = std::chrono::milliseconds(20000));
+  ~SimControllerProcess();
+  SimControllerProcess(const SimControllerProcess&) = delete;
+  SimControllerProcess& operator=(const SimControllerProcess&) = delete;
+
+  const std::string& tcp() const { return tcp_; }    // "tcp:127.0.0.1:P" (a link address)
+  // "/dev/pts/N", or the stable --pty-link when one was asked for.
+  const std::string& pty() const { return pty_; }
+  const std::string& pose() const { return pose_; }  // "127.0.0.1:P"
+  pid_t pid() const { return pid_; }
+  // Stops the process and returns its exit status (waits at most `timeout`).
+  int stop(std::chrono::milliseconds timeout = std::chrono::milliseconds(5000));
+  // Sends a signal (e.g. SIGTERM) without waiting.
+  void signal(int sig) const;
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+  std::string tcp_, pty_, pose_;
+};
+
+}  // namespace robocal::robotio

@@ -1,0 +1,109 @@
+// The safety guard on its own (pure): every refusal reason, on the linear delta.
+#include "robocal/calib/closure.hpp"
+#include "robotio_sim.hpp"
+
+#include <gtest/gtest.h>
+
+namespace robocal::test {
+namespace {
+
+using robotio::MoveSpeed;
+using robotio::SafetyGuard;
+
+class GuardTest : public ::testing::Test {
+ protected:
+  calib::Mechanism model = linear_delta();
+  SafetyGuard guard{model, model.nominal_parameters(), delta_limits()};
+  std::vector<Eigen::VectorXd> targets = delta_targets(model, 2, 1);
+  static constexpr MoveSpeed kOk{0.1, 2.0};
+};
+
+TEST_F(GuardTest, NotArmedRefusesButDryRunNeedsNoConfirmation) {
+  auto v = guard.check_move(targets[0], targets[1], kOk);
+  EXPECT_FALSE(v.allowed);
+  EXPECT_NE(v.reason.find("not armed"), std::string::npos);
+  guard.set_dry_run(true);
+  EXPECT_TRUE(guard.check_move(targets[0], targets[1], kOk).allowed);
+  guard.set_dry_run(false);
+  guard.arm("yes");
+  v = guard.check_move(targets[0], targets[1], kOk);
+  EXPECT_TRUE(v.allowed) << v.reason;
+  // The checked path starts and ends where asked, and every sample is solved.
+  ASSERT_GE(v.path.size(), 2u);
+  EXPECT_TRUE(v.path.front().readings.isApprox(targets[0]));
+  EXPECT_TRUE(v.path.back().readings.isApprox(targets[1]));
+}
+
+TEST_F(GuardTest, SpeedAndAccelerationLimits) {
+  guard.arm("yes");
+  EXPECT_FALSE(guard.check_move(targets[0], targets[1], {0.26, 2.0}).allowed);
+  EXPECT_FALSE(guard.check_move(targets[0], targets[1], {0.1, 5.1}).allowed);
+  EXPECT_FALSE(guard.check_move(targets[0], targets[1], {0.0, 2.0}).allowed);
+  EXPECT_TRUE(guard.check_move(targets[0], targets[1], {0.25, 5.0}).allowed);
+}
+
+TEST_F(GuardTest, ActuatorLimitsFromTheRobotFile) {
+  guard.arm("yes");
+  Eigen::VectorXd high = targets[0];
+  high[1] = 0.46;  // carriage b above its 0.45 m travel
+  const auto v = guard.check_move(targets[0], high, kOk);
+  EXPECT_FALSE(v.allowed);
+  EXPECT_NE(v.reason.find("carriage_b"), std::string::npos) << v.reason;
+}
+
+TEST_F(GuardTest, WorkspaceIsCheckedAlongThePathNotOnlyAtTheEnds) {
+  guard.arm("yes");
+  // Both ends inside the box, the straight carriage path between them leaves it: narrow the
+  // box's z range to the ends' z and move between two points where the effector dips.
+  const Eigen::VectorXd params = model.nominal_parameters();
+  auto tool_z = [&](const Eigen::VectorXd& r) {
+    return calib::forward_kinematics(model, params, r, model.tool).pose.translation();
+  };
+  calib::TaskTarget a, b;
+  a.pose.translation() = Eigen::Vector3d(-0.05, 0.0, 0.08);
+  b.pose.translation() = Eigen::Vector3d(0.05, 0.0, 0.08);
+  const Eigen::VectorXd ra = calib::solve_ik(model, params, a).actuator_readings;
+  const Eigen::VectorXd rb = calib::solve_ik(model, params, b).actuator_readings;
+  const Eigen::Vector3d mid = tool_z(0.5 * (ra + rb));
+  ASSERT_LT(mid.z(), 0.08 - 1e-4) << "the linear-delta path is not straight in task space";
+  robotio::SafetyLimits l = delta_limits();
+  l.workspace_min.z() = 0.08 - 1e-5;
+  SafetyGuard narrow(model, params, l);
+  narrow.arm("yes");
+  const auto v = narrow.check_move(ra, rb, kOk);
+  EXPECT_FALSE(v.allowed);
+  EXPECT_NE(v.reason.find("outside the declared workspace"), std::string::npos) << v.reason;
+}
+
+TEST_F(GuardTest, InjectedClearanceCheckSeesEverySample) {
+  guard.arm("yes");
+  int calls = 0;
+  guard.set_clearance_check([&](const robotio::PathSample& s) -> std::optional<std::string> {
+    ++calls;
+    EXPECT_EQ(s.state.q.size(), static_cast<Eigen::Index>(model.bodies.size()));
+    if (s.fraction > 0.4 && s.fraction < 0.6) return "obstacle at mid-path";
+    return std::nullopt;
+  });
+  const auto v = guard.check_move(targets[0], targets[1], kOk);
+  EXPECT_FALSE(v.allowed);
+  EXPECT_NE(v.reason.find("obstacle at mid-path"), std::string::npos);
+  EXPECT_GE(calls, 3);
+}
+
+TEST_F(GuardTest, StopRequestsHoldUntilResumedAndReconfirmed) {
+  guard.arm("yes");
+  guard.camera_lost("cam0");
+  auto v = guard.check_move(targets[0], targets[1], kOk);
+  EXPECT_FALSE(v.allowed);
+  EXPECT_NE(v.reason.find("camera cam0 lost"), std::string::npos) << v.reason;
+  guard.resume();
+  EXPECT_FALSE(guard.check_move(targets[0], targets[1], kOk).allowed) << "resume must disarm";
+  guard.arm("operator confirmed again");
+  EXPECT_TRUE(guard.check_move(targets[0], targets[1], kOk).allowed);
+  guard.request_stop_from_signal();
+  EXPECT_NE(guard.check_move(targets[0], targets[1], kOk).reason.find("Ctrl-C"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace robocal::test
