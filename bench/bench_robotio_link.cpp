@@ -109,8 +109,8 @@ nlohmann::json soak(const std::string& wire, int moves, double rate, unsigned se
     bool inside = c.ok();
     if (inside) {
       const Eigen::Vector3d p =
-          calib::frame_pose(model, params, calib::make_joint_state(model, params, readings, c.passive),
-                            model.tool)
+          calib::frame_pose(model, params,
+                            calib::make_joint_state(model, params, readings, c.passive), model.tool)
               .translation();
       inside = (p.array() >= limits.workspace_min.array()).all() &&
                (p.array() <= limits.workspace_max.array()).all();
@@ -140,8 +140,8 @@ nlohmann::json soak(const std::string& wire, int moves, double rate, unsigned se
   j["moves_duplicated"] = duplicated;
   j["confirmed_moves_never_executed"] = lost;
   j["motions_outside_workspace_or_limits"] = outside;
-  j["link_counters"] = {{"commands", st.commands}, {"resends", st.resends},
-                        {"timeouts", st.timeouts}, {"reconnects", st.reconnects},
+  j["link_counters"] = {{"commands", st.commands},     {"resends", st.resends},
+                        {"timeouts", st.timeouts},     {"reconnects", st.reconnects},
                         {"busy_lines", st.busy_lines}, {"errors", st.errors},
                         {"garbage", st.garbage}};
   j["seconds"] = seconds;

@@ -4,8 +4,8 @@
 // SimController.
 #include "cli_common.hpp"
 #include "command_registry.hpp"
-#include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/identification.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/robotio/sim_controller.hpp"
 #include "session_pipeline.hpp"
@@ -22,7 +22,9 @@ namespace robocal::app {
 namespace {
 
 std::atomic<bool> g_sim_stop{false};
-extern "C" void on_sim_signal(int /*signal*/) { g_sim_stop = true; }
+extern "C" void on_sim_signal(int /*signal*/) {
+  g_sim_stop = true;
+}
 
 struct SimCliOptions {
   std::string robot;
@@ -65,8 +67,8 @@ robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
   if (o.seed != 0) {
     std::mt19937 rng(o.seed);
     r.truth = calib::perturb_parameters(
-        nominal,
-        calib::tolerance_sigmas(r.model, o.length_sigma, o.angle_sigma_deg * M_PI / 180.0), rng);
+        nominal, calib::tolerance_sigmas(r.model, o.length_sigma, o.angle_sigma_deg * M_PI / 180.0),
+        rng);
   }
   if (!o.perturbation.empty()) {
     std::ifstream in(o.perturbation);
@@ -143,8 +145,7 @@ int run_sim_controller(const SimCliOptions& o) {
   // Announce like a board appearing on the bus; tools parse these lines.
   fmt::print("robocal sim-controller: {} dialect, robot {} (axes {}), truth {}\n",
              robotio::to_string(s.dialect), robot_name, letters,
-             o.seed != 0 ? fmt::format("perturbed with seed {}", o.seed)
-                         : std::string("nominal"));
+             o.seed != 0 ? fmt::format("perturbed with seed {}", o.seed) : std::string("nominal"));
   if (!sim.tcp_address().empty()) fmt::print("tcp {}\n", sim.tcp_address());
   if (!sim.pty_path().empty()) fmt::print("pty {}\n", sim.pty_path());
   if (!o.pty_link.empty()) fmt::print("pty-link {}\n", o.pty_link);

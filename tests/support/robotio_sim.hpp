@@ -28,17 +28,17 @@ inline robotio::SafetyLimits delta_limits() {
   robotio::SafetyLimits l;
   l.workspace_min = Eigen::Vector3d(-0.08, -0.08, 0.02);
   l.workspace_max = Eigen::Vector3d(0.08, 0.08, 0.16);
-  l.max_speed = 0.25;         // m/s of carriage travel
-  l.max_acceleration = 5.0;   // m/s^2
+  l.max_speed = 0.25;        // m/s of carriage travel
+  l.max_acceleration = 5.0;  // m/s^2
   l.path_step = 2e-3;
   return l;
 }
 
 inline std::vector<std::string> sim_args(const std::string& log, std::vector<std::string> extra) {
   // --max-seconds: a simulator orphaned by a crashed test exits on its own.
-  std::vector<std::string> a = {"--robot",    "linear_delta", "--log",           log,
-                                "--pty-link", log + ".pty",   "--max-seconds",   "600",
-                                "--busy-interval", "1"};
+  std::vector<std::string> a = {
+      "--robot",       "linear_delta", "--log",           log, "--pty-link", log + ".pty",
+      "--max-seconds", "600",          "--busy-interval", "1"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }

@@ -65,9 +65,12 @@ std::optional<double> axis_value(std::string_view s, char letter, std::size_t* a
 
 const char* to_string(Firmware firmware) {
   switch (firmware) {
-    case Firmware::kMarlin: return "Marlin";
-    case Firmware::kRepRapFirmware: return "RepRapFirmware";
-    case Firmware::kUnknown: break;
+    case Firmware::kMarlin:
+      return "Marlin";
+    case Firmware::kRepRapFirmware:
+      return "RepRapFirmware";
+    case Firmware::kUnknown:
+      break;
   }
   return "unknown";
 }
@@ -191,8 +194,14 @@ int gcode_checksum(const std::string& text) {
 }
 
 std::string numbered_line(long number, const std::string& command) {
-  const std::string body = "N" + std::to_string(number) + " " + command;
-  return body + "*" + std::to_string(gcode_checksum(body));
+  std::string line = "N";
+  line += std::to_string(number);
+  line += ' ';
+  line += command;
+  const int checksum = gcode_checksum(line);
+  line += '*';
+  line += std::to_string(checksum);
+  return line;
 }
 
 ReceivedLine split_received_line(const std::string& line) {
@@ -232,6 +241,8 @@ std::string quick_stop_command(Firmware firmware) {
   return firmware == Firmware::kMarlin ? "M410" : "";
 }
 
-bool sends_busy(Firmware firmware) { return firmware == Firmware::kMarlin; }
+bool sends_busy(Firmware firmware) {
+  return firmware == Firmware::kMarlin;
+}
 
 }  // namespace robocal::robotio

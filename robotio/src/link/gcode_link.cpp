@@ -90,7 +90,8 @@ void GcodeLink::handshake() {
   transport_->drain();
   stale_oks_ = 0;
   line_number_ = -1;  // exchange numbers "M110 N0" itself: the firmware expects N0 next
-  exchange("M110 N0", options_.reply_timeout, options_.reply_timeout * (options_.attempts + 1), false);
+  exchange("M110 N0", options_.reply_timeout, options_.reply_timeout * (options_.attempts + 1),
+           false);
   line_number_ = 0;
 }
 
@@ -138,9 +139,8 @@ void GcodeLink::reconnect() {
     }
   }
   status_.state = LinkState::kDisconnected;
-  throw LinkError(status_.device,
-                  fmt::format("reconnect failed after {} attempts: {}",
-                              options_.reconnect_attempts, why));
+  throw LinkError(status_.device, fmt::format("reconnect failed after {} attempts: {}",
+                                              options_.reconnect_attempts, why));
 }
 
 std::vector<std::string> GcodeLink::command(const std::string& gcode, milliseconds silence_timeout,
@@ -219,7 +219,9 @@ std::vector<std::string> GcodeLink::exchange(const std::string& gcode, milliseco
           continue;
         }
         return lines;
-      case ReplyKind::kBusy: ++status_.busy_lines; continue;
+      case ReplyKind::kBusy:
+        ++status_.busy_lines;
+        continue;
       case ReplyKind::kResend:
         ++status_.resends;
         error_text.clear();
@@ -242,10 +244,15 @@ std::vector<std::string> GcodeLink::exchange(const std::string& gcode, milliseco
         give_up("controller halted (reset it before reconnecting)");
         break;
       case ReplyKind::kEcho:
-      case ReplyKind::kTemperature: ++status_.unsolicited; lines.push_back(r.text); continue;
+      case ReplyKind::kTemperature:
+        ++status_.unsolicited;
+        lines.push_back(r.text);
+        continue;
       case ReplyKind::kPosition:
       case ReplyKind::kFirmware:
-      case ReplyKind::kOther: lines.push_back(r.text); continue;
+      case ReplyKind::kOther:
+        lines.push_back(r.text);
+        continue;
     }
   }
 }
@@ -264,7 +271,8 @@ void GcodeLink::send_stop_during_wait() {
 void GcodeLink::do_stop(StopKind kind) {
   const std::string quick = quick_stop_command(status_.firmware.firmware);
   if (kind == StopKind::kControlled && !quick.empty()) {
-    exchange(quick, options_.reply_timeout, options_.reply_timeout * (options_.attempts + 1), false);
+    exchange(quick, options_.reply_timeout, options_.reply_timeout * (options_.attempts + 1),
+             false);
     status_.state = LinkState::kStopped;
     return;
   }
@@ -415,7 +423,8 @@ bool GcodeLink::at_target(const ActuatorReadings& readings, const Eigen::VectorX
 double GcodeLink::expected_seconds(const Eigen::VectorXd& from, const Eigen::VectorXd& to,
                                    const MoveSpeed& speed) const {
   const double f = options_.axes.unit_factor[0];
-  const double s = trapezoid_seconds((to - from).norm() * f, speed.speed * f, speed.acceleration * f);
+  const double s =
+      trapezoid_seconds((to - from).norm() * f, speed.speed * f, speed.acceleration * f);
   expected_move_seconds_ = s;
   return s;
 }

@@ -8,11 +8,16 @@ namespace robocal::robotio {
 
 const char* to_string(LinkState state) {
   switch (state) {
-    case LinkState::kDisconnected: return "disconnected";
-    case LinkState::kIdle: return "idle";
-    case LinkState::kMoving: return "moving";
-    case LinkState::kStopped: return "stopped";
-    case LinkState::kFault: return "fault";
+    case LinkState::kDisconnected:
+      return "disconnected";
+    case LinkState::kIdle:
+      return "idle";
+    case LinkState::kMoving:
+      return "moving";
+    case LinkState::kStopped:
+      return "stopped";
+    case LinkState::kFault:
+      return "fault";
   }
   return "?";
 }

@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <cmath>
 #include <csignal>
 #include <utility>
@@ -51,7 +52,9 @@ void SafetyGuard::arm(const std::string& operator_confirmation) {
   armed_ = !operator_confirmation.empty();
 }
 
-void SafetyGuard::disarm() { armed_ = false; }
+void SafetyGuard::disarm() {
+  armed_ = false;
+}
 
 std::string SafetyGuard::confirmation() const {
   const std::lock_guard lock(mutex_);
@@ -122,8 +125,8 @@ GuardVerdict SafetyGuard::check_move(const Eigen::VectorXd& from, const Eigen::V
     return v;
   }
   if (!(speed.speed > 0.0) || speed.speed > limits_.max_speed) {
-    v.reason = fmt::format("speed {:.6g}/s outside (0, {:.6g}/s] (the declared limit)",
-                           speed.speed, limits_.max_speed);
+    v.reason = fmt::format("speed {:.6g}/s outside (0, {:.6g}/s] (the declared limit)", speed.speed,
+                           limits_.max_speed);
     return v;
   }
   if (!(speed.acceleration > 0.0) || speed.acceleration > limits_.max_acceleration) {
@@ -135,7 +138,8 @@ GuardVerdict SafetyGuard::check_move(const Eigen::VectorXd& from, const Eigen::V
   // the first read) only the target itself can be checked.
   const bool have_start = from.size() == n && from.allFinite();
   const Eigen::VectorXd start = have_start ? from : to;
-  const double span = (to - start).cwiseAbs().maxCoeff();
+  double span = 0.0;
+  for (Eigen::Index i = 0; i < n; ++i) span = std::max(span, std::abs(to[i] - start[i]));
   const int steps = std::max(1, static_cast<int>(std::ceil(span / limits_.path_step)));
   calib::ClosureSolver solver(*model_, params_);
   Eigen::VectorXd passive;
@@ -157,9 +161,9 @@ GuardVerdict SafetyGuard::check_move(const Eigen::VectorXd& from, const Eigen::V
     }
     const calib::ClosureResult closure = solver.solve(s.readings, passive);
     if (!closure.ok()) {
-      v.reason = fmt::format("the robot cannot assemble at {:.0f}% of the path (readings {}): {}",
-                             100 * s.fraction, vec_text(s.readings),
-                             calib::to_string(closure.status));
+      v.reason =
+          fmt::format("the robot cannot assemble at {:.0f}% of the path (readings {}): {}",
+                      100 * s.fraction, vec_text(s.readings), calib::to_string(closure.status));
       return v;
     }
     passive = closure.passive;

@@ -71,7 +71,9 @@ SimControllerProcess::SimControllerProcess(const std::string& robocal,
   }
 }
 
-SimControllerProcess::~SimControllerProcess() { stop(); }
+SimControllerProcess::~SimControllerProcess() {
+  stop();
+}
 
 void SimControllerProcess::signal(int sig) const {
   if (pid_ > 0) ::kill(pid_, sig);

@@ -17,7 +17,8 @@ TaskTargetVerdict actuators_for_task_target(const calib::Mechanism& model,
     for (std::size_t i = 0; i < model.actuated.size(); ++i) {
       const calib::Body& b = model.bodies[model.actuated[i]];
       const auto k = static_cast<Eigen::Index>(i);
-      seed.actuator_q[k] = params[b.encoder_scale_param] * current[k] + params[b.encoder_offset_param];
+      seed.actuator_q[k] =
+          params[b.encoder_scale_param] * current[k] + params[b.encoder_offset_param];
     }
   }
   calib::IkOptions options;

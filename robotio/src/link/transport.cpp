@@ -27,19 +27,32 @@ int millis_until(Clock::time_point deadline) {
 
 speed_t baud_constant(int baud) {
   switch (baud) {
-    case 9600: return B9600;
-    case 19200: return B19200;
-    case 38400: return B38400;
-    case 57600: return B57600;
-    case 115200: return B115200;
-    case 230400: return B230400;
-    case 460800: return B460800;
-    case 500000: return B500000;
-    case 921600: return B921600;
-    case 1000000: return B1000000;
-    case 2000000: return B2000000;
-    case 4000000: return B4000000;
-    default: return B0;
+    case 9600:
+      return B9600;
+    case 19200:
+      return B19200;
+    case 38400:
+      return B38400;
+    case 57600:
+      return B57600;
+    case 115200:
+      return B115200;
+    case 230400:
+      return B230400;
+    case 460800:
+      return B460800;
+    case 500000:
+      return B500000;
+    case 921600:
+      return B921600;
+    case 1000000:
+      return B1000000;
+    case 2000000:
+      return B2000000;
+    case 4000000:
+      return B4000000;
+    default:
+      return B0;
   }
 }
 
@@ -47,13 +60,15 @@ speed_t baud_constant(int baud) {
 
 LinkError::LinkError(std::string device, const std::string& problem, std::string controller_said)
     : std::runtime_error(device + ": " + problem +
-                         (controller_said.empty() ? std::string()
-                                                  : " (controller said: \"" + controller_said +
-                                                        "\")")),
+                         (controller_said.empty()
+                              ? std::string()
+                              : " (controller said: \"" + controller_said + "\")")),
       device_(std::move(device)),
       said_(std::move(controller_said)) {}
 
-FdTransport::~FdTransport() { FdTransport::close(); }
+FdTransport::~FdTransport() {
+  FdTransport::close();
+}
 
 void FdTransport::close() {
   if (fd_ >= 0) ::close(fd_);
@@ -134,9 +149,10 @@ void FdTransport::drain() {
 
 SerialTransport::SerialTransport(std::string path, int baud) : path_(std::move(path)), baud_(baud) {
   if (baud_constant(baud) == B0)
-    throw LinkError(device(), "unsupported baud rate " + std::to_string(baud) +
-                                  " (termios rates: 9600, 19200, 38400, 57600, 115200, 230400, 460800, "
-                                  "500000, 921600, 1000000, 2000000, 4000000)");
+    throw LinkError(device(),
+                    "unsupported baud rate " + std::to_string(baud) +
+                        " (termios rates: 9600, 19200, 38400, 57600, 115200, 230400, 460800, "
+                        "500000, 921600, 1000000, 2000000, 4000000)");
 }
 
 std::string SerialTransport::device() const {
@@ -187,8 +203,8 @@ void TcpTransport::open() {
   if (rc != 0) throw LinkError(device(), std::string("unknown host: ") + ::gai_strerror(rc));
   std::string why = "no address";
   for (addrinfo* a = found; a != nullptr; a = a->ai_next) {
-    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC,
-                            a->ai_protocol);
+    const int fd =
+        ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol);
     if (fd < 0) continue;
     int r = ::connect(fd, a->ai_addr, a->ai_addrlen);
     if (r < 0 && errno == EINPROGRESS) {
@@ -222,8 +238,7 @@ std::unique_ptr<Transport> make_transport(const std::string& address, int baud) 
   if (address.rfind("tcp:", 0) == 0) {
     const std::string rest = address.substr(4);
     const std::size_t colon = rest.rfind(':');
-    if (colon == std::string::npos)
-      throw LinkError(address, "expected tcp:HOST:PORT");
+    if (colon == std::string::npos) throw LinkError(address, "expected tcp:HOST:PORT");
     int port = 0;
     try {
       port = std::stoi(rest.substr(colon + 1));

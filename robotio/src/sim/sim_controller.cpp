@@ -37,8 +37,7 @@ constexpr std::array<const char*, kFaultKindCount> kFaultNames = {
     "drop", "busy", "error", "stall", "corrupt", "lost_ok", "resend", "slow", "garbage", "partial"};
 
 double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 int listen_tcp(int port, int* bound_port) {
@@ -115,7 +114,9 @@ struct Channel {
 
 }  // namespace
 
-const char* to_string(FaultKind kind) { return kFaultNames[static_cast<std::size_t>(kind)]; }
+const char* to_string(FaultKind kind) {
+  return kFaultNames[static_cast<std::size_t>(kind)];
+}
 
 std::optional<FaultKind> fault_kind_from_string(const std::string& name) {
   for (std::size_t i = 0; i < kFaultNames.size(); ++i)
@@ -169,16 +170,16 @@ void load_fault_script(const std::string& path, FaultPlan& plan) {
     std::string kind;
     if (!(ss >> index)) {
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-      throw std::invalid_argument(fmt::format("{}:{}: expected '<command index> <kind>'", path,
-                                              number));
+      throw std::invalid_argument(
+          fmt::format("{}:{}: expected '<command index> <kind>'", path, number));
     }
     if (!(ss >> kind) || index < 1)
-      throw std::invalid_argument(fmt::format("{}:{}: expected '<command index> <kind>'", path,
-                                              number));
+      throw std::invalid_argument(
+          fmt::format("{}:{}: expected '<command index> <kind>'", path, number));
     const auto k = fault_kind_from_string(kind);
     if (!k)
-      throw std::invalid_argument(fmt::format("{}:{}: unknown fault kind '{}'", path, number,
-                                              kind));
+      throw std::invalid_argument(
+          fmt::format("{}:{}: unknown fault kind '{}'", path, number, kind));
     plan.script[index] = *k;
   }
 }
@@ -193,8 +194,8 @@ std::string pose_channel_reply(const SimRobot& robot, const Eigen::VectorXd& tru
   const calib::ForwardResult fk =
       calib::forward_kinematics(robot.model, robot.truth, true_readings, frame);
   j["frame"] = robot.model.bodies[static_cast<std::size_t>(frame)].name;
-  j["actuators_true"] = std::vector<double>(true_readings.data(),
-                                            true_readings.data() + true_readings.size());
+  j["actuators_true"] =
+      std::vector<double>(true_readings.data(), true_readings.data() + true_readings.size());
   if (!fk.closure.ok()) {
     j["error"] = std::string("closure: ") + calib::to_string(fk.closure.status);
     return j.dump();
@@ -224,14 +225,14 @@ struct SimController::Impl {
   std::string pty_path;
 
   // Firmware state.
-  std::vector<long> counts;       // where the steppers are (updated as motions run)
-  std::deque<Motion> queue;       // front = running
+  std::vector<long> counts;  // where the steppers are (updated as motions run)
+  std::deque<Motion> queue;  // front = running
   long motion_ids = 0;
-  double feed;                    // units/s
+  double feed;  // units/s
   double acceleration;
   double busy_interval;
   bool halted = false;
-  long commands_received = 0;     // numbered commands (fault script index)
+  long commands_received = 0;       // numbered commands (fault script index)
   Eigen::VectorXd physical_offset;  // backlash + repeatability of the current position
   std::vector<int> last_direction;
 
@@ -264,7 +265,8 @@ struct SimController::Impl {
     std::vector<long> c;
     for (int i = 0; i < robot.axes.size(); ++i) {
       const auto k = static_cast<std::size_t>(i);
-      c.push_back(std::lround(readings[i] * robot.axes.unit_factor[k] * robot.axes.steps_per_unit[k]));
+      c.push_back(
+          std::lround(readings[i] * robot.axes.unit_factor[k] * robot.axes.steps_per_unit[k]));
     }
     return c;
   }
@@ -353,7 +355,8 @@ struct SimController::Impl {
     m.from = counts;
     double len2 = 0.0;
     for (int i = 0; i < robot.axes.size(); ++i) {
-      const double d = units_of(m.to[static_cast<std::size_t>(i)] - m.from[static_cast<std::size_t>(i)], i);
+      const double d =
+          units_of(m.to[static_cast<std::size_t>(i)] - m.from[static_cast<std::size_t>(i)], i);
       len2 += d * d;
     }
     m.length = std::sqrt(len2);
@@ -361,11 +364,20 @@ struct SimController::Impl {
     m.start = now;
     ++counters.motions;
     std::vector<double> target;
-    for (int i = 0; i < robot.axes.size(); ++i) target.push_back(units_of(m.to[static_cast<std::size_t>(i)], i));
-    write_log({{"ev", "motion_start"}, {"id", m.id}, {"ch", m.channel}, {"line", m.line},
-               {"from", m.from}, {"to", m.to}, {"target", target},
-               {"target_readings", readings_of(m.to)}, {"length", m.length},
-               {"feed", m.feed}, {"acceleration", m.acceleration}, {"duration_s", m.duration},
+    for (int i = 0; i < robot.axes.size(); ++i)
+      target.push_back(units_of(m.to[static_cast<std::size_t>(i)], i));
+    write_log({{"ev", "motion_start"},
+               {"id", m.id},
+               {"ch", m.channel},
+               {"line", m.line},
+               {"from", m.from},
+               {"to", m.to},
+               {"target", target},
+               {"target_readings", readings_of(m.to)},
+               {"length", m.length},
+               {"feed", m.feed},
+               {"acceleration", m.acceleration},
+               {"duration_s", m.duration},
                {"homing", m.homing}});
   }
 
@@ -398,8 +410,8 @@ struct SimController::Impl {
       const auto k = static_cast<std::size_t>(i);
       const long d = reached[k] - m.from[k];
       if (d != 0) last_direction[k] = d > 0 ? 1 : -1;
-      physical_offset[i] = -0.5 * robot.backlash * last_direction[k] +
-                           robot.noise_sigma * noise(noise_rng);
+      physical_offset[i] =
+          -0.5 * robot.backlash * last_direction[k] + robot.noise_sigma * noise(noise_rng);
     }
     counts = reached;
     write_log({{"ev", "motion_end"}, {"id", m.id}, {"counts", reached}, {"stopped", stopped}});
@@ -604,8 +616,11 @@ struct SimController::Impl {
     const std::optional<FaultKind> fault = item.fault;
     if (fault) {
       ++counters.faults[static_cast<std::size_t>(*fault)];
-      write_log({{"ev", "fault"}, {"kind", to_string(*fault)}, {"ch", c.name},
-                 {"line", rl.number}, {"cmd", rl.command}});
+      write_log({{"ev", "fault"},
+                 {"kind", to_string(*fault)},
+                 {"ch", c.name},
+                 {"line", rl.number},
+                 {"cmd", rl.command}});
     }
     if (halted) {
       if (rl.command.rfind("M999", 0) == 0) {
@@ -635,8 +650,8 @@ struct SimController::Impl {
         return;
       }
       if (rl.number != c.last_n + 1) {
-        send(c, fmt::format("Error:Line Number is not Last Line Number+1, Last Line: {}",
-                            c.last_n));
+        send(c,
+             fmt::format("Error:Line Number is not Last Line Number+1, Last Line: {}", c.last_n));
         send(c, resend_request(options.dialect, c.last_n + 1));
         send(c, "ok");
         return;
@@ -796,8 +811,8 @@ void SimController::start() {
   if (!s.options.log_path.empty()) {
     s.log = std::fopen(s.options.log_path.c_str(), "w");
     if (s.log == nullptr)
-      throw std::runtime_error(s.options.log_path + ": cannot write the log: " +
-                               std::strerror(errno));
+      throw std::runtime_error(s.options.log_path +
+                               ": cannot write the log: " + std::strerror(errno));
   }
   if (s.options.tcp_port >= 0) s.tcp_listen = listen_tcp(s.options.tcp_port, &s.tcp_port);
   if (s.options.pose_port >= 0) s.pose_listen = listen_tcp(s.options.pose_port, &s.pose_port);
@@ -805,9 +820,13 @@ void SimController::start() {
     s.open_pty();
     s.greet(s.pty);
   }
-  s.write_log({{"ev", "start"}, {"robot", s.robot.model.name},
-               {"firmware", to_string(s.options.dialect)}, {"tcp", tcp_address()},
-               {"pty", s.pty_path}, {"pose", pose_address()}, {"axes", s.robot.axes.letters},
+  s.write_log({{"ev", "start"},
+               {"robot", s.robot.model.name},
+               {"firmware", to_string(s.options.dialect)},
+               {"tcp", tcp_address()},
+               {"pty", s.pty_path},
+               {"pose", pose_address()},
+               {"axes", s.robot.axes.letters},
                {"steps_per_unit", s.robot.axes.steps_per_unit},
                {"unit_factor", s.robot.axes.unit_factor}});
 }
@@ -815,11 +834,15 @@ void SimController::start() {
 std::string SimController::tcp_address() const {
   return impl_->tcp_listen >= 0 ? fmt::format("127.0.0.1:{}", impl_->tcp_port) : "";
 }
-std::string SimController::pty_path() const { return impl_->pty_path; }
+std::string SimController::pty_path() const {
+  return impl_->pty_path;
+}
 std::string SimController::pose_address() const {
   return impl_->pose_listen >= 0 ? fmt::format("127.0.0.1:{}", impl_->pose_port) : "";
 }
-SimCounters SimController::counters() const { return impl_->counters; }
+SimCounters SimController::counters() const {
+  return impl_->counters;
+}
 
 void SimController::run(const std::atomic<bool>& stop) {
   Impl& s = *impl_;
@@ -842,21 +865,28 @@ void SimController::run(const std::atomic<bool>& stop) {
     const double wait = std::max(0.0, std::min(s.next_event(now), end) - now);
     timespec ts{static_cast<time_t>(wait), static_cast<long>((wait - std::floor(wait)) * 1e9)};
     const int ready = ::ppoll(fds.data(), fds.size(), &ts, nullptr);
-    if (ready < 0 && errno != EINTR) throw std::runtime_error(std::string("poll: ") + std::strerror(errno));
+    if (ready < 0 && errno != EINTR)
+      throw std::runtime_error(std::string("poll: ") + std::strerror(errno));
     // Pose clients are served first and highest index first, so erasing one keeps the others'
     // indices valid.
     for (std::size_t k = fds.size(); k-- > 0;) {
       if (ready <= 0 || fds[k].revents == 0) continue;
       switch (src[k].first) {
-        case kTcpListen: s.accept_on(s.tcp_listen, &s.tcp); break;
-        case kPoseListen: s.accept_on(s.pose_listen, nullptr); break;
+        case kTcpListen:
+          s.accept_on(s.tcp_listen, &s.tcp);
+          break;
+        case kPoseListen:
+          s.accept_on(s.pose_listen, nullptr);
+          break;
         case kTcp:
           if (s.tcp.fd == fds[k].fd) s.receive(s.tcp);
           break;
         case kPty:
           if (s.pty.fd == fds[k].fd) s.receive(s.pty);
           break;
-        case kPose: s.serve_pose(src[k].second); break;
+        case kPose:
+          s.serve_pose(src[k].second);
+          break;
       }
     }
     const double after = now_seconds();

@@ -238,12 +238,14 @@ TEST_F(LinkTest, RefusedMovesSendNothing) {
   const Eigen::Vector3d ball = fk.pose.translation();
   const double radius = 0.004;
   ASSERT_GT((calib::forward_kinematics(model_, model_.nominal_parameters(), targets[1], model_.tool)
-                 .pose.translation() - ball).norm(), radius);
-  guard_->set_clearance_check(
-      [&](const robotio::PathSample& s) -> std::optional<std::string> {
-        if ((s.tool_pose.translation() - ball).norm() < radius) return "inside the test ball";
-        return std::nullopt;
-      });
+                 .pose.translation() -
+             ball)
+                .norm(),
+            radius);
+  guard_->set_clearance_check([&](const robotio::PathSample& s) -> std::optional<std::string> {
+    if ((s.tool_pose.translation() - ball).norm() < radius) return "inside the test ball";
+    return std::nullopt;
+  });
   try {
     l->move_actuators(targets[1], kSpeed);
     FAIL() << "a path through an obstacle was accepted";
@@ -272,8 +274,8 @@ TEST_F(LinkTest, CtrlCDuringAMoveSendsTheStopAndTheSessionResumes) {
   low.pose.translation() = Eigen::Vector3d(0.0, 0.0, 0.04);
   high.pose.translation() = Eigen::Vector3d(0.0, 0.0, 0.11);
   const Eigen::VectorXd params = model_.nominal_parameters();
-  ASSERT_TRUE(l->move_actuators(calib::solve_ik(model_, params, low).actuator_readings, kSpeed)
-                  .confirmed);
+  ASSERT_TRUE(
+      l->move_actuators(calib::solve_ik(model_, params, low).actuator_readings, kSpeed).confirmed);
   const Eigen::VectorXd far = calib::solve_ik(model_, params, high).actuator_readings;
   std::thread ctrl_c([] {
     std::this_thread::sleep_for(std::chrono::milliseconds(300));

@@ -26,8 +26,7 @@ TEST(GcodeDialect, ClassifiesMarlinAndRrfReplies) {
   EXPECT_EQ(classify_reply("!! Shutdown due to MCU error").kind, ReplyKind::kFatal);
   EXPECT_EQ(classify_reply("Error:Printer halted. kill() called!").kind, ReplyKind::kFatal);
   EXPECT_EQ(classify_reply("echo:Unknown command: \"M9999\"").kind, ReplyKind::kEcho);
-  EXPECT_EQ(classify_reply(" T:24.80 /0.00 B:25.10 /0.00 @:0 B@:0").kind,
-            ReplyKind::kTemperature);
+  EXPECT_EQ(classify_reply(" T:24.80 /0.00 B:25.10 /0.00 @:0 B@:0").kind, ReplyKind::kTemperature);
   EXPECT_EQ(classify_reply("X:1.00 Y:2.00 Z:3.00 E:0.00 Count X:80 Y:160 Z:240").kind,
             ReplyKind::kPosition);
   EXPECT_EQ(classify_reply("Cap:EMERGENCY_PARSER:1").kind, ReplyKind::kOther);
@@ -35,8 +34,8 @@ TEST(GcodeDialect, ClassifiesMarlinAndRrfReplies) {
 }
 
 TEST(GcodeDialect, ParsesMarlinM114StepperCounts) {
-  const auto r = parse_position_report("X:10.00 Y:20.00 Z:5.00 E:0.00 Count X:800 Y:1600 Z:400",
-                                       "XYZ");
+  const auto r =
+      parse_position_report("X:10.00 Y:20.00 Z:5.00 E:0.00 Count X:800 Y:1600 Z:400", "XYZ");
   ASSERT_TRUE(r);
   EXPECT_EQ(r->positions, (std::vector<double>{10.0, 20.0, 5.0}));
   EXPECT_EQ(r->counts, (std::vector<long>{800, 1600, 400}));

@@ -43,10 +43,14 @@ TEST_F(GuardTest, SpeedAndAccelerationLimits) {
 }
 
 TEST_F(GuardTest, ActuatorLimitsFromTheRobotFile) {
-  guard.arm("yes");
+  robotio::SafetyLimits l = delta_limits();
+  l.workspace_min = Eigen::Vector3d::Constant(-1.0);  // only the actuator limits can refuse
+  l.workspace_max = Eigen::Vector3d::Constant(1.0);
+  SafetyGuard open_box(model, model.nominal_parameters(), l);
+  open_box.arm("yes");
   Eigen::VectorXd high = targets[0];
   high[1] = 0.46;  // carriage b above its 0.45 m travel
-  const auto v = guard.check_move(targets[0], high, kOk);
+  const auto v = open_box.check_move(targets[0], high, kOk);
   EXPECT_FALSE(v.allowed);
   EXPECT_NE(v.reason.find("carriage_b"), std::string::npos) << v.reason;
 }
@@ -56,8 +60,9 @@ TEST_F(GuardTest, WorkspaceIsCheckedAlongThePathNotOnlyAtTheEnds) {
   // Both ends inside the box, the straight carriage path between them leaves it: narrow the
   // box's z range to the ends' z and move between two points where the effector dips.
   const Eigen::VectorXd params = model.nominal_parameters();
-  auto tool_z = [&](const Eigen::VectorXd& r) {
-    return calib::forward_kinematics(model, params, r, model.tool).pose.translation();
+  auto tool_z = [&](const Eigen::VectorXd& r) -> Eigen::Vector3d {
+    const calib::ForwardResult fk = calib::forward_kinematics(model, params, r, model.tool);
+    return fk.pose.translation();
   };
   calib::TaskTarget a, b;
   a.pose.translation() = Eigen::Vector3d(-0.05, 0.0, 0.08);
@@ -101,8 +106,7 @@ TEST_F(GuardTest, StopRequestsHoldUntilResumedAndReconfirmed) {
   guard.arm("operator confirmed again");
   EXPECT_TRUE(guard.check_move(targets[0], targets[1], kOk).allowed);
   guard.request_stop_from_signal();
-  EXPECT_NE(guard.check_move(targets[0], targets[1], kOk).reason.find("Ctrl-C"),
-            std::string::npos);
+  EXPECT_NE(guard.check_move(targets[0], targets[1], kOk).reason.find("Ctrl-C"), std::string::npos);
 }
 
 }  // namespace

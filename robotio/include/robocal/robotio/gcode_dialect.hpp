@@ -38,7 +38,7 @@ enum class ReplyKind : std::uint8_t {
 
 struct Reply {
   ReplyKind kind = ReplyKind::kOther;
-  std::string text;     // the line without its line ending
+  std::string text;       // the line without its line ending
   long resend_line = -1;  // kResend: the line number asked for
 };
 
@@ -89,7 +89,9 @@ std::string resend_request(Firmware firmware, long number);
 // (no M410); its stop is M112 followed by M999 to restart. Returns "" when the firmware has no
 // controlled stop.
 std::string quick_stop_command(Firmware firmware);
-inline std::string emergency_stop_command() { return "M112"; }
+inline std::string emergency_stop_command() {
+  return "M112";
+}
 
 // Whether the firmware keeps a connection alive with busy lines during M400/G28 (Marlin's
 // HOST_KEEPALIVE_FEATURE); RRF stays silent until "ok".

@@ -27,8 +27,8 @@ namespace robocal::robotio {
 // How actuator readings map to G-code axes: value_in_gcode_units = reading * unit_factor;
 // counts = value_in_gcode_units * steps_per_unit.
 struct ActuatorAxes {
-  std::string letters;               // one per actuator, e.g. "XYZ"
-  std::vector<double> unit_factor;   // reading -> G-code unit (1000 for m -> mm, 180/pi rad -> deg)
+  std::string letters;              // one per actuator, e.g. "XYZ"
+  std::vector<double> unit_factor;  // reading -> G-code unit (1000 for m -> mm, 180/pi rad -> deg)
   std::vector<double> steps_per_unit;
   int size() const { return static_cast<int>(letters.size()); }
 };
@@ -41,8 +41,8 @@ struct GcodeLinkOptions {
   std::string address;  // serial device path, or tcp:HOST:PORT
   int baud = 115200;
   ActuatorAxes axes;
-  std::chrono::milliseconds reply_timeout{1000};    // silence allowed before a command's ok
-  std::chrono::milliseconds identify_timeout{3000}; // for the banner / M115
+  std::chrono::milliseconds reply_timeout{1000};     // silence allowed before a command's ok
+  std::chrono::milliseconds identify_timeout{3000};  // for the banner / M115
   int attempts = 4;            // per command: timeouts, resend requests, error replies
   int reconnect_attempts = 6;  // connection re-opened this many times, 250 ms apart
   bool accept_unknown_firmware = false;
@@ -100,10 +100,10 @@ class GcodeLink final : public RobotLink {
   std::unique_ptr<Transport> transport_;
   LinkStatus status_;
   long line_number_ = 0;
-  int stale_oks_ = 0;           // oks still owed for lines the firmware rejected
+  int stale_oks_ = 0;  // oks still owed for lines the firmware rejected
   double acceleration_sent_ = -1.0;
   mutable double expected_move_seconds_ = 0.0;  // of the move being waited for
-  std::string last_line_;       // last line received (for error messages)
+  std::string last_line_;                       // last line received (for error messages)
 };
 
 }  // namespace robocal::robotio

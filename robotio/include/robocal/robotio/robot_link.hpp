@@ -33,8 +33,8 @@ struct LinkStatus {
   std::string device;
   std::string last_error;  // the last controller error or link failure, "" if none
   // Counters over the link's life (reported by benches and the wizard's summary).
-  long commands = 0, resends = 0, timeouts = 0, reconnects = 0, busy_lines = 0,
-       errors = 0, unsolicited = 0, garbage = 0;
+  long commands = 0, resends = 0, timeouts = 0, reconnects = 0, busy_lines = 0, errors = 0,
+       unsolicited = 0, garbage = 0;
 };
 
 // Outcome of one motion: confirmed at its target, or not (with the reason). Failures that leave
@@ -43,9 +43,9 @@ struct LinkStatus {
 struct MoveResult {
   bool confirmed = false;
   bool dry_run = false;
-  std::string reason;              // why not confirmed
-  ActuatorReadings readings;       // read back after settling (the target in a dry run)
-  double seconds = 0.0;            // wall time from issue to readings parsed
+  std::string reason;         // why not confirmed
+  ActuatorReadings readings;  // read back after settling (the target in a dry run)
+  double seconds = 0.0;       // wall time from issue to readings parsed
 };
 
 class RobotLink {

@@ -33,10 +33,10 @@ struct MoveSpeed {
 
 // One point of a checked path.
 struct PathSample {
-  double fraction = 0.0;            // 0 = start, 1 = target
-  Eigen::VectorXd readings;         // actuator readings
-  calib::JointState state;          // every joint (closure solved), for a collision model
-  Eigen::Isometry3d tool_pose;      // task frame in the robot's world frame
+  double fraction = 0.0;        // 0 = start, 1 = target
+  Eigen::VectorXd readings;     // actuator readings
+  calib::JointState state;      // every joint (closure solved), for a collision model
+  Eigen::Isometry3d tool_pose;  // task frame in the robot's world frame
 };
 
 // Returns a reason ("effector within 3 mm of obstacle 'camera stand', needs 10 mm") when the
@@ -56,8 +56,8 @@ struct SafetyLimits {
 // The guard's decision for one move (also what dry runs report).
 struct GuardVerdict {
   bool allowed = false;
-  std::string reason;               // empty when allowed
-  std::vector<PathSample> path;     // the samples checked (start and target included)
+  std::string reason;            // empty when allowed
+  std::vector<PathSample> path;  // the samples checked (start and target included)
 };
 
 class SafetyGuard {

@@ -40,7 +40,7 @@ std::optional<FaultKind> fault_kind_from_string(const std::string& name);
 
 struct FaultPlan {
   std::array<double, kFaultKindCount> rate{};  // probability per numbered command, per kind
-  std::map<long, FaultKind> script;  // numbered command index received (1-based) -> fault
+  std::map<long, FaultKind> script;            // numbered command index received (1-based) -> fault
   std::uint32_t seed = 1;
   double slow_seconds = 0.25;
   int busy_lines = 2;
@@ -53,7 +53,7 @@ void load_fault_script(const std::string& path, FaultPlan& plan);
 
 struct SimRobot {
   calib::Mechanism model;
-  Eigen::VectorXd truth;          // the true parameters (never sent to the link)
+  Eigen::VectorXd truth;  // the true parameters (never sent to the link)
   ActuatorAxes axes;
   Eigen::VectorXd home_readings;  // where G28 puts the actuators (endstops), readings
   double noise_sigma = 0.0;       // actuator repeatability per move, readings
@@ -66,15 +66,15 @@ struct SimOptions {
   bool mute = false;          // accept connections, never answer (a dead controller)
   int tcp_port = 0;           // 0 = any free port, -1 = no TCP
   bool pty = true;
-  std::string pty_link;       // stable symlink to the current pty (like /dev/serial/by-id)
-  int pose_port = 0;          // 0 = any free port, -1 = none
-  std::string log_path;       // JSONL; "" = no log
-  double busy_interval = 2.0; // Marlin's default host keep-alive (M113 changes it)
+  std::string pty_link;               // stable symlink to the current pty (like /dev/serial/by-id)
+  int pose_port = 0;                  // 0 = any free port, -1 = none
+  std::string log_path;               // JSONL; "" = no log
+  double busy_interval = 2.0;         // Marlin's default host keep-alive (M113 changes it)
   double temperature_interval = 0.0;  // auto-report temperatures every N s (0 = off)
-  double feed = 3000.0;           // default feed, G-code units/min
-  double acceleration = 1000.0;   // default, G-code units/s^2
-  double max_seconds = 0.0;       // exit after this long (0 = until stopped)
-  std::uint32_t seed = 1;         // actuator noise
+  double feed = 3000.0;               // default feed, G-code units/min
+  double acceleration = 1000.0;       // default, G-code units/s^2
+  double max_seconds = 0.0;           // exit after this long (0 = until stopped)
+  std::uint32_t seed = 1;             // actuator noise
   FaultPlan faults;
 };
 

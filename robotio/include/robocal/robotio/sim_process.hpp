@@ -2,9 +2,9 @@
 // Runs `robocal sim-controller` as a separate process (tests, benches, the demo) and reads the
 // endpoints it announces on stdout ("tcp 127.0.0.1:P", "pty /dev/pts/N", "pose 127.0.0.1:P",
 // "ready"). The process is stopped (SIGTERM, then SIGKILL) when this object goes away.
+#include <sys/types.h>
 #include <chrono>
 #include <string>
-#include <sys/types.h>
 #include <vector>
 
 namespace robocal::robotio {
@@ -20,7 +20,7 @@ class SimControllerProcess {
   SimControllerProcess(const SimControllerProcess&) = delete;
   SimControllerProcess& operator=(const SimControllerProcess&) = delete;
 
-  const std::string& tcp() const { return tcp_; }    // "tcp:127.0.0.1:P" (a link address)
+  const std::string& tcp() const { return tcp_; }  // "tcp:127.0.0.1:P" (a link address)
   // "/dev/pts/N", or the stable --pty-link when one was asked for.
   const std::string& pty() const { return pty_; }
   const std::string& pose() const { return pose_; }  // "127.0.0.1:P"
