@@ -6,5 +6,8 @@ robocal_library(robocal_robotio_camera
     src/camera/camera_aravis.cpp
     src/camera/camera_fake_gige.cpp
     src/camera/camera_v4l2.cpp
+    src/camera/camera_simulated.cpp
+    src/camera/camera_recorded.cpp
+    src/camera/capture.cpp
   PUBLIC_DEPS robocal_vision ${OpenCV_LIBS}
   PRIVATE_DEPS PkgConfig::ARAVIS PkgConfig::LIBV4L2 fmt::fmt yaml-cpp)

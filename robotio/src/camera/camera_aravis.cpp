@@ -47,7 +47,9 @@ class GErrorGuard {
   GError* error_ = nullptr;
 };
 
-std::string or_empty(const char* text) { return text != nullptr ? std::string(text) : std::string(); }
+std::string or_empty(const char* text) {
+  return text != nullptr ? std::string(text) : std::string();
+}
 
 std::vector<std::string> take_strings(const char** strings, guint count) {
   std::vector<std::string> out;
@@ -215,8 +217,7 @@ void on_control_lost(ArvDevice* /*device*/, gpointer flag) {
 
 }  // namespace
 
-AravisCamera::AravisCamera(const std::string& id_or_serial, std::string name,
-                           AravisOptions options)
+AravisCamera::AravisCamera(const std::string& id_or_serial, std::string name, AravisOptions options)
     : impl_(std::make_unique<Impl>()) {
   impl_->name = std::move(name);
   impl_->options = options;
@@ -263,10 +264,16 @@ AravisCamera::AravisCamera(const std::string& id_or_serial, std::string name,
   error.check(CameraError::Kind::kIo, impl_->name, "reading the pixel formats");
 }
 
-AravisCamera::~AravisCamera() { close(); }
+AravisCamera::~AravisCamera() {
+  close();
+}
 
-const std::string& AravisCamera::name() const { return impl_->name; }
-CameraInfo AravisCamera::info() const { return impl_->info; }
+const std::string& AravisCamera::name() const {
+  return impl_->name;
+}
+CameraInfo AravisCamera::info() const {
+  return impl_->info;
+}
 
 void AravisCamera::set_exposure_us(double exposure_us) {
   ArvCamera* camera = impl_->require();
@@ -336,14 +343,15 @@ void AravisCamera::set_pixel_format(const std::string& format) {
     for (const std::string& name : available) {
       list += (list.empty() ? "" : ", ") + name;
     }
-    throw CameraError(CameraError::Kind::kUnsupported, impl_->name,
-                      "pixel format " + format + " not offered by the camera (it has " + list +
-                          ")");
+    throw CameraError(
+        CameraError::Kind::kUnsupported, impl_->name,
+        "pixel format " + format + " not offered by the camera (it has " + list + ")");
   }
   if (!aravis_pixel_format_supported(format)) {
     throw CameraError(CameraError::Kind::kUnsupported, impl_->name,
-                      "pixel format " + format + " cannot be converted by robocal (use Mono8, "
-                                                 "Mono16, RGB8 or an 8-bit Bayer format)");
+                      "pixel format " + format +
+                          " cannot be converted by robocal (use Mono8, "
+                          "Mono16, RGB8 or an 8-bit Bayer format)");
   }
   GErrorGuard error;
   arv_camera_set_pixel_format_from_string(camera, format.c_str(), error.out());
@@ -385,8 +393,8 @@ void AravisCamera::set_region(const Region& region) {
     throw CameraError(CameraError::Kind::kUnsupported, impl_->name,
                       "region " + std::to_string(region.width) + "x" +
                           std::to_string(region.height) + "+" + std::to_string(region.x) + "+" +
-                          std::to_string(region.y) + " became " + std::to_string(now.width) +
-                          "x" + std::to_string(now.height) + "+" + std::to_string(now.x) + "+" +
+                          std::to_string(region.y) + " became " + std::to_string(now.width) + "x" +
+                          std::to_string(now.height) + "+" + std::to_string(now.x) + "+" +
                           std::to_string(now.y) + " (the camera's increments)");
   }
 }
@@ -461,8 +469,8 @@ Frame AravisCamera::grab(std::chrono::milliseconds timeout) {
       impl_->fail("software trigger", error, CameraError::Kind::kIo);
     }
   }
-  const auto timeout_us = static_cast<guint64>(
-      std::chrono::duration_cast<std::chrono::microseconds>(timeout).count());
+  const auto timeout_us =
+      static_cast<guint64>(std::chrono::duration_cast<std::chrono::microseconds>(timeout).count());
   ArvBuffer* buffer = arv_stream_timeout_pop_buffer(impl_->stream, timeout_us);
   if (buffer == nullptr) {
     if (!impl_->answers()) {
@@ -500,14 +508,13 @@ Frame AravisCamera::grab(std::chrono::milliseconds timeout) {
   const std::size_t expected_size = static_cast<std::size_t>(expected.width) *
                                     static_cast<std::size_t>(expected.height) *
                                     static_cast<std::size_t>(bytes_per_pixel(format));
-  if (width != expected.width || height != expected.height ||
-      format != impl_->streaming_format || size < expected_size) {
-    throw CameraError(CameraError::Kind::kIncompleteFrame, impl_->name,
-                      "frame of the wrong size: " + std::to_string(width) + "x" +
-                          std::to_string(height) + ", " + std::to_string(size) +
-                          " bytes, expected " + std::to_string(expected.width) + "x" +
-                          std::to_string(expected.height) + ", " +
-                          std::to_string(expected_size) + " bytes");
+  if (width != expected.width || height != expected.height || format != impl_->streaming_format ||
+      size < expected_size) {
+    throw CameraError(
+        CameraError::Kind::kIncompleteFrame, impl_->name,
+        "frame of the wrong size: " + std::to_string(width) + "x" + std::to_string(height) + ", " +
+            std::to_string(size) + " bytes, expected " + std::to_string(expected.width) + "x" +
+            std::to_string(expected.height) + ", " + std::to_string(expected_size) + " bytes");
   }
   Frame frame;
   const char* format_name = arv_camera_get_pixel_format_as_string(camera, nullptr);
@@ -531,8 +538,7 @@ void AravisCamera::close() {
   }
   impl_->release_stream();
   if (impl_->control_lost_handler != 0) {
-    g_signal_handler_disconnect(arv_camera_get_device(impl_->camera),
-                                impl_->control_lost_handler);
+    g_signal_handler_disconnect(arv_camera_get_device(impl_->camera), impl_->control_lost_handler);
   }
   g_object_unref(impl_->camera);
   impl_->camera = nullptr;

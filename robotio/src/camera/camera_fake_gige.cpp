@@ -54,7 +54,9 @@ FakeGigECamera::FakeGigECamera(const std::string& address, const std::string& se
   arv_fake_camera_set_fill_pattern(static_cast<ArvFakeCamera*>(fake_), fill_callback, this);
 }
 
-FakeGigECamera::~FakeGigECamera() { disconnect(); }
+FakeGigECamera::~FakeGigECamera() {
+  disconnect();
+}
 
 void FakeGigECamera::disconnect() {
   if (server_ != nullptr) {
@@ -88,7 +90,7 @@ void FakeGigECamera::fill(void* arv_buffer, void* self_pointer, std::uint32_t ex
   request.gain = gain;
   request.frame_index = self->frames_served_.load();
 
-  const int bytes_per_pixel = format == ARV_PIXEL_FORMAT_MONO_16       ? 2
+  const int bytes_per_pixel = format == ARV_PIXEL_FORMAT_MONO_16        ? 2
                               : format == ARV_PIXEL_FORMAT_RGB_8_PACKED ? 3
                                                                         : 1;
   const std::size_t bytes = static_cast<std::size_t>(request.region.width) *
@@ -102,7 +104,8 @@ void FakeGigECamera::fill(void* arv_buffer, void* self_pointer, std::uint32_t ex
     problem = std::string("frame provider failed: ") + error.what();
   }
   const int expected_type = format == ARV_PIXEL_FORMAT_MONO_16 ? CV_16UC1 : CV_8UC1;
-  if (problem.empty() && (format != ARV_PIXEL_FORMAT_MONO_8 && format != ARV_PIXEL_FORMAT_MONO_16)) {
+  if (problem.empty() &&
+      (format != ARV_PIXEL_FORMAT_MONO_8 && format != ARV_PIXEL_FORMAT_MONO_16)) {
     problem = std::string("pixel format ") + request.pixel_format + " is not served";
   } else if (problem.empty() &&
              (image.rows != request.region.height || image.cols != request.region.width ||

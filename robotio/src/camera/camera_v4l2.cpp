@@ -11,10 +11,10 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <ctime>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <utility>
 
@@ -81,8 +81,7 @@ bool v4l2_format_supported(const std::string& fourcc) {
   return fourcc == "GREY" || fourcc == "YUYV" || fourcc == "MJPG";
 }
 
-cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output,
-                           const std::string& camera) {
+cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output, const std::string& camera) {
   if (raw.width <= 0 || raw.height <= 0) {
     throw incomplete(camera, "frame size " + std::to_string(raw.width) + "x" +
                                  std::to_string(raw.height) + " is empty");
@@ -94,9 +93,9 @@ cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output,
     const std::size_t stride =
         raw.bytes_per_line > 0 ? static_cast<std::size_t>(raw.bytes_per_line) : packed;
     if (stride < packed) {
-      throw incomplete(camera, raw.fourcc + " row of " + std::to_string(stride) +
-                                   " bytes, a " + std::to_string(width) +
-                                   " pixel row needs " + std::to_string(packed));
+      throw incomplete(camera, raw.fourcc + " row of " + std::to_string(stride) + " bytes, a " +
+                                   std::to_string(width) + " pixel row needs " +
+                                   std::to_string(packed));
     }
     const std::size_t needed = stride * (height - 1) + packed;
     if (raw.data.size() < needed) {
@@ -109,10 +108,9 @@ cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output,
       throw incomplete(camera, "YUYV frame of odd width " + std::to_string(width));
     }
     if (raw.fourcc == "YUYV") {
-      return output == V4l2Output::kGrey ? yuyv_to_grey(raw.data.data(), raw.width, raw.height,
-                                                        stride)
-                                         : yuyv_to_bgr(raw.data.data(), raw.width, raw.height,
-                                                       stride);
+      return output == V4l2Output::kGrey
+                 ? yuyv_to_grey(raw.data.data(), raw.width, raw.height, stride)
+                 : yuyv_to_bgr(raw.data.data(), raw.width, raw.height, stride);
     }
     cv::Mat grey(raw.height, raw.width, CV_8UC1);
     for (int row = 0; row < raw.height; ++row) {
@@ -142,8 +140,8 @@ cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output,
     cv::Mat image = cv::imdecode(
         encoded, output == V4l2Output::kGrey ? cv::IMREAD_GRAYSCALE : cv::IMREAD_COLOR);
     if (image.empty()) {
-      throw incomplete(camera, "MJPEG frame of " + std::to_string(raw.data.size()) +
-                                   " bytes does not decode");
+      throw incomplete(
+          camera, "MJPEG frame of " + std::to_string(raw.data.size()) + " bytes does not decode");
     }
     if (image.cols != raw.width || image.rows != raw.height) {
       throw incomplete(camera, "MJPEG frame decodes to " + std::to_string(image.cols) + "x" +
@@ -193,7 +191,8 @@ std::pair<int, int> largest_frame_size(int fd, std::uint32_t format) {
         best = {w, h};
       }
     } else {
-      best = {static_cast<int>(size.stepwise.max_width), static_cast<int>(size.stepwise.max_height)};
+      best = {static_cast<int>(size.stepwise.max_width),
+              static_cast<int>(size.stepwise.max_height)};
       break;
     }
     ++size.index;
@@ -291,15 +290,13 @@ struct V4l2Camera::Impl {
     require();
     v4l2_queryctrl query{};
     query.id = id;
-    if (xioctl(fd, VIDIOC_QUERYCTRL, &query) != 0 ||
-        (query.flags & V4L2_CTRL_FLAG_DISABLED) != 0) {
+    if (xioctl(fd, VIDIOC_QUERYCTRL, &query) != 0 || (query.flags & V4L2_CTRL_FLAG_DISABLED) != 0) {
       throw CameraError(CameraError::Kind::kUnsupported, name, "the camera has no " + what);
     }
     if (value < query.minimum || value > query.maximum) {
       throw CameraError(CameraError::Kind::kUnsupported, name,
                         what + " " + std::to_string(value) + " outside the camera's " +
-                            std::to_string(query.minimum) + " .. " +
-                            std::to_string(query.maximum));
+                            std::to_string(query.minimum) + " .. " + std::to_string(query.maximum));
     }
     v4l2_control control{};
     control.id = id;
@@ -352,10 +349,16 @@ V4l2Camera::V4l2Camera(const std::string& device, std::string name, V4l2Output o
   impl_->read_format();
 }
 
-V4l2Camera::~V4l2Camera() { close(); }
+V4l2Camera::~V4l2Camera() {
+  close();
+}
 
-const std::string& V4l2Camera::name() const { return impl_->name; }
-CameraInfo V4l2Camera::info() const { return impl_->info; }
+const std::string& V4l2Camera::name() const {
+  return impl_->name;
+}
+CameraInfo V4l2Camera::info() const {
+  return impl_->info;
+}
 
 void V4l2Camera::set_exposure_us(double exposure_us) {
   impl_->set_control(V4L2_CID_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL, "manual exposure mode");
@@ -369,7 +372,9 @@ double V4l2Camera::exposure_us() const {
 void V4l2Camera::set_gain(double gain) {
   impl_->set_control(V4L2_CID_GAIN, static_cast<std::int32_t>(std::lround(gain)), "gain");
 }
-double V4l2Camera::gain() const { return impl_->get_control(V4L2_CID_GAIN, "gain"); }
+double V4l2Camera::gain() const {
+  return impl_->get_control(V4L2_CID_GAIN, "gain");
+}
 void V4l2Camera::set_focus(double focus) {
   impl_->set_control(V4L2_CID_FOCUS_AUTO, 0, "manual focus mode");
   impl_->set_control(V4L2_CID_FOCUS_ABSOLUTE, static_cast<std::int32_t>(std::lround(focus)),
@@ -387,9 +392,9 @@ void V4l2Camera::set_pixel_format(const std::string& fourcc) {
     for (const std::string& f : offered) {
       list += (list.empty() ? "" : ", ") + f;
     }
-    throw CameraError(CameraError::Kind::kUnsupported, impl_->name,
-                      "pixel format " + fourcc + " not offered by the camera (it has " + list +
-                          ")");
+    throw CameraError(
+        CameraError::Kind::kUnsupported, impl_->name,
+        "pixel format " + fourcc + " not offered by the camera (it has " + list + ")");
   }
   if (!v4l2_format_supported(fourcc)) {
     throw CameraError(CameraError::Kind::kUnsupported, impl_->name,
@@ -405,7 +410,9 @@ void V4l2Camera::set_pixel_format(const std::string& fourcc) {
   }
   impl_->read_format();
 }
-std::string V4l2Camera::pixel_format() const { return fourcc_text(impl_->format.pixelformat); }
+std::string V4l2Camera::pixel_format() const {
+  return fourcc_text(impl_->format.pixelformat);
+}
 
 void V4l2Camera::set_region(const Region& region) {
   impl_->require();
@@ -517,11 +524,10 @@ Frame V4l2Camera::grab(std::chrono::milliseconds timeout) {
     const Impl::Mapped& mapped = impl_->buffers.at(buffer.index);
     const std::int64_t stamp = static_cast<std::int64_t>(buffer.timestamp.tv_sec) * 1'000'000'000 +
                                static_cast<std::int64_t>(buffer.timestamp.tv_usec) * 1000;
-    const bool monotonic_stamp = (buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) ==
-                                 V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
-    const bool stale =
-        impl_->mode == TriggerMode::kSoftware && stamp > 0 &&
-        stamp < (monotonic_stamp ? asked_at_monotonic : asked_at_realtime);
+    const bool monotonic_stamp =
+        (buffer.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+    const bool stale = impl_->mode == TriggerMode::kSoftware && stamp > 0 &&
+                       stamp < (monotonic_stamp ? asked_at_monotonic : asked_at_realtime);
     const bool corrupt = (buffer.flags & V4L2_BUF_FLAG_ERROR) != 0;
     Frame frame;
     std::string problem;
@@ -531,9 +537,9 @@ Frame V4l2Camera::grab(std::chrono::milliseconds timeout) {
       raw.width = static_cast<int>(impl_->format.width);
       raw.height = static_cast<int>(impl_->format.height);
       raw.bytes_per_line = static_cast<int>(impl_->format.bytesperline);
-      raw.data = std::span<const unsigned char>(static_cast<const unsigned char*>(mapped.start),
-                                                std::min<std::size_t>(buffer.bytesused,
-                                                                      mapped.length));
+      raw.data =
+          std::span<const unsigned char>(static_cast<const unsigned char*>(mapped.start),
+                                         std::min<std::size_t>(buffer.bytesused, mapped.length));
       try {
         frame.image = convert_v4l2_frame(raw, impl_->output, impl_->name);
       } catch (const CameraError& error) {
@@ -548,9 +554,9 @@ Frame V4l2Camera::grab(std::chrono::milliseconds timeout) {
       throw impl_->errno_error("requeueing a buffer");
     }
     if (corrupt) {
-      throw CameraError(CameraError::Kind::kIncompleteFrame, impl_->name,
-                        "the driver flagged frame " + std::to_string(buffer.sequence) +
-                            " as corrupted");
+      throw CameraError(
+          CameraError::Kind::kIncompleteFrame, impl_->name,
+          "the driver flagged frame " + std::to_string(buffer.sequence) + " as corrupted");
     }
     if (!problem.empty()) {
       throw CameraError(CameraError::Kind::kIncompleteFrame, impl_->name, problem);

@@ -1,7 +1,8 @@
 // Generates the raw V4L2 buffers of tests/unit/robotio_camera/test_v4l2_conversion.cpp from one
 // known 48x32 colour image, so the conversion tests compare against an independent truth.
 // Build and run (from this folder):
-//   g++ -std=c++20 make_v4l2_buffers.cpp $(pkg-config --cflags --libs opencv4) -o /tmp/mk && /tmp/mk
+//   g++ -std=c++20 make_v4l2_buffers.cpp $(pkg-config --cflags --libs opencv4) -o /tmp/mk &&
+//   /tmp/mk
 // Writes: truth.ppm (the colour image), grey_48x32_bpl56.raw (GREY, 56 bytes per row, padding
 // 0xAA), yuyv_48x32.raw (YUYV, BT.601 limited range, computed here with the standard RGB->YCbCr
 // equations), mjpeg_48x32.jpg (baseline JPEG, quality 95) and mjpeg_48x32_nodht.jpg (the same
@@ -39,11 +40,14 @@ void truth_rgb(int x, int y, int rgb[3]) {
   }
 }
 
-unsigned char byte(double v) { return static_cast<unsigned char>(std::lround(std::fmin(255, std::fmax(0, v)))); }
+unsigned char byte(double v) {
+  return static_cast<unsigned char>(std::lround(std::fmin(255, std::fmax(0, v))));
+}
 
 void write(const char* path, const std::vector<unsigned char>& bytes) {
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                               static_cast<std::streamsize>(bytes.size()));
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
 }
 }  // namespace
 

@@ -103,8 +103,7 @@ void expect_jpeg_close_to_truth(const std::string& file) {
   const cv::Mat truth = truth_rgb();
   const double mean_error = cv::norm(rgb, truth, cv::NORM_L1) / (48.0 * 32.0 * 3.0);
   EXPECT_LT(mean_error, 3.0) << file;
-  const cv::Mat grey =
-      convert_v4l2_frame(raw("MJPG", read_bytes(file)), V4l2Output::kGrey, "usb0");
+  const cv::Mat grey = convert_v4l2_frame(raw("MJPG", read_bytes(file)), V4l2Output::kGrey, "usb0");
   ASSERT_EQ(grey.type(), CV_8UC1);
   double grey_error = 0.0;
   for (int y = 0; y < 32; ++y) {
@@ -117,7 +116,9 @@ void expect_jpeg_close_to_truth(const std::string& file) {
   EXPECT_LT(grey_error / (48.0 * 32.0), 2.0) << file;
 }
 
-TEST(V4l2Conversion, MjpegDecodesCloseToTheTruth) { expect_jpeg_close_to_truth("mjpeg_48x32.jpg"); }
+TEST(V4l2Conversion, MjpegDecodesCloseToTheTruth) {
+  expect_jpeg_close_to_truth("mjpeg_48x32.jpg");
+}
 
 TEST(V4l2Conversion, MjpegWithoutHuffmanTablesAsUvcSendsItDecodes) {
   expect_jpeg_close_to_truth("mjpeg_48x32_nodht.jpg");

@@ -57,7 +57,6 @@ class FakeGigECamera {
                    std::uint32_t pixel_format);
 
  private:
-
   std::string address_;
   std::string serial_;
   FakeFrameProvider provider_;

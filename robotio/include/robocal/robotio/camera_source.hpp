@@ -43,21 +43,21 @@ struct Region {
 // CV_8UC3 BGR for colour formats.
 struct Frame {
   cv::Mat image;
-  std::string pixel_format;        // the camera's format the image was converted from
-  std::uint64_t frame_id = 0;      // the camera's (or stream's) frame counter
-  std::int64_t timestamp_ns = 0;   // the camera's clock (device timestamp); 0 if it has none
-  std::int64_t host_time_ns = 0;   // host CLOCK_REALTIME when the frame was complete
+  std::string pixel_format;       // the camera's format the image was converted from
+  std::uint64_t frame_id = 0;     // the camera's (or stream's) frame counter
+  std::int64_t timestamp_ns = 0;  // the camera's clock (device timestamp); 0 if it has none
+  std::int64_t host_time_ns = 0;  // host CLOCK_REALTIME when the frame was complete
 };
 
 class CameraError : public std::runtime_error {
  public:
   enum class Kind {
-    kNotFound,       // no such camera (id, serial, device node, folder)
-    kUnsupported,    // a pixel format, region or feature the camera lacks
-    kTimeout,        // no frame within the timeout; the camera still answers
+    kNotFound,         // no such camera (id, serial, device node, folder)
+    kUnsupported,      // a pixel format, region or feature the camera lacks
+    kTimeout,          // no frame within the timeout; the camera still answers
     kIncompleteFrame,  // a frame arrived with missing packets / wrong size: retake it
-    kDisconnected,   // the camera stopped answering: stop the robot, resume later
-    kIo,             // anything else the driver reported
+    kDisconnected,     // the camera stopped answering: stop the robot, resume later
+    kIo,               // anything else the driver reported
   };
   CameraError(Kind kind, std::string camera, const std::string& message)
       : std::runtime_error(camera + ": " + message), kind_(kind), camera_(std::move(camera)) {}

@@ -33,8 +33,7 @@ enum class V4l2Output {
 // Converts one buffer. Throws CameraError kIncompleteFrame (naming `camera`) for a buffer shorter
 // than its format needs, an MJPEG buffer that does not decode, or a decoded size that differs
 // from width x height; kUnsupported for another fourcc.
-cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output,
-                           const std::string& camera);
+cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output, const std::string& camera);
 
 // The fourccs convert_v4l2_frame accepts.
 bool v4l2_format_supported(const std::string& fourcc);
