@@ -9,5 +9,6 @@ robocal_library(robocal_robotio_camera
     src/camera/camera_simulated.cpp
     src/camera/camera_recorded.cpp
     src/camera/capture.cpp
+    src/camera/camera_checks.cpp
   PUBLIC_DEPS robocal_vision ${OpenCV_LIBS}
   PRIVATE_DEPS PkgConfig::ARAVIS PkgConfig::LIBV4L2 fmt::fmt yaml-cpp)
