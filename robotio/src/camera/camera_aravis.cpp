@@ -436,6 +436,16 @@ void AravisCamera::start(TriggerMode mode) {
     impl_->fail("setting the trigger", error, CameraError::Kind::kUnsupported);
   }
   impl_->mode = mode;
+  if (arv_camera_is_gv_device(camera) != FALSE) {
+    if (impl_->options.packet_size > 0) {
+      arv_camera_gv_set_packet_size(camera, impl_->options.packet_size, error.out());
+    } else {
+      arv_camera_gv_auto_packet_size(camera, error.out());
+    }
+    if (error.failed()) {
+      impl_->fail("setting the packet size", error, CameraError::Kind::kIo);
+    }
+  }
   impl_->stream = arv_camera_create_stream(camera, nullptr, nullptr, error.out());
   if (impl_->stream == nullptr) {
     impl_->fail("creating the stream", error, CameraError::Kind::kIo);
@@ -453,21 +463,29 @@ void AravisCamera::start(TriggerMode mode) {
   }
 }
 
-Frame AravisCamera::grab(std::chrono::milliseconds timeout) {
+void AravisCamera::trigger() {
   ArvCamera* camera = impl_->require();
   if (impl_->stream == nullptr) {
-    throw CameraError(CameraError::Kind::kIo, impl_->name, "grab before start()");
+    throw CameraError(CameraError::Kind::kIo, impl_->name, "trigger before start()");
+  }
+  if (impl_->mode != TriggerMode::kSoftware) {
+    return;
+  }
+  // Frames left from earlier triggers are not the one asked for: give their buffers back.
+  while (ArvBuffer* stale = arv_stream_try_pop_buffer(impl_->stream)) {
+    arv_stream_push_buffer(impl_->stream, stale);
   }
   GErrorGuard error;
-  if (impl_->mode == TriggerMode::kSoftware) {
-    // Frames left from earlier triggers are not the one asked for: give their buffers back.
-    while (ArvBuffer* stale = arv_stream_try_pop_buffer(impl_->stream)) {
-      arv_stream_push_buffer(impl_->stream, stale);
-    }
-    arv_camera_software_trigger(camera, error.out());
-    if (error.failed()) {
-      impl_->fail("software trigger", error, CameraError::Kind::kIo);
-    }
+  arv_camera_software_trigger(camera, error.out());
+  if (error.failed()) {
+    impl_->fail("software trigger", error, CameraError::Kind::kIo);
+  }
+}
+
+Frame AravisCamera::receive(std::chrono::milliseconds timeout) {
+  ArvCamera* camera = impl_->require();
+  if (impl_->stream == nullptr) {
+    throw CameraError(CameraError::Kind::kIo, impl_->name, "receive before start()");
   }
   const auto timeout_us =
       static_cast<guint64>(std::chrono::duration_cast<std::chrono::microseconds>(timeout).count());

@@ -135,7 +135,7 @@ void RecordedSessionCamera::start(TriggerMode /*mode*/) {
   }
 }
 
-Frame RecordedSessionCamera::grab(std::chrono::milliseconds /*timeout*/) {
+Frame RecordedSessionCamera::receive(std::chrono::milliseconds /*timeout*/) {
   if (closed_) {
     throw CameraError(CameraError::Kind::kIo, name_, "camera already closed");
   }

@@ -1,6 +1,7 @@
 #include "robocal/robotio/camera_simulated.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <stdexcept>
 #include <utility>
 
@@ -28,6 +29,7 @@ cv::Mat SimulatedGigECamera::render_frame(const FakeFrameRequest& request) {
                              " outside the simulated " + std::to_string(spec_.model.width) + "x" +
                              std::to_string(spec_.model.height) + " image");
   }
+  const auto start = std::chrono::steady_clock::now();
   const Eigen::Isometry3d world_T_board = truth_->world_T_board();
   vision::RenderOptions options = spec_.render;
   options.bit_depth = request.pixel_format == "Mono16" ? 16 : 8;
@@ -41,9 +43,11 @@ cv::Mat SimulatedGigECamera::render_frame(const FakeFrameRequest& request) {
   const vision::RenderTarget target{board_, spec_.camera_T_world * world_T_board};
   const cv::Mat full = vision::render(rays_, {target}, options).image;
   cv::Mat image = full(cv::Rect(r.x, r.y, r.width, r.height)).clone();
+  const auto end = std::chrono::steady_clock::now();
+  render_ns_.fetch_add(std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count());
   {
     const std::lock_guard lock(history_mutex_);
-    history_.push_back({request.frame_index, world_T_board, image});
+    history_.push_back({request.frame_index, world_T_board, image, start, end});
     while (history_.size() > keep_) {
       history_.pop_front();
     }

@@ -263,6 +263,8 @@ struct V4l2Camera::Impl {
   std::vector<Mapped> buffers;
   bool streaming = false;
   TriggerMode mode = TriggerMode::kFreeRunning;
+  std::int64_t triggered_monotonic = 0;  // when trigger() was last called (kSoftware)
+  std::int64_t triggered_realtime = 0;
   v4l2_pix_format format{};
 
   [[nodiscard]] CameraError errno_error(const std::string& what) const {
@@ -479,19 +481,25 @@ void V4l2Camera::start(TriggerMode mode) {
   impl_->streaming = true;
 }
 
-Frame V4l2Camera::grab(std::chrono::milliseconds timeout) {
+void V4l2Camera::trigger() {
   impl_->require();
-  if (!impl_->streaming) {
-    throw CameraError(CameraError::Kind::kIo, impl_->name, "grab before start()");
-  }
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
   // Frames exposed before this call are not the one asked for in kSoftware mode. Drivers stamp
   // with CLOCK_MONOTONIC (flagged) or the wall clock.
   timespec monotonic{};
   clock_gettime(CLOCK_MONOTONIC, &monotonic);
-  const std::int64_t asked_at_monotonic =
+  impl_->triggered_monotonic =
       static_cast<std::int64_t>(monotonic.tv_sec) * 1'000'000'000 + monotonic.tv_nsec;
-  const std::int64_t asked_at_realtime = host_time_ns();
+  impl_->triggered_realtime = host_time_ns();
+}
+
+Frame V4l2Camera::receive(std::chrono::milliseconds timeout) {
+  impl_->require();
+  if (!impl_->streaming) {
+    throw CameraError(CameraError::Kind::kIo, impl_->name, "receive before start()");
+  }
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const std::int64_t asked_at_monotonic = impl_->triggered_monotonic;
+  const std::int64_t asked_at_realtime = impl_->triggered_realtime;
   while (true) {
     const auto left = std::chrono::duration_cast<std::chrono::microseconds>(
         deadline - std::chrono::steady_clock::now());

@@ -8,7 +8,10 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <deque>
 #include <fstream>
+#include <future>
+#include <map>
 #include <memory>
 #include <stdexcept>
 #include <system_error>
@@ -33,11 +36,16 @@ struct CaptureStop {
   std::optional<CameraError::Kind> kind;
 };
 
-Frame grab_checked(const CaptureCamera& camera, const CaptureOptions& options,
-                   PoseCaptureReport& report) {
+// One frame of `camera` after a trigger was sent; a timeout or an incomplete frame is retaken
+// (trigger and receive again) up to options.frame_retries times.
+Frame receive_checked(const CaptureCamera& camera, const CaptureOptions& options,
+                      PoseCaptureReport& report) {
   for (int attempt = 0;; ++attempt) {
     try {
-      Frame frame = camera.source->grab(options.grab_timeout);
+      if (attempt > 0) {
+        camera.source->trigger();
+      }
+      Frame frame = camera.source->receive(options.grab_timeout);
       if (frame.image.cols != camera.model.width || frame.image.rows != camera.model.height) {
         throw CameraError(
             CameraError::Kind::kIncompleteFrame, camera.source->name(),
@@ -56,12 +64,17 @@ Frame grab_checked(const CaptureCamera& camera, const CaptureOptions& options,
   }
 }
 
+// Each shot triggers every camera first, then collects their frames: the cameras expose
+// together, and their transfers overlap.
 ShotSeries grab_series(const std::vector<CaptureCamera>& cameras, const CaptureOptions& options,
                        PoseCaptureReport& report) {
   ShotSeries shots(static_cast<std::size_t>(options.shots_per_pose));
   for (auto& shot : shots) {
     for (const CaptureCamera& camera : cameras) {
-      shot.push_back(grab_checked(camera, options, report));
+      camera.source->trigger();
+    }
+    for (const CaptureCamera& camera : cameras) {
+      shot.push_back(receive_checked(camera, options, report));
     }
   }
   return shots;
@@ -214,6 +227,20 @@ std::string pose_folder_name(int index) {
   return fmt::format("pose_{:03d}", index);
 }
 
+namespace {
+
+// A pose whose frames are taken, on its way through the motion check and the writer.
+struct TakenPose {
+  PoseCaptureReport report;
+  ShotSeries shots;
+  Eigen::VectorXd before;
+  Eigen::VectorXd after;
+  bool moving = false;  // set by the check
+  bool written = false;
+};
+
+}  // namespace
+
 CaptureResult capture_poses(const fs::path& session_dir,
                             const std::vector<Eigen::VectorXd>& targets, CaptureRobot& robot,
                             const std::vector<CaptureCamera>& cameras,
@@ -248,19 +275,8 @@ CaptureResult capture_poses(const fs::path& session_dir,
   }
 
   CaptureResult result;
-  const auto stop = [&](const CaptureStop& why) {
-    try {
-      robot.stop();
-    } catch (const std::exception& stop_error) {
-      result.stop_reason = why.reason + "; stopping the robot failed too: " + stop_error.what();
-      result.camera_error = why.kind;
-      return result;
-    }
-    result.stop_reason = why.reason + " (robot stopped; run capture again to resume)";
-    result.camera_error = why.kind;
-    return result;
-  };
-
+  std::deque<int> queue;
+  std::map<int, int> retakes;  // by pose index: shot series rejected so far
   for (std::size_t i = 0; i < targets.size(); ++i) {
     PoseCaptureReport report;
     report.index = static_cast<int>(i);
@@ -268,47 +284,113 @@ CaptureResult capture_poses(const fs::path& session_dir,
     if (fs::exists(poses_dir / report.name, error)) {
       report.status = PoseCaptureStatus::kAlreadyRecorded;
       result.poses.push_back(report);
+    } else {
+      queue.push_back(report.index);
+    }
+  }
+
+  // The motion check and the writing of one pose run while the robot moves to the next one (at
+  // most one pose in flight). A pose whose target moved is taken again later: the robot comes
+  // back to it after the others.
+  std::future<TakenPose> in_flight;
+  const auto check_and_write = [&](TakenPose taken) {
+    auto t = Clock::now();
+    const MotionVerdict verdict =
+        check_motion(taken.shots, cameras, board, points, detectors, options.motion_false_alarm);
+    taken.report.check_s += seconds_since(t);
+    taken.report.motion_chi2 = verdict.chi2;
+    taken.report.corners = verdict.corners;
+    taken.moving = taken.moving || verdict.moving;
+    if (taken.moving && taken.report.retakes < options.max_retakes) {
+      return taken;  // not written: retaken later
+    }
+    taken.report.still_moving = taken.moving;
+    t = Clock::now();
+    write_pose(staging, poses_dir, taken.report.name, taken.shots, cameras, taken.before,
+               taken.after, taken.report, options);
+    taken.report.write_s = seconds_since(t);
+    taken.written = true;
+    return taken;
+  };
+  // Collects the pose in flight; a rejected one goes back in the queue.
+  const auto settle_in_flight = [&] {
+    if (!in_flight.valid()) {
+      return;
+    }
+    TakenPose done = in_flight.get();  // rethrows a write failure
+    if (done.written) {
+      result.poses.push_back(done.report);
+    } else {
+      retakes[done.report.index] = done.report.retakes + 1;
+      queue.push_back(done.report.index);
+    }
+  };
+  const auto stop = [&](const std::string& reason, std::optional<CameraError::Kind> kind) {
+    std::string stop_error;
+    try {
+      robot.stop();
+    } catch (const std::exception& failure) {
+      stop_error = failure.what();
+    }
+    // The pose in flight was taken whole: let it finish writing.
+    try {
+      settle_in_flight();
+    } catch (const std::exception& failure) {
+      stop_error += (stop_error.empty() ? "" : "; ") + std::string(failure.what());
+    }
+    result.stop_reason = stop_error.empty()
+                             ? reason + " (robot stopped; run capture again to resume)"
+                             : reason + "; " + stop_error;
+    result.camera_error = kind;
+  };
+
+  while (!queue.empty() || in_flight.valid()) {
+    if (queue.empty()) {
+      try {
+        settle_in_flight();
+      } catch (const std::exception& failure) {
+        stop(failure.what(), std::nullopt);
+        return result;
+      }
       continue;
     }
+    TakenPose taken;
+    const int index = queue.front();
+    queue.pop_front();
+    taken.report.index = index;
+    taken.report.name = pose_folder_name(index);
+    taken.report.retakes = retakes[index];
     try {
       auto t = Clock::now();
-      const Eigen::VectorXd before = robot.move_and_settle(targets[i]);
-      report.move_s = seconds_since(t);
-      ShotSeries shots;
-      Eigen::VectorXd after;
-      for (int attempt = 0;; ++attempt) {
+      taken.before = robot.move_and_settle(targets[static_cast<std::size_t>(index)]);
+      taken.report.move_s = seconds_since(t);
+      // The readings tell at once whether the robot moved during the shots: retake right away.
+      for (;;) {
         t = Clock::now();
-        shots = grab_series(cameras, options, report);
-        after = robot.read_actuators();
-        report.grab_s += seconds_since(t);
-        t = Clock::now();
-        const MotionVerdict verdict =
-            check_motion(shots, cameras, board, points, detectors, options.motion_false_alarm);
-        const bool robot_moved = after.size() != before.size() ||
-                                 (after - before).cwiseAbs().maxCoeff() > options.reading_tolerance;
-        report.check_s += seconds_since(t);
-        report.motion_chi2 = verdict.chi2;
-        report.corners = verdict.corners;
-        if (!verdict.moving && !robot_moved) {
+        taken.shots = grab_series(cameras, options, taken.report);
+        taken.after = robot.read_actuators();
+        taken.report.grab_s += seconds_since(t);
+        taken.moving =
+            taken.after.size() != taken.before.size() ||
+            (taken.after - taken.before).cwiseAbs().maxCoeff() > options.reading_tolerance;
+        if (!taken.moving || taken.report.retakes >= options.max_retakes) {
           break;
         }
-        if (attempt >= options.max_retakes) {
-          report.still_moving = true;
-          break;
-        }
-        ++report.retakes;
+        ++taken.report.retakes;
+        taken.before = taken.after;
       }
-      t = Clock::now();
-      write_pose(staging, poses_dir, report.name, shots, cameras, before, after, report, options);
-      report.write_s = seconds_since(t);
+      settle_in_flight();
     } catch (const CameraError& camera_error) {
-      return stop(
-          {fmt::format("pose {}: {}", report.name, camera_error.what()), camera_error.kind()});
+      stop(fmt::format("pose {}: {}", taken.report.name, camera_error.what()), camera_error.kind());
+      return result;
     } catch (const std::exception& other) {
-      return stop({fmt::format("pose {}: {}", report.name, other.what()), std::nullopt});
+      stop(fmt::format("pose {}: {}", taken.report.name, other.what()), std::nullopt);
+      return result;
     }
-    result.poses.push_back(report);
+    in_flight = std::async(std::launch::async, check_and_write, std::move(taken));
   }
+  std::sort(result.poses.begin(), result.poses.end(),
+            [](const auto& a, const auto& b) { return a.index < b.index; });
   fs::remove_all(staging, error);
   result.complete = true;
   return result;

@@ -19,6 +19,9 @@ namespace robocal::robotio {
 
 struct AravisOptions {
   int stream_buffers = 4;  // buffers queued for the stream thread
+  // GigE Vision packet size: 0 negotiates the largest the path carries (jumbo frames, loopback),
+  // which cuts the packets per frame; > 0 sets it.
+  int packet_size = 0;
   // Time for one control-channel probe after a grab timed out (Aravis retries inside it).
   std::chrono::milliseconds probe_timeout{500};
 };
@@ -56,7 +59,8 @@ class AravisCamera final : public CameraSource {
   void set_region(const Region& region) override;
   [[nodiscard]] Region region() const override;
   void start(TriggerMode mode) override;
-  Frame grab(std::chrono::milliseconds timeout) override;
+  void trigger() override;
+  Frame receive(std::chrono::milliseconds timeout) override;
   void stop() override;
   void close() override;
 

@@ -36,9 +36,10 @@ class RecordedSessionCamera final : public CameraSource {
   void set_region(const Region& region) override;
   [[nodiscard]] Region region() const override { return {0, 0, width_, height_}; }
   void start(TriggerMode mode) override;
+  void trigger() override {}
   // The next recorded frame. Throws kIncompleteFrame (an unreadable image, or one of another
   // size than session.yaml says, naming the file) and kIo after the last frame.
-  Frame grab(std::chrono::milliseconds timeout) override;
+  Frame receive(std::chrono::milliseconds timeout) override;
   void stop() override {}
   void close() override { closed_ = true; }
 

@@ -10,6 +10,8 @@
 
 #include <Eigen/Geometry>
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -47,6 +49,8 @@ struct RenderedFrame {
   std::uint64_t frame_index = 0;
   Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
   cv::Mat image;  // the served region
+  std::chrono::steady_clock::time_point render_start;
+  std::chrono::steady_clock::time_point render_end;
 };
 
 class SimulatedGigECamera {
@@ -60,6 +64,8 @@ class SimulatedGigECamera {
   // The last `keep` rendered frames, oldest first.
   [[nodiscard]] std::deque<RenderedFrame> rendered() const;
   void set_history(std::size_t keep);
+  // Time spent rendering so far (benchmarks subtract it from capture times).
+  [[nodiscard]] double render_seconds() const { return render_ns_.load() * 1e-9; }
 
  private:
   cv::Mat render_frame(const FakeFrameRequest& request);
@@ -71,6 +77,7 @@ class SimulatedGigECamera {
   mutable std::mutex history_mutex_;
   std::deque<RenderedFrame> history_;
   std::size_t keep_ = 8;
+  std::atomic<std::int64_t> render_ns_{0};
   std::unique_ptr<FakeGigECamera> server_;  // last: stops serving before the rest goes
 };
 

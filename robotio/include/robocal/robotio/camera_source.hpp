@@ -100,10 +100,17 @@ class CameraSource {
   virtual void set_region(const Region& region) = 0;
   [[nodiscard]] virtual Region region() const = 0;
 
-  // Streaming. start() allocates buffers and starts acquisition; grab() waits at most `timeout`
-  // (never forever) for the next frame, sending a software trigger first in kSoftware mode.
+  // Streaming. start() allocates buffers and starts acquisition. trigger() sends a software
+  // trigger in kSoftware mode (nothing in kFreeRunning); receive() waits at most `timeout` (never
+  // forever) for the next frame. Triggering every camera before receiving from any takes their
+  // frames at the same time. grab() is both for one camera.
   virtual void start(TriggerMode mode) = 0;
-  virtual Frame grab(std::chrono::milliseconds timeout) = 0;
+  virtual void trigger() = 0;
+  virtual Frame receive(std::chrono::milliseconds timeout) = 0;
+  Frame grab(std::chrono::milliseconds timeout) {
+    trigger();
+    return receive(timeout);
+  }
   virtual void stop() = 0;
   // Releases the device; further calls throw. Safe to call twice.
   virtual void close() = 0;

@@ -64,10 +64,11 @@ class V4l2Camera final : public CameraSource {
   // Focus (V4L2_CID_FOCUS_ABSOLUTE, driver units; autofocus is switched off first).
   void set_focus(double focus);
   [[nodiscard]] double focus() const;
-  // UVC cameras have no software trigger: kSoftware takes the next frame after the call,
-  // dropping frames queued before it.
+  // UVC cameras have no software trigger: in kSoftware mode, receive() returns the first frame
+  // exposed after trigger(), dropping frames queued before it.
   void start(TriggerMode mode) override;
-  Frame grab(std::chrono::milliseconds timeout) override;
+  void trigger() override;
+  Frame receive(std::chrono::milliseconds timeout) override;
   void stop() override;
   void close() override;
 
