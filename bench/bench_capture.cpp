@@ -1,0 +1,205 @@
+// Capture bench (issue 18): N poses collected from a simulated cell through two fake GigE
+// Vision cameras (127.0.0.1 and 127.0.0.2: run it inside a network namespace, e.g.
+//   tests/integration/robotio_camera/run_in_netns.sh build/release/bench/bench_capture
+// ), checks every pose was recorded bit-exact, and reports robocal's overhead per pose: the
+// wall time of a pose minus the robot's move and the renderer's time. Prints JSON.
+// Options: --poses N (60), --size WxH (1600x1200 or 640x480; default 1600x1200), --shots K (2),
+// --out DIR (a fresh folder; default under /tmp).
+#include "camera_cell.hpp"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using namespace robocal;
+using namespace robocal::robotio;
+
+namespace {
+
+vision::CameraModel camera_model(int width, int height) {
+  const double f = width == 1600 ? 1600.0 : 620.0;
+  return vision::parse_camera_yaml(
+      "model: pinhole_radtan\nwidth: " + std::to_string(width) +
+          "\nheight: " + std::to_string(height) + "\nfx: " + std::to_string(f) +
+          "\nfy: " + std::to_string(f) + "\ncx: " + std::to_string(width / 2.0 - 0.3) + "\ncy: " +
+          std::to_string(height / 2.0 + 0.2) + "\ndistortion: [-0.12, 0.05, 0.0, 0.0, 0.0]\n",
+      "bench camera");
+}
+
+double percentile(std::vector<double> values, double p) {
+  std::sort(values.begin(), values.end());
+  const auto index = static_cast<std::size_t>(p * static_cast<double>(values.size() - 1) + 0.5);
+  return values[index];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int poses = 60;
+  int width = 1600;
+  int height = 1200;
+  int shots = 2;
+  fs::path out = fs::temp_directory_path() / "robocal_bench_capture";
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string key = argv[i];
+    const std::string value = argv[i + 1];
+    if (key == "--poses") {
+      poses = std::stoi(value);
+    } else if (key == "--size") {
+      width = std::stoi(value.substr(0, value.find('x')));
+      height = std::stoi(value.substr(value.find('x') + 1));
+    } else if (key == "--shots") {
+      shots = std::stoi(value);
+    } else if (key == "--out") {
+      out = value;
+    } else {
+      std::cerr << "bench_capture: unknown option " << key << "\n";
+      return 2;
+    }
+  }
+  fs::remove_all(out);
+  fs::create_directories(out);
+
+  testing::GantryCell cell;
+  const vision::TargetBoard board =
+      vision::load_target_file(testing::testdata("vision/apriltag_4x3.yaml"));
+  std::vector<std::unique_ptr<SimulatedGigECamera>> simulated;
+  std::vector<std::unique_ptr<AravisCamera>> clients;
+  std::vector<CaptureCamera> cameras;
+  for (int c = 0; c < 2; ++c) {
+    SimulatedCameraSpec spec = testing::camera_spec(c);
+    spec.model = camera_model(width, height);
+    simulated.push_back(std::make_unique<SimulatedGigECamera>(spec, board, cell));
+    simulated.back()->set_history(static_cast<std::size_t>(poses * shots * 4));
+    auto client = std::make_unique<AravisCamera>(spec.serial, "cam" + std::to_string(c));
+    client->set_region({0, 0, width, height});
+    client->start(TriggerMode::kSoftware);
+    cameras.push_back({client.get(), spec.model});
+    clients.push_back(std::move(client));
+  }
+
+  const auto targets = testing::gantry_targets(poses);
+  using Clock = std::chrono::steady_clock;
+  std::vector<Clock::time_point> pose_start;
+  CaptureOptions options;
+  options.shots_per_pose = shots;
+  options.session_start_ns = host_time_ns();
+  // The simulated cameras render on this machine's CPU (seconds per 1600x1200 frame when the
+  // machine is busy); a real camera answers in milliseconds.
+  options.grab_timeout = std::chrono::milliseconds(20000);
+  cell.before_move = [&](int) { pose_start.push_back(Clock::now()); };
+  const CaptureResult result = capture_poses(out, targets, cell, cameras, board, options);
+  pose_start.push_back(Clock::now());
+
+  // Bit-exact: each camera's recorded frames, in pose order, are rendered frames in render
+  // order (a retaken or re-grabbed frame is rendered but not recorded).
+  int mismatched = 0;
+  int retakes = 0;
+  int frame_retries = 0;
+  for (const auto& pose : result.poses) {
+    retakes += pose.retakes;
+    frame_retries += pose.frame_retries;
+  }
+  std::vector<std::pair<Clock::time_point, Clock::time_point>> renders;
+  for (int c = 0; c < 2; ++c) {
+    const auto rendered = simulated[static_cast<std::size_t>(c)]->rendered();
+    for (const RenderedFrame& frame : rendered) {
+      renders.emplace_back(frame.render_start, frame.render_end);
+    }
+    std::size_t next = 0;
+    for (int i = 0; i < static_cast<int>(result.poses.size()); ++i) {
+      for (int k = 0; k < shots; ++k) {
+        const fs::path file = out / "poses" / pose_folder_name(i) /
+                              ("cam" + std::to_string(c) + "_" + std::to_string(k) + ".png");
+        const cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+        bool found = false;
+        while (!found && next < rendered.size()) {
+          const cv::Mat& truth = rendered[next++].image;
+          found = image.size() == truth.size() && cv::norm(image, truth, cv::NORM_INF) == 0.0;
+        }
+        mismatched += found ? 0 : 1;
+      }
+    }
+  }
+  // Rendering time per pose window: the union of the render intervals (both cameras render at
+  // the same time) that start in it.
+  std::sort(renders.begin(), renders.end());
+  std::vector<double> render_s(pose_start.size(), 0.0);
+  for (std::size_t r = 0; r < renders.size();) {
+    auto [begin_r, end_r] = renders[r];
+    std::size_t s_next = r + 1;
+    while (s_next < renders.size() && renders[s_next].first <= end_r) {
+      end_r = std::max(end_r, renders[s_next].second);
+      ++s_next;
+    }
+    const auto window = std::upper_bound(pose_start.begin(), pose_start.end(), begin_r);
+    if (window != pose_start.begin()) {
+      render_s[static_cast<std::size_t>(window - pose_start.begin() - 1)] +=
+          std::chrono::duration<double>(end_r - begin_r).count();
+    }
+    r = s_next;
+  }
+  const std::size_t windows = pose_start.size() - 1;  // one per move (retakes add moves)
+  std::vector<double> overhead;
+  double sum_render = 0.0;
+  double sum_move = 0.0;
+  double sum_check = 0.0;
+  double sum_write = 0.0;
+  double sum_grab = 0.0;
+  for (const auto& pose : result.poses) {
+    sum_move += pose.move_s;
+    sum_check += pose.check_s;
+    sum_write += pose.write_s;
+    sum_grab += pose.grab_s;
+  }
+  for (std::size_t w = 0; w < windows; ++w) {
+    const double wall = std::chrono::duration<double>(pose_start[w + 1] - pose_start[w]).count();
+    sum_render += render_s[w];
+    overhead.push_back(wall - render_s[w]);  // the gantry's move is instantaneous here
+  }
+  const double n = static_cast<double>(windows);
+  double mean_overhead = 0.0;
+  for (double o : overhead) {
+    mean_overhead += o / n;
+  }
+  mean_overhead -= sum_move / n;
+  const double total_s =
+      std::chrono::duration<double>(pose_start.back() - pose_start.front()).count();
+  nlohmann::json report = {
+      {"bench", "capture"},
+      {"poses_requested", poses},
+      {"poses_recorded", result.recorded()},
+      {"complete", result.complete},
+      {"stop_reason", result.stop_reason},
+      {"cameras", 2},
+      {"image", std::to_string(width) + "x" + std::to_string(height)},
+      {"shots_per_pose", shots},
+      {"retakes", retakes},
+      {"frame_retries", frame_retries},
+      {"frames_mismatched", mismatched},
+      {"overhead_per_pose_ms",
+       {{"mean", 1e3 * mean_overhead},
+        {"median", 1e3 * percentile(overhead, 0.5)},
+        {"max", 1e3 * percentile(overhead, 1.0)}}},
+      {"wall_per_pose_ms", {{"mean", 1e3 * total_s / n}}},
+      {"mean_per_pose_ms",
+       {{"render", 1e3 * sum_render / n},
+        {"move", 1e3 * sum_move / n},
+        {"waiting_for_frames_incl_render", 1e3 * sum_grab / n},
+        {"motion_check_background", 1e3 * sum_check / n},
+        {"write_background", 1e3 * sum_write / n}}},
+      {"definition",
+       "overhead = wall time per pose - move_and_settle - rendering (union of both cameras' "
+       "render intervals); the motion check and the writing of a pose run while the next pose "
+       "is taken and count only when the robot waits for them"}};
+  std::cout << report.dump(2) << "\n";
+  return result.complete && mismatched == 0 ? 0 : 1;
+}

@@ -1,0 +1,84 @@
+#pragma once
+// Simulated cameras: the end-effector board rendered (vision's renderer) at the pose the
+// simulated controller really holds, read from its truth channel (never from the measurement
+// pipeline), and served as a GigE Vision camera through Aravis' fake camera. Capture then opens
+// it with AravisCamera, exactly as a real camera.
+#include "robocal/robotio/camera_fake_gige.hpp"
+#include "robocal/vision/camera_model.hpp"
+#include "robocal/vision/renderer.hpp"
+#include "robocal/vision/target.hpp"
+
+#include <Eigen/Geometry>
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+
+namespace robocal::robotio {
+
+// Where the board really is now (truth world). The simulated controller's truth channel
+// (sim-controller, robotio/README.md) implements it through an adapter; tests use a scripted
+// pose. Throws std::runtime_error when the truth is not available.
+class TruePoseSource {
+ public:
+  virtual ~TruePoseSource() = default;
+  TruePoseSource() = default;
+  TruePoseSource(const TruePoseSource&) = delete;
+  TruePoseSource& operator=(const TruePoseSource&) = delete;
+  TruePoseSource(TruePoseSource&&) = delete;
+  TruePoseSource& operator=(TruePoseSource&&) = delete;
+  [[nodiscard]] virtual Eigen::Isometry3d world_T_board() = 0;
+};
+
+struct SimulatedCameraSpec {
+  std::string serial;                 // GigE serial number it is served under
+  std::string address = "127.0.0.1";  // its own IP address (one per fake camera)
+  vision::CameraModel model;          // true intrinsics; the sensor region must fit in 2048 x 2048
+  Eigen::Isometry3d camera_T_world = Eigen::Isometry3d::Identity();
+  vision::RenderOptions render;  // seed: the first frame's; each frame adds its index
+  // Exposure at which `render`'s levels hold; other exposures scale them (and clip at white).
+  double reference_exposure_us = 10000.0;
+};
+
+// A frame as rendered, kept so tests can check what went over the wire bit for bit.
+struct RenderedFrame {
+  std::uint64_t frame_index = 0;
+  Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
+  cv::Mat image;  // the served region
+  std::chrono::steady_clock::time_point render_start;
+  std::chrono::steady_clock::time_point render_end;
+};
+
+class SimulatedGigECamera {
+ public:
+  // Starts serving. `truth` must outlive the camera. Throws CameraError kIo (address) or
+  // std::invalid_argument (a camera larger than the fake sensor).
+  SimulatedGigECamera(SimulatedCameraSpec spec, vision::TargetBoard board, TruePoseSource& truth);
+
+  [[nodiscard]] const SimulatedCameraSpec& spec() const { return spec_; }
+  [[nodiscard]] FakeGigECamera& server() { return *server_; }
+  // The last `keep` rendered frames, oldest first.
+  [[nodiscard]] std::deque<RenderedFrame> rendered() const;
+  void set_history(std::size_t keep);
+  // Time spent rendering so far (benchmarks subtract it from capture times).
+  [[nodiscard]] double render_seconds() const { return render_ns_.load() * 1e-9; }
+
+ private:
+  cv::Mat render_frame(const FakeFrameRequest& request);
+
+  SimulatedCameraSpec spec_;
+  vision::TargetBoard board_;
+  TruePoseSource* truth_;
+  vision::CameraRays rays_;
+  mutable std::mutex history_mutex_;
+  std::deque<RenderedFrame> history_;
+  std::size_t keep_ = 8;
+  std::atomic<std::int64_t> render_ns_{0};
+  std::unique_ptr<FakeGigECamera> server_;  // last: stops serving before the rest goes
+};
+
+}  // namespace robocal::robotio

@@ -1,0 +1,399 @@
+#include "robocal/robotio/capture.hpp"
+
+#include "robocal/vision/apriltag_detector.hpp"
+#include "robocal/vision/pose_measurement.hpp"
+#include "robocal/vision/target_detection.hpp"
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <deque>
+#include <fstream>
+#include <future>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <system_error>
+
+namespace robocal::robotio {
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// shots[k][c]: shot k of camera c.
+using ShotSeries = std::vector<std::vector<Frame>>;
+
+// A capture that cannot go on: the robot is stopped and the reason reported.
+struct CaptureStop {
+  std::string reason;
+  std::optional<CameraError::Kind> kind;
+};
+
+// One frame of `camera` after a trigger was sent; a timeout or an incomplete frame is retaken
+// (trigger and receive again) up to options.frame_retries times.
+Frame receive_checked(const CaptureCamera& camera, const CaptureOptions& options,
+                      PoseCaptureReport& report) {
+  for (int attempt = 0;; ++attempt) {
+    try {
+      if (attempt > 0) {
+        camera.source->trigger();
+      }
+      Frame frame = camera.source->receive(options.grab_timeout);
+      if (frame.image.cols != camera.model.width || frame.image.rows != camera.model.height) {
+        throw CameraError(
+            CameraError::Kind::kIncompleteFrame, camera.source->name(),
+            fmt::format("frame of the wrong size: {}x{}, the camera is {}x{}", frame.image.cols,
+                        frame.image.rows, camera.model.width, camera.model.height));
+      }
+      return frame;
+    } catch (const CameraError& error) {
+      const bool retryable = error.kind() == CameraError::Kind::kTimeout ||
+                             error.kind() == CameraError::Kind::kIncompleteFrame;
+      if (!retryable || attempt >= options.frame_retries) {
+        throw;
+      }
+      ++report.frame_retries;
+    }
+  }
+}
+
+// Each shot triggers every camera first, then collects their frames: the cameras expose
+// together, and their transfers overlap.
+ShotSeries grab_series(const std::vector<CaptureCamera>& cameras, const CaptureOptions& options,
+                       PoseCaptureReport& report) {
+  ShotSeries shots(static_cast<std::size_t>(options.shots_per_pose));
+  for (auto& shot : shots) {
+    for (const CaptureCamera& camera : cameras) {
+      camera.source->trigger();
+    }
+    for (const CaptureCamera& camera : cameras) {
+      shot.push_back(receive_checked(camera, options, report));
+    }
+  }
+  return shots;
+}
+
+vision::CameraFrame detect(const cv::Mat& image, const vision::TargetBoard& board,
+                           vision::AprilTagDetector& detector) {
+  cv::Mat gray = image;
+  if (image.depth() == CV_16U) {
+    image.convertTo(gray, CV_8U, 1.0 / 257.0);
+  }
+  vision::CameraFrame frame;
+  const vision::TargetDetection detection = vision::detect_target(gray, board, detector);
+  if (detection.status == vision::DetectionStatus::kRejected) {
+    return frame;
+  }
+  frame.blur_px = detection.edge_blur_px;
+  for (std::size_t i = 0; i < detection.corner_ids.size(); ++i) {
+    frame.corners.push_back({detection.corner_ids[i], detection.pixels[i], 0.0});
+  }
+  frame.corner_groups = detection.corner_groups;
+  return frame;
+}
+
+// The settled-frame test of every camera that sees the target: each later shot against the
+// first, as single-camera measurements (no rig calibration is needed yet). Returns the largest
+// chi-square and whether any camera saw motion.
+struct MotionVerdict {
+  bool moving = false;
+  double chi2 = 0.0;
+  std::vector<int> corners;
+};
+
+MotionVerdict check_motion(const ShotSeries& shots, const std::vector<CaptureCamera>& cameras,
+                           const vision::TargetBoard& board, const vision::BoardPoints& points,
+                           std::vector<std::unique_ptr<vision::AprilTagDetector>>& detectors,
+                           double false_alarm) {
+  MotionVerdict verdict;
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
+    const std::vector<vision::RigCamera> rig = {
+        {cameras[c].source->name(), cameras[c].model, Eigen::Isometry3d::Identity(), {}}};
+    const vision::CameraFrame first = detect(shots[0][c].image, board, *detectors[c]);
+    verdict.corners.push_back(static_cast<int>(first.corners.size()));
+    if (first.corners.size() < 4 || shots.size() < 2) {
+      continue;
+    }
+    const vision::PoseMeasurement reference = vision::measure_target_pose(rig, points, {first});
+    if (reference.status != vision::PoseStatus::kOk) {
+      continue;
+    }
+    for (std::size_t k = 1; k < shots.size(); ++k) {
+      const vision::CameraFrame later = detect(shots[k][c].image, board, *detectors[c]);
+      const vision::PoseMeasurement other =
+          vision::refine_target_pose(rig, points, {later}, reference.world_T_target);
+      if (other.status != vision::PoseStatus::kOk) {
+        verdict.moving = true;  // seen once, lost in a later shot: something changed
+        continue;
+      }
+      const vision::MotionCheck check = vision::check_target_still(reference, other, false_alarm);
+      verdict.chi2 = std::max(verdict.chi2, check.chi2);
+      verdict.moving = verdict.moving || check.moving;
+    }
+  }
+  return verdict;
+}
+
+std::string numbers(const Eigen::VectorXd& values) {
+  std::string text = "[";
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    text += fmt::format("{}{:.17g}", i > 0 ? ", " : "", values[i]);
+  }
+  return text + "]";
+}
+
+std::string frame_file_name(const std::string& camera, int shot, int shots) {
+  return shots == 1 ? camera + ".png" : fmt::format("{}_{}.png", camera, shot);
+}
+
+void write_text(const fs::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out << text;
+  out.flush();
+  if (!out) {
+    throw std::runtime_error(file.string() + ": cannot write");
+  }
+}
+
+// Writes the pose into staging/<name>, then renames it to poses/<name>: the pose appears whole.
+void write_pose(const fs::path& staging, const fs::path& poses_dir, const std::string& name,
+                const ShotSeries& shots, const std::vector<CaptureCamera>& cameras,
+                const Eigen::VectorXd& before, const Eigen::VectorXd& after,
+                const PoseCaptureReport& report, const CaptureOptions& options) {
+  const fs::path dir = staging / name;
+  std::error_code error;
+  fs::remove_all(dir, error);
+  fs::create_directories(dir);
+  const int n_shots = static_cast<int>(shots.size());
+  std::string frames_yaml;
+  for (int k = 0; k < n_shots; ++k) {
+    for (std::size_t c = 0; c < cameras.size(); ++c) {
+      const Frame& frame = shots[static_cast<std::size_t>(k)][c];
+      const std::string file = frame_file_name(cameras[c].source->name(), k, n_shots);
+      const fs::path path = dir / file;
+      if (!cv::imwrite(path.string(), frame.image,
+                       {cv::IMWRITE_PNG_COMPRESSION, options.png_compression})) {
+        throw std::runtime_error(path.string() + ": cannot write the image");
+      }
+      if (options.on_file_written) {
+        options.on_file_written(path);
+      }
+      frames_yaml += fmt::format(
+          "  - {{camera: {}, shot: {}, file: {}, pixel_format: {}, frame_id: {}, "
+          "camera_timestamp_ns: {}, host_time_ns: {}}}\n",
+          cameras[c].source->name(), k, file, frame.pixel_format, frame.frame_id,
+          frame.timestamp_ns, frame.host_time_ns);
+    }
+  }
+  const double timestamp =
+      static_cast<double>(shots[0][0].host_time_ns - options.session_start_ns) * 1e-9;
+  std::string text =
+      fmt::format("# robot pose {} (format: app/SESSION.md), recorded by capture\n", name);
+  text += fmt::format("actuators: {}   # settled readings before the shots\n", numbers(before));
+  text += fmt::format("timestamp: {:.6f}\n", timestamp);
+  text += fmt::format("actuators_after: {}   # readings after the last shot\n", numbers(after));
+  text += fmt::format("retakes: {}\nstill_moving: {}\nmotion_chi2: {:.6g}\n", report.retakes,
+                      report.still_moving ? "true" : "false", report.motion_chi2);
+  text += "frames:\n" + frames_yaml;
+  write_text(dir / "pose.yaml", text);
+  if (options.on_file_written) {
+    options.on_file_written(dir / "pose.yaml");
+  }
+  fs::rename(dir, poses_dir / name);  // atomic on one filesystem; refuses a non-empty target
+}
+
+}  // namespace
+
+int CaptureResult::recorded() const {
+  return static_cast<int>(std::count_if(poses.begin(), poses.end(), [](const auto& p) {
+    return p.status == PoseCaptureStatus::kRecorded;
+  }));
+}
+
+int CaptureResult::already_recorded() const {
+  return static_cast<int>(std::count_if(poses.begin(), poses.end(), [](const auto& p) {
+    return p.status == PoseCaptureStatus::kAlreadyRecorded;
+  }));
+}
+
+std::string pose_folder_name(int index) {
+  return fmt::format("pose_{:03d}", index);
+}
+
+namespace {
+
+// A pose whose frames are taken, on its way through the motion check and the writer.
+struct TakenPose {
+  PoseCaptureReport report;
+  ShotSeries shots;
+  Eigen::VectorXd before;
+  Eigen::VectorXd after;
+  bool moving = false;  // set by the check
+  bool written = false;
+};
+
+}  // namespace
+
+CaptureResult capture_poses(const fs::path& session_dir,
+                            const std::vector<Eigen::VectorXd>& targets, CaptureRobot& robot,
+                            const std::vector<CaptureCamera>& cameras,
+                            const vision::TargetBoard& board, const CaptureOptions& options) {
+  if (cameras.empty()) {
+    throw std::invalid_argument("capture: no camera");
+  }
+  for (const CaptureCamera& camera : cameras) {
+    if (camera.source == nullptr) {
+      throw std::invalid_argument("capture: a camera without a source");
+    }
+  }
+  if (options.shots_per_pose < 1) {
+    throw std::invalid_argument("capture: shots_per_pose must be at least 1");
+  }
+  const fs::path poses_dir = session_dir / "poses";
+  // Staging sits beside poses/, never inside it: the pipeline lists every folder in poses/.
+  // What is left there from an interrupted run is an incomplete pose, never recorded data.
+  const fs::path staging = session_dir / ".capture-staging";
+  fs::create_directories(poses_dir);
+  std::error_code error;
+  fs::remove_all(staging, error);
+  fs::create_directories(staging);
+
+  vision::BoardPoints points;
+  for (const auto& corner : board.corners) {
+    points[corner.id] = corner.point;
+  }
+  std::vector<std::unique_ptr<vision::AprilTagDetector>> detectors;
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
+    detectors.push_back(std::make_unique<vision::AprilTagDetector>());
+  }
+
+  CaptureResult result;
+  std::deque<int> queue;
+  std::map<int, int> retakes;  // by pose index: shot series rejected so far
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    PoseCaptureReport report;
+    report.index = static_cast<int>(i);
+    report.name = pose_folder_name(report.index);
+    if (fs::exists(poses_dir / report.name, error)) {
+      report.status = PoseCaptureStatus::kAlreadyRecorded;
+      result.poses.push_back(report);
+    } else {
+      queue.push_back(report.index);
+    }
+  }
+
+  // The motion check and the writing of one pose run while the robot moves to the next one (at
+  // most one pose in flight). A pose whose target moved is taken again later: the robot comes
+  // back to it after the others.
+  std::future<TakenPose> in_flight;
+  const auto check_and_write = [&](TakenPose taken) {
+    auto t = Clock::now();
+    const MotionVerdict verdict =
+        check_motion(taken.shots, cameras, board, points, detectors, options.motion_false_alarm);
+    taken.report.check_s += seconds_since(t);
+    taken.report.motion_chi2 = verdict.chi2;
+    taken.report.corners = verdict.corners;
+    taken.moving = taken.moving || verdict.moving;
+    if (taken.moving && taken.report.retakes < options.max_retakes) {
+      return taken;  // not written: retaken later
+    }
+    taken.report.still_moving = taken.moving;
+    t = Clock::now();
+    write_pose(staging, poses_dir, taken.report.name, taken.shots, cameras, taken.before,
+               taken.after, taken.report, options);
+    taken.report.write_s = seconds_since(t);
+    taken.written = true;
+    return taken;
+  };
+  // Collects the pose in flight; a rejected one goes back in the queue.
+  const auto settle_in_flight = [&] {
+    if (!in_flight.valid()) {
+      return;
+    }
+    TakenPose done = in_flight.get();  // rethrows a write failure
+    if (done.written) {
+      result.poses.push_back(done.report);
+    } else {
+      retakes[done.report.index] = done.report.retakes + 1;
+      queue.push_back(done.report.index);
+    }
+  };
+  const auto stop = [&](const std::string& reason, std::optional<CameraError::Kind> kind) {
+    std::string stop_error;
+    try {
+      robot.stop();
+    } catch (const std::exception& failure) {
+      stop_error = failure.what();
+    }
+    // The pose in flight was taken whole: let it finish writing.
+    try {
+      settle_in_flight();
+    } catch (const std::exception& failure) {
+      stop_error += (stop_error.empty() ? "" : "; ") + std::string(failure.what());
+    }
+    result.stop_reason = stop_error.empty()
+                             ? reason + " (robot stopped; run capture again to resume)"
+                             : reason + "; " + stop_error;
+    result.camera_error = kind;
+  };
+
+  while (!queue.empty() || in_flight.valid()) {
+    if (queue.empty()) {
+      try {
+        settle_in_flight();
+      } catch (const std::exception& failure) {
+        stop(failure.what(), std::nullopt);
+        return result;
+      }
+      continue;
+    }
+    TakenPose taken;
+    const int index = queue.front();
+    queue.pop_front();
+    taken.report.index = index;
+    taken.report.name = pose_folder_name(index);
+    taken.report.retakes = retakes[index];
+    try {
+      auto t = Clock::now();
+      taken.before = robot.move_and_settle(targets[static_cast<std::size_t>(index)]);
+      taken.report.move_s = seconds_since(t);
+      // The readings tell at once whether the robot moved during the shots: retake right away.
+      for (;;) {
+        t = Clock::now();
+        taken.shots = grab_series(cameras, options, taken.report);
+        taken.after = robot.read_actuators();
+        taken.report.grab_s += seconds_since(t);
+        taken.moving =
+            taken.after.size() != taken.before.size() ||
+            (taken.after - taken.before).cwiseAbs().maxCoeff() > options.reading_tolerance;
+        if (!taken.moving || taken.report.retakes >= options.max_retakes) {
+          break;
+        }
+        ++taken.report.retakes;
+        taken.before = taken.after;
+      }
+      settle_in_flight();
+    } catch (const CameraError& camera_error) {
+      stop(fmt::format("pose {}: {}", taken.report.name, camera_error.what()), camera_error.kind());
+      return result;
+    } catch (const std::exception& other) {
+      stop(fmt::format("pose {}: {}", taken.report.name, other.what()), std::nullopt);
+      return result;
+    }
+    in_flight = std::async(std::launch::async, check_and_write, std::move(taken));
+  }
+  std::sort(result.poses.begin(), result.poses.end(),
+            [](const auto& a, const auto& b) { return a.index < b.index; });
+  fs::remove_all(staging, error);
+  result.complete = true;
+  return result;
+}
+
+}  // namespace robocal::robotio
