@@ -1,8 +1,8 @@
 #pragma once
 // Helpers of the session tests: run the CLI in-process, fingerprint recorded data, copy a
 // session's recorded data without its results.
-#include "command_registry.hpp"
-#include "session.hpp"
+#include "cli/command_registry.hpp"
+#include "session/session.hpp"
 
 #include <cstdint>
 #include <filesystem>

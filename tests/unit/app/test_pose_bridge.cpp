@@ -1,4 +1,4 @@
-#include "pose_bridge.hpp"
+#include "stages/pose_bridge.hpp"
 
 #include <gtest/gtest.h>
 

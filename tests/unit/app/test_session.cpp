@@ -1,7 +1,7 @@
 // Session folder files (app/SESSION.md): session.yaml round trip and errors with file:line,
 // pose readings (NaN, wrong count, malformed), atomic writes that never overwrite recorded data.
-#include "cli_common.hpp"
-#include "session.hpp"
+#include "cli/cli_common.hpp"
+#include "session/session.hpp"
 
 #include <gtest/gtest.h>
 

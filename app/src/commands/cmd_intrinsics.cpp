@@ -6,8 +6,8 @@
 #include <fstream>
 #include <memory>
 
-#include "cli_common.hpp"
-#include "command_registry.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/errors.hpp"
 #include "robocal/vision/intrinsics_pipeline.hpp"

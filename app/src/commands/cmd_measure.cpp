@@ -1,8 +1,8 @@
-#include "cli_common.hpp"
-#include "command_registry.hpp"
-#include "rig_files.hpp"
-#include "session.hpp"
-#include "session_pipeline.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "session/rig_files.hpp"
+#include "session/session.hpp"
+#include "stages/session_pipeline.hpp"
 
 #include "robocal/vision/pose_measurement.hpp"
 #include "robocal/vision/target_io.hpp"

@@ -1,8 +1,8 @@
 // `robocal identify`: identify a robot's geometry from a measurements file (format:
 // testdata/measurements/README.md). Writes the JSON result and, on success, the calibrated robot
 // file. Also `--simulate` to write a synthetic measurements file from a perturbed robot.
-#include "cli_common.hpp"
-#include "command_registry.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/measurements_file.hpp"
@@ -10,8 +10,8 @@
 #include "robocal/calib/pixel_observations.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal_version.hpp"
-#include "session.hpp"
-#include "session_pipeline.hpp"
+#include "session/session.hpp"
+#include "stages/session_pipeline.hpp"
 
 #include <fmt/core.h>
 #include <fnmatch.h>

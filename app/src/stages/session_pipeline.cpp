@@ -1,14 +1,14 @@
 // The session pipeline (see session_pipeline.hpp and app/SESSION.md). The measurement stages
 // never read truth/: only simulate writes it and only validate reads it.
-#include "session_pipeline.hpp"
+#include "stages/session_pipeline.hpp"
 
-#include "cli_common.hpp"
-#include "measured_region.hpp"
-#include "pixel_bridge.hpp"
-#include "pose_bridge.hpp"
-#include "rig_files.hpp"
-#include "session.hpp"
-#include "simulated_cell.hpp"
+#include "cli/cli_common.hpp"
+#include "stages/measured_region.hpp"
+#include "stages/pixel_bridge.hpp"
+#include "stages/pose_bridge.hpp"
+#include "session/rig_files.hpp"
+#include "session/session.hpp"
+#include "simcell/simulated_cell.hpp"
 
 #include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/closure.hpp"

@@ -8,8 +8,8 @@
 //   "failed"    it ran but the result is not acceptable (e.g. a camera calibration refused)
 //   "no_truth"  validate only: the session has no truth/ folder (a recorded session)
 // Bad input (missing or malformed files, a robot file that does not match) throws InputError.
-#include "command_registry.hpp"
-#include "progress.hpp"
+#include "cli/command_registry.hpp"
+#include "cli/progress.hpp"
 
 #include <nlohmann/json.hpp>
 

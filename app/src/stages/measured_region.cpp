@@ -1,4 +1,4 @@
-#include "measured_region.hpp"
+#include "stages/measured_region.hpp"
 
 #include <Eigen/Dense>
 

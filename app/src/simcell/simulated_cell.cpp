@@ -1,4 +1,4 @@
-#include "simulated_cell.hpp"
+#include "simcell/simulated_cell.hpp"
 
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/identification.hpp"

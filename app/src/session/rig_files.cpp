@@ -1,6 +1,6 @@
-#include "rig_files.hpp"
+#include "session/rig_files.hpp"
 
-#include "cli_common.hpp"
+#include "cli/cli_common.hpp"
 
 #include "robocal/vision/apriltag_detector.hpp"
 #include "robocal/vision/pose.hpp"

@@ -1,9 +1,9 @@
 // `robocal batch DIR...`: measure -> identify -> validate on several session folders, in
 // parallel with --jobs. Every session is processed exactly as by the single commands (same
 // functions, same files in its results/), so the results are the same as one by one.
-#include "cli_common.hpp"
-#include "command_registry.hpp"
-#include "session_pipeline.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "stages/session_pipeline.hpp"
 
 #include <fmt/core.h>
 

@@ -1,5 +1,5 @@
-#include "cli_common.hpp"
-#include "command_registry.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
 
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/pose.hpp"

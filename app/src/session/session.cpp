@@ -1,6 +1,6 @@
-#include "session.hpp"
+#include "session/session.hpp"
 
-#include "cli_common.hpp"
+#include "cli/cli_common.hpp"
 
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>

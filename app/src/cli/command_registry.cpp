@@ -1,6 +1,6 @@
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 
-#include "cli_common.hpp"
+#include "cli/cli_common.hpp"
 #include "robocal_version.hpp"
 
 #include <fmt/core.h>

@@ -1,5 +1,5 @@
-#include "cli_common.hpp"
-#include "command_registry.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal_version.hpp"
 
 #include <fmt/core.h>

@@ -1,4 +1,4 @@
-#include "pixel_bridge.hpp"
+#include "stages/pixel_bridge.hpp"
 
 #include <fmt/core.h>
 

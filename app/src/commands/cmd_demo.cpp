@@ -8,9 +8,9 @@
 //   4. validate  calibrated vs nominal model against the true robot on held-out poses
 // Each stage is the same function `robocal simulate / measure / identify / validate` runs; the
 // measurement stages never read truth/.
-#include "cli_common.hpp"
-#include "command_registry.hpp"
-#include "session_pipeline.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "stages/session_pipeline.hpp"
 
 #include <fmt/core.h>
 

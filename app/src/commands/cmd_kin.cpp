@@ -1,7 +1,7 @@
 // `robocal kin`: forward/inverse kinematics, parameter Jacobians and model checks of a robot file,
 // as JSON. `--set NAME=VALUE` studies a perturbed robot without editing the file.
-#include "cli_common.hpp"
-#include "command_registry.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
 #include "robocal/calib/kinematics.hpp"

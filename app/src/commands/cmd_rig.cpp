@@ -1,6 +1,6 @@
-#include "cli_common.hpp"
-#include "command_registry.hpp"
-#include "rig_files.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "session/rig_files.hpp"
 
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/rig_calibration.hpp"

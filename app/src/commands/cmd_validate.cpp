@@ -1,8 +1,8 @@
 // `robocal validate SESSION`: the calibrated robot against a simulated session's hidden truth.
-#include "cli_common.hpp"
-#include "command_registry.hpp"
-#include "session.hpp"
-#include "session_pipeline.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "session/session.hpp"
+#include "stages/session_pipeline.hpp"
 
 #include <fmt/core.h>
 

@@ -1,8 +1,8 @@
 // `robocal simulate --out DIR`: writes a synthetic session folder (app/SESSION.md) with rendered
 // images, actuator readings and the hidden truth in DIR/truth/.
-#include "cli_common.hpp"
-#include "command_registry.hpp"
-#include "session_pipeline.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "stages/session_pipeline.hpp"
 
 #include <memory>
 
