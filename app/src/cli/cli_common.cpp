@@ -1,8 +1,7 @@
 #include "cli/cli_common.hpp"
 
-#include <cstdio>
-#include <filesystem>
-#include <fstream>
+#include "robocal/core/files.hpp"
+
 #include <iostream>
 
 namespace robocal::app {
@@ -13,16 +12,7 @@ void write_json(const nlohmann::json& doc, const std::string& path) {
     std::cout << text << std::flush;
     return;
   }
-  const std::filesystem::path target(path);
-  std::filesystem::path tmp = target;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError("cannot write " + tmp.string());
-    out << text;
-    if (!out.flush()) throw InputError("write failed for " + tmp.string());
-  }
-  std::filesystem::rename(tmp, target);
+  core::write_file_atomic(path, text);
 }
 
 }  // namespace robocal::app

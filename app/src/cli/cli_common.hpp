@@ -1,18 +1,16 @@
 #pragma once
-// Small helpers shared by the sub-commands: error type for bad input, JSON output.
+// Small helpers shared by the sub-commands: the error type for bad input, JSON output.
+#include "robocal/core/input_error.hpp"
+
 #include <nlohmann/json.hpp>
 
-#include <stdexcept>
 #include <string>
 
 namespace robocal::app {
 
-// Thrown by commands for problems with the user's input (missing file, malformed value). The
-// message must say what is wrong and where; run_cli turns it into exit code 3.
-class InputError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+// Problems with the user's input (missing file, malformed value): the project's one input-error
+// type. The message must say what is wrong and where; run_cli turns it into exit code 3.
+using core::InputError;
 
 // Writes `doc` as indented JSON to `path`, or to stdout when path is "-" or empty. Files are
 // written to a temporary name and renamed, so a reader never sees half a file.

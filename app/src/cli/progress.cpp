@@ -90,4 +90,18 @@ std::string StageClock::table() const {
   return out;
 }
 
+StageProgress::StageProgress(std::FILE* out, const std::string& label, std::size_t total) {
+  if (out) bar_.emplace(label, total, out);
+}
+
+void StageProgress::advance() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (bar_) bar_->advance();
+}
+
+void StageProgress::finish(const std::string& message) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (bar_) bar_->finish(message);
+}
+
 }  // namespace robocal::app

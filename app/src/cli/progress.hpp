@@ -3,6 +3,8 @@
 // or a pipe (CI, batch logs) it prints a line at every 10 % so logs stay readable.
 #include <chrono>
 #include <cstdio>
+#include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,6 +35,19 @@ class ProgressBar {
   bool finished_ = false;
   std::FILE* stream_;
   std::chrono::steady_clock::time_point start_;
+};
+
+// A progress bar that exists only when there is somewhere to print (out == nullptr: silent, e.g.
+// sessions processed in parallel); advance() may be called from any thread.
+class StageProgress {
+ public:
+  StageProgress(std::FILE* out, const std::string& label, std::size_t total);
+  void advance();
+  void finish(const std::string& message);
+
+ private:
+  std::optional<ProgressBar> bar_;
+  std::mutex mutex_;
 };
 
 // Times the named stages of a pipeline and prints a closing table.

@@ -3,16 +3,16 @@
 // functions, same files in its results/), so the results are the same as one by one.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
-#include "stages/session_pipeline.hpp"
+#include "stages/stages.hpp"
+
+#include "robocal/core/parallel.hpp"
 
 #include <fmt/core.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <memory>
 #include <mutex>
-#include <thread>
 
 namespace robocal::app {
 
@@ -72,29 +72,22 @@ int run_batch(const BatchOptions& o) {
   std::FILE* out = human_stream(o.json);
   const int n = static_cast<int>(o.sessions.size());
   std::vector<nlohmann::json> rows(o.sessions.size());
-  std::atomic<int> next{0};
   std::mutex print_mutex;
   // Sessions in parallel run silently with one thread each; a single job keeps progress output.
   const int jobs = std::clamp(o.jobs, 1, n);
-  auto worker = [&] {
-    for (int i = next++; i < n; i = next++) {
-      PipelineLog log;
-      log.out = jobs == 1 ? out : nullptr;
-      log.threads = jobs == 1 ? o.threads : 1;
-      if (jobs == 1) fmt::print(out, "\n--- {}\n", o.sessions[static_cast<std::size_t>(i)]);
-      rows[static_cast<std::size_t>(i)] = process(o.sessions[static_cast<std::size_t>(i)], o, log);
-      const std::lock_guard<std::mutex> lock(print_mutex);
-      const auto& r = rows[static_cast<std::size_t>(i)];
-      fmt::print(out, "{}: {}{}\n", o.sessions[static_cast<std::size_t>(i)],
-                 r["status"].get<std::string>(),
-                 r.contains("error") ? " (" + r["error"].get<std::string>() + ")" : "");
-      std::fflush(out);
-    }
-  };
-  std::vector<std::thread> pool;
-  pool.reserve(static_cast<std::size_t>(jobs));
-  for (int w = 0; w < jobs; ++w) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
+  core::parallel_for(n, jobs, [&](int i) {
+    const auto k = static_cast<std::size_t>(i);
+    PipelineLog log;
+    log.out = jobs == 1 ? out : nullptr;
+    log.threads = jobs == 1 ? o.threads : 1;
+    if (jobs == 1) fmt::print(out, "\n--- {}\n", o.sessions[k]);
+    rows[k] = process(o.sessions[k], o, log);
+    const std::lock_guard<std::mutex> lock(print_mutex);
+    const auto& r = rows[k];
+    fmt::print(out, "{}: {}{}\n", o.sessions[k], r["status"].get<std::string>(),
+               r.contains("error") ? " (" + r["error"].get<std::string>() + ")" : "");
+    std::fflush(out);
+  });
 
   fmt::print(out, "\n{:<40} {:>6} {:>10} {:>12} {:>14} {:>9}\n", "session", "poses", "identify",
              "nominal µm", "calibrated µm", "seconds");

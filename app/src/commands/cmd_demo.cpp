@@ -10,7 +10,9 @@
 // measurement stages never read truth/.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
-#include "stages/session_pipeline.hpp"
+#include "session/results_layout.hpp"
+#include "stages/stages.hpp"
+#include "summary/validation_summary.hpp"
 
 #include <fmt/core.h>
 
@@ -73,7 +75,8 @@ int run_demo(DemoOptions o) {
   report["seed"] = o.simulate.seed;
   report["robot"] = o.simulate.robot;
   report["session"] = dir.string();
-  const std::string json_path = !o.json.empty() ? o.json : (dir / "results" / "demo.json").string();
+  const std::string json_path =
+      !o.json.empty() ? o.json : ResultsLayout{dir}.report("demo").string();
   write_json(report, json_path);
   fmt::print(out, "  session: {}\n  report: {}\n", dir.string(), json_path);
   const bool improved = report["validate"].value("improved", false);

@@ -9,17 +9,16 @@
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/pixel_observations.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "robocal/core/files.hpp"
 #include "robocal_version.hpp"
 #include "session/session.hpp"
-#include "stages/session_pipeline.hpp"
+#include "session/session_robot.hpp"
+#include "stages/stages.hpp"
 
 #include <fmt/core.h>
 #include <fnmatch.h>
 
-#include <filesystem>
-#include <fstream>
 #include <memory>
-#include <sstream>
 
 namespace robocal::app {
 namespace {
@@ -58,22 +57,6 @@ bool matches(const std::string& name, const std::vector<std::string>& patterns) 
   for (const auto& p : patterns)
     if (fnmatch(p.c_str(), name.c_str(), 0) == 0) return true;
   return false;
-}
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-Mechanism load_robot(const std::string& path) {
-  try {
-    return load_robot_file(path);
-  } catch (const RobotFileError& e) {
-    throw InputError(e.what());
-  }
 }
 
 // Simulation target: a 3x3 grid of 4 cm pitch in the measured frame plus one corner 2 cm off
@@ -160,12 +143,7 @@ int run_identify(const IdentifyOptions& o) {
   if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
   if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
   const Mechanism model = load_robot(o.robot);
-  MeasurementsFile file;
-  try {
-    file = load_measurements_file(o.measurements);
-  } catch (const MeasurementsFileError& e) {
-    throw InputError(e.what());
-  }
+  const MeasurementsFile file = load_measurements_file(o.measurements);
   if (!file.robot.empty() && file.robot != model.name)
     throw InputError(fmt::format("{}: measurements are for robot '{}', the robot file is '{}'",
                                  o.measurements, file.robot, model.name));
@@ -289,15 +267,9 @@ int run_identify(const IdentifyOptions& o) {
       if (i < model.parameters.size()) robot_estimated.push_back(i);
     const Eigen::VectorXd robot_values =
         res.estimate.head(static_cast<Eigen::Index>(model.parameters.size()));
-    const std::string text =
-        calibrated_robot_yaml(read_text(o.robot), model, robot_values, robot_estimated, provenance);
-    const std::string tmp = o.out_robot + ".tmp";
-    {
-      std::ofstream out(tmp);
-      if (!out) throw InputError(o.out_robot + ": cannot write");
-      out << text;
-    }
-    std::filesystem::rename(tmp, o.out_robot);
+    const std::string text = calibrated_robot_yaml(core::read_text_file(o.robot), model,
+                                                   robot_values, robot_estimated, provenance);
+    core::write_file_atomic(o.out_robot, text);
     doc["calibrated_robot"] = o.out_robot;
   }
   write_json(doc, o.json);

@@ -3,11 +3,11 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
+#include "robocal/core/files.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/errors.hpp"
 #include "robocal/vision/intrinsics_pipeline.hpp"
@@ -166,11 +166,7 @@ CommandSpec intrinsics_command() {
             return int{kExitFailure};
           }
           vision::save_camera_file(c.camera, a->camera_out);
-          {
-            std::ofstream svg(a->svg_out);
-            svg << vision::coverage_svg(c, run.width, run.height);
-            if (!svg) throw InputError(a->svg_out + ": cannot write");
-          }
+          core::write_file_atomic(a->svg_out, vision::coverage_svg(c, run.width, run.height));
           for (size_t i = 0; i < c.param_names.size(); ++i) {
             fmt::print("{:<3} = {:>14.6f} +- {:.6f}\n", c.param_names[i], c.camera.params[i],
                        c.param_stddev[i]);

@@ -1,15 +1,17 @@
+// `robocal measure SESSION` (the measure stage) or, folder mode, `robocal measure --rig R
+// --target T --poses DIR`: the measure stage's board-pose step on pose folders.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
-#include "session/rig_files.hpp"
+#include "session/image_folders.hpp"
+#include "session/results_files.hpp"
 #include "session/session.hpp"
-#include "stages/session_pipeline.hpp"
-
-#include "robocal/vision/pose_measurement.hpp"
-#include "robocal/vision/target_io.hpp"
+#include "session/session_robot.hpp"
+#include "stages/measure_steps.hpp"
+#include "stages/stages.hpp"
 
 #include <fmt/core.h>
 
-#include <iostream>
+#include <memory>
 
 namespace robocal::app {
 
@@ -24,80 +26,38 @@ struct MeasureArgs {
 };
 
 int run_measure(const MeasureArgs& a) {
-  double rig_sigma = 0.0;
-  const auto rig = load_rig_json(a.rig, &rig_sigma);
-  vision::TargetBoard board;
-  try {
-    board = vision::load_target_file(a.target);
-  } catch (const vision::FileFormatError& e) {
-    throw InputError(e.what());
-  }
+  const RigFile rig_file = read_rig_file(a.rig);
+  const auto& rig = rig_file.cameras;
+  const vision::TargetBoard board = load_board(a.target);
   std::vector<std::string> names;
   names.reserve(rig.size());
   for (const auto& c : rig) names.push_back(c.name);
   const auto sets = scan_image_folder(a.poses, names);
-  const vision::BoardPoints points = board_points(board);
-  vision::PoseMeasurementOptions opt;
+  PoseStepOptions options;
   // The corner sigma: given, else the rig calibration's RMS residual, else 0.1 px.
-  opt.default_sigma_px = a.sigma_px > 0 ? a.sigma_px : (rig_sigma > 0 ? rig_sigma : 0.1);
+  options.measurement.default_sigma_px =
+      a.sigma_px > 0 ? a.sigma_px : (rig_file.corner_sigma_px > 0 ? rig_file.corner_sigma_px : 0.1);
+  const auto measured = measure_board_poses(rig, board, sets, options, {stderr, a.threads});
 
   nlohmann::json poses = nlohmann::json::array();
   int usable = 0;
-  for (const auto& set : sets) {
-    nlohmann::json pj;
-    pj["pose"] = set.name;
-    std::vector<std::string> problems;
-    size_t n_frames = 0;
-    for (size_t c = 0; c < rig.size(); ++c) {
-      if (set.frames_of_camera[c].empty())
-        problems.push_back(fmt::format("no image for camera '{}'", rig[c].name));
-      n_frames = std::max(n_frames, set.frames_of_camera[c].size());
-    }
-    std::vector<std::vector<vision::CameraFrame>> frames(
-        n_frames, std::vector<vision::CameraFrame>(rig.size()));
-    for (size_t f = 0; f < n_frames; ++f)
-      for (size_t c = 0; c < rig.size(); ++c) {
-        if (f >= set.frames_of_camera[c].size()) continue;
-        std::string problem;
-        frames[f][c] = vision::CameraFrame{};
-        frames[f][c] = detect_frame(set.frames_of_camera[c][f], rig[c], board, &problem);
-        if (!problem.empty()) problems.push_back(problem);
-      }
-    vision::PoseMeasurement m;
-    if (n_frames == 0) {
-      m.status = vision::PoseStatus::kNotSeen;
-      m.message = "no images";
-    } else {
-      m = vision::measure_settled_pose(rig, points, frames, opt);
-    }
-    pj["status"] = vision::pose_status_name(m.status);
-    pj["usable"] = m.usable();
-    pj["message"] = m.message;
-    pj["problems"] = problems;
-    pj["frames"] = n_frames;
-    pj.update(pose_measurement_to_json(m));
-    if (!a.no_raw) {
-      // The raw observations, for camera-in-the-loop identification.
-      nlohmann::json raw = nlohmann::json::array();
-      for (size_t f = 0; f < n_frames; ++f)
-        for (size_t c = 0; c < rig.size(); ++c) {
-          nlohmann::json corners = nlohmann::json::array();
-          for (const auto& o : frames[f][c].corners)
-            corners.push_back({o.id, o.pixel.x(), o.pixel.y(),
-                               o.sigma_px > 0 ? o.sigma_px : opt.default_sigma_px});
-          raw.push_back({{"frame", f}, {"camera", rig[c].name}, {"corners", corners}});
-        }
-      pj["observations"] = raw;
-    }
+  for (std::size_t p = 0; p < sets.size(); ++p) {
+    const auto& m = measured[p].measurement;
+    nlohmann::json pj =
+        pose_measurement_json(sets[p].name, m, measured[p].problems, measured[p].frames.size());
+    // The raw observations, for camera-in-the-loop identification.
+    if (!a.no_raw)
+      pj["observations"] = corner_observations_json(measured[p].frames, names,
+                                                    options.measurement.default_sigma_px, false);
     usable += m.usable() ? 1 : 0;
     poses.push_back(pj);
-    std::cerr << fmt::format("{}: {}{}\n", set.name, vision::pose_status_name(m.status),
-                             m.message.empty() ? "" : " (" + m.message + ")");
+    fmt::print(stderr, "{}: {}{}\n", sets[p].name, vision::pose_status_name(m.status),
+               m.message.empty() ? "" : " (" + m.message + ")");
   }
   nlohmann::json doc;
   doc["rig"] = a.rig;
   doc["target"] = a.target;
-  doc["corner_sigma_px"] = opt.default_sigma_px;
+  doc["corner_sigma_px"] = options.measurement.default_sigma_px;
   doc["observation_format"] = "corners: [id, u, v, sigma_px], OpenCV pixel convention";
   doc["poses"] = poses;
   doc["summary"] = {{"poses", sets.size()}, {"usable", usable}};
@@ -138,8 +98,7 @@ CommandSpec measure_command() {
         cmd.add_option("session", a->session, "Session folder (app/SESSION.md)");
         cmd.add_option("--robot", a->robot,
                        "Session mode: robot file to use instead of the session's (checked)");
-        cmd.add_option("--threads", a->threads, "Session mode: detection threads")
-            ->check(CLI::Range(1, 64));
+        cmd.add_option("--threads", a->threads, "Detection threads")->check(CLI::Range(1, 64));
         cmd.add_option("--json", a->json, "Session mode: also write the report here (- = stdout)");
         cmd.add_option("--rig", a->rig, "Rig JSON written by `robocal rig`");
         cmd.add_option("--target", a->target, "Target file of the end-effector board");

@@ -1,6 +1,7 @@
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
 
+#include "robocal/core/files.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/pose.hpp"
 #include "robocal/vision/render_io.hpp"
@@ -11,7 +12,6 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 
 namespace robocal::app {
 
@@ -89,11 +89,8 @@ int run_render(const RenderArgs& a) {
     const std::filesystem::path png = std::filesystem::path(a.out) / (view.name + ".png");
     const std::filesystem::path json = std::filesystem::path(a.out) / (view.name + ".json");
     if (!cv::imwrite(png.string(), r.image)) throw InputError("cannot write " + png.string());
-    {
-      std::ofstream out(json, std::ios::binary | std::ios::trunc);
-      out << vision::render_truth_json(png.filename().string(), camera, targets, opt, r.corners);
-      if (!out.flush()) throw InputError("cannot write " + json.string());
-    }
+    core::write_file_atomic(
+        json, vision::render_truth_json(png.filename().string(), camera, targets, opt, r.corners));
     int visible = 0;
     for (const auto& c : r.corners) visible += c.visible;
     fmt::print("{}: {} of {} corners visible, {:.2f} s\n", png.string(), visible, r.corners.size(),

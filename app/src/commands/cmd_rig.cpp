@@ -1,15 +1,19 @@
+// `robocal rig`: a multi-camera rig from views of a board, by the measure stage's rig step.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
-#include "session/rig_files.hpp"
+#include "session/image_folders.hpp"
+#include "session/results_files.hpp"
+#include "session/session_robot.hpp"
+#include "stages/measure_steps.hpp"
 
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/rig_calibration.hpp"
-#include "robocal/vision/target_io.hpp"
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cmath>
-#include <iostream>
+#include <memory>
 
 namespace robocal::app {
 
@@ -20,30 +24,27 @@ struct RigArgs {
   std::string target, views, out = "-", reference;
   bool refine_intrinsics = false;
   double sigma_px = 0.05;
+  int threads = 2;
 };
 
 int run_rig(const RigArgs& a) {
   std::vector<vision::RigCamera> cams;
-  vision::TargetBoard board;
-  try {
-    for (const auto& spec : a.cameras) {
-      const auto eq = spec.find('=');
-      if (eq == std::string::npos || eq == 0)
-        throw InputError(fmt::format("--camera {}: expected NAME=camera.yaml", spec));
-      vision::RigCamera c;
-      c.name = spec.substr(0, eq);
-      c.model = vision::load_camera_file(spec.substr(eq + 1));
-      cams.push_back(c);
-    }
-    board = vision::load_target_file(a.target);
-  } catch (const vision::FileFormatError& e) {
-    throw InputError(e.what());
+  for (const auto& spec : a.cameras) {
+    const auto eq = spec.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw InputError(fmt::format("--camera {}: expected NAME=camera.yaml", spec));
+    vision::RigCamera c;
+    c.name = spec.substr(0, eq);
+    c.model = vision::load_camera_file(spec.substr(eq + 1));
+    cams.push_back(c);
   }
+  const vision::TargetBoard board = load_board(a.target);
   if (cams.empty()) throw InputError("give at least one --camera NAME=camera.yaml");
   std::vector<std::string> names;
   names.reserve(cams.size());
   for (const auto& c : cams) names.push_back(c.name);
-  vision::RigCalibrationOptions opt;
+  RigStepOptions options;
+  vision::RigCalibrationOptions& opt = options.calibration;
   opt.refine_intrinsics = a.refine_intrinsics;
   opt.default_sigma_px = a.sigma_px;
   if (!a.reference.empty()) {
@@ -52,65 +53,47 @@ int run_rig(const RigArgs& a) {
     opt.reference_camera = static_cast<int>(it - names.begin());
   }
   const auto sets = scan_image_folder(a.views, names);
-  const vision::BoardPoints points = board_points(board);
-  std::vector<std::vector<vision::CameraFrame>> views;
+  const RigStep step = calibrate_rig_from_views(cams, board, sets, options, {stderr, a.threads});
+  const auto& views = step.views;
+  const auto& res = step.result;
   nlohmann::json view_json = nlohmann::json::array();
-  for (const auto& set : sets) {
-    std::vector<vision::CameraFrame> frame(cams.size());
+  for (std::size_t v = 0; v < sets.size(); ++v) {
     nlohmann::json per_cam = nlohmann::json::object();
-    for (size_t c = 0; c < cams.size(); ++c) {
-      if (set.frames_of_camera[c].empty()) {
-        per_cam[cams[c].name] = "missing image";
-        continue;
-      }
-      std::string problem;
-      frame[c] = detect_frame(set.frames_of_camera[c].front(), cams[c], board, &problem);
-      per_cam[cams[c].name] =
-          problem.empty() ? fmt::format("{} corners", frame[c].corners.size()) : problem;
-    }
-    views.push_back(frame);
-    view_json.push_back({{"view", set.name}, {"detection", per_cam}});
+    for (std::size_t c = 0; c < cams.size(); ++c)
+      per_cam[cams[c].name] = step.problems[v][c].empty()
+                                  ? fmt::format("{} corners", views[v][c].corners.size())
+                                  : step.problems[v][c];
+    view_json.push_back({{"view", sets[v].name}, {"detection", per_cam}});
   }
-  const auto res = vision::calibrate_rig(cams, points, views, opt);
-  nlohmann::json doc;
-  doc["ok"] = res.ok;
-  doc["message"] = res.message;
   if (!res.ok) {
-    doc["views"] = view_json;
-    write_json(doc, a.out);
-    std::cerr << "robocal rig: " << res.message << "\n";
+    write_json({{"ok", res.ok}, {"message", res.message}, {"views", view_json}}, a.out);
+    fmt::print(stderr, "robocal rig: {}\n", res.message);
     return kExitFailure;
   }
-  doc["reference"] = cams[static_cast<size_t>(opt.reference_camera)].name;
-  doc["target"] = a.target;
-  doc["corner_sigma_px"] = res.rms_px;
-  doc["rms_px"] = res.rms_px;
-  doc["variance_factor"] = res.variance_factor;
-  doc["cameras"] = rig_to_json(res.rig());
-  for (size_t c = 0; c < res.cameras.size(); ++c) {
+  nlohmann::json doc = rig_file_json(res, cams[static_cast<std::size_t>(opt.reference_camera)].name,
+                                     a.target, res.rms_px);
+  for (std::size_t c = 0; c < res.cameras.size(); ++c) {
     const auto& cc = res.cameras[c];
     auto& j = doc["cameras"][c];
-    j["baseline_m"] = cc.baseline_m;
-    j["baseline_sigma_m"] = cc.baseline_sigma_m;
     j["position_in_rig"] = {cc.position.x(), cc.position.y(), cc.position.z()};
     j["rms_px"] = cc.rms_px;
     j["views"] = cc.views;
     j["corners"] = cc.corners;
     if (!cc.intrinsic_sigma.empty()) j["intrinsic_sigma"] = cc.intrinsic_sigma;
   }
-  for (size_t v = 0; v < views.size(); ++v) {
+  for (std::size_t v = 0; v < views.size(); ++v) {
     nlohmann::json rms = nlohmann::json::object();
-    for (size_t c = 0; c < cams.size(); ++c)
+    for (std::size_t c = 0; c < cams.size(); ++c)
       if (!std::isnan(res.view_rms_px[v][c])) rms[cams[c].name] = res.view_rms_px[v][c];
     view_json[v]["rms_px"] = rms;
     view_json[v]["used"] = res.rig_T_board[v].has_value();
   }
   doc["views"] = view_json;
   nlohmann::json cvj = nlohmann::json::array();
-  for (size_t c = 0; c < cams.size(); ++c) {
+  for (std::size_t c = 0; c < cams.size(); ++c) {
     if (static_cast<int>(c) == opt.reference_camera) continue;
-    const auto cv = vision::opencv_stereo_calibrate(cams, points, views, opt.reference_camera,
-                                                    static_cast<int>(c));
+    const auto cv = vision::opencv_stereo_calibrate(cams, board_points(board), views,
+                                                    opt.reference_camera, static_cast<int>(c));
     cvj.push_back({{"camera", cams[c].name},
                    {"ok", cv.ok},
                    {"message", cv.message},
@@ -121,9 +104,8 @@ int run_rig(const RigArgs& a) {
   doc["opencv_stereoCalibrate"] = cvj;
   write_json(doc, a.out);
   for (const auto& cc : res.cameras)
-    std::cerr << fmt::format("{}: baseline {:.6f} m +- {:.2f} um, rms {:.3f} px, {} views\n",
-                             cc.name, cc.baseline_m, cc.baseline_sigma_m * 1e6, cc.rms_px,
-                             cc.views);
+    fmt::print(stderr, "{}: baseline {:.6f} m +- {:.2f} um, rms {:.3f} px, {} views\n", cc.name,
+               cc.baseline_m, cc.baseline_sigma_m * 1e6, cc.rms_px, cc.views);
   return kExitOk;
 }
 
@@ -144,6 +126,7 @@ CommandSpec rig_command() {
         cmd.add_flag("--refine-intrinsics", a->refine_intrinsics,
                      "Refine every camera's intrinsics too");
         cmd.add_option("--sigma-px", a->sigma_px, "Corner noise sigma for the covariance");
+        cmd.add_option("--threads", a->threads, "Detection threads")->check(CLI::Range(1, 64));
         cmd.add_option("--out", a->out, "Rig JSON to write (- = stdout)");
         return [a]() { return run_rig(*a); };
       }};

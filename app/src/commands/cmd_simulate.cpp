@@ -2,7 +2,7 @@
 // images, actuator readings and the hidden truth in DIR/truth/.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
-#include "stages/session_pipeline.hpp"
+#include "stages/stages.hpp"
 
 #include <memory>
 

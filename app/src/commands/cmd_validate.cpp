@@ -1,8 +1,10 @@
 // `robocal validate SESSION`: the calibrated robot against a simulated session's hidden truth.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
-#include "session/session.hpp"
-#include "stages/session_pipeline.hpp"
+#include "session/json_values.hpp"
+#include "session/results_layout.hpp"
+#include "stages/stages.hpp"
+#include "summary/validation_summary.hpp"
 
 #include <fmt/core.h>
 
@@ -42,8 +44,8 @@ CommandSpec validate_command() {
               if (report.value("status", "") == "no_truth") {
                 fmt::print(stderr, "error: {}\n", report.value("message", ""));
               } else {
-                const auto ident = nlohmann::json::parse(read_text_file(
-                    std::filesystem::path(*session) / "results" / "identification.json"));
+                const auto ident = read_json_file(ResultsLayout{*session}.identification(),
+                                                  "run `robocal identify` on the session first");
                 print_validation_summary(log.out, report, ident);
               }
               if (!json->empty()) write_json(report, *json);

@@ -2,6 +2,9 @@
 
 #include "cli/cli_common.hpp"
 
+#include "robocal/core/files.hpp"
+#include "robocal/core/yaml.hpp"
+
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 #include <opencv2/imgcodecs.hpp>
@@ -10,63 +13,10 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
-#include <fstream>
-#include <sstream>
 
 namespace robocal::app {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-std::string where(const std::string& source, const YAML::Node& node) {
-  const auto mark = node.Mark();
-  return mark.is_null() ? source : fmt::format("{}:{}", source, mark.line + 1);
-}
-
-// A required scalar of `map`, converted to T, with file:line errors.
-template <typename T>
-T required(const YAML::Node& map, const std::string& key, const std::string& source) {
-  const YAML::Node node = map[key];
-  if (!node) throw InputError(fmt::format("{}: missing '{}'", where(source, map), key));
-  try {
-    return node.as<T>();
-  } catch (const YAML::Exception&) {
-    throw InputError(
-        fmt::format("{}: '{}' has a value of the wrong type", where(source, node), key));
-  }
-}
-
-template <typename T>
-T optional(const YAML::Node& map, const std::string& key, const T& fallback,
-           const std::string& source) {
-  const YAML::Node node = map[key];
-  if (!node) return fallback;
-  try {
-    return node.as<T>();
-  } catch (const YAML::Exception&) {
-    throw InputError(
-        fmt::format("{}: '{}' has a value of the wrong type", where(source, node), key));
-  }
-}
-
-YAML::Node required_map(const YAML::Node& map, const std::string& key, const std::string& source) {
-  const YAML::Node node = map[key];
-  if (!node || !node.IsMap())
-    throw InputError(
-        fmt::format("{}: '{}' must be a mapping", where(source, node ? node : map), key));
-  return node;
-}
-
-YAML::Node parse_yaml(const std::string& text, const std::string& source) {
-  try {
-    return YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw InputError(fmt::format("{}:{}: not valid YAML ({})", source, e.mark.line + 1, e.msg));
-  }
-}
-
-}  // namespace
 
 std::vector<std::string> Session::camera_names() const {
   std::vector<std::string> names;
@@ -79,47 +29,42 @@ bool is_session(const fs::path& dir) {
   return fs::is_directory(dir, ec) && fs::is_regular_file(dir / "session.yaml", ec);
 }
 
-std::string read_text_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path.string() + ": cannot open");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 Session parse_session_yaml(const std::string& text, const std::string& source) {
-  const YAML::Node root = parse_yaml(text, source);
+  const YAML::Node root = core::load_yaml_text(text, source);
+  const core::YamlContext ctx{source};
   if (!root.IsMap())
     throw InputError(fmt::format("{}: a session file is a YAML mapping (see app/SESSION.md)",
-                                 where(source, root)));
+                                 core::yaml_where(source, root)));
   Session s;
-  s.format = required<std::string>(root, "format", source);
+  s.format = ctx.required<std::string>(root, "format");
   if (s.format != kSessionFormat)
-    throw InputError(fmt::format("{}: format '{}' is not '{}'", where(source, root["format"]),
-                                 s.format, kSessionFormat));
-  s.software = optional<std::string>(root, "software", "", source);
-  s.created = optional<std::string>(root, "created", "", source);
-  s.source = optional<std::string>(root, "source", "recorded", source);
-  s.seed = optional<unsigned>(root, "seed", 1U, source);
+    throw InputError(fmt::format("{}: format '{}' is not '{}'",
+                                 core::yaml_where(source, root["format"]), s.format,
+                                 kSessionFormat));
+  s.software = ctx.optional<std::string>(root, "software", "");
+  s.created = ctx.optional<std::string>(root, "created", "");
+  s.source = ctx.optional<std::string>(root, "source", "recorded");
+  s.seed = ctx.optional<unsigned>(root, "seed", 1U);
 
-  const YAML::Node robot = required_map(root, "robot", source);
-  s.robot_file = required<std::string>(robot, "file", source);
-  s.robot_name = required<std::string>(robot, "name", source);
-  s.measured_frame = optional<std::string>(robot, "measured_frame", "", source);
-  s.actuators = required<int>(robot, "actuators", source);
+  const YAML::Node robot = ctx.require_map(root, "robot");
+  s.robot_file = ctx.required<std::string>(robot, "file");
+  s.robot_name = ctx.required<std::string>(robot, "name");
+  s.measured_frame = ctx.optional<std::string>(robot, "measured_frame", "");
+  s.actuators = ctx.required<int>(robot, "actuators");
   if (s.actuators <= 0)
-    throw InputError(fmt::format("{}: 'actuators' must be positive", where(source, robot)));
+    throw InputError(
+        fmt::format("{}: 'actuators' must be positive", core::yaml_where(source, robot)));
   if (const YAML::Node mount = robot["target_mount"]) {
     if (!mount.IsMap())
       throw InputError(fmt::format("{}: 'target_mount' must map parameter names to values",
-                                   where(source, mount)));
+                                   core::yaml_where(source, mount)));
     for (const auto& kv : mount) {
       const auto name = kv.first.as<std::string>();
       try {
         s.target_mount.emplace_back(name, kv.second.as<double>());
       } catch (const YAML::Exception&) {
-        throw InputError(
-            fmt::format("{}: target_mount.{} is not a number", where(source, kv.second), name));
+        throw InputError(fmt::format("{}: target_mount.{} is not a number",
+                                     core::yaml_where(source, kv.second), name));
       }
     }
   }
@@ -127,29 +72,29 @@ Session parse_session_yaml(const std::string& text, const std::string& source) {
   const YAML::Node cameras = root["cameras"];
   if (!cameras || !cameras.IsSequence() || cameras.size() == 0)
     throw InputError(fmt::format("{}: 'cameras' must be a non-empty list",
-                                 where(source, cameras ? cameras : root)));
+                                 core::yaml_where(source, cameras ? cameras : root)));
   for (const auto& c : cameras) {
     if (!c.IsMap())
-      throw InputError(
-          fmt::format("{}: a camera is a mapping {{name, width, height}}", where(source, c)));
-    SessionCamera cam{required<std::string>(c, "name", source), required<int>(c, "width", source),
-                      required<int>(c, "height", source)};
+      throw InputError(fmt::format("{}: a camera is a mapping {{name, width, height}}",
+                                   core::yaml_where(source, c)));
+    SessionCamera cam{ctx.required<std::string>(c, "name"), ctx.required<int>(c, "width"),
+                      ctx.required<int>(c, "height")};
     if (cam.width <= 0 || cam.height <= 0)
-      throw InputError(
-          fmt::format("{}: camera '{}' needs a positive image size", where(source, c), cam.name));
+      throw InputError(fmt::format("{}: camera '{}' needs a positive image size",
+                                   core::yaml_where(source, c), cam.name));
     for (const auto& other : s.cameras)
       if (other.name == cam.name)
         throw InputError(
-            fmt::format("{}: camera name '{}' used twice", where(source, c), cam.name));
+            fmt::format("{}: camera name '{}' used twice", core::yaml_where(source, c), cam.name));
     s.cameras.push_back(cam);
   }
-  const YAML::Node targets = required_map(root, "targets", source);
-  s.ee_target = required<std::string>(targets, "end_effector", source);
-  s.calibration_target = required<std::string>(targets, "calibration", source);
-  const YAML::Node folders = required_map(root, "folders", source);
-  s.intrinsics_views = required<std::string>(folders, "intrinsics", source);
-  s.rig_views = required<std::string>(folders, "rig", source);
-  s.poses = required<std::string>(folders, "poses", source);
+  const YAML::Node targets = ctx.require_map(root, "targets");
+  s.ee_target = ctx.required<std::string>(targets, "end_effector");
+  s.calibration_target = ctx.required<std::string>(targets, "calibration");
+  const YAML::Node folders = ctx.require_map(root, "folders");
+  s.intrinsics_views = ctx.required<std::string>(folders, "intrinsics");
+  s.rig_views = ctx.required<std::string>(folders, "rig");
+  s.poses = ctx.required<std::string>(folders, "poses");
   return s;
 }
 
@@ -158,7 +103,7 @@ Session load_session(const fs::path& dir) {
   if (!is_session(dir))
     throw InputError(fmt::format("{}: not a session folder (no session.yaml; see app/SESSION.md)",
                                  dir.string()));
-  Session s = parse_session_yaml(read_text_file(file), file.string());
+  Session s = parse_session_yaml(core::read_text_file(file), file.string());
   s.dir = dir;
   return s;
 }
@@ -229,28 +174,31 @@ std::vector<PoseRecord> load_pose_records(const Session& session) {
     try {
       if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": missing");
       const std::string source = file.string();
-      const YAML::Node root = parse_yaml(read_text_file(file), source);
-      if (!root.IsMap()) throw InputError(where(source, root) + ": expected a mapping");
+      const YAML::Node root = core::load_yaml_text(core::read_text_file(file), source);
+      const core::YamlContext ctx{source};
+      if (!root.IsMap()) throw InputError(core::yaml_where(source, root) + ": expected a mapping");
       const YAML::Node q = root["actuators"];
       if (!q || !q.IsSequence())
-        throw InputError(where(source, q ? q : root) + ": 'actuators' must be a list of numbers");
+        throw InputError(core::yaml_where(source, q ? q : root) +
+                         ": 'actuators' must be a list of numbers");
       r.actuators.resize(static_cast<Eigen::Index>(q.size()));
       for (std::size_t i = 0; i < q.size(); ++i) {
         try {
           r.actuators[static_cast<Eigen::Index>(i)] = q[i].as<double>();
         } catch (const YAML::Exception&) {
           throw InputError(
-              fmt::format("{}: actuators[{}] is not a number", where(source, q[i]), i));
+              fmt::format("{}: actuators[{}] is not a number", core::yaml_where(source, q[i]), i));
         }
       }
-      r.timestamp = optional<double>(root, "timestamp", 0.0, source);
+      r.timestamp = ctx.optional<double>(root, "timestamp", 0.0);
       if (r.actuators.size() != session.actuators)
         throw InputError(fmt::format("{}: {} actuator readings, the session's robot has {}",
-                                     where(source, q), r.actuators.size(), session.actuators));
+                                     core::yaml_where(source, q), r.actuators.size(),
+                                     session.actuators));
       for (Eigen::Index i = 0; i < r.actuators.size(); ++i)
         if (!std::isfinite(r.actuators[i]))
           throw InputError(fmt::format("{}: actuators[{}] is {} (no valid reading)",
-                                       where(source, q), i, r.actuators[i]));
+                                       core::yaml_where(source, q), i, r.actuators[i]));
     } catch (const InputError& e) {
       r.problem = e.what();
     }
@@ -259,26 +207,10 @@ std::vector<PoseRecord> load_pose_records(const Session& session) {
   return out;
 }
 
-void write_file_atomic(const fs::path& path, const std::string& bytes, bool replace) {
-  std::error_code ec;
-  if (!replace && fs::exists(path, ec))
-    throw InputError(path.string() + ": exists; recorded data is never overwritten");
-  if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
-  fs::path tmp = path;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError("cannot write " + tmp.string());
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (!out.flush()) throw InputError("write failed for " + tmp.string());
-  }
-  fs::rename(tmp, path);
-}
-
 void write_image_atomic(const fs::path& path, const cv::Mat& image) {
   std::vector<unsigned char> png;
   if (!cv::imencode(".png", image, png)) throw InputError("cannot encode " + path.string());
-  write_file_atomic(path, std::string(png.begin(), png.end()), false);
+  core::write_file_atomic(path, std::string(png.begin(), png.end()), core::Overwrite::kRefuse);
 }
 
 std::string utc_now() {

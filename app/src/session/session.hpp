@@ -74,10 +74,8 @@ struct PoseRecord {
 std::vector<PoseRecord> load_pose_records(const Session& session);
 std::string pose_record_yaml(const PoseRecord& pose);
 
-// Atomic writes. replace = false refuses to overwrite an existing file (recorded data).
-void write_file_atomic(const std::filesystem::path& path, const std::string& bytes, bool replace);
+// A recorded image as PNG, written atomically, never over an existing file (core/files.hpp).
 void write_image_atomic(const std::filesystem::path& path, const cv::Mat& image);
-std::string read_text_file(const std::filesystem::path& path);
 
 // Current time, ISO 8601 UTC.
 std::string utc_now();

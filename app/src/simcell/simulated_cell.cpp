@@ -1,13 +1,12 @@
 #include "simcell/simulated_cell.hpp"
 
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/frame_placement.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/vision/pose.hpp"
-
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -66,45 +65,6 @@ CellOptions::CellOptions() {
   render.read_noise = 2.0;
   render.vignetting = 0.15;
   render.lighting_gradient = Eigen::Vector2d(0.05, -0.03);
-}
-
-double set_fixed_frame_pose(const calib::Mechanism& model, Eigen::VectorXd& params, int body,
-                            const Eigen::VectorXd& actuator_readings,
-                            const Eigen::Isometry3d& world_T_desired) {
-  std::vector<int> own;
-  for (int i = 0; i < static_cast<int>(model.parameters.size()); ++i)
-    if (model.parameters[static_cast<std::size_t>(i)].body == body) own.push_back(i);
-  if (own.empty()) throw std::runtime_error(model.bodies.at(body).name + " has no parameters");
-
-  auto pose_error = [&](const Eigen::VectorXd& p, Eigen::Matrix<double, 6, 1>* e) {
-    const auto fk = calib::forward_kinematics(model, p, actuator_readings, body);
-    if (!fk.closure.ok()) return false;
-    e->head<3>() = fk.pose.translation() - world_T_desired.translation();
-    e->tail<3>() = calib::rotation_error(fk.pose.linear(), world_T_desired.linear());
-    return true;
-  };
-  Eigen::Matrix<double, 6, 1> e;
-  for (int iteration = 0; iteration < 30; ++iteration) {
-    if (!pose_error(params, &e)) throw std::runtime_error("closure failed while placing a frame");
-    if (e.norm() < 1e-13) break;
-    Eigen::MatrixXd J(6, static_cast<Eigen::Index>(own.size()));
-    for (std::size_t k = 0; k < own.size(); ++k) {
-      const double h = 1e-7;
-      Eigen::VectorXd plus = params, minus = params;
-      plus[own[k]] += h;
-      minus[own[k]] -= h;
-      Eigen::Matrix<double, 6, 1> ep, em;
-      if (!pose_error(plus, &ep) || !pose_error(minus, &em))
-        throw std::runtime_error("closure failed while placing a frame");
-      J.col(static_cast<Eigen::Index>(k)) = (ep - em) / (2 * h);
-    }
-    // Minimum-norm step: redundant parameters of the frame stay where they are.
-    const Eigen::VectorXd step = J.completeOrthogonalDecomposition().solve(-e);
-    for (std::size_t k = 0; k < own.size(); ++k)
-      params[own[k]] += step[static_cast<Eigen::Index>(k)];
-  }
-  pose_error(params, &e);
-  return e.norm();
 }
 
 bool true_frame_pose(const SimulatedCell& cell, const Eigen::VectorXd& readings,
@@ -177,7 +137,8 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   const Eigen::Vector2d c = board_centre(cell.ee_board);
   world_T_board.translation() =
       tool_poses.front().translation() + Eigen::Vector3d(-c.x(), -c.y(), -0.01);
-  set_fixed_frame_pose(cell.model, cell.nominal, cell.target_frame, configs.front(), world_T_board);
+  calib::set_fixed_frame_pose(cell.model, cell.nominal, cell.target_frame, configs.front(),
+                              world_T_board);
 
   // The true robot: every parameter the robot file lets identification estimate, perturbed.
   const Eigen::VectorXd sigma =

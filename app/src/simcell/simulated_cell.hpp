@@ -93,11 +93,4 @@ std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, i
 std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int count,
                                               std::mt19937& rng);
 
-// Sets the parameters of a fixed body so that its frame has `world_T_desired` (given the rest of
-// the chain at `params`); Gauss–Newton on the body's own parameters, any convention. Returns the
-// remaining pose error (m + rad).
-double set_fixed_frame_pose(const calib::Mechanism& model, Eigen::VectorXd& params, int body,
-                            const Eigen::VectorXd& actuator_readings,
-                            const Eigen::Isometry3d& world_T_desired);
-
 }  // namespace robocal::app

@@ -1,7 +1,8 @@
 #pragma once
-// The session pipeline, one function per stage, each reading and writing a session folder
-// (app/SESSION.md): simulate -> measure -> identify -> validate. `robocal simulate / measure /
-// identify / validate / batch / demo` are thin front ends over these.
+// The stages of a session (app/SESSION.md), one function each, each reading and writing a
+// session folder: simulate -> measure -> identify -> validate. `robocal simulate / measure /
+// identify / validate / batch / demo` are thin front ends over these; folder-mode `robocal rig`
+// and `robocal measure --rig` run measure's steps (stages/measure_steps.hpp).
 //
 // Each stage returns its report (also written to results/<stage>.json) with "status":
 //   "ok"        the stage produced its result
@@ -39,28 +40,24 @@ struct SimulateOptions {
   std::filesystem::path out;
 };
 
-// Library robot name (testdata/robots/NAME.yaml) or a robot file path -> path.
-std::string resolve_robot(const std::string& robot);
-
+// stages/simulate.cpp
 nlohmann::json simulate_session(const SimulateOptions& options, const PipelineLog& log);
 
-// robot_override: a robot file to use instead of the session's (checked against the session).
+// stages/measure.cpp. robot_override: a robot file to use instead of the session's (checked
+// against the session).
 nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
                                const PipelineLog& log);
-// route: "pose" (from the measured 6-D poses), "pixel" or "both" (also camera-in-the-loop from
-// the corner pixels, started from the pose route's base-frame alignment; both reported).
-// priors: the robot file's tolerances as priors (MAP) on every geometric parameter except the
-// base frame (see app/SESSION.md); false = maximum likelihood from the measurements alone.
+// stages/identify.cpp. route: "pose" (from the measured 6-D poses), "pixel" or "both" (also
+// camera-in-the-loop from the corner pixels, started from the pose route's base-frame alignment;
+// both reported). priors: the robot file's tolerances as priors (MAP) on every geometric
+// parameter except the base frame (see app/SESSION.md); false = maximum likelihood from the
+// measurements alone.
 nlohmann::json identify_session(const std::filesystem::path& dir, const std::string& robot_override,
                                 const PipelineLog& log, const std::string& route = "both",
                                 bool priors = true);
+// stages/validate.cpp
 nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
                                 const PipelineLog& log);
-
-// Human-readable closing summary of a validation report (nominal vs calibrated error, the
-// parameters that changed most, what could not be identified).
-void print_validation_summary(std::FILE* out, const nlohmann::json& validation,
-                              const nlohmann::json& identification);
 
 // Exit code of a stage report: ok 0, failed 1, no_truth 3 (a missing input).
 inline int exit_code_of(const nlohmann::json& report) {
