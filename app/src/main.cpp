@@ -1,4 +1,4 @@
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 
 #include <glog/logging.h>
 

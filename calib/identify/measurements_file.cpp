@@ -1,5 +1,7 @@
 #include "robocal/calib/measurements_file.hpp"
 
+#include "robocal/core/files.hpp"
+
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 
@@ -496,13 +498,7 @@ std::string measurements_to_yaml(const MeasurementsFile& file) {
 }
 
 void save_measurements_file(const MeasurementsFile& file, const std::string& path) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw MeasurementsFileError(fmt::format("{}: cannot write", path));
-    out << measurements_to_yaml(file);
-  }
-  std::filesystem::rename(tmp, path);
+  core::write_file_atomic(path, measurements_to_yaml(file));
 }
 
 }  // namespace robocal::calib

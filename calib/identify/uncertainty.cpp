@@ -125,60 +125,6 @@ double normal_quantile(double probability) {
   return 0.5 * (lo + hi);
 }
 
-namespace {
-
-// Regularised lower incomplete gamma P(a, x): series below a + 1, continued fraction above
-// (the classical pair; both converge to double precision in < 200 terms for our arguments).
-double regularized_gamma_p(double a, double x) {
-  if (x <= 0.0) return 0.0;
-  const double log_prefactor = a * std::log(x) - x - std::lgamma(a);
-  if (x < a + 1.0) {
-    double term = 1.0 / a;
-    double sum = term;
-    for (int n = 1; n < 500; ++n) {
-      term *= x / (a + n);
-      sum += term;
-      if (std::abs(term) < 1e-17 * std::abs(sum)) break;
-    }
-    return sum * std::exp(log_prefactor);
-  }
-  // Lentz's continued fraction for Q(a, x).
-  const double tiny = 1e-300;
-  double b = x + 1.0 - a;
-  double c = 1.0 / tiny;
-  double d = 1.0 / b;
-  double h = d;
-  for (int i = 1; i < 500; ++i) {
-    const double an = -i * (i - a);
-    b += 2.0;
-    d = an * d + b;
-    if (std::abs(d) < tiny) d = tiny;
-    c = b + an / c;
-    if (std::abs(c) < tiny) c = tiny;
-    d = 1.0 / d;
-    const double delta = d * c;
-    h *= delta;
-    if (std::abs(delta - 1.0) < 1e-16) break;
-  }
-  return 1.0 - std::exp(log_prefactor) * h;
-}
-
-}  // namespace
-
-double chi_square_quantile(double probability, int dof) {
-  if (dof < 1) throw std::invalid_argument("chi_square_quantile: dof must be >= 1");
-  if (!(probability > 0.0 && probability < 1.0))
-    throw std::invalid_argument("chi_square_quantile: probability must be in (0, 1)");
-  const double a = 0.5 * dof;
-  double lo = 0.0;
-  double hi = dof + 20.0 * std::sqrt(2.0 * dof) + 100.0;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (regularized_gamma_p(a, 0.5 * mid) < probability ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
-}
-
 ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residuals,
                                        const OutlierOptions& options) {
   ResidualDiagnostics out;

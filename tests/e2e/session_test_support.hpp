@@ -1,8 +1,10 @@
 #pragma once
 // Helpers of the session tests: run the CLI in-process, fingerprint recorded data, copy a
 // session's recorded data without its results.
-#include "command_registry.hpp"
-#include "session.hpp"
+#include "cli/command_registry.hpp"
+#include "session/session.hpp"
+
+#include "robocal/core/files.hpp"
 
 #include <cstdint>
 #include <filesystem>
@@ -26,7 +28,7 @@ inline std::map<std::string, std::uint64_t> recorded_fingerprint(
     if (!e.is_regular_file()) continue;
     const std::string rel = std::filesystem::relative(e.path(), session).generic_string();
     if (rel.rfind("results/", 0) == 0) continue;
-    const std::string bytes = robocal::app::read_text_file(e.path());
+    const std::string bytes = robocal::core::read_text_file(e.path());
     std::uint64_t h = 1469598103934665603ULL;
     for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ULL;
     out[rel] = h;
@@ -46,7 +48,7 @@ inline void copy_recorded(const std::filesystem::path& from, const std::filesyst
 }
 
 inline std::string read_file(const std::filesystem::path& p) {
-  return robocal::app::read_text_file(p);
+  return robocal::core::read_text_file(p);
 }
 
 }  // namespace robocal::test

@@ -3,7 +3,7 @@
 // pipeline reaches on this small configuration (0.18 mm: 12 calibration views per camera leave
 // camera 0's frame uncertain, and 24 poses); the default demo (48 views, 60 poses) reaches
 // 21-44 µm on seeds 1-3, the product target (issue 7) being 50 µm.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "run_robocal.hpp"
 
 #include <gtest/gtest.h>

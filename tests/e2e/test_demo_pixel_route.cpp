@@ -1,7 +1,7 @@
 // End to end: `robocal demo --route both` identifies the simulated Delta from the same rendered
 // detections twice, from measured 6-D poses and directly from the corner pixels
 // (camera-in-the-loop, camera 1's pose estimated), and reports both against the hidden truth.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "run_robocal.hpp"
 
 #include <gtest/gtest.h>

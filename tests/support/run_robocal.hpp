@@ -1,6 +1,6 @@
 #pragma once
 // Runs the `robocal` command line in-process (as main() does) for CLI-level tests.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 
 #include <string>
 #include <vector>

@@ -2,36 +2,10 @@
 
 #include "yaml_util.hpp"
 
-#include <fstream>
 #include <sstream>
 
+
 namespace robocal::vision {
-
-namespace detail {
-
-std::string read_text_file(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw FileFormatError(path.string() + ": cannot open file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-void write_text_file_atomic(const std::filesystem::path& path, const std::string& text) {
-  std::filesystem::path tmp = path;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw FileFormatError(tmp.string() + ": cannot write file");
-    out << text;
-    if (!out.flush()) throw FileFormatError(tmp.string() + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw FileFormatError(path.string() + ": cannot rename temporary file: " + ec.message());
-}
-
-}  // namespace detail
 
 CameraModel parse_camera_yaml(const std::string& text, const std::string& source) {
   const detail::YamlContext ctx{source};
@@ -106,6 +80,31 @@ std::string camera_to_yaml(const CameraModel& camera, const std::string& name) {
 void save_camera_file(const CameraModel& camera, const std::filesystem::path& path,
                       const std::string& name) {
   detail::write_text_file_atomic(path, camera_to_yaml(camera, name));
+}
+
+nlohmann::json camera_to_json(const CameraModel& camera) {
+  return {{"model", std::string(kind_name(camera.kind))},
+          {"width", camera.width},
+          {"height", camera.height},
+          {"params", camera.params}};
+}
+
+CameraModel camera_from_json(const nlohmann::json& j, const std::string& where) {
+  CameraModel camera;
+  if (!j.is_object()) throw FileFormatError(where + ": a camera is an object {model, width, ...}");
+  const auto kind = kind_from_name(j.value("model", std::string()));
+  if (!kind) throw FileFormatError(where + ".model: unknown camera model");
+  camera.kind = *kind;
+  try {
+    camera.width = j.value("width", 0);
+    camera.height = j.value("height", 0);
+    camera.params = j.value("params", std::vector<double>());
+  } catch (const nlohmann::json::exception&) {
+    throw FileFormatError(where + ": width, height must be integers and params numbers");
+  }
+  const std::string problem = validate_camera(camera);
+  if (!problem.empty()) throw FileFormatError(where + ": " + problem);
+  return camera;
 }
 
 }  // namespace robocal::vision

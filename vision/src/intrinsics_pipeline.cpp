@@ -1,5 +1,7 @@
 #include "robocal/vision/intrinsics_pipeline.hpp"
 
+#include "robocal/vision/image_detection.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -8,21 +10,23 @@
 
 namespace robocal::vision {
 
+bool is_image_file(const std::filesystem::path& file) {
+  static const std::vector<std::string> exts = {".png", ".jpg",  ".jpeg", ".bmp",
+                                                ".tif", ".tiff", ".pgm",  ".ppm"};
+  std::string ext = file.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return std::find(exts.begin(), exts.end(), ext) != exts.end();
+}
+
 std::vector<std::filesystem::path> list_image_files(const std::filesystem::path& dir) {
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec)) {
     throw std::invalid_argument(dir.string() + ": not a folder");
   }
-  static const std::vector<std::string> exts = {".png", ".jpg",  ".jpeg", ".bmp",
-                                                ".tif", ".tiff", ".pgm",  ".ppm"};
   std::vector<std::filesystem::path> files;
-  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
-    if (!e.is_regular_file()) continue;
-    std::string ext = e.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return std::tolower(c); });
-    if (std::find(exts.begin(), exts.end(), ext) != exts.end()) files.push_back(e.path());
-  }
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    if (e.is_regular_file() && is_image_file(e.path())) files.push_back(e.path());
   std::sort(files.begin(), files.end());
   return files;
 }
@@ -35,29 +39,30 @@ IntrinsicsRun calibrate_from_folder(const std::filesystem::path& dir, const Targ
                                 ": no image files (png, jpg, bmp, tif, pgm) in the folder");
   }
   IntrinsicsRun run;
-  AprilTagDetectorOptions tag_options = options.apriltag;
-  if (board.spec.kind == TargetKind::kAprilTagGrid) tag_options.family = board.spec.family;
-  AprilTagDetector detector(tag_options);
+  std::vector<DetectionRequest> requests;
+  for (const auto& f : files) requests.push_back({f, 0, 0, {}});
+  const auto detected = detect_in_images(requests, board, 1, {}, options.apriltag);
   std::vector<CalibrationView> views;
-  for (const auto& f : files) {
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    const auto& f = files[i];
+    const ImageDetection& d = detected[i];
     ImageRecord rec;
     rec.file = f.filename().string();
-    const LoadedImage img = load_gray_image(f);
-    if (!img.error.empty()) {
-      rec.error = img.error;
+    if (d.width == 0) {  // unreadable
+      rec.error = d.problem;
       run.images.push_back(rec);
       continue;
     }
     if (run.width == 0) {
-      run.width = img.gray.cols;
-      run.height = img.gray.rows;
-    } else if (img.gray.cols != run.width || img.gray.rows != run.height) {
+      run.width = d.width;
+      run.height = d.height;
+    } else if (d.width != run.width || d.height != run.height) {
       rec.error = fmt::format("{}: size {}x{} differs from the first image's {}x{}", f.string(),
-                              img.gray.cols, img.gray.rows, run.width, run.height);
+                              d.width, d.height, run.width, run.height);
       run.images.push_back(rec);
       continue;
     }
-    const TargetDetection det = detect_target(img.gray, board, detector);
+    const TargetDetection& det = d.detection;
     rec.status = det.status;
     rec.detail = det.reason;
     rec.corners = static_cast<int>(det.pixels.size());

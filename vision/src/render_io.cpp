@@ -1,5 +1,6 @@
 #include "robocal/vision/render_io.hpp"
 
+#include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/pose.hpp"
 #include "yaml_util.hpp"
 
@@ -119,10 +120,7 @@ std::string render_truth_json(const std::string& image_name, const CameraModel& 
   doc["format"] = "robocal-render-truth-1";
   doc["pixel_convention"] = "opencv_center";
   doc["image"] = image_name;
-  doc["camera"] = {{"model", std::string(kind_name(camera.kind))},
-                   {"width", camera.width},
-                   {"height", camera.height},
-                   {"params", camera.params}};
+  doc["camera"] = camera_to_json(camera);
   nlohmann::json tj = nlohmann::json::array();
   for (const RenderTarget& t : targets)
     tj.push_back({{"name", t.board.spec.name},
@@ -175,14 +173,7 @@ RenderTruth load_render_truth(const std::filesystem::path& path) {
     if (doc.at("format") != "robocal-render-truth-1")
       throw FileFormatError(path.string() + ": not a robocal render truth file");
     t.image = doc.at("image").get<std::string>();
-    const auto kind = kind_from_name(doc.at("camera").at("model").get<std::string>());
-    if (!kind) throw FileFormatError(path.string() + ": unknown camera model");
-    t.camera.kind = *kind;
-    t.camera.width = doc.at("camera").at("width").get<int>();
-    t.camera.height = doc.at("camera").at("height").get<int>();
-    t.camera.params = doc.at("camera").at("params").get<std::vector<double>>();
-    const std::string problem = validate_camera(t.camera);
-    if (!problem.empty()) throw FileFormatError(path.string() + ": camera: " + problem);
+    t.camera = camera_from_json(doc.at("camera"), path.string() + ": camera");
     for (const auto& tj : doc.at("targets")) {
       t.target_names.push_back(tj.at("name").get<std::string>());
       const auto r = tj.at("camera_T_board").at("rvec").get<std::vector<double>>();

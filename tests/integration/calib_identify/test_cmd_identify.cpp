@@ -1,6 +1,6 @@
 // `robocal identify` driven in-process as a user would: simulate a measurements file, identify,
 // read the calibrated robot file back; bad measurement files give exit code 3 with the reason.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "run_robocal.hpp"
 #include "scratch_dir.hpp"

@@ -1,7 +1,7 @@
 // `robocal identify` on pixel observations (camera-in-the-loop), driven in-process: simulate a
 // measurements file with two cameras, identify robot and camera 1's pose, validate on held-out
 // pixels; a pixel naming an unknown camera is refused with file and line.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "run_robocal.hpp"
 #include "scratch_dir.hpp"

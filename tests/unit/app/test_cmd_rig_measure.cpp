@@ -1,7 +1,7 @@
 // `robocal rig` and `robocal measure` end to end on rendered images with known truth, including
 // the bad-input cases: a missing camera image, an image whose size does not match the camera
 // file, a target seen by no camera, and cameras sharing no views.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/pose.hpp"

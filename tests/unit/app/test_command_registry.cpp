@@ -1,4 +1,4 @@
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "run_robocal.hpp"
 
 #include <gtest/gtest.h>

@@ -1,7 +1,7 @@
 // The measured region (convex hull of the measured positions): distances against closed forms
 // (a cube, a flat square, a segment), the minimum-distance optimality condition on random sets,
 // and the inside/outside split of held-out errors that validate reports.
-#include "measured_region.hpp"
+#include "stages/measured_region.hpp"
 
 #include <gtest/gtest.h>
 

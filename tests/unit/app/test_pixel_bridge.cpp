@@ -1,7 +1,7 @@
 // Detections + calibrated rig + target corners -> calib pixel observations: the conventions
 // (camera_T_world inverted, corner points in the measured frame, pixel sigma) are checked by the
 // identification's own residual, which must vanish at the true frame pose.
-#include "pixel_bridge.hpp"
+#include "stages/pixel_bridge.hpp"
 
 #include "robocal/vision/camera_model.hpp"
 

@@ -1,4 +1,4 @@
-#include "pose_bridge.hpp"
+#include "stages/pose_bridge.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@ TEST(PoseBridge, SwapsRotationAndTranslationBlocks) {
   vision_cov.block<3, 3>(0, 0) = 1e-12 * Eigen::Matrix3d::Identity();  // rotation (rad^2)
   vision_cov.block<3, 3>(3, 3) = 1e-10 * Eigen::Matrix3d::Identity();  // translation (m^2)
   vision_cov(0, 4) = vision_cov(4, 0) = 3e-12;                         // rot x with trans y
-  const auto calib_cov = robocal::app::vision_to_calib_covariance(vision_cov);
+  const auto calib_cov = robocal::core::position_first(vision_cov);
   EXPECT_DOUBLE_EQ(calib_cov(0, 0), 1e-10);  // position first
   EXPECT_DOUBLE_EQ(calib_cov(5, 5), 1e-12);  // rotation last
   EXPECT_DOUBLE_EQ(calib_cov(1, 3), 3e-12);  // trans y with rot x

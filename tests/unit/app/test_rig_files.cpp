@@ -1,4 +1,4 @@
-#include "rig_files.hpp"
+#include "session/rig_files.hpp"
 
 #include "robocal/vision/pose.hpp"
 

@@ -1,7 +1,9 @@
 // Session folder files (app/SESSION.md): session.yaml round trip and errors with file:line,
 // pose readings (NaN, wrong count, malformed), atomic writes that never overwrite recorded data.
-#include "cli_common.hpp"
-#include "session.hpp"
+#include "cli/cli_common.hpp"
+#include "session/session.hpp"
+
+#include "robocal/core/files.hpp"
 
 #include <gtest/gtest.h>
 
@@ -140,11 +142,14 @@ TEST(PoseRecords, BadReadingsGiveAProblemNotAnException) {
 TEST(AtomicWrite, RecordedFilesAreNeverOverwritten) {
   const auto dir = scratch("atomic");
   const auto f = dir / "sub" / "a.txt";
-  write_file_atomic(f, "first", false);
+  using robocal::core::Overwrite;
+  using robocal::core::read_text_file;
+  using robocal::core::write_file_atomic;
+  write_file_atomic(f, "first", Overwrite::kRefuse);
   EXPECT_EQ(read_text_file(f), "first");
-  EXPECT_THROW(write_file_atomic(f, "second", false), InputError);
+  EXPECT_THROW(write_file_atomic(f, "second", Overwrite::kRefuse), InputError);
   EXPECT_EQ(read_text_file(f), "first");
-  write_file_atomic(f, "third", true);  // results may be replaced
+  write_file_atomic(f, "third", Overwrite::kReplace);  // results may be replaced
   EXPECT_EQ(read_text_file(f), "third");
   EXPECT_FALSE(fs::exists(dir / "sub" / "a.txt.tmp"));
 }

@@ -1,5 +1,5 @@
 // `robocal kin` end to end in-process: JSON output, --set, --frame, and bad input exit codes.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/robot_file.hpp"
 

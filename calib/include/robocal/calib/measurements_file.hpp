@@ -4,16 +4,15 @@
 // the line and the problem (MeasurementsFileError).
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/pixel_observations.hpp"
+#include "robocal/core/input_error.hpp"
 
 #include <stdexcept>
 #include <string>
 
 namespace robocal::calib {
 
-class MeasurementsFileError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+// The project's one input-error type (core/input_error.hpp).
+using MeasurementsFileError = core::InputError;
 
 struct MeasurementsFile {
   std::string source;

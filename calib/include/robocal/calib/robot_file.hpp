@@ -2,6 +2,7 @@
 // Robot description files (YAML; format in testdata/robots/README.md) -> Mechanism.
 // Every error names the file, the line and the problem (RobotFileError).
 #include "robocal/calib/mechanism.hpp"
+#include "robocal/core/input_error.hpp"
 
 #include <Eigen/Core>
 
@@ -11,10 +12,8 @@
 
 namespace robocal::calib {
 
-class RobotFileError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+// The project's one input-error type (core/input_error.hpp).
+using RobotFileError = core::InputError;
 
 // Reads and validates a robot file.
 Mechanism load_robot_file(const std::string& path);

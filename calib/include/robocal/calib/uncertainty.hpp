@@ -2,6 +2,7 @@
 // Uncertainty and residual diagnostics of an identification, as pure functions over the whitened
 // identification Jacobian and residuals (rows already multiplied by the inverse square root of
 // each measurement's covariance, so unit-variance noise is assumed).
+#include "robocal/core/chi_square.hpp"
 #include <Eigen/Core>
 
 #include <cstddef>
@@ -65,10 +66,10 @@ struct PredictedAccuracy {
 PredictedAccuracy predict_accuracy(const std::vector<Eigen::MatrixXd>& pose_jacobians,
                                    const Eigen::MatrixXd& parameter_covariance);
 
-// Standard normal quantile (inverse CDF) and the chi-square quantile, both by bisection on the
-// exact CDF (erfc, regularised incomplete gamma).
+// Standard normal quantile (inverse CDF), by bisection on the exact CDF (erfc). The chi-square
+// quantile is core's (core/chi_square.hpp).
 double normal_quantile(double probability);
-double chi_square_quantile(double probability, int dof);
+using core::chi_square_quantile;
 
 // Residual of one pose (or one observation) after the fit.
 struct PoseResidual {

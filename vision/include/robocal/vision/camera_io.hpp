@@ -15,6 +15,8 @@
 #include "robocal/vision/camera_model.hpp"
 #include "robocal/vision/errors.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
 #include <string>
 
@@ -30,5 +32,13 @@ std::string camera_to_yaml(const CameraModel& camera, const std::string& name = 
 // Writes atomically (temporary file + rename). Throws FileFormatError if it cannot write.
 void save_camera_file(const CameraModel& camera, const std::filesystem::path& path,
                       const std::string& name = {});
+
+// The camera as a JSON object {"model", "width", "height", "params"} (the project's JSON files
+// that hold a camera: rig files, render truth, a simulated session's truth). Params in the
+// model's order (camera_models.hpp), exact doubles.
+nlohmann::json camera_to_json(const CameraModel& camera);
+// Reads that object; throws FileFormatError("<where>: <problem>") for an unknown model, a
+// missing field or parameters that do not fit the model.
+CameraModel camera_from_json(const nlohmann::json& j, const std::string& where);
 
 }  // namespace robocal::vision

@@ -33,7 +33,11 @@ struct IntrinsicsRun {
   int height = 0;
 };
 
-/// Image files (png, jpg, jpeg, bmp, tif, tiff, pgm, ppm) of a folder, sorted by name.
+/// True for the image file endings the pipeline reads (png, jpg, jpeg, bmp, tif, tiff, pgm, ppm;
+/// any case).
+bool is_image_file(const std::filesystem::path& file);
+
+/// Image files (is_image_file) of a folder, sorted by name.
 /// Throws std::invalid_argument when the folder does not exist.
 std::vector<std::filesystem::path> list_image_files(const std::filesystem::path& dir);
 

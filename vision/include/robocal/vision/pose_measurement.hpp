@@ -18,6 +18,7 @@
 // covariance of the target origin's position in world coordinates. It comes from the corner
 // noise (sigma per corner, or the default) and, when a camera carries an extrinsic covariance,
 // from the rig's uncertainty too (first-order propagation).
+#include "robocal/core/chi_square.hpp"
 #include "robocal/vision/observations.hpp"
 
 #include <Eigen/Core>
@@ -146,9 +147,11 @@ PoseMeasurement measure_settled_pose(const std::vector<RigCamera>& rig, const Bo
                                      const std::vector<std::vector<CameraFrame>>& frames,
                                      const PoseMeasurementOptions& options = {});
 
-// Upper-tail probability of the chi-square distribution with `dof` degrees of freedom.
-double chi2_survival(double x, int dof);
-// The x with chi2_survival(x, dof) = p (bisection; p in (0, 1)).
-double chi2_quantile_upper(double p, int dof);
+// Upper-tail probability of the chi-square distribution with `dof` degrees of freedom, and the x
+// with chi2_survival(x, dof) = p: core's chi-square functions (core/chi_square.hpp).
+inline double chi2_survival(double x, int dof) { return core::chi_square_survival(x, dof); }
+inline double chi2_quantile_upper(double p, int dof) {
+  return core::chi_square_quantile_upper(p, dof);
+}
 
 }  // namespace robocal::vision

@@ -1,0 +1,354 @@
+// `robocal identify`: identify a robot's geometry from a measurements file (format:
+// testdata/measurements/README.md). Writes the JSON result and, on success, the calibrated robot
+// file. Also `--simulate` to write a synthetic measurements file from a perturbed robot.
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "robocal/calib/calibrated_robot_file.hpp"
+#include "robocal/calib/identification_json.hpp"
+#include "robocal/calib/measurements_file.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/pixel_observations.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal_version.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+#include "stages/stages.hpp"
+
+#include <fmt/core.h>
+#include <fnmatch.h>
+
+#include <memory>
+
+namespace robocal::app {
+namespace {
+
+using namespace robocal::calib;
+
+struct IdentifyOptions {
+  std::string session;
+  std::string robot;
+  std::string measurements;
+  std::string json;            // "" = stdout in file mode, none in session mode
+  std::string route = "both";  // session mode: pose | pixel | both
+  std::string out_robot;
+  std::vector<std::string> free_patterns;
+  std::vector<std::string> fix_patterns;
+  bool priors = false;     // measurements-file mode: opt in
+  bool no_priors = false;  // session mode: opt out
+  std::string robust = "none";
+  double robust_scale = 3.0;
+  int multi_start = 0;
+  int holdout_every = 0;
+  int kfold = 0;
+  unsigned seed = 1;
+  // --simulate: write measurements instead of identifying.
+  std::string simulate;
+  int poses = 60;
+  double point_sigma = 20e-6;
+  double length_sigma = 0.5e-3;
+  double angle_sigma_deg = 0.2;
+  std::string kind = "point";
+  double pixel_sigma = 0.1;
+  bool free_intrinsics = false;
+};
+
+bool matches(const std::string& name, const std::vector<std::string>& patterns) {
+  for (const auto& p : patterns)
+    if (fnmatch(p.c_str(), name.c_str(), 0) == 0) return true;
+  return false;
+}
+
+// Simulation target: a 3x3 grid of 4 cm pitch in the measured frame plus one corner 2 cm off
+// its plane (a non-coplanar target constrains the frame's orientation from every view).
+std::vector<Eigen::Vector3d> grid_target() {
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = -1; i <= 1; ++i)
+    for (int j = -1; j <= 1; ++j) pts.emplace_back(0.04 * i, 0.04 * j, 0.0);
+  pts.emplace_back(0.0, 0.0, 0.02);
+  return pts;
+}
+
+int run_simulate(const IdentifyOptions& o) {
+  const Mechanism model = load_robot(o.robot);
+  const MechanismPredictor pred(model);
+  std::mt19937 rng(o.seed);
+  const Eigen::VectorXd nominal = model.nominal_parameters();
+  const Eigen::VectorXd truth = perturb_parameters(
+      nominal, tolerance_sigmas(model, o.length_sigma, o.angle_sigma_deg * M_PI / 180.0), rng);
+  const auto qs = sample_actuators(pred, {nominal, truth}, static_cast<std::size_t>(o.poses), rng);
+  SimulationOptions sim;
+  sim.position_sigma = o.point_sigma;
+  if (o.kind == "pose")
+    sim.kind = SimulatedObservation::kPose;
+  else if (o.kind == "probe")
+    sim.kind = SimulatedObservation::kProbeHeight;
+  else if (o.kind != "point" && o.kind != "pixel")
+    throw InputError("--kind must be point, pose, probe or pixel");
+  MeasurementsFile file;
+  file.robot = model.name;
+  nlohmann::json cameras_json;
+  if (o.kind == "pixel") {
+    // Two cameras placed around the working volume; the file states camera 0 at its true pose
+    // (the gauge) and camera 1 off by a few millimetres, as a rig calibration would leave it.
+    std::vector<Eigen::Vector3d> reach;
+    for (const auto& q : qs) {
+      FramePrediction fp;
+      std::string why;
+      if (pred.predict(nominal, q, -1, false, fp, why)) reach.emplace_back(fp.pose.translation());
+    }
+    if (reach.empty()) throw InputError("no reachable pose to place the cameras around");
+    file.cameras = cameras_below(reach);
+    const Eigen::Isometry3d true_camera1 = file.cameras[1].world_T_camera;
+    file.cameras[1].world_T_camera.translation() += Eigen::Vector3d(3e-3, -2e-3, 2e-3);
+    const CameraRigPredictor rig(pred, file.cameras);
+    Eigen::VectorXd full_truth = rig.initial_parameters(truth);
+    rig.set_camera(full_truth, 1, true_camera1);
+    PixelSimulationOptions ps;
+    ps.pixel_sigma = o.pixel_sigma;
+    file.measurements = simulate_pixel_measurements(rig, full_truth, qs, grid_target(), ps, rng);
+    for (const auto& c : file.cameras) cameras_json.push_back({{"name", c.name}});
+    const Eigen::Vector3d p = true_camera1.translation();
+    cameras_json[1]["true_position"] = {p.x(), p.y(), p.z()};
+  } else {
+    file.measurements = simulate_measurements(pred, truth, qs, sim, rng);
+  }
+  save_measurements_file(file, o.simulate);
+  nlohmann::json truth_json;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i)
+    truth_json[model.parameters[i].name] = truth(static_cast<Eigen::Index>(i));
+  nlohmann::json doc = {{"measurements", o.simulate},
+                        {"poses", file.measurements.poses.size()},
+                        {"truth", truth_json}};
+  if (!cameras_json.is_null()) doc["cameras"] = cameras_json;
+  write_json(doc, o.json);
+  return kExitOk;
+}
+
+// Session mode: results/measurements.yaml of a session folder -> results/identification.json
+// and results/calibrated_robot.yaml.
+int run_identify_session(const IdentifyOptions& o) {
+  if (!is_session(o.session))
+    throw InputError(o.session + ": not a session folder (no session.yaml; see app/SESSION.md)");
+  PipelineLog log;
+  log.out = human_stream(o.json);
+  const auto report = identify_session(o.session, o.robot, log, o.route, !o.no_priors);
+  if (!o.json.empty()) write_json(report, o.json);
+  if (report.value("status", "") != "ok")
+    fmt::print(stderr, "identification failed: {}\n", report.value("message", ""));
+  return exit_code_of(report);
+}
+
+int run_identify(const IdentifyOptions& o) {
+  if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
+  if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
+  const Mechanism model = load_robot(o.robot);
+  const MeasurementsFile file = load_measurements_file(o.measurements);
+  if (!file.robot.empty() && file.robot != model.name)
+    throw InputError(fmt::format("{}: measurements are for robot '{}', the robot file is '{}'",
+                                 o.measurements, file.robot, model.name));
+  int frame = -1;
+  if (!file.frame.empty()) {
+    frame = model.body_index(file.frame);
+    if (frame < 0)
+      throw InputError(fmt::format("{}: frame '{}' is not a body of {}", o.measurements, file.frame,
+                                   model.name));
+  }
+  const MechanismPredictor robot_pred(model, frame);
+  // Pixel observations: the cameras join the model (camera parameters after the robot's; the
+  // first camera is the gauge). Otherwise the robot alone.
+  std::unique_ptr<CameraRigPredictor> rig;
+  if (!file.cameras.empty()) {
+    CameraRigOptions ro;
+    ro.estimate_intrinsics = o.free_intrinsics;
+    try {
+      rig = std::make_unique<CameraRigPredictor>(robot_pred, file.cameras, ro);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(fmt::format("{}: {}", o.measurements, e.what()));
+    }
+  }
+  const FramePredictor& pred = rig ? static_cast<const FramePredictor&>(*rig) : robot_pred;
+  const Eigen::VectorXd nominal =
+      rig ? rig->initial_parameters(model.nominal_parameters()) : model.nominal_parameters();
+
+  SolveOptions opt = solve_options_from_model(model, o.priors);
+  if (!o.free_patterns.empty() || !o.fix_patterns.empty()) {
+    std::vector<std::size_t> candidates;
+    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+      const std::string& n = model.parameters[i].name;
+      const bool free =
+          o.free_patterns.empty() ? model.parameters[i].free : matches(n, o.free_patterns);
+      if (free && !matches(n, o.fix_patterns)) candidates.push_back(i);
+    }
+    if (candidates.empty()) throw InputError("--free/--fix leave no parameter to estimate");
+    opt.candidates = candidates;
+    if (o.priors) {
+      opt.prior_sigma.assign(model.parameters.size(), 0.0);
+      for (std::size_t i : candidates) opt.prior_sigma[i] = model.parameters[i].sigma;
+    }
+  }
+  if (o.robust == "huber")
+    opt.robust_loss = RobustLoss::kHuber;
+  else if (o.robust == "cauchy")
+    opt.robust_loss = RobustLoss::kCauchy;
+  else if (o.robust != "none")
+    throw InputError("--robust must be none, huber or cauchy");
+  opt.robust_scale = o.robust_scale;
+  opt.multi_start = o.multi_start;
+  opt.seed = o.seed;
+  if (o.multi_start > 0 && opt.prior_sigma.empty()) {
+    opt.start_sigma.assign(model.parameters.size(), 0.0);
+    for (std::size_t i = 0; i < model.parameters.size(); ++i)
+      opt.start_sigma[i] = model.parameters[i].sigma;
+  }
+  if (rig) opt = rig->solve_options(opt);
+
+  // Held-out validation: every k-th pose is kept out of the fit.
+  Measurements fit = file.measurements;
+  std::vector<PoseMeasurement> held;
+  if (o.holdout_every > 1) {
+    fit.poses.clear();
+    for (std::size_t k = 0; k < file.measurements.poses.size(); ++k)
+      ((k + 1) % static_cast<std::size_t>(o.holdout_every) == 0 ? held : fit.poses)
+          .push_back(file.measurements.poses[k]);
+  }
+  const IdentificationResult res = identify(pred, nominal, fit, opt);
+  nlohmann::json doc = to_json(res);
+  doc["robot"] = o.robot;
+  doc["measurements"] = o.measurements;
+  doc["robocal"] = kVersion;
+  doc["fit_validation"] = to_json(validate(pred, nominal, res.estimate, fit.poses));
+  if (!held.empty())
+    doc["heldout_validation"] = to_json(validate(pred, nominal, res.estimate, held));
+  if (o.kfold > 1)
+    doc["kfold"] = to_json(k_fold_validation(pred, nominal, file.measurements, o.kfold, opt));
+  if (rig) {
+    auto pixels = [&](const std::vector<PoseMeasurement>& poses) {
+      nlohmann::json j;
+      for (const auto& [key, params] : {std::pair{"before", nominal}, {"after", res.estimate}}) {
+        const auto e = pixel_errors(*rig, params, poses);
+        j[key] = {{"observations", e.observations}, {"rms_px", e.rms_px}, {"max_px", e.max_px}};
+      }
+      return j;
+    };
+    doc["fit_pixels"] = pixels(fit.poses);
+    if (!held.empty()) doc["heldout_pixels"] = pixels(held);
+    nlohmann::json cams = nlohmann::json::array();
+    for (int c = 0; c < rig->camera_count(); ++c) {
+      const Eigen::Isometry3d T = rig->world_T_camera(res.estimate, c);
+      const Eigen::AngleAxisd aa(T.linear());
+      const Eigen::Vector3d rv = aa.axis() * aa.angle();
+      nlohmann::json j = {
+          {"name", rig->cameras()[static_cast<std::size_t>(c)].name},
+          {"gauge", c == rig->options().gauge_camera},
+          {"position_m", {T.translation().x(), T.translation().y(), T.translation().z()}},
+          {"rotation_vector_rad", {rv.x(), rv.y(), rv.z()}}};
+      if (o.free_intrinsics) j["params"] = rig->camera_model(res.estimate, c).params;
+      cams.push_back(j);
+    }
+    doc["cameras"] = cams;
+  }
+
+  const bool usable = res.status == IdentificationStatus::kConverged ||
+                      res.status == IdentificationStatus::kNotConverged;
+  if (usable && !o.out_robot.empty()) {
+    std::vector<std::string> provenance = {
+        fmt::format("Calibrated by robocal {} identify ({}).", kVersion, to_string(res.status)),
+        fmt::format("Measurements: {} ({} poses used, {} excluded).", o.measurements,
+                    res.residuals.poses.size(), res.excluded.size()),
+        fmt::format("Estimated {} parameters; fit residual RMS {:.3g} m; predicted accuracy RMS "
+                    "{:.3g} m.",
+                    res.estimated.size(), res.residuals.position_rms,
+                    res.predicted.position_rms_overall),
+        fmt::format("Nominal model: {}.", o.robot)};
+    // Camera parameters (after the robot's) are reported in the JSON, not in the robot file.
+    std::vector<std::size_t> robot_estimated;
+    for (std::size_t i : res.estimated)
+      if (i < model.parameters.size()) robot_estimated.push_back(i);
+    const Eigen::VectorXd robot_values =
+        res.estimate.head(static_cast<Eigen::Index>(model.parameters.size()));
+    const std::string text = calibrated_robot_yaml(core::read_text_file(o.robot), model,
+                                                   robot_values, robot_estimated, provenance);
+    core::write_file_atomic(o.out_robot, text);
+    doc["calibrated_robot"] = o.out_robot;
+  }
+  write_json(doc, o.json);
+  if (res.status == IdentificationStatus::kInvalidInput)
+    throw InputError(fmt::format("{}: {}", o.measurements, res.message));
+  if (!usable) {
+    fmt::print(stderr, "identification failed: {}\n", res.message);
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+CommandSpec identify_command() {
+  return {"identify", "Identify the robot's geometry from a measurements file (or simulate one)",
+          [](CLI::App& cmd) -> CommandAction {
+            auto o = std::make_shared<IdentifyOptions>();
+            cmd.footer(
+                "Two ways to call it:\n"
+                "  robocal identify SESSION   a session folder measured by `robocal measure "
+                "SESSION`: the base frame is first fitted to the measured poses, then the robot "
+                "file's free parameters are identified; writes SESSION/results/"
+                "identification.json and results/calibrated_robot.yaml (--robot: another robot "
+                "file, checked against the session).\n"
+                "  robocal identify --robot R --measurements M   any measurements file "
+                "(testdata/measurements/README.md); the options below apply to this mode.");
+            cmd.add_option("session", o->session, "Session folder (app/SESSION.md)");
+            cmd.add_option("--route", o->route,
+                           "Session mode: identify from the measured 6-D poses (pose), or also "
+                           "directly from the corner pixels with the camera poses estimated "
+                           "(camera-in-the-loop; pixel and both run both and report both)")
+                ->check(CLI::IsMember({"pose", "pixel", "both"}))
+                ->capture_default_str();
+            cmd.add_option("--robot", o->robot, "Robot file (YAML)");
+            cmd.add_option("--measurements", o->measurements,
+                           "Measurements file (testdata/measurements/README.md)");
+            cmd.add_option("--json", o->json, "Result JSON file ('-' = stdout)");
+            cmd.add_option("--out-robot", o->out_robot,
+                           "Write the calibrated robot file here (only when the solve succeeds)");
+            cmd.add_option("--free", o->free_patterns,
+                           "Parameters to estimate (glob on names, repeatable; default: the robot "
+                           "file's free parameters)");
+            cmd.add_option("--fix", o->fix_patterns, "Parameters to hold (glob, repeatable)");
+            cmd.add_flag("--priors", o->priors,
+                         "Measurements file: use the robot file's tolerances as priors (MAP); a "
+                         "SESSION always does unless --no-priors");
+            cmd.add_flag("--no-priors", o->no_priors,
+                         "SESSION: maximum likelihood from the measurements alone (default: the "
+                         "robot file's tolerances as priors, base frame free)");
+            cmd.add_option("--robust", o->robust, "Robust loss: none, huber or cauchy");
+            cmd.add_option("--robust-scale", o->robust_scale, "Robust loss scale in sigmas");
+            cmd.add_option("--multi-start", o->multi_start, "Extra perturbed starts");
+            cmd.add_option("--holdout-every", o->holdout_every,
+                           "Hold every k-th pose out of the fit and validate on it");
+            cmd.add_option("--kfold", o->kfold, "k-fold cross-validation with k folds");
+            cmd.add_option("--seed", o->seed, "Random seed (multi-start, simulation)");
+            cmd.add_option("--simulate", o->simulate,
+                           "Write a synthetic measurements file from a randomly perturbed robot "
+                           "instead of identifying");
+            cmd.add_option("--poses", o->poses, "Simulation: number of poses");
+            cmd.add_option("--point-sigma", o->point_sigma, "Simulation: noise sigma (m)");
+            cmd.add_option("--kind", o->kind,
+                           "Simulation: point, pose, probe or pixel observations (pixel: two "
+                           "simulated cameras)");
+            cmd.add_option("--pixel-sigma", o->pixel_sigma, "Simulation: pixel noise sigma (px)");
+            cmd.add_flag(
+                "--free-intrinsics", o->free_intrinsics,
+                "Pixel observations: estimate the cameras' intrinsics too (default: held)");
+            cmd.add_option("--length-sigma", o->length_sigma,
+                           "Simulation: perturbation sigma of lengths (m)");
+            cmd.add_option("--angle-sigma-deg", o->angle_sigma_deg,
+                           "Simulation: perturbation sigma of angles (deg)");
+            return [o]() {
+              if (!o->session.empty()) return run_identify_session(*o);
+              if (o->robot.empty()) throw InputError("--robot is required (or give a SESSION)");
+              return o->simulate.empty() ? run_identify(*o) : run_simulate(*o);
+            };
+          }};
+}
+
+}  // namespace robocal::app

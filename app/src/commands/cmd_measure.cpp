@@ -1,0 +1,125 @@
+// `robocal measure SESSION` (the measure stage) or, folder mode, `robocal measure --rig R
+// --target T --poses DIR`: the measure stage's board-pose step on pose folders.
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "session/image_folders.hpp"
+#include "session/results_files.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+#include "stages/measure_steps.hpp"
+#include "stages/stages.hpp"
+
+#include <fmt/core.h>
+
+#include <memory>
+
+namespace robocal::app {
+
+namespace {
+
+struct MeasureArgs {
+  std::string session, robot, json;
+  int threads = 2;
+  std::string rig, target, poses, out = "-";
+  double sigma_px = 0.0;
+  bool no_raw = false;
+};
+
+int run_measure(const MeasureArgs& a) {
+  const RigFile rig_file = read_rig_file(a.rig);
+  const auto& rig = rig_file.cameras;
+  const vision::TargetBoard board = load_board(a.target);
+  std::vector<std::string> names;
+  names.reserve(rig.size());
+  for (const auto& c : rig) names.push_back(c.name);
+  const auto sets = scan_image_folder(a.poses, names);
+  PoseStepOptions options;
+  // The corner sigma: given, else the rig calibration's RMS residual, else 0.1 px.
+  options.measurement.default_sigma_px =
+      a.sigma_px > 0 ? a.sigma_px : (rig_file.corner_sigma_px > 0 ? rig_file.corner_sigma_px : 0.1);
+  const auto measured = measure_board_poses(rig, board, sets, options, {stderr, a.threads});
+
+  nlohmann::json poses = nlohmann::json::array();
+  int usable = 0;
+  for (std::size_t p = 0; p < sets.size(); ++p) {
+    const auto& m = measured[p].measurement;
+    nlohmann::json pj =
+        pose_measurement_json(sets[p].name, m, measured[p].problems, measured[p].frames.size());
+    // The raw observations, for camera-in-the-loop identification.
+    if (!a.no_raw)
+      pj["observations"] = corner_observations_json(measured[p].frames, names,
+                                                    options.measurement.default_sigma_px, false);
+    usable += m.usable() ? 1 : 0;
+    poses.push_back(pj);
+    fmt::print(stderr, "{}: {}{}\n", sets[p].name, vision::pose_status_name(m.status),
+               m.message.empty() ? "" : " (" + m.message + ")");
+  }
+  nlohmann::json doc;
+  doc["rig"] = a.rig;
+  doc["target"] = a.target;
+  doc["corner_sigma_px"] = options.measurement.default_sigma_px;
+  doc["observation_format"] = "corners: [id, u, v, sigma_px], OpenCV pixel convention";
+  doc["poses"] = poses;
+  doc["summary"] = {{"poses", sets.size()}, {"usable", usable}};
+  write_json(doc, a.out);
+  return kExitOk;
+}
+
+}  // namespace
+
+// Session mode: intrinsics, rig and poses of a session folder into its results/.
+int run_measure_session(const MeasureArgs& a) {
+  PipelineLog log;
+  log.out = human_stream(a.json);
+  log.threads = a.threads;
+  const auto report = measure_session(a.session, a.robot, log);
+  if (!a.json.empty()) write_json(report, a.json);
+  return exit_code_of(report);
+}
+
+// `robocal measure SESSION` or
+// `robocal measure --rig rig.json --target ee.yaml --poses DIR --out measurements.json`
+CommandSpec measure_command() {
+  return {
+      "measure", "Measure the end-effector target pose (with covariance) per robot pose",
+      [](CLI::App& cmd) -> CommandAction {
+        auto a = std::make_shared<MeasureArgs>();
+        cmd.footer(
+            "Two ways to call it:\n"
+            "  robocal measure SESSION   a session folder (app/SESSION.md): calibrates each "
+            "camera from its views, the rig from the shared views, then measures the board at "
+            "every pose; writes SESSION/results/ (cameras/, rig.json, measured_poses.json, "
+            "pixel_observations.json, measurements.yaml for `robocal identify SESSION`).\n"
+            "  robocal measure --rig R --target T --poses DIR   pose folders with a calibrated "
+            "rig (vision/README_rig.md); writes one JSON.\n"
+            "Each pose gets its own status; a missing image or unreadable readings exclude that "
+            "pose (named, with the reason) and the others go on. Recorded files are never "
+            "changed.");
+        cmd.add_option("session", a->session, "Session folder (app/SESSION.md)");
+        cmd.add_option("--robot", a->robot,
+                       "Session mode: robot file to use instead of the session's (checked)");
+        cmd.add_option("--threads", a->threads, "Detection threads")->check(CLI::Range(1, 64));
+        cmd.add_option("--json", a->json, "Session mode: also write the report here (- = stdout)");
+        cmd.add_option("--rig", a->rig, "Rig JSON written by `robocal rig`");
+        cmd.add_option("--target", a->target, "Target file of the end-effector board");
+        cmd.add_option("--poses", a->poses,
+                       "Folder of pose sub-folders with NAME.png / NAME_<k>.png per camera");
+        cmd.add_option("--sigma-px", a->sigma_px,
+                       "Corner noise sigma (default: the rig calibration's RMS)");
+        cmd.add_flag("--no-raw", a->no_raw, "Leave the raw pixel observations out");
+        cmd.add_option("--out", a->out, "JSON to write (- = stdout)");
+        return [a]() {
+          if (!a->session.empty()) {
+            if (!is_session(a->session))
+              throw InputError(a->session +
+                               ": not a session folder (no session.yaml; see app/SESSION.md)");
+            return run_measure_session(*a);
+          }
+          if (a->rig.empty() || a->target.empty() || a->poses.empty())
+            throw InputError("give a SESSION folder, or all of --rig, --target and --poses");
+          return run_measure(*a);
+        };
+      }};
+}
+
+}  // namespace robocal::app

@@ -1,0 +1,228 @@
+// `robocal sim-controller`: a simulated robot controller in its own process, speaking G-code
+// (Marlin or RepRapFirmware dialect) on a loopback TCP port and a pseudo-terminal, with a hidden
+// "true" robot and fault injection. Orchestration only: the simulator is robocal_robotio's
+// SimController.
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "robocal/calib/identification.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal/robotio/sim_controller.hpp"
+#include "session/session_robot.hpp"
+
+#include <fmt/core.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <random>
+
+namespace robocal::app {
+namespace {
+
+std::atomic<bool> g_sim_stop{false};
+extern "C" void on_sim_signal(int /*signal*/) {
+  g_sim_stop = true;
+}
+
+struct SimCliOptions {
+  std::string robot;
+  unsigned seed = 0;
+  std::string perturbation;
+  double length_sigma = 0.5e-3;
+  double angle_sigma_deg = 0.2;
+  std::string firmware = "marlin";
+  std::string firmware_name;
+  bool mute = false;
+  int tcp_port = 0;
+  bool no_pty = false;
+  std::string pty_link;
+  int pose_port = 0;
+  std::string log = "sim-controller.jsonl";
+  double steps_per_mm = 80.0;
+  double steps_per_degree = 100.0;
+  double noise = 2e-6;
+  double backlash = 5e-6;
+  double feed = 3000.0;
+  double acceleration = 1000.0;
+  double busy_interval = 2.0;
+  double temperature_interval = 0.0;
+  std::string faults;
+  std::string fault_script;
+  unsigned fault_seed = 1;
+  double slow_ms = 250.0;
+  double max_seconds = 0.0;
+};
+
+robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
+  robotio::SimRobot r;
+  try {
+    r.model = calib::load_robot_file(resolve_robot(o.robot));
+  } catch (const calib::RobotFileError& e) {
+    throw InputError(e.what());
+  }
+  const Eigen::VectorXd nominal = r.model.nominal_parameters();
+  r.truth = nominal;
+  if (o.seed != 0) {
+    std::mt19937 rng(o.seed);
+    r.truth = calib::perturb_parameters(
+        nominal, calib::tolerance_sigmas(r.model, o.length_sigma, o.angle_sigma_deg * M_PI / 180.0),
+        rng);
+  }
+  if (!o.perturbation.empty()) {
+    std::ifstream in(o.perturbation);
+    if (!in) throw InputError(o.perturbation + ": cannot read the perturbation file");
+    std::string line;
+    int number = 0;
+    while (std::getline(in, line)) {
+      ++number;
+      const std::size_t hash = line.find('#');
+      if (hash != std::string::npos) line.resize(hash);
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      try {
+        calib::apply_parameter_override(r.model, r.truth, line);
+      } catch (const std::exception& e) {
+        throw InputError(fmt::format("{}:{}: {}", o.perturbation, number, e.what()));
+      }
+    }
+  }
+  try {
+    r.axes = robotio::axes_for_robot(r.model, o.steps_per_mm, o.steps_per_degree);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(e.what());
+  }
+  Eigen::VectorXd home_q(static_cast<Eigen::Index>(r.model.actuated.size()));
+  for (std::size_t i = 0; i < r.model.actuated.size(); ++i)
+    home_q[static_cast<Eigen::Index>(i)] = r.model.bodies[r.model.actuated[i]].home;
+  // The firmware's home position is where it believes the endstops are: nominal geometry.
+  r.home_readings = calib::readings_from_joint_values(r.model, nominal, home_q);
+  r.noise_sigma = o.noise;
+  r.backlash = o.backlash;
+  return r;
+}
+
+int run_sim_controller(const SimCliOptions& o) {
+  robotio::SimOptions s;
+  if (o.firmware == "marlin") {
+    s.dialect = robotio::Firmware::kMarlin;
+  } else if (o.firmware == "rrf" || o.firmware == "reprapfirmware") {
+    s.dialect = robotio::Firmware::kRepRapFirmware;
+  } else {
+    throw InputError("--firmware must be marlin or rrf, got '" + o.firmware + "'");
+  }
+  s.firmware_name = o.firmware_name;
+  s.mute = o.mute;
+  s.tcp_port = o.tcp_port;
+  s.pty = !o.no_pty;
+  s.pty_link = o.pty_link;
+  s.pose_port = o.pose_port;
+  s.log_path = o.log;
+  s.busy_interval = o.busy_interval;
+  s.temperature_interval = o.temperature_interval;
+  s.feed = o.feed;
+  s.acceleration = o.acceleration;
+  s.max_seconds = o.max_seconds;
+  s.seed = o.seed + 1;
+  try {
+    s.faults = robotio::parse_fault_spec(o.faults);
+    if (!o.fault_script.empty()) robotio::load_fault_script(o.fault_script, s.faults);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(e.what());
+  }
+  s.faults.seed = o.fault_seed;
+  s.faults.slow_seconds = o.slow_ms / 1000.0;
+
+  robotio::SimRobot robot = make_sim_robot(o);
+  const std::string robot_name = robot.model.name;
+  const std::string letters = robot.axes.letters;
+  robotio::SimController sim(std::move(robot), s);
+  try {
+    sim.start();
+  } catch (const std::runtime_error& e) {
+    throw InputError(e.what());
+  }
+  // Announce like a board appearing on the bus; tools parse these lines.
+  fmt::print("robocal sim-controller: {} dialect, robot {} (axes {}), truth {}\n",
+             robotio::to_string(s.dialect), robot_name, letters,
+             o.seed != 0 ? fmt::format("perturbed with seed {}", o.seed) : std::string("nominal"));
+  if (!sim.tcp_address().empty()) fmt::print("tcp {}\n", sim.tcp_address());
+  if (!sim.pty_path().empty()) fmt::print("pty {}\n", sim.pty_path());
+  if (!o.pty_link.empty()) fmt::print("pty-link {}\n", o.pty_link);
+  if (!sim.pose_address().empty()) fmt::print("pose {}\n", sim.pose_address());
+  if (!o.log.empty()) fmt::print("log {}\n", o.log);
+  fmt::print("ready\n");
+  std::fflush(stdout);
+
+  g_sim_stop = false;
+  struct sigaction sa {};
+  sa.sa_handler = on_sim_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  sim.run(g_sim_stop);
+  const robotio::SimCounters c = sim.counters();
+  fmt::print(stderr, "sim-controller: {} lines, {} motions, {} stops, {} connections\n", c.lines,
+             c.motions, c.stops, c.connections);
+  return kExitOk;
+}
+
+}  // namespace
+
+CommandSpec sim_controller_command() {
+  return {"sim-controller",
+          "Simulated robot controller (G-code over TCP and a pseudo-terminal) for tests and demos",
+          [](CLI::App& cmd) -> CommandAction {
+            auto o = std::make_shared<SimCliOptions>();
+            cmd.description(
+                "Runs a simulated printer-style controller holding a hidden \"true\" robot (the\n"
+                "robot file with perturbed geometry, stepper quantisation, backlash, actuator\n"
+                "noise, trapezoidal move times). It speaks G-code (Marlin or RepRapFirmware\n"
+                "dialect, one G-code axis per actuator: X Y Z U V W A B C, mm or degrees) on a\n"
+                "loopback TCP port and on a pseudo-terminal, as a USB board appears, and prints:\n"
+                "  tcp 127.0.0.1:PORT / pty /dev/pts/N / pose 127.0.0.1:PORT / ready\n"
+                "The pose channel serves the TRUE end-effector pose (send \"pose\\n\", get one\n"
+                "JSON line) for simulated cameras only. Every received line and every motion is\n"
+                "logged as JSON lines (--log). Faults: --faults drop=0.05,busy=0.05,... or\n"
+                "all=0.05; kinds: drop busy error stall corrupt lost_ok resend slow garbage\n"
+                "partial; --fault-script FILE for '<command index> <kind>' lines.\n"
+                "Stops on Ctrl-C or SIGTERM. Exit codes: 0 ok, 2 bad command line, 3 bad input.");
+            cmd.add_option("--robot", o->robot, "Robot file or library robot name")->required();
+            cmd.add_option("--seed", o->seed,
+                           "Perturb the true geometry with this seed (0 = nominal truth)");
+            cmd.add_option("--perturbation", o->perturbation,
+                           "File of NAME=VALUE lines setting true parameters");
+            cmd.add_option("--length-sigma", o->length_sigma, "Perturbation of lengths, m");
+            cmd.add_option("--angle-sigma", o->angle_sigma_deg, "Perturbation of angles, deg");
+            cmd.add_option("--firmware", o->firmware, "marlin or rrf");
+            cmd.add_option("--firmware-name", o->firmware_name,
+                           "Replace the M115 firmware name (to test unknown firmwares)");
+            cmd.add_flag("--mute", o->mute, "Accept connections but never answer");
+            cmd.add_option("--tcp-port", o->tcp_port, "TCP port (0 = any free, -1 = none)");
+            cmd.add_flag("--no-pty", o->no_pty, "Do not open a pseudo-terminal");
+            cmd.add_option("--pty-link", o->pty_link,
+                           "Keep a symlink here to the current pty (it changes after a drop)");
+            cmd.add_option("--pose-port", o->pose_port,
+                           "TCP port of the true-pose channel (0 = any free, -1 = none)");
+            cmd.add_option("--log", o->log, "JSONL log of every line and motion");
+            cmd.add_option("--steps-per-mm", o->steps_per_mm, "Prismatic actuators");
+            cmd.add_option("--steps-per-degree", o->steps_per_degree, "Revolute actuators");
+            cmd.add_option("--noise", o->noise, "Actuator repeatability (1 sigma), readings");
+            cmd.add_option("--backlash", o->backlash, "Backlash, readings");
+            cmd.add_option("--feed", o->feed, "Default feed, G-code units/min");
+            cmd.add_option("--acceleration", o->acceleration, "Default, G-code units/s^2");
+            cmd.add_option("--busy-interval", o->busy_interval,
+                           "Seconds between busy: keep-alives (Marlin; M113 changes it)");
+            cmd.add_option("--temperature-interval", o->temperature_interval,
+                           "Auto-report temperatures every N s (0 = off)");
+            cmd.add_option("--faults", o->faults, "Fault rates, e.g. all=0.05");
+            cmd.add_option("--fault-script", o->fault_script, "Scripted faults file");
+            cmd.add_option("--fault-seed", o->fault_seed, "Seed of the fault draws");
+            cmd.add_option("--slow-ms", o->slow_ms, "Delay of a slow reply, ms");
+            cmd.add_option("--max-seconds", o->max_seconds,
+                           "Exit after this long (0 = until stopped)");
+            return [o] { return run_sim_controller(*o); };
+          }};
+}
+
+}  // namespace robocal::app

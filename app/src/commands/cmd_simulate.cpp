@@ -1,0 +1,63 @@
+// `robocal simulate --out DIR`: writes a synthetic session folder (app/SESSION.md) with rendered
+// images, actuator readings and the hidden truth in DIR/truth/.
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "stages/stages.hpp"
+
+#include <memory>
+
+namespace robocal::app {
+
+CommandSpec simulate_command() {
+  return {"simulate", "Write a synthetic session folder: rendered images of a simulated cell",
+          [](CLI::App& cmd) -> CommandAction {
+            auto o = std::make_shared<SimulateOptions>();
+            auto json = std::make_shared<std::string>();
+            auto threads = std::make_shared<int>(2);
+            auto out = std::make_shared<std::string>();
+            cmd.footer(
+                "A library robot gets a hidden \"true\" geometry (its drawing plus random "
+                "tolerances: lengths sigma 0.5 mm, angles 0.2 deg, from --seed). Two cameras "
+                "(1600x1200, or 1280x960 with --quick) sit below the working volume. The folder "
+                "gets what a real cell would record: calibration-board views for each camera's "
+                "intrinsics and for the stereo rig, and --poses robot poses (random reachable "
+                "actuator values where both cameras see the end-effector board) with one image "
+                "per camera and the actuator readings (noise 2e-6, quantised to 1e-6). The truth "
+                "goes to DIR/truth/, which only `robocal validate` reads.\n\n"
+                "Next: robocal measure DIR && robocal identify DIR && robocal validate DIR "
+                "(or robocal batch DIR). Format: app/SESSION.md.");
+            cmd.add_option("--out", *out, "New session folder (must not exist or be empty)")
+                ->required();
+            cmd.add_option("--robot", o->robot, "Library robot name or robot file")
+                ->capture_default_str();
+            cmd.add_option("--seed", o->seed, "Random seed (same seed, same session)")
+                ->capture_default_str();
+            cmd.add_option("--poses", o->poses, "Robot poses to record")
+                ->check(CLI::Range(3, 1000))
+                ->capture_default_str();
+            cmd.add_option("--intrinsic-views", o->intrinsic_views,
+                           "Calibration-board views per camera (default 48, 12 with --quick)");
+            cmd.add_option("--rig-views", o->rig_views,
+                           "Board views both cameras see (default 12, 6 with --quick)");
+            cmd.add_flag("--quick", o->quick, "Smaller images and fewer views (for CI)");
+            cmd.add_option("--threads", *threads, "Rendering threads")
+                ->check(CLI::Range(1, 64))
+                ->capture_default_str();
+            cmd.add_option("--json", *json, "Write the JSON report here ('-' = stdout)");
+            return [o, json, threads, out, &cmd]() {
+              if (o->quick) {
+                if (cmd.count("--intrinsic-views") == 0) o->intrinsic_views = 12;
+                if (cmd.count("--rig-views") == 0) o->rig_views = 6;
+              }
+              o->out = *out;
+              PipelineLog log;
+              log.out = human_stream(*json);
+              log.threads = *threads;
+              const auto report = simulate_session(*o, log);
+              if (!json->empty()) write_json(report, *json);
+              return exit_code_of(report);
+            };
+          }};
+}
+
+}  // namespace robocal::app

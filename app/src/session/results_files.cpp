@@ -1,0 +1,343 @@
+#include "session/results_files.hpp"
+
+#include "cli/cli_common.hpp"
+#include "session/json_values.hpp"
+
+#include "robocal/core/files.hpp"
+#include "robocal/core/pose_covariance.hpp"
+#include "robocal/vision/camera_io.hpp"
+#include "robocal/vision/pose.hpp"
+
+#include <fmt/core.h>
+
+#include <map>
+#include <stdexcept>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<double> numbers(const nlohmann::json& j, std::size_t n, const std::string& where) {
+  if (!j.is_array() || (n > 0 && j.size() != n))
+    throw InputError(
+        fmt::format("{}: expected {} numbers", where, n > 0 ? std::to_string(n) : "a list of"));
+  std::vector<double> out;
+  for (const auto& x : j) {
+    if (!x.is_number()) throw InputError(where + ": expected numbers");
+    out.push_back(x.get<double>());
+  }
+  return out;
+}
+
+Eigen::VectorXd to_vector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+}  // namespace
+
+// ---- rig.json ---------------------------------------------------------------------------------
+
+nlohmann::json rig_cameras_json(const std::vector<vision::RigCamera>& rig) {
+  nlohmann::json cams = nlohmann::json::array();
+  for (const auto& c : rig) {
+    nlohmann::json j = vision::camera_to_json(c.model);
+    j["name"] = c.name;
+    j["camera_T_rig"] = pose_to_json(c.camera_T_world);
+    j["extrinsic_covariance"] = matrix_to_json(c.extrinsic_covariance);
+    cams.push_back(j);
+  }
+  return cams;
+}
+
+nlohmann::json rig_file_json(const vision::RigCalibrationResult& rig, const std::string& reference,
+                             const std::string& target, double corner_sigma_px) {
+  nlohmann::json doc{{"ok", rig.ok},
+                     {"message", rig.message},
+                     {"reference", reference},
+                     {"target", target},
+                     {"rms_px", rig.rms_px},
+                     {"variance_factor", rig.variance_factor},
+                     {"corner_sigma_px", corner_sigma_px}};
+  if (!rig.ok) return doc;
+  doc["cameras"] = rig_cameras_json(rig.rig());
+  for (std::size_t c = 0; c < rig.cameras.size(); ++c) {
+    doc["cameras"][c]["baseline_m"] = rig.cameras[c].baseline_m;
+    doc["cameras"][c]["baseline_sigma_m"] = rig.cameras[c].baseline_sigma_m;
+  }
+  return doc;
+}
+
+RigFile read_rig_file(const fs::path& path) {
+  if (!fs::exists(path)) throw InputError(path.string() + ": cannot open the rig file");
+  const nlohmann::json doc = read_json_file(path, "a rig file");
+  const std::string f = path.string();
+  if (!doc.contains("cameras") || !doc["cameras"].is_array() || doc["cameras"].empty())
+    throw InputError(f + ": needs a non-empty \"cameras\" list (a `robocal rig` output)");
+  RigFile out;
+  out.corner_sigma_px = doc.value("corner_sigma_px", 0.0);
+  for (std::size_t i = 0; i < doc["cameras"].size(); ++i) {
+    const auto& j = doc["cameras"][i];
+    const std::string where = fmt::format("{}: cameras[{}]", f, i);
+    vision::RigCamera c;
+    c.name = j.value("name", fmt::format("cam{}", i));
+    c.model = vision::camera_from_json(j, where);
+    if (!j.contains("camera_T_rig")) throw InputError(where + ": missing camera_T_rig");
+    const auto r =
+        numbers(j["camera_T_rig"].value("rvec", nlohmann::json()), 3, where + ".camera_T_rig.rvec");
+    const auto t =
+        numbers(j["camera_T_rig"].value("tvec", nlohmann::json()), 3, where + ".camera_T_rig.tvec");
+    c.camera_T_world = vision::pose_from_rvec_tvec(Eigen::Vector3d(r[0], r[1], r[2]),
+                                                   Eigen::Vector3d(t[0], t[1], t[2]));
+    if (j.contains("extrinsic_covariance")) {
+      const auto& m = j["extrinsic_covariance"];
+      if (!m.is_array() || m.size() != 6)
+        throw InputError(where + ".extrinsic_covariance: expected 6 rows of 6 numbers");
+      for (int a = 0; a < 6; ++a) {
+        const auto row =
+            numbers(m[static_cast<std::size_t>(a)], 6, where + ".extrinsic_covariance");
+        for (int b = 0; b < 6; ++b) c.extrinsic_covariance(a, b) = row[static_cast<std::size_t>(b)];
+      }
+    }
+    out.cameras.push_back(c);
+    const auto baseline = j.find("baseline_m");
+    out.baseline_m.push_back(baseline != j.end() && baseline->is_number() ? baseline->get<double>()
+                                                                          : 0.0);
+  }
+  return out;
+}
+
+// ---- measured_poses.json -----------------------------------------------------------------------
+
+nlohmann::json pose_measurement_json(const std::string& pose, const vision::PoseMeasurement& m,
+                                     const std::vector<std::string>& problems, std::size_t frames) {
+  nlohmann::json j{{"pose", pose},         {"status", vision::pose_status_name(m.status)},
+                   {"usable", m.usable()}, {"message", m.message},
+                   {"problems", problems}, {"frames", frames}};
+  j.update(pose_measurement_to_json(m));
+  return j;
+}
+
+nlohmann::json pose_measurement_to_json(const vision::PoseMeasurement& m) {
+  nlohmann::json j = nlohmann::json::object();
+  if (m.status != vision::PoseStatus::kOk && m.status != vision::PoseStatus::kMoving) return j;
+  j["rig_T_target"] = pose_to_json(m.world_T_target);
+  // Full precision (JSON doubles round-trip exactly): what identify reads.
+  j["rig_T_target_matrix"] = matrix_to_json(m.world_T_target.matrix().topRows<3>());
+  j["covariance"] = matrix_to_json(m.covariance);
+  j["covariance_convention"] = "[d_theta (rad); d_t (m)], rig_T_target = [exp(d_theta) R, t + d_t]";
+  j["flags"] = {{"ambiguous", m.ambiguous},
+                {"few_corners", m.few_corners},
+                {"blurred", m.blurred},
+                {"moving", m.moving}};
+  j["chi2"] = m.chi2;
+  j["dof"] = m.dof;
+  j["rms_px"] = m.rms_px;
+  j["corners"] = m.corners;
+  j["motion_chi2"] = m.motion_chi2;
+  return j;
+}
+
+void write_measured_poses(const ResultsLayout& results,
+                          const std::vector<MeasuredPoseRecord>& poses) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& p : poses) {
+    nlohmann::json j = pose_measurement_json(p.pose, p.measurement, p.problems, p.frames);
+    j["timestamp"] = p.timestamp;
+    if (p.actuators) j["actuators"] = vector_json(*p.actuators);
+    j["used"] = p.excluded.empty();
+    if (!p.excluded.empty()) j["excluded"] = p.excluded;
+    list.push_back(j);
+  }
+  write_json({{"poses", list}}, results.measured_poses().string());
+}
+
+std::vector<MeasuredPose> read_used_measured_poses(const ResultsLayout& results,
+                                                   const std::string& hint) {
+  const fs::path path = results.measured_poses();
+  const nlohmann::json doc = read_json_file(path, hint);
+  std::vector<MeasuredPose> out;
+  try {
+    for (const auto& p : doc.at("poses")) {
+      if (!p.value("used", false)) continue;
+      MeasuredPose pose;
+      pose.pose = p.at("pose").get<std::string>();
+      pose.actuators = to_vector(p.at("actuators").get<std::vector<double>>());
+      const auto rows = p.at("rig_T_target_matrix").get<std::vector<std::vector<double>>>();
+      const auto cov_rows = p.at("covariance").get<std::vector<std::vector<double>>>();
+      if (rows.size() != 3 || cov_rows.size() != 6)
+        throw InputError(path.string() + ": pose " + pose.pose +
+                         " has a malformed pose or covariance");
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) pose.rig_T_target.matrix()(r, c) = rows.at(r).at(c);
+      for (int r = 0; r < 6; ++r)
+        for (int c = 0; c < 6; ++c) pose.covariance(r, c) = cov_rows.at(r).at(c);
+      out.push_back(std::move(pose));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: malformed ({})", path.string(), e.what()));
+  } catch (const std::out_of_range& e) {
+    throw InputError(fmt::format("{}: malformed ({})", path.string(), e.what()));
+  }
+  return out;
+}
+
+std::vector<calib::PoseMeasurement> to_pose_measurements(const std::vector<MeasuredPose>& poses) {
+  std::vector<calib::PoseMeasurement> out;
+  for (const auto& p : poses)
+    out.push_back({p.pose,
+                   p.actuators,
+                   {calib::PoseObservation::with_covariance(p.rig_T_target,
+                                                            core::position_first(p.covariance))}});
+  return out;
+}
+
+// ---- pixel_observations.json -------------------------------------------------------------------
+
+nlohmann::json corner_observations_json(const std::vector<std::vector<vision::CameraFrame>>& frames,
+                                        const std::vector<std::string>& camera_names,
+                                        double default_sigma, bool skip_empty) {
+  nlohmann::json obs = nlohmann::json::array();
+  for (std::size_t f = 0; f < frames.size(); ++f)
+    for (std::size_t c = 0; c < camera_names.size(); ++c) {
+      const auto& frame = frames[f][c];
+      if (skip_empty && frame.corners.empty()) continue;
+      nlohmann::json corners = nlohmann::json::array();
+      for (const auto& o : frame.corners)
+        corners.push_back(
+            {o.id, o.pixel.x(), o.pixel.y(), o.sigma_px > 0 ? o.sigma_px : default_sigma});
+      obs.push_back({{"frame", f}, {"camera", camera_names[c]}, {"corners", corners}});
+    }
+  return obs;
+}
+
+void write_pixel_observations(const ResultsLayout& results, const PixelObservationsHeader& header,
+                              const std::vector<PixelPoseRecord>& poses) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& p : poses) {
+    nlohmann::json pixel{{"pose", p.pose}, {"used", p.used}, {"observations", p.observations}};
+    if (p.actuators)
+      pixel["actuators"] = vector_json(*p.actuators);
+    else
+      pixel["excluded"] = p.excluded;
+    list.push_back(pixel);
+  }
+  write_json({{"format", "robocal pixel observations 1 (app/SESSION.md)"},
+              {"robot", header.robot_file},
+              {"measured_frame", header.measured_frame},
+              {"rig", ResultsLayout::kRig},
+              {"target", header.target},
+              {"pixel_convention", "OpenCV: (0,0) = centre of the top-left pixel"},
+              {"corner_format", "[board corner id, u (px), v (px), sigma (px)]"},
+              {"poses", list}},
+             results.pixel_observations().string());
+}
+
+std::vector<PixelPose> read_used_pixel_poses(const ResultsLayout& results,
+                                             const std::vector<std::string>& camera_names,
+                                             const std::string& hint) {
+  const fs::path ppath = results.pixel_observations();
+  const nlohmann::json doc = read_json_file(ppath, hint);
+  std::map<std::string, std::size_t> camera_index;
+  for (std::size_t c = 0; c < camera_names.size(); ++c) camera_index[camera_names[c]] = c;
+  std::vector<PixelPose> poses;
+  try {
+    for (const auto& p : doc.at("poses")) {
+      if (!p.value("used", false)) continue;
+      PixelPose pose{p.at("pose").get<std::string>(),
+                     to_vector(p.at("actuators").get<std::vector<double>>()),
+                     std::vector<vision::CameraFrame>(camera_names.size())};
+      for (const auto& obs : p.at("observations")) {
+        if (obs.value("frame", 0) != 0) continue;  // settled frames: the first one is used
+        const auto name = obs.at("camera").get<std::string>();
+        const auto it = camera_index.find(name);
+        if (it == camera_index.end())
+          throw InputError(fmt::format("{}: pose {} names camera '{}', which {} does not have",
+                                       ppath.string(), pose.pose, name, ResultsLayout::kRig));
+        auto& frame = pose.cameras[it->second];
+        for (const auto& c : obs.at("corners")) {
+          const auto v = c.get<std::vector<double>>();
+          if (v.size() != 4)
+            throw InputError(fmt::format("{}: pose {} camera {}: a corner is not [id, u, v, sigma]",
+                                         ppath.string(), pose.pose, name));
+          frame.corners.push_back({static_cast<int>(v[0]), Eigen::Vector2d(v[1], v[2]), v[3]});
+        }
+      }
+      poses.push_back(std::move(pose));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: malformed ({})", ppath.string(), e.what()));
+  }
+  return poses;
+}
+
+// ---- identification.json ----------------------------------------------------------------------
+
+void write_identification(const ResultsLayout& results, const nlohmann::json& report) {
+  write_json(report, results.identification().string());
+}
+
+IdentificationFile read_identification(const ResultsLayout& results, const calib::Mechanism& model,
+                                       const std::string& hint) {
+  const std::string file = results.identification().string();
+  IdentificationFile out;
+  out.report = read_json_file(results.identification(), hint);
+  out.status = out.report.value("status", "");
+  if (out.status != "ok") return out;
+  out.start = params_from_json(model, out.report.at("start"), file);
+  out.estimate = params_from_json(model, out.report.at("estimate"), file);
+  if (out.report.contains("pixel_route") && out.report["pixel_route"].value("status", "") == "ok")
+    out.pixel_estimate = params_from_json(model, out.report["pixel_route"].at("estimate"), file);
+  return out;
+}
+
+// ---- truth/truth.json -------------------------------------------------------------------------
+
+void write_truth(const ResultsLayout& results, const calib::Mechanism& model,
+                 const TruthFile& truth) {
+  nlohmann::json cams = nlohmann::json::array();
+  for (const auto& c : truth.cameras) {
+    nlohmann::json j = vision::camera_to_json(c.model);
+    j["name"] = c.name;
+    j["camera_T_world"] = pose_to_json(c.camera_T_world);
+    cams.push_back(j);
+  }
+  nlohmann::json poses = nlohmann::json::array();
+  for (const auto& p : truth.poses)
+    poses.push_back({{"pose", p.pose},
+                     {"true_actuators", vector_json(p.true_actuators)},
+                     {"world_T_board", pose_to_json(p.world_T_board)}});
+  const nlohmann::json doc{
+      {"note", "ground truth of a simulated session: only `validate` reads it"},
+      {"world", "the robot's nominal base frame"},
+      {"cameras", cams},
+      {"poses", poses},
+      {"nominal", params_json(model, truth.nominal)},
+      {"truth", params_json(model, truth.truth)},
+      {"perturbation", truth.perturbation}};
+  core::write_file_atomic(results.truth(), doc.dump(2) + "\n", core::Overwrite::kRefuse);
+}
+
+TruthFile read_truth(const ResultsLayout& results, const calib::Mechanism& model) {
+  const std::string file = results.truth().string();
+  const nlohmann::json doc = read_json_file(results.truth(), "simulation truth");
+  TruthFile out;
+  try {
+    out.truth = params_from_json(model, doc.at("truth"), file);
+    out.nominal = params_from_json(model, doc.at("nominal"), file);
+    for (const auto& c : doc.at("cameras"))
+      out.cameras.push_back({c.value("name", ""), vision::camera_from_json(c, file + ": cameras"),
+                             pose_from_json(c.at("camera_T_world"), file)});
+    for (const auto& p : doc.at("poses"))
+      out.poses.push_back({p.at("pose").get<std::string>(),
+                           to_vector(p.at("true_actuators").get<std::vector<double>>()),
+                           pose_from_json(p.at("world_T_board"), file)});
+    out.perturbation = doc.value("perturbation", nlohmann::json::object());
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: malformed ({})", file, e.what()));
+  }
+  return out;
+}
+
+}  // namespace robocal::app

@@ -1,0 +1,141 @@
+#pragma once
+// The session's results files (app/SESSION.md): one type, one writer and one reader for each.
+// Paths come from ResultsLayout; nothing else spells a results file name.
+#include "session/results_layout.hpp"
+
+#include "robocal/calib/identification.hpp"
+#include "robocal/calib/mechanism.hpp"
+#include "robocal/vision/observations.hpp"
+#include "robocal/vision/pose_measurement.hpp"
+#include "robocal/vision/rig_calibration.hpp"
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace robocal::app {
+
+// ---- rig.json (session `measure` and `robocal rig`; read by measure --rig, identify, validate)
+
+struct RigFile {
+  std::vector<vision::RigCamera> cameras;  // camera_T_world = camera_T_rig
+  std::vector<double> baseline_m;          // per camera (0 when the file has none)
+  double corner_sigma_px = 0.0;            // the calibration's corner noise; 0 = unknown
+};
+// The rig's cameras as the file lists them: name, camera model, camera_T_rig, covariance.
+nlohmann::json rig_cameras_json(const std::vector<vision::RigCamera>& rig);
+// A calibration result as a rig file: ok, message, reference, target, rms, variance factor,
+// corner_sigma_px, cameras (with baseline and its sigma). Callers add their diagnostics.
+nlohmann::json rig_file_json(const vision::RigCalibrationResult& rig, const std::string& reference,
+                             const std::string& target, double corner_sigma_px);
+// Throws InputError naming the file and the field.
+RigFile read_rig_file(const std::filesystem::path& path);
+
+// ---- measured_poses.json (measure; read by identify and validate)
+
+// The measured board pose as the files write it: rig_T_target (rvec/tvec), rig_T_target_matrix
+// (3x4, full precision), the 6x6 covariance and its convention, quality flags, chi2, dof, rms_px,
+// corners, motion_chi2. Only for a measurement with a pose (status kOk or kMoving); else an
+// empty object.
+nlohmann::json pose_measurement_to_json(const vision::PoseMeasurement& m);
+// One robot pose's entry: pose, status, usable, message, problems, frames and the above
+// (folder-mode `measure` writes the same fields).
+nlohmann::json pose_measurement_json(const std::string& pose, const vision::PoseMeasurement& m,
+                                     const std::vector<std::string>& problems, std::size_t frames);
+
+struct MeasuredPoseRecord {
+  std::string pose;
+  vision::PoseMeasurement measurement;
+  std::vector<std::string> problems;
+  std::size_t frames = 0;
+  double timestamp = 0.0;
+  std::optional<Eigen::VectorXd> actuators;  // none: the readings were unusable
+  std::string excluded;                      // why it is not used; empty: used
+};
+void write_measured_poses(const ResultsLayout& results,
+                          const std::vector<MeasuredPoseRecord>& poses);
+
+struct MeasuredPose {
+  std::string pose;
+  Eigen::VectorXd actuators;
+  Eigen::Isometry3d rig_T_target = Eigen::Isometry3d::Identity();  // full precision
+  Eigen::Matrix<double, 6, 6> covariance;  // as measured: [d_theta; d_t] (vision's order)
+};
+// The poses marked used, at full precision. Throws InputError (missing file: `hint`).
+std::vector<MeasuredPose> read_used_measured_poses(const ResultsLayout& results,
+                                                   const std::string& hint);
+// The used poses as calib measurements (pose observations with their covariance).
+std::vector<calib::PoseMeasurement> to_pose_measurements(const std::vector<MeasuredPose>& poses);
+
+// ---- pixel_observations.json (measure; read by identify's camera-in-the-loop route)
+
+// Per frame and camera, the detected corners [id, u, v, sigma] (sigma <= 0 -> default_sigma)
+// and the per-tag joint corner covariances. skip_empty leaves out cameras that saw nothing.
+nlohmann::json corner_observations_json(const std::vector<std::vector<vision::CameraFrame>>& frames,
+                                        const std::vector<std::string>& camera_names,
+                                        double default_sigma, bool skip_empty);
+
+struct PixelPoseRecord {
+  std::string pose;
+  bool used = false;
+  std::optional<Eigen::VectorXd> actuators;  // none: excluded (why in `excluded`)
+  std::string excluded;
+  nlohmann::json observations;  // corner_observations_json
+};
+struct PixelObservationsHeader {
+  std::string robot_file, measured_frame, target;
+};
+void write_pixel_observations(const ResultsLayout& results, const PixelObservationsHeader& header,
+                              const std::vector<PixelPoseRecord>& poses);
+
+struct PixelPose {
+  std::string pose;
+  Eigen::VectorXd actuators;
+  std::vector<vision::CameraFrame> cameras;  // [rig camera]: frame 0's corners
+};
+// The used poses, frame 0 of each camera, in the order of `camera_names`.
+std::vector<PixelPose> read_used_pixel_poses(const ResultsLayout& results,
+                                             const std::vector<std::string>& camera_names,
+                                             const std::string& hint);
+
+// ---- identification.json (identify; read by validate and the summaries)
+
+struct IdentificationFile {
+  nlohmann::json report;                          // as written
+  std::string status;                             // "ok" | "failed"
+  Eigen::VectorXd start;                          // the model identification started from
+  Eigen::VectorXd estimate;                       // the pose route's estimate
+  std::optional<Eigen::VectorXd> pixel_estimate;  // the camera-in-the-loop route's, when ok
+};
+void write_identification(const ResultsLayout& results, const nlohmann::json& report);
+// Throws InputError when missing or malformed; start/estimate are read only when status is ok.
+IdentificationFile read_identification(const ResultsLayout& results, const calib::Mechanism& model,
+                                       const std::string& hint);
+
+// ---- truth/truth.json (simulate; read by validate only)
+
+struct TruthCamera {
+  std::string name;
+  vision::CameraModel model;
+  Eigen::Isometry3d camera_T_world = Eigen::Isometry3d::Identity();
+};
+struct TruthPose {
+  std::string pose;
+  Eigen::VectorXd true_actuators;
+  Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
+};
+struct TruthFile {
+  std::vector<TruthCamera> cameras;
+  std::vector<TruthPose> poses;
+  Eigen::VectorXd nominal, truth;  // robot parameters
+  nlohmann::json perturbation;     // the simulation's tolerances (informative)
+};
+void write_truth(const ResultsLayout& results, const calib::Mechanism& model,
+                 const TruthFile& truth);
+TruthFile read_truth(const ResultsLayout& results, const calib::Mechanism& model);
+
+}  // namespace robocal::app

@@ -1,0 +1,224 @@
+#include "simcell/simulated_cell.hpp"
+
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/frame_placement.hpp"
+#include "robocal/calib/identification.hpp"
+#include "robocal/calib/kinematics.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal/vision/pose.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace robocal::app {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+Eigen::Vector2d board_centre(const vision::TargetBoard& board) {
+  return 0.5 * (board.extent_min + board.extent_max);
+}
+
+// A rotation that tilts the board by `tilt` about a random in-plane axis, then turns it by `yaw`
+// about its normal.
+Eigen::Matrix3d random_tilt(double tilt, double yaw, std::mt19937& rng) {
+  std::uniform_real_distribution<double> angle(0.0, 2.0 * kPi);
+  const double a = angle(rng);
+  const Eigen::Vector3d axis(std::cos(a), std::sin(a), 0.0);
+  return (Eigen::AngleAxisd(tilt, axis) * Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()))
+      .toRotationMatrix();
+}
+
+vision::CameraModel true_camera(const CellOptions& o, std::mt19937& rng) {
+  std::normal_distribution<double> unit(0.0, 1.0);
+  const double f = o.focal_px * (1.0 + 0.01 * unit(rng));
+  const double cx = 0.5 * (o.image_width - 1) + 8.0 * unit(rng);
+  const double cy = 0.5 * (o.image_height - 1) + 8.0 * unit(rng);
+  // A typical industrial lens: barrel distortion, small decentring.
+  const std::vector<double> distortion = {-0.08 + 0.01 * unit(rng), 0.06 + 0.01 * unit(rng),
+                                          2e-4 * unit(rng), 2e-4 * unit(rng), 0.0};
+  return vision::make_camera(vision::CameraKind::kPinholeRadtan, o.image_width, o.image_height, f,
+                             f * (1.0 + 1e-3 * unit(rng)), cx, cy, distortion);
+}
+
+// Fraction of a board's corners visible in a camera at camera_T_board.
+double visible_fraction(const vision::CameraModel& camera, const vision::TargetBoard& board,
+                        const Eigen::Isometry3d& camera_T_board,
+                        const vision::RenderOptions& options) {
+  const auto truth = vision::corner_truth(camera, {{board, camera_T_board}}, options);
+  if (truth.empty()) return 0.0;
+  const auto seen =
+      std::count_if(truth.begin(), truth.end(), [](const auto& c) { return c.visible; });
+  return static_cast<double>(seen) / static_cast<double>(truth.size());
+}
+
+}  // namespace
+
+CellOptions::CellOptions() {
+  render.black_level = 20.0;
+  render.white_level = 220.0;
+  render.background_level = 60.0;
+  render.blur_sigma = 0.8;
+  render.read_noise = 2.0;
+  render.vignetting = 0.15;
+  render.lighting_gradient = Eigen::Vector2d(0.05, -0.03);
+}
+
+bool true_frame_pose(const SimulatedCell& cell, const Eigen::VectorXd& readings,
+                     Eigen::Isometry3d* world_T_frame) {
+  const auto fk = calib::forward_kinematics(cell.model, cell.truth, readings, cell.target_frame);
+  if (!fk.closure.ok()) return false;
+  *world_T_frame = fk.pose;
+  return true;
+}
+
+Eigen::VectorXd read_actuators(const SimulatedCell& cell, const Eigen::VectorXd& true_readings,
+                               std::mt19937& rng) {
+  std::normal_distribution<double> noise(0.0, cell.options.actuator_noise);
+  Eigen::VectorXd read = true_readings;
+  for (Eigen::Index i = 0; i < read.size(); ++i) {
+    const double step = cell.options.actuator_step;
+    read[i] = std::round((read[i] + noise(rng)) / step) * step;
+  }
+  return read;
+}
+
+SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptions& options,
+                                  std::mt19937& rng) {
+  SimulatedCell cell;
+  cell.options = options;
+  cell.model = calib::load_robot_file(robot_file);
+  cell.nominal = cell.model.nominal_parameters();
+  cell.target_frame = cell.model.tool;
+
+  // Boards: the end-effector target (CellOptions::ee_tags, 29 cm by default), a hand-held
+  // calibration board with its own id range so the two can never be confused.
+  vision::TargetSpec ee;
+  ee.kind = vision::TargetKind::kAprilTagGrid;
+  ee.name = "end_effector";
+  ee.cols = options.ee_tags;
+  ee.rows = options.ee_tags;
+  ee.tag_size = options.ee_tag_size;
+  ee.tag_spacing = options.ee_tag_spacing;
+  ee.first_id = 0;
+  cell.ee_board = vision::build_target(ee);
+  vision::TargetSpec cal = ee;
+  cal.name = "calibration";
+  cal.cols = 7;
+  cal.rows = 5;
+  cal.tag_size = 0.05;
+  cal.tag_spacing = 0.015;
+  cal.first_id = 100;
+  cell.calibration_board = vision::build_target(cal);
+
+  // The working volume: where the nominal robot goes over its actuator range.
+  calib::MechanismPredictor nominal_predictor(cell.model);
+  const auto configs = calib::sample_actuators(nominal_predictor, {cell.nominal}, 200, rng);
+  if (configs.size() < 20)
+    throw std::runtime_error(robot_file + ": too few reachable configurations to build a cell");
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+  std::vector<Eigen::Isometry3d> tool_poses;
+  for (const auto& q : configs) {
+    const auto fk = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
+    if (!fk.closure.ok()) continue;
+    tool_poses.push_back(fk.pose);
+    lo = lo.cwiseMin(fk.pose.translation());
+    hi = hi.cwiseMax(fk.pose.translation());
+  }
+  cell.volume_centre = 0.5 * (lo + hi);
+  cell.volume_extent = 0.5 * (hi - lo);
+
+  // The board is mounted 1 cm below the tool point, level, facing down at the cameras (its z
+  // axis points up, away from them), centred on the tool point. Designed mount = nominal tool.
+  Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
+  const Eigen::Vector2d c = board_centre(cell.ee_board);
+  world_T_board.translation() =
+      tool_poses.front().translation() + Eigen::Vector3d(-c.x(), -c.y(), -0.01);
+  calib::set_fixed_frame_pose(cell.model, cell.nominal, cell.target_frame, configs.front(),
+                              world_T_board);
+
+  // The true robot: every parameter the robot file lets identification estimate, perturbed.
+  const Eigen::VectorXd sigma =
+      calib::tolerance_sigmas(cell.model, options.length_sigma, options.angle_sigma);
+  cell.truth = calib::perturb_parameters(cell.nominal, sigma, rng);
+
+  // Two cameras below the volume, looking up at its centre, toed in.
+  for (int i = 0; i < 2; ++i) {
+    SimulatedCamera cam;
+    cam.model = true_camera(options, rng);
+    const Eigen::Vector3d eye =
+        cell.volume_centre +
+        Eigen::Vector3d((i == 0 ? -0.5 : 0.5) * options.baseline, 0.0, -options.camera_distance);
+    cam.camera_T_world =
+        vision::camera_T_board_look_at(eye, cell.volume_centre, Eigen::Vector3d::UnitY());
+    cam.rays = vision::precompute_rays(cam.model);
+    cell.cameras.push_back(std::move(cam));
+  }
+  return cell;
+}
+
+std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, int camera,
+                                                    int count, std::mt19937& rng) {
+  const auto& cam = cell.cameras.at(static_cast<std::size_t>(camera)).model;
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const Eigen::Vector2d c = board_centre(cell.calibration_board);
+  std::vector<Eigen::Isometry3d> views;
+  // Board centres spread over a 3x3 grid of image regions (then random inside the region), so
+  // the whole image is covered, as a careful operator would.
+  for (int v = 0; v < count; ++v) {
+    for (int attempt = 0; attempt < 100; ++attempt) {
+      const int region = v % 9;
+      const int region_column = region % 3, region_row = region / 3;
+      const double px = (region_column + u(rng)) / 3.0 * cam.width;
+      const double py = (region_row + u(rng)) / 3.0 * cam.height;
+      const auto ray = vision::unproject(cam, Eigen::Vector2d(px, py));
+      if (!ray) continue;
+      const double distance = 0.6 + 0.5 * u(rng);
+      const Eigen::Vector3d centre = *ray / ray->z() * distance;
+      Eigen::Isometry3d camera_T_board = Eigen::Isometry3d::Identity();
+      camera_T_board.linear() =
+          random_tilt((10.0 + 40.0 * u(rng)) * kPi / 180.0, (u(rng) - 0.5) * 0.6, rng);
+      camera_T_board.translation() =
+          centre - camera_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0);
+      if (visible_fraction(cam, cell.calibration_board, camera_T_board, cell.options.render) >=
+          0.7) {
+        views.push_back(camera_T_board);
+        break;
+      }
+    }
+  }
+  return views;
+}
+
+std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int count,
+                                              std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Eigen::Vector2d c = board_centre(cell.calibration_board);
+  std::vector<Eigen::Isometry3d> views;
+  for (int v = 0; v < count; ++v) {
+    for (int attempt = 0; attempt < 200; ++attempt) {
+      Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
+      world_T_board.linear() =
+          random_tilt(std::abs(u(rng)) * 35.0 * kPi / 180.0, u(rng) * kPi, rng);
+      const Eigen::Vector3d centre =
+          cell.volume_centre + Eigen::Vector3d(u(rng) * 0.15, u(rng) * 0.15, u(rng) * 0.1);
+      world_T_board.translation() =
+          centre - world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0);
+      bool all_see = true;
+      for (const auto& cam : cell.cameras)
+        all_see = all_see &&
+                  visible_fraction(cam.model, cell.calibration_board,
+                                   cam.camera_T_world * world_T_board, cell.options.render) >= 0.5;
+      if (all_see) {
+        views.push_back(world_T_board);
+        break;
+      }
+    }
+  }
+  return views;
+}
+
+}  // namespace robocal::app

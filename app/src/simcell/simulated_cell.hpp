@@ -1,0 +1,96 @@
+#pragma once
+// A simulated robot cell for the demo and for CI: a "true" robot (library robot + random
+// perturbations), two cameras placed to see the working volume, a target board on the
+// end-effector and a calibration board. Everything the measurement pipeline gets from it are
+// rendered images and actuator readings; the truth stays in SimulatedCell and is read only to
+// report errors (validation).
+//
+// Frames: the cell's truth world is the robot's nominal base frame (z up; the Delta hangs below
+// it). The cameras sit below the working volume looking up; the end-effector board faces down.
+// The pipeline's world is camera 0's frame (the rig's gauge), so it never needs the truth world.
+#include "robocal/calib/mechanism.hpp"
+#include "robocal/vision/camera_model.hpp"
+#include "robocal/vision/renderer.hpp"
+#include "robocal/vision/target.hpp"
+
+#include <Eigen/Geometry>
+
+#include <random>
+#include <string>
+#include <vector>
+
+namespace robocal::app {
+
+struct CellOptions {
+  int image_width = 1600;
+  int image_height = 1200;
+  double focal_px = 1600.0;
+  double camera_distance = 1.25;  // m, from the centre of the working volume
+  double baseline = 0.5;          // m, between the two cameras
+  // The end-effector board: ee_tags x ee_tags AprilTags (tag36h11, ids from 0); default 6x6 tags
+  // of 40 mm with 10 mm gaps, a 290 mm pattern on the Delta's ~0.4 m plate. The board's tilt is
+  // its least well measured quantity (depth across the board from 1-2 m away), and it grows
+  // with the board's size and corner count: 6x6 instead of 4x4 tags of 40 mm (196 mm) halves
+  // the rotation error of the measured pose (demo seed 1: 28 -> 13 mdeg RMS).
+  int ee_tags = 6;
+  double ee_tag_size = 0.04;     // m, black square of a tag
+  double ee_tag_spacing = 0.01;  // m, gap between neighbouring tags
+  // Realistic perturbations of the true robot (1-sigma): lengths, angles (incl. encoder zeros).
+  double length_sigma = 0.5e-3;
+  double angle_sigma = 0.2 * 3.14159265358979323846 / 180.0;
+  // Actuator readings: Gaussian noise and quantisation step, joint units (rad or m).
+  double actuator_noise = 2e-6;
+  double actuator_step = 1e-6;
+  vision::RenderOptions render;  // sensor model (blur, noise, levels)
+  CellOptions();
+};
+
+struct SimulatedCamera {
+  vision::CameraModel model;         // true intrinsics (the pipeline never reads them)
+  Eigen::Isometry3d camera_T_world;  // true extrinsics in the truth world
+  vision::CameraRays rays;           // precomputed for rendering
+};
+
+struct SimulatedCell {
+  calib::Mechanism model;        // nominal robot, with the tool frame set to the board mount
+  Eigen::VectorXd nominal;       // nominal parameters (designed board mount)
+  Eigen::VectorXd truth;         // true parameters (perturbed)
+  int target_frame = -1;         // body whose frame is the end-effector board's frame
+  vision::TargetBoard ee_board;  // on the end-effector
+  vision::TargetBoard calibration_board;  // hand-held, for intrinsics and rig views
+  std::vector<SimulatedCamera> cameras;
+  Eigen::Vector3d volume_centre = Eigen::Vector3d::Zero();  // truth world
+  Eigen::Vector3d volume_extent = Eigen::Vector3d::Zero();  // half sizes of the sampled poses
+  CellOptions options;
+};
+
+// Builds the cell around a library robot file. Throws std::runtime_error when the robot has no
+// sampled configuration the cameras could see.
+SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptions& options,
+                                  std::mt19937& rng);
+
+// A rendered image with the seed it was rendered with.
+struct RenderedImage {
+  cv::Mat image;
+  std::string name;
+};
+
+// Pose of `body` in the truth world for actuator readings (closure solved on the true robot).
+// Returns false when the closure cannot be solved.
+bool true_frame_pose(const SimulatedCell& cell, const Eigen::VectorXd& readings,
+                     Eigen::Isometry3d* world_T_frame);
+
+// Reads actuator values as a controller would: quantised with noise.
+Eigen::VectorXd read_actuators(const SimulatedCell& cell, const Eigen::VectorXd& true_readings,
+                               std::mt19937& rng);
+
+// camera_T_board views of the calibration board for intrinsic calibration of one camera: board
+// 0.6–1.1 m away, tilted 10–50°, its centre spread over a grid of image positions.
+std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, int camera,
+                                                    int count, std::mt19937& rng);
+
+// world_T_board views of the calibration board inside the working volume seen by all cameras.
+std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int count,
+                                              std::mt19937& rng);
+
+}  // namespace robocal::app

@@ -1,0 +1,207 @@
+// The identify stage on a session: the base frame fitted to the measured poses, then the robot's
+// geometry from the measured 6-D poses (pose route) and, camera-in-the-loop, from the corner
+// pixels (pixel route). Writes results/identification.json and the calibrated robot files.
+#include "cli/cli_common.hpp"
+#include "session/json_values.hpp"
+#include "session/results_files.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+#include "stages/measure_steps.hpp"
+#include "stages/pixel_bridge.hpp"
+#include "stages/stage_log.hpp"
+#include "stages/stages.hpp"
+
+#include "robocal/calib/base_frame.hpp"
+#include "robocal/calib/calibrated_robot_file.hpp"
+#include "robocal/calib/identification.hpp"
+#include "robocal/calib/identification_json.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal_version.hpp"
+
+#include <fmt/core.h>
+
+#include <set>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+std::string measure_first(const fs::path& dir) {
+  return "run `robocal measure " + dir.string() + "` first";
+}
+
+// The camera-in-the-loop route on a session: the corner pixels of results/pixel_observations.json
+// (the poses the pose route used, first frame per camera) with the measured rig's cameras, camera
+// 0 as the world, camera 1.. poses estimated with the robot; started from the pose route's
+// base-frame alignment. Returns the route's report (its estimate as {parameter: value}).
+nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& model,
+                                    const calib::FramePredictor& predictor,
+                                    const Eigen::VectorXd& start,
+                                    const calib::SolveOptions& options, const PipelineLog& log) {
+  const ResultsLayout results{s.dir};
+  const auto rig = read_rig_file(results.rig()).cameras;
+  const auto target = board_points(load_board(s.path(s.ee_target)));
+  std::vector<std::string> camera_names;
+  for (const auto& c : rig) camera_names.push_back(c.name);
+  std::vector<PosePixels> poses;
+  for (auto& p : read_used_pixel_poses(results, camera_names, measure_first(s.dir)))
+    poses.push_back({p.pose, p.actuators, std::move(p.cameras)});
+  nlohmann::json report;
+  const auto route = identify_from_pixels(predictor, start, options, rig, target, poses);
+  const auto& r = route.result;
+  say(log,
+      "  pixels (camera-in-the-loop): {}: {} poses, {} parameters (robot + camera poses), {} "
+      "iterations, {:.2f} s, reprojection {:.3f} px RMS\n",
+      calib::to_string(r.status), r.residuals.poses.size(), r.estimated.size(), r.iterations,
+      r.solve_seconds, route.fit_pixels.rms_px);
+  report["result"] = calib::to_json(r);
+  report["reprojection_rms_px"] = route.fit_pixels.rms_px;
+  report["skipped"] = route.input.skipped;
+  report["estimate"] = params_json(model, route.robot_estimate);
+  nlohmann::json cams = nlohmann::json::array();
+  for (std::size_t c = 0; c < route.world_T_camera.size() && c < rig.size(); ++c)
+    cams.push_back(
+        {{"camera", rig[c].name}, {"world_T_camera", pose_to_json(route.world_T_camera[c])}});
+  report["cameras"] = cams;
+  const bool usable = r.status == calib::IdentificationStatus::kConverged ||
+                      r.status == calib::IdentificationStatus::kNotConverged;
+  report["status"] = usable ? "ok" : "failed";
+  if (!usable) report["message"] = r.message;
+  return report;
+}
+
+// Indices of the parameters whose value differs from the robot file's.
+std::vector<std::size_t> changed_from(const Eigen::VectorXd& values,
+                                      const Eigen::VectorXd& file_values) {
+  std::vector<std::size_t> changed;
+  for (Eigen::Index i = 0; i < values.size(); ++i)
+    if (values[i] != file_values[i]) changed.push_back(static_cast<std::size_t>(i));
+  return changed;
+}
+
+}  // namespace
+
+nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
+                                const PipelineLog& log, const std::string& route, bool priors) {
+  if (route != "pose" && route != "pixel" && route != "both")
+    throw InputError("identification route '" + route + "': expected pose, pixel or both");
+  const Session s = load_session(dir);
+  const ResultsLayout results{dir};
+  const SessionRobot robot = session_robot(s, robot_override);
+  // The used poses of results/measured_poses.json, at full precision (measurements.yaml is the
+  // same data for `robocal identify --measurements`, but its rotation vectors and inverted
+  // covariances are not bit-exact, and the identification's choice among confounded parameters
+  // is that sensitive).
+  calib::Measurements measurements;
+  measurements.poses = to_pose_measurements(read_used_measured_poses(results, measure_first(dir)));
+  stage(log, "identify");
+  const calib::Mechanism& model = robot.model;
+  nlohmann::json report{{"stage", "identify"}, {"session", dir.string()}};
+  if (measurements.poses.size() < 3) {
+    report["status"] = "failed";
+    report["message"] = fmt::format("{} usable poses: too few", measurements.poses.size());
+    write_identification(results, report);
+    say(log, "identify failed: {}\n", report["message"].get<std::string>());
+    return report;
+  }
+  // The robot's base frame in the camera world: first found by aligning the nominal model's
+  // predictions with the measurements (what hand-eye calibration alone gives).
+  const Eigen::VectorXd file_values = model.nominal_parameters();
+  Eigen::VectorXd start = robot.nominal;
+  calib::fit_base_frame(model, start, robot.frame, measurements.poses);
+  calib::MechanismPredictor predictor(model, robot.frame);
+  const auto start_errors = calib::prediction_errors(predictor, start, measurements.poses);
+  say(log, "  nominal model with the fitted base frame: {:.1f} µm RMS, {:.4f} deg RMS\n",
+      start_errors.position_rms * 1e6, start_errors.orientation_rms * kRadToDeg);
+  report["nominal_fit"] = calib::to_json(start_errors);
+  // The robot file's tolerances as priors (MAP). A cell's design (poses where the cameras see the
+  // board) leaves weak directions; along them a maximum-likelihood estimate can trade, e.g., a
+  // shoulder axis tilt of 1° against elbow offsets of 7 mm that fit the measured poses and are
+  // millimetres off elsewhere (demo seed 1: 234 µm RMS, 5.1 mm max on held-out poses; with the
+  // priors 46 µm, 0.26 mm). The base frame has no prior: world <-> robot is genuinely unknown
+  // in the cameras' world.
+  calib::SolveOptions solve_options = calib::solve_options_from_model(model, priors);
+  if (priors)
+    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+      const int body = model.parameters[i].body;
+      if (body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0)
+        solve_options.prior_sigma[i] = 0.0;
+    }
+  say(log, "  priors: {}\n",
+      priors ? "the robot file's tolerances (MAP), base frame free"
+             : "none (maximum likelihood from the measurements alone)");
+  const auto result = calib::identify(predictor, start, measurements, solve_options);
+  say(log,
+      "  {}: {} of {} candidate parameters identified, condition number {:.3g}, {} iterations, "
+      "{:.2f} s\n",
+      calib::to_string(result.status), result.estimated.size(), result.candidates.size(),
+      result.identifiability.condition_number, result.iterations, result.solve_seconds);
+  say(log, "  fit residual: {:.1f} µm RMS position, {:.4f} deg RMS orientation, {} outliers\n",
+      result.residuals.position_rms * 1e6, result.residuals.orientation_rms * kRadToDeg,
+      result.residuals.outliers);
+  if (result.relinearisation.attempted) say(log, "  {}\n", result.relinearisation.message);
+  report["result"] = calib::to_json(result);
+  report["robot"] = fs::relative(robot.file, dir).generic_string();
+  report["measurements"] = ResultsLayout::kMeasuredPoses;
+  report["priors"] = priors;
+  report["not_identified"] = result.identifiability.messages;
+  if (result.relinearisation.attempted)
+    report["not_identified"].push_back(result.relinearisation.message);
+  report["held_at_nominal"] = result.candidates.size() - result.estimated.size();
+  report["start"] = params_json(model, start);
+  report["estimate"] = params_json(model, result.estimate);
+  report["parameter_units"] = nlohmann::json::object();
+  report["parameter_sigma"] = nlohmann::json::object();
+  for (const auto& p : model.parameters) {
+    report["parameter_units"][p.name] = unit_name(p.unit);
+    report["parameter_sigma"][p.name] = p.sigma;
+  }
+  report["software"] = std::string("robocal ") + kVersion;
+  const bool usable = result.status == calib::IdentificationStatus::kConverged ||
+                      result.status == calib::IdentificationStatus::kNotConverged;
+  report["status"] = usable ? "ok" : "failed";
+  if (!usable) report["message"] = result.message;
+  if (usable) {
+    std::set<std::size_t> changed(result.estimated.begin(), result.estimated.end());
+    for (std::size_t i : changed_from(start, file_values)) changed.insert(i);
+    const std::string text = calib::calibrated_robot_yaml(
+        core::read_text_file(robot.file), model, result.estimate,
+        std::vector<std::size_t>(changed.begin(), changed.end()),
+        {fmt::format("Calibrated by robocal {} identify from session {} ({}).", kVersion,
+                     dir.filename().string(), calib::to_string(result.status)),
+         fmt::format("{} poses used, {} excluded; {} parameters estimated; fit residual RMS "
+                     "{:.3g} m.",
+                     result.residuals.poses.size(), result.excluded.size(), result.estimated.size(),
+                     result.residuals.position_rms),
+         "World frame: the session's rig frame (camera " + s.cameras[0].name + ")."});
+    core::write_file_atomic(results.calibrated_robot(), text);
+    report["calibrated_robot"] = ResultsLayout::kCalibratedRobot;
+  }
+  if (usable && route != "pose") {
+    report["pixel_route"] = identify_pixel_route(s, model, predictor, start, solve_options, log);
+    const auto& pr = report["pixel_route"];
+    if (pr.value("status", "") == "ok") {
+      const Eigen::VectorXd pixel_estimate =
+          params_from_json(model, pr.at("estimate"), results.identification().string());
+      const std::string text = calib::calibrated_robot_yaml(
+          core::read_text_file(robot.file), model, pixel_estimate,
+          changed_from(pixel_estimate, file_values),
+          {fmt::format("Calibrated by robocal {} identify (camera-in-the-loop, from corner "
+                       "pixels) from session {}.",
+                       kVersion, dir.filename().string()),
+           fmt::format("Reprojection RMS {:.3f} px.", pr.value("reprojection_rms_px", 0.0)),
+           "World frame: the session's rig frame (camera " + s.cameras[0].name + ")."});
+      core::write_file_atomic(results.calibrated_robot_pixels(), text);
+      report["pixel_route"]["calibrated_robot"] = ResultsLayout::kCalibratedRobotPixels;
+    }
+  }
+  write_identification(results, report);
+  return report;
+}
+
+}  // namespace robocal::app

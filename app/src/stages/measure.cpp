@@ -1,0 +1,186 @@
+// The measure stage on a session: intrinsics per camera, the rig, the board pose per robot pose
+// (stages/measure_steps.hpp), written to results/ (session/results_files.hpp).
+#include "cli/cli_common.hpp"
+#include "session/json_values.hpp"
+#include "session/results_files.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+#include "stages/measure_steps.hpp"
+#include "stages/pose_bridge.hpp"
+#include "stages/stage_log.hpp"
+#include "stages/stages.hpp"
+
+#include "robocal/calib/measurements_file.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal/vision/camera_io.hpp"
+#include "robocal/vision/intrinsics_pipeline.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string relative_to(const fs::path& p, const fs::path& base) {
+  return fs::relative(p, base).generic_string();
+}
+
+std::vector<fs::path> calibration_images(const fs::path& folder) {
+  std::error_code ec;
+  return fs::is_directory(folder, ec) ? vision::list_image_files(folder) : std::vector<fs::path>{};
+}
+
+}  // namespace
+
+nlohmann::json measure_session(const fs::path& dir, const std::string& robot_override,
+                               const PipelineLog& log) {
+  const Session s = load_session(dir);
+  const ResultsLayout results{dir};
+  const SessionRobot robot = session_robot(s, robot_override);
+  const auto ee_board = load_board(s.path(s.ee_target));
+  const auto cal_board = load_board(s.path(s.calibration_target));
+  const auto names = s.camera_names();
+  const std::size_t n_cams = s.cameras.size();
+  fs::create_directories(results.dir());
+  nlohmann::json report{{"stage", "measure"}, {"session", dir.string()}};
+  const auto fail = [&](const std::string& message) {
+    report["status"] = "failed";
+    report["message"] = message;
+    write_json(report, results.report("measure").string());
+    say(log, "measure failed: {}\n", message);
+    return report;
+  };
+
+  // 1. Intrinsics of each camera from its calibration views.
+  stage(log, "measure: intrinsics");
+  std::vector<vision::RigCamera> rig_cameras;
+  std::vector<double> corner_sigma;
+  nlohmann::json intrinsics = nlohmann::json::array();
+  for (std::size_t c = 0; c < n_cams; ++c) {
+    const auto files = calibration_images(s.path(s.intrinsics_views) / names[c]);
+    const IntrinsicsStep step = calibrate_camera(names[c], s.cameras[c].width, s.cameras[c].height,
+                                                 files, cal_board, step_log(log));
+    const auto& result = step.result;
+    nlohmann::json cj{{"camera", names[c]}, {"images", files.size()}, {"views", step.views.size()}};
+    cj["problems"] = step.problems;
+    if (result.status != vision::CalibrationStatus::kOk) {
+      intrinsics.push_back(cj);
+      report["intrinsics"] = intrinsics;
+      return fail(
+          fmt::format("camera {} calibration {}: {}", names[c],
+                      result.status == vision::CalibrationStatus::kRefused ? "refused" : "failed",
+                      result.reason));
+    }
+    const fs::path camera_file = results.camera(names[c]);
+    fs::create_directories(camera_file.parent_path());
+    vision::save_camera_file(result.camera, camera_file, names[c]);
+    say(log, "  {}: fx {:.2f} ± {:.2f} px, RMS {:.3f} px\n", names[c], result.camera.params[0],
+        result.param_stddev[0], result.rms_px);
+    for (const auto& w : result.warnings) say(log, "    warning: {}\n", w);
+    cj.update({{"rms_px", result.rms_px},
+               {"residual_sigma_px", result.residual_sigma_px},
+               {"params", result.camera.params},
+               {"param_stddev", result.param_stddev},
+               {"warnings", result.warnings},
+               {"camera_file", relative_to(camera_file, dir)}});
+    intrinsics.push_back(cj);
+    rig_cameras.push_back({names[c], result.camera, Eigen::Isometry3d::Identity(),
+                           Eigen::Matrix<double, 6, 6>::Zero()});
+    corner_sigma.push_back(std::max(result.residual_sigma_px, 0.01));
+  }
+  report["intrinsics"] = intrinsics;
+
+  // 2. Rig: the cameras' relative poses from views they share (rig frame = first camera).
+  stage(log, "measure: rig");
+  const auto rig_sets = scan_image_folder(s.path(s.rig_views), names);
+  RigStepOptions rig_options;
+  rig_options.corner_sigma_px = corner_sigma;
+  const RigStep rig_step =
+      calibrate_rig_from_views(rig_cameras, cal_board, rig_sets, rig_options, step_log(log));
+  const auto& rig = rig_step.result;
+  double sigma_sum = 0;
+  for (double x : corner_sigma) sigma_sum += x;
+  nlohmann::json rig_json = rig_file_json(rig, names[0], s.calibration_target,
+                                          sigma_sum / static_cast<double>(corner_sigma.size()));
+  rig_json["views"] = rig_sets.size();
+  rig_json["problems"] = nlohmann::json::array();
+  for (const auto& view : rig_step.problems)
+    for (const auto& p : view)
+      if (!p.empty()) rig_json["problems"].push_back(p);
+  if (!rig.ok) {
+    rig_json.erase("corner_sigma_px");
+    report["rig"] = rig_json;
+    return fail("rig calibration failed: " + rig.message);
+  }
+  const std::vector<vision::RigCamera> measured_rig = rig.rig();
+  write_json(rig_json, results.rig().string());
+  if (n_cams > 1)
+    say(log, "  baseline {:.5f} ± {:.5f} m, RMS {:.3f} px\n", rig.cameras.at(1).baseline_m,
+        rig.cameras.at(1).baseline_sigma_m, rig.rms_px);
+  report["rig"] = {{"ok", true},
+                   {"rms_px", rig.rms_px},
+                   {"baseline_m", n_cams > 1 ? rig.cameras.at(1).baseline_m : 0.0},
+                   {"baseline_sigma_m", n_cams > 1 ? rig.cameras.at(1).baseline_sigma_m : 0.0},
+                   {"file", ResultsLayout::kRig}};
+
+  // 3. The end-effector board's pose at every robot pose.
+  stage(log, "measure: poses");
+  const auto records = load_pose_records(s);
+  if (records.empty()) return fail(s.path(s.poses).string() + ": no pose folders");
+  const auto sets = scan_image_folder(s.path(s.poses), names);  // same folders, same order
+  PoseStepOptions pose_options;
+  pose_options.corner_sigma_px = corner_sigma;
+  const auto measured_images =
+      measure_board_poses(measured_rig, ee_board, sets, pose_options, step_log(log));
+
+  calib::MeasurementsFile mfile;
+  mfile.robot = robot.model.name;
+  mfile.frame = s.measured_frame;
+  std::vector<MeasuredPoseRecord> measured_poses;
+  std::vector<PixelPoseRecord> pixel_poses;
+  int measured = 0, used = 0;
+  for (std::size_t p = 0; p < records.size(); ++p) {
+    const auto& rec = records[p];
+    const auto& images = measured_images[p];
+    const vision::PoseMeasurement& m = images.measurement;
+    MeasuredPoseRecord out{rec.name,     m, images.problems, images.frames.size(), rec.timestamp,
+                           std::nullopt, ""};
+    if (rec.problem.empty()) out.actuators = rec.actuators;
+    if (m.status == vision::PoseStatus::kOk || m.status == vision::PoseStatus::kMoving) ++measured;
+    // Why a pose does not go to identification, in words.
+    if (!rec.problem.empty())
+      out.excluded = rec.problem;
+    else if (!m.usable())
+      out.excluded = fmt::format("board pose {}{}", vision::pose_status_name(m.status),
+                                 m.message.empty() ? "" : " (" + m.message + ")");
+    if (!out.excluded.empty()) {
+      say(log, "  {} not used: {}\n", rec.name, out.excluded);
+    } else {
+      ++used;
+      mfile.measurements.poses.push_back({rec.name, rec.actuators, {to_pose_observation(m)}});
+    }
+    // Raw pixel observations (camera-in-the-loop identification), for every pose with readings.
+    pixel_poses.push_back({rec.name, out.excluded.empty(), out.actuators, rec.problem,
+                           corner_observations_json(images.frames, names, 0.0, true)});
+    measured_poses.push_back(std::move(out));
+  }
+  write_measured_poses(results, measured_poses);
+  write_pixel_observations(results, {s.robot_file, s.measured_frame, s.ee_target}, pixel_poses);
+  core::write_file_atomic(results.measurements(), calib::measurements_to_yaml(mfile));
+  say(log, "  {} of {} poses measured, {} used for identification\n", measured, records.size(),
+      used);
+  report["poses"] = {{"total", records.size()}, {"measured", measured}, {"used", used}};
+  report["status"] = used > 0 ? "ok" : "failed";
+  if (used == 0) report["message"] = "no pose could be measured";
+  report["files"] = {ResultsLayout::kCamerasFolder, ResultsLayout::kRig,
+                     ResultsLayout::kMeasuredPoses, ResultsLayout::kPixelObservations,
+                     ResultsLayout::kMeasurements};
+  write_json(report, results.report("measure").string());
+  return report;
+}
+
+}  // namespace robocal::app

@@ -1,0 +1,154 @@
+#include "stages/measure_steps.hpp"
+
+#include "robocal/vision/image_detection.hpp"
+#include "robocal/vision/intrinsics_pipeline.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Sets a known corner noise on every detected corner (0 = leave it unknown).
+void set_corner_sigma(vision::CameraFrame& frame, const std::vector<double>& sigma_of_camera,
+                      std::size_t camera) {
+  if (camera >= sigma_of_camera.size()) return;
+  for (auto& corner : frame.corners) corner.sigma_px = sigma_of_camera[camera];
+}
+
+std::string camera_is_calibrated(const vision::RigCamera& camera) {
+  return fmt::format("camera '{}' is calibrated", camera.name);
+}
+
+}  // namespace
+
+vision::BoardPoints board_points(const vision::TargetBoard& board) {
+  vision::BoardPoints pts;
+  for (const auto& c : board.corners) pts[c.id] = c.point;
+  return pts;
+}
+
+IntrinsicsStep calibrate_camera(const std::string& camera, int width, int height,
+                                const std::vector<fs::path>& files,
+                                const vision::TargetBoard& board, const StepLog& log) {
+  IntrinsicsStep out;
+  out.images = files.size();
+  std::vector<vision::DetectionRequest> requests;
+  for (const auto& f : files)
+    requests.push_back({f, width, height, fmt::format("camera '{}' is recorded", camera)});
+  StageProgress bar(log.out, fmt::format("{} intrinsics", camera), files.size());
+  const auto detected =
+      vision::detect_in_images(requests, board, log.threads, [&] { bar.advance(); });
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    if (detected[i].problem.empty())
+      out.views.push_back(
+          vision::to_calibration_view(detected[i].detection, files[i].stem().string()));
+    else
+      out.problems.push_back(detected[i].problem);
+  }
+  bar.finish(fmt::format("board found in {} of {} images", out.views.size(), files.size()));
+  vision::IntrinsicCalibrationOptions options;
+  options.width = width;
+  options.height = height;
+  out.result = vision::calibrate_intrinsics(out.views, options);
+  return out;
+}
+
+RigStep calibrate_rig_from_views(const std::vector<vision::RigCamera>& cameras,
+                                 const vision::TargetBoard& board,
+                                 const std::vector<ImageSet>& views, const RigStepOptions& options,
+                                 const StepLog& log) {
+  const std::size_t n_cams = cameras.size();
+  RigStep out;
+  out.views.assign(views.size(), std::vector<vision::CameraFrame>(n_cams));
+  out.problems.assign(views.size(), std::vector<std::string>(n_cams));
+  // One detection per (view, camera) with an image: its first frame.
+  std::vector<vision::DetectionRequest> requests;
+  std::vector<std::pair<std::size_t, std::size_t>> where;
+  for (std::size_t v = 0; v < views.size(); ++v)
+    for (std::size_t c = 0; c < n_cams; ++c) {
+      if (views[v].frames_of_camera[c].empty()) {
+        out.problems[v][c] =
+            fmt::format("{}: no image for camera '{}'", views[v].name, cameras[c].name);
+        continue;
+      }
+      requests.push_back({views[v].frames_of_camera[c][0], cameras[c].model.width,
+                          cameras[c].model.height, camera_is_calibrated(cameras[c])});
+      where.emplace_back(v, c);
+    }
+  StageProgress bar(log.out, "rig views", views.size() * n_cams);
+  for (std::size_t missing = requests.size(); missing < views.size() * n_cams; ++missing)
+    bar.advance();
+  const auto detected =
+      vision::detect_in_images(requests, board, log.threads, [&] { bar.advance(); });
+  for (std::size_t k = 0; k < requests.size(); ++k) {
+    const auto [v, c] = where[k];
+    out.problems[v][c] = detected[k].problem;
+    if (!detected[k].problem.empty()) continue;
+    out.views[v][c] = vision::camera_frame(detected[k].detection);
+    set_corner_sigma(out.views[v][c], options.corner_sigma_px, c);
+  }
+  bar.finish(fmt::format("{} views", views.size()));
+  out.result = vision::calibrate_rig(cameras, board_points(board), out.views, options.calibration);
+  return out;
+}
+
+std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>& rig,
+                                            const vision::TargetBoard& board,
+                                            const std::vector<ImageSet>& poses,
+                                            const PoseStepOptions& options, const StepLog& log) {
+  const std::size_t n_cams = rig.size();
+  std::vector<PoseImages> out(poses.size());
+  struct Job {
+    std::size_t pose, camera, frame;
+  };
+  std::vector<Job> jobs;
+  std::vector<vision::DetectionRequest> requests;
+  for (std::size_t p = 0; p < poses.size(); ++p) {
+    std::size_t n_frames = 0;
+    for (std::size_t c = 0; c < n_cams; ++c) {
+      if (poses[p].frames_of_camera[c].empty())
+        out[p].problems.push_back(
+            fmt::format("{}: no image for camera '{}'", poses[p].name, rig[c].name));
+      n_frames = std::max(n_frames, poses[p].frames_of_camera[c].size());
+    }
+    out[p].frames.assign(n_frames, std::vector<vision::CameraFrame>(n_cams));
+    for (std::size_t c = 0; c < n_cams; ++c)
+      for (std::size_t f = 0; f < poses[p].frames_of_camera[c].size(); ++f) {
+        jobs.push_back({p, c, f});
+        requests.push_back({poses[p].frames_of_camera[c][f], rig[c].model.width,
+                            rig[c].model.height, camera_is_calibrated(rig[c])});
+      }
+  }
+  StageProgress bar(log.out, "pose images", jobs.size());
+  const auto detected =
+      vision::detect_in_images(requests, board, log.threads, [&] { bar.advance(); });
+  bar.finish(fmt::format("{} images", jobs.size()));
+  for (std::size_t i = 0; i < jobs.size(); ++i) {
+    const Job& j = jobs[i];
+    if (!detected[i].problem.empty()) {
+      out[j.pose].problems.push_back(detected[i].problem);
+      continue;
+    }
+    auto& frame = out[j.pose].frames[j.frame][j.camera];
+    frame = vision::camera_frame(detected[i].detection);
+    set_corner_sigma(frame, options.corner_sigma_px, j.camera);
+  }
+  const auto points = board_points(board);
+  for (auto& pose : out) {
+    if (pose.frames.empty()) {
+      pose.measurement.status = vision::PoseStatus::kNotSeen;
+      pose.measurement.message = "no images";
+    } else {
+      pose.measurement =
+          vision::measure_settled_pose(rig, points, pose.frames, options.measurement);
+    }
+  }
+  return out;
+}
+
+}  // namespace robocal::app

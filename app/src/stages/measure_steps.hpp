@@ -1,0 +1,71 @@
+#pragma once
+// The steps of the measure stage, each one function over images and calibrated cameras. Session
+// mode (`robocal measure SESSION`, stages/measure.cpp) and folder mode (`robocal rig`, `robocal
+// measure --rig`) both run exactly these.
+#include "cli/progress.hpp"
+#include "session/image_folders.hpp"
+
+#include "robocal/vision/intrinsic_calibration.hpp"
+#include "robocal/vision/observations.hpp"
+#include "robocal/vision/pose_measurement.hpp"
+#include "robocal/vision/rig_calibration.hpp"
+#include "robocal/vision/target.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace robocal::app {
+
+// Where a step reports progress: a bar on `out` (nullptr: silent) and `threads` detection workers.
+struct StepLog {
+  std::FILE* out = stdout;
+  int threads = 2;
+};
+
+vision::BoardPoints board_points(const vision::TargetBoard& board);
+
+// 1. Intrinsics of one camera from its calibration views (image files).
+struct IntrinsicsStep {
+  std::size_t images = 0;
+  std::vector<std::string> problems;  // per image that could not be used
+  std::vector<vision::CalibrationView> views;
+  vision::IntrinsicCalibrationResult result;
+};
+IntrinsicsStep calibrate_camera(const std::string& camera, int width, int height,
+                                const std::vector<std::filesystem::path>& files,
+                                const vision::TargetBoard& board, const StepLog& log);
+
+// 2. The rig: the cameras' relative poses from views they share.
+struct RigStepOptions {
+  vision::RigCalibrationOptions calibration;
+  std::vector<double> corner_sigma_px;  // per camera, set on every detected corner; empty: unset
+};
+struct RigStep {
+  std::vector<std::vector<vision::CameraFrame>> views;  // [view][camera]
+  std::vector<std::vector<std::string>> problems;       // [view][camera]; empty: seen
+  vision::RigCalibrationResult result;
+};
+RigStep calibrate_rig_from_views(const std::vector<vision::RigCamera>& cameras,
+                                 const vision::TargetBoard& board,
+                                 const std::vector<ImageSet>& views, const RigStepOptions& options,
+                                 const StepLog& log);
+
+// 3. The board's pose at every robot pose (one image set per pose; several frames per camera
+// are a settled-pose check).
+struct PoseStepOptions {
+  vision::PoseMeasurementOptions measurement;
+  std::vector<double> corner_sigma_px;  // per camera, set on every detected corner; empty: unset
+};
+struct PoseImages {
+  std::vector<std::vector<vision::CameraFrame>> frames;  // [frame][camera]
+  std::vector<std::string> problems;                     // missing / unreadable images
+  vision::PoseMeasurement measurement;
+};
+std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>& rig,
+                                            const vision::TargetBoard& board,
+                                            const std::vector<ImageSet>& poses,
+                                            const PoseStepOptions& options, const StepLog& log);
+
+}  // namespace robocal::app

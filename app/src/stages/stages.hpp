@@ -1,0 +1,75 @@
+#pragma once
+// The stages of a session (app/SESSION.md), one function each, each reading and writing a
+// session folder: simulate -> measure -> identify -> validate. `robocal simulate / measure /
+// identify / validate / batch / demo` are thin front ends over these; folder-mode `robocal rig`
+// and `robocal measure --rig` run measure's steps (stages/measure_steps.hpp).
+//
+// Each stage returns its report (also written to results/<stage>.json) with "status":
+//   "ok"        the stage produced its result
+//   "failed"    it ran but the result is not acceptable (e.g. a camera calibration refused)
+//   "no_truth"  validate only: the session has no truth/ folder (a recorded session)
+// Bad input (missing or malformed files, a robot file that does not match) throws InputError.
+#include "cli/command_registry.hpp"
+#include "cli/progress.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+namespace robocal::app {
+
+// Where a stage reports progress. out == nullptr: silent (parallel batch).
+struct PipelineLog {
+  std::FILE* out = stdout;
+  StageClock* clock = nullptr;  // optional: sub-stages are timed on it
+  int threads = 2;              // workers for rendering and detection
+};
+
+struct SimulateOptions {
+  std::string robot = "rotary_delta";  // library robot name or robot file
+  unsigned seed = 1;
+  int poses = 60;
+  // Calibration views: the intrinsics' error sets the rig frame itself (camera 0's), which every
+  // measured pose inherits (a focal length 0.04 px off scales depth by 25 ppm: 30 µm at the
+  // working volume). 24 views per camera left 0.02-0.10 px against the truth, 48 about half.
+  int intrinsic_views = 48;  // per camera
+  int rig_views = 12;
+  bool quick = false;  // 1280x960 images (CI)
+  std::filesystem::path out;
+};
+
+// stages/simulate.cpp
+nlohmann::json simulate_session(const SimulateOptions& options, const PipelineLog& log);
+
+// stages/measure.cpp. robot_override: a robot file to use instead of the session's (checked
+// against the session).
+nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
+                               const PipelineLog& log);
+// stages/identify.cpp. route: "pose" (from the measured 6-D poses), "pixel" or "both" (also
+// camera-in-the-loop from the corner pixels, started from the pose route's base-frame alignment;
+// both reported). priors: the robot file's tolerances as priors (MAP) on every geometric
+// parameter except the base frame (see app/SESSION.md); false = maximum likelihood from the
+// measurements alone.
+nlohmann::json identify_session(const std::filesystem::path& dir, const std::string& robot_override,
+                                const PipelineLog& log, const std::string& route = "both",
+                                bool priors = true);
+// stages/validate.cpp
+nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
+                                const PipelineLog& log);
+
+// Exit code of a stage report: ok 0, failed 1, no_truth 3 (a missing input).
+inline int exit_code_of(const nlohmann::json& report) {
+  const std::string status = report.value("status", "failed");
+  if (status == "ok") return kExitOk;
+  if (status == "no_truth") return kExitBadInput;
+  return kExitFailure;
+}
+
+// Where human-readable output goes: stdout, or stderr when the JSON report takes stdout.
+inline std::FILE* human_stream(const std::string& json_path) {
+  return json_path == "-" ? stderr : stdout;
+}
+
+}  // namespace robocal::app

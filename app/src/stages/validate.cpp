@@ -1,0 +1,320 @@
+// The validate stage: a simulated session's calibrated robot against its hidden truth (truth/,
+// which no other stage reads), on held-out configurations the fit never saw.
+#include "cli/cli_common.hpp"
+#include "session/json_values.hpp"
+#include "session/results_files.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+#include "stages/measured_region.hpp"
+#include "stages/stage_log.hpp"
+#include "stages/stages.hpp"
+
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/held_out_errors.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/vision/camera_io.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <optional>
+#include <random>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// RMS pixel distance between two camera models over a grid of 3-D points 1 m in front of the
+// camera spanning the image (the points are placed with the true model).
+double projection_difference_px(const vision::CameraModel& estimated,
+                                const vision::CameraModel& truth) {
+  double sum = 0;
+  int n = 0;
+  for (int j = 0; j <= 10; ++j) {
+    for (int i = 0; i <= 10; ++i) {
+      const Eigen::Vector2d px(i * (truth.width - 1) / 10.0, j * (truth.height - 1) / 10.0);
+      const auto ray = vision::unproject(truth, px);
+      if (!ray) continue;
+      const auto p = vision::project(estimated, *ray / ray->z());
+      if (!p) continue;
+      sum += (*p - px).squaredNorm();
+      ++n;
+    }
+  }
+  return n > 0 ? std::sqrt(sum / n) : std::numeric_limits<double>::infinity();
+}
+
+nlohmann::json stats_json(const calib::PositionErrorStats& e) {
+  return {{"rms_m", e.rms}, {"max_m", e.max}, {"poses", e.n}};
+}
+
+}  // namespace
+
+nlohmann::json validate_session(const fs::path& dir, int held_out, const PipelineLog& log) {
+  const Session s = load_session(dir);
+  const ResultsLayout results{dir};
+  nlohmann::json report{{"stage", "validate"}, {"session", dir.string()}};
+  if (!fs::is_directory(results.truth_dir()) || !fs::exists(results.truth())) {
+    report["status"] = "no_truth";
+    report["message"] = fmt::format(
+        "{}: missing. This session has no ground truth (a recorded session, or truth/ was moved "
+        "away), so there is nothing to validate against; held-out validation on measured poses "
+        "is `robocal identify --holdout-every K` on results/measurements.yaml",
+        results.truth_dir().string());
+    say(log, "validate: {}\n", report["message"].get<std::string>());
+    return report;
+  }
+  const SessionRobot robot = session_robot(s, "");
+  const calib::Mechanism& model = robot.model;
+  const IdentificationFile ident =
+      read_identification(results, model, "run `robocal identify` on the session first");
+  if (ident.status != "ok")
+    throw InputError(results.identification().string() +
+                     ": the identification did not succeed; nothing to validate");
+  const Eigen::VectorXd& start = ident.start;
+  const Eigen::VectorXd& estimate = ident.estimate;
+  const std::optional<Eigen::VectorXd>& pixel_estimate = ident.pixel_estimate;
+  const TruthFile truth_file = read_truth(results, model);
+  const Eigen::VectorXd& truth = truth_file.truth;
+  const Eigen::VectorXd& true_nominal = truth_file.nominal;
+  const Eigen::Isometry3d cam0_T_world = truth_file.cameras.at(0).camera_T_world;
+  stage(log, "validate");
+
+  // The cameras and the rig against the truth.
+  nlohmann::json cams = nlohmann::json::array();
+  for (std::size_t c = 0; c < s.cameras.size() && c < truth_file.cameras.size(); ++c) {
+    const fs::path f = results.camera(s.cameras[c].name);
+    if (!fs::exists(f)) continue;
+    const auto est = vision::load_camera_file(f);
+    const auto& true_model = truth_file.cameras[c].model;
+    const double projection = projection_difference_px(est, true_model);
+    cams.push_back({{"camera", s.cameras[c].name},
+                    {"fx", est.params[0]},
+                    {"fx_true", true_model.params[0]},
+                    {"projection_vs_truth_px", projection}});
+    say(log, "  {}: fx {:.2f} px (true {:.2f}), model vs truth {:.4f} px RMS\n", s.cameras[c].name,
+        est.params[0], true_model.params[0], projection);
+  }
+  report["cameras"] = cams;
+  if (fs::exists(results.rig()) && truth_file.cameras.size() > 1) {
+    const RigFile rig = read_rig_file(results.rig());
+    const auto centre = [](const Eigen::Isometry3d& camera_T_world) {
+      return Eigen::Vector3d(camera_T_world.inverse().translation());
+    };
+    const double true_baseline = (centre(truth_file.cameras[1].camera_T_world) -
+                                  centre(truth_file.cameras[0].camera_T_world))
+                                     .norm();
+    const double baseline = rig.baseline_m.at(1);
+    report["rig"] = {{"baseline_m", baseline},
+                     {"baseline_true_m", true_baseline},
+                     {"baseline_error_m", baseline - true_baseline}};
+    say(log, "  baseline {:.5f} m (true {:.5f} m, error {:+.1f} µm)\n", baseline, true_baseline,
+        (baseline - true_baseline) * 1e6);
+  }
+  // The measured board poses against the truth (camera 0's frame); their measured positions
+  // span the measured region (measured_region.hpp).
+  std::vector<Eigen::Vector3d> measured_positions;
+  if (fs::exists(results.measured_poses())) {
+    std::map<std::string, Eigen::Isometry3d> true_poses;
+    for (const auto& p : truth_file.poses) true_poses[p.pose] = p.world_T_board;
+    std::vector<Eigen::Vector3d> measured, expected;
+    for (const auto& p : read_used_measured_poses(results, "")) {
+      measured_positions.emplace_back(p.rig_T_target.translation());
+      const auto it = true_poses.find(p.pose);
+      if (it == true_poses.end()) continue;
+      measured.emplace_back(p.rig_T_target.translation());
+      expected.emplace_back(cam0_T_world * it->second.translation());
+    }
+    const auto stats = calib::position_error_stats(measured, expected);
+    report["measured_poses_vs_truth"] = stats_json(stats);
+    say(log, "  board position measured vs truth: {:.1f} µm RMS over {} poses\n", stats.rms * 1e6,
+        stats.n);
+  }
+
+  // Held-out configurations the fit never saw (no images needed): nominal (base frame fitted)
+  // and calibrated model against the true robot, in camera 0's frame.
+  calib::MechanismPredictor true_predictor(model, robot.frame);
+  std::mt19937 validation_rng(s.seed + 7919);
+  std::vector<Eigen::VectorXd> must_solve = {truth, start, estimate};
+  if (pixel_estimate) must_solve.push_back(*pixel_estimate);
+  const auto configurations = calib::sample_actuators(
+      true_predictor, must_solve, static_cast<std::size_t>(held_out), validation_rng);
+  std::vector<Eigen::Vector3d> truth_points, nominal_points, calibrated_points, pixel_points;
+  std::vector<Eigen::VectorXd> kept_configurations;
+  int branch_disagreements = 0;
+  for (const auto& q : configurations) {
+    const auto true_fk = calib::forward_kinematics(model, truth, q, robot.frame);
+    const auto nominal_fk = calib::forward_kinematics(model, start, q, robot.frame);
+    const auto calibrated_fk = calib::forward_kinematics(model, estimate, q, robot.frame);
+    if (!true_fk.closure.ok() || !nominal_fk.closure.ok() || !calibrated_fk.closure.ok()) continue;
+    const auto pixel_fk = pixel_estimate
+                              ? calib::forward_kinematics(model, *pixel_estimate, q, robot.frame)
+                              : calibrated_fk;
+    if (!pixel_fk.closure.ok()) continue;
+    // A prediction 5 cm off is not an accuracy figure but the closure solver on another
+    // assembly mode (seen for the nominal model at extreme actuator values): count it apart.
+    const Eigen::Vector3d t = cam0_T_world * true_fk.pose.translation();
+    constexpr double kBranchGap = 0.05;
+    if ((nominal_fk.pose.translation() - t).norm() > kBranchGap ||
+        (calibrated_fk.pose.translation() - t).norm() > kBranchGap ||
+        (pixel_fk.pose.translation() - t).norm() > kBranchGap) {
+      ++branch_disagreements;
+      continue;
+    }
+    truth_points.push_back(t);
+    nominal_points.emplace_back(nominal_fk.pose.translation());
+    calibrated_points.emplace_back(calibrated_fk.pose.translation());
+    pixel_points.emplace_back(pixel_fk.pose.translation());
+    kept_configurations.push_back(q);
+  }
+  if (branch_disagreements > 0)
+    say(log,
+        "  note: {} held-out configurations left out: a model's closure solved to another "
+        "assembly mode there\n",
+        branch_disagreements);
+  const calib::HeldOutErrors nominal_errors = calib::held_out_errors(nominal_points, truth_points);
+  const calib::HeldOutErrors calibrated_errors =
+      calib::held_out_errors(calibrated_points, truth_points);
+  report["held_out_poses"] = calibrated_errors.absolute.n;
+  report["held_out_requested"] = held_out;
+  report["seed"] = s.seed + 7919;
+  report["assembly_mode_disagreements"] = branch_disagreements;
+  report["nominal"] = stats_json(nominal_errors.absolute);
+  report["calibrated"] = stats_json(calibrated_errors.absolute);
+  report["nominal_registered"] = stats_json(nominal_errors.registered);
+  report["calibrated_registered"] = stats_json(calibrated_errors.registered);
+  calib::HeldOutErrors pixel_errors;
+  if (pixel_estimate) {
+    pixel_errors = calib::held_out_errors(pixel_points, truth_points);
+    report["calibrated_pixels"] = stats_json(pixel_errors.absolute);
+    report["calibrated_pixels_registered"] = stats_json(pixel_errors.registered);
+  }
+  // Interpolation or extrapolation: where each held-out position lies relative to the measured
+  // region (the convex hull of the measured board positions). Far outside it, the model is
+  // extrapolated along directions the measured poses constrain weakly.
+  std::vector<RegionDistance> region(truth_points.size());
+  if (!measured_positions.empty()) {
+    std::vector<bool> inside(truth_points.size());
+    std::vector<double> outside_m(truth_points.size());
+    for (std::size_t k = 0; k < truth_points.size(); ++k) {
+      region[k] = distance_to_region(measured_positions, truth_points[k]);
+      inside[k] = region[k].inside;
+      outside_m[k] = region[k].outside_m;
+    }
+    Eigen::Vector3d lo = measured_positions[0], hi = measured_positions[0];
+    for (const auto& m : measured_positions) {
+      lo = lo.cwiseMin(m);
+      hi = hi.cwiseMax(m);
+    }
+    report["measured_region"] = {
+        {"definition",
+         "convex hull of the measured end-effector board positions (results/measured_poses.json, "
+         "used poses) in camera 0's frame; a held-out configuration is inside when its true board "
+         "position lies in the hull (within inside_tolerance_m), outside otherwise; "
+         "outside_measured_region_m (worst_held_out) and distance_*_m (held_out_by_region) are "
+         "distances to the hull"},
+        {"measured_poses", measured_positions.size()},
+        {"inside_tolerance_m", kRegionInsideTolerance},
+        {"bounding_box_m", {{"min", {lo.x(), lo.y(), lo.z()}}, {"max", {hi.x(), hi.y(), hi.z()}}}}};
+    std::vector<NamedPoints> predictions = {{"nominal", &nominal_points},
+                                            {"calibrated", &calibrated_points}};
+    if (pixel_estimate) predictions.push_back({"calibrated_pixels", &pixel_points});
+    // The registered figures keep the one transform fitted over all held-out configurations.
+    const auto add_registered = [&](const char* name, const calib::HeldOutErrors& e) {
+      if (e.registered_points.size() == truth_points.size())
+        predictions.push_back({name, &e.registered_points});
+    };
+    add_registered("nominal_registered", nominal_errors);
+    add_registered("calibrated_registered", calibrated_errors);
+    if (pixel_estimate) add_registered("calibrated_pixels_registered", pixel_errors);
+    report["held_out_by_region"] =
+        split_errors_by_region(inside, outside_m, truth_points, predictions);
+  }
+  // The worst held-out configurations with the true robot's task conditioning there
+  // (σ_min/σ_max of d(position)/d(actuators)): one pose near a singularity can carry most of the
+  // RMS, and the user should see that rather than a mean.
+  {
+    std::vector<std::size_t> order(truth_points.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    auto worst_of = [&](std::size_t k) {
+      double e = (calibrated_points[k] - truth_points[k]).norm();
+      if (pixel_estimate) e = std::max(e, (pixel_points[k] - truth_points[k]).norm());
+      return e;
+    };
+    std::sort(order.begin(), order.end(),
+              [&](std::size_t a, std::size_t b) { return worst_of(a) > worst_of(b); });
+    nlohmann::json worst = nlohmann::json::array();
+    for (std::size_t w = 0; w < std::min<std::size_t>(5, order.size()); ++w) {
+      const std::size_t k = order[w];
+      const Eigen::VectorXd& q = kept_configurations[k];
+      nlohmann::json row = {
+          {"actuators", std::vector<double>(q.data(), q.data() + q.size())},
+          {"calibrated_error_m", (calibrated_points[k] - truth_points[k]).norm()},
+          {"task_conditioning", calib::task_conditioning(true_predictor, truth, q)}};
+      if (pixel_estimate)
+        row["calibrated_pixels_error_m"] = (pixel_points[k] - truth_points[k]).norm();
+      if (!measured_positions.empty()) {
+        row["inside_measured_region"] = region[k].inside;
+        row["outside_measured_region_m"] = region[k].outside_m;
+        row["nearest_measured_pose_m"] = region[k].nearest_measured_m;
+      }
+      worst.push_back(row);
+    }
+    report["worst_held_out"] = worst;
+  }
+
+  // Parameters: estimated change next to the true change, largest (in tolerance sigmas) first.
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i)
+    if (estimate[static_cast<Eigen::Index>(i)] != start[static_cast<Eigen::Index>(i)])
+      order.push_back(i);
+  const auto score = [&](std::size_t i) {
+    const auto k = static_cast<Eigen::Index>(i);
+    return std::abs(estimate[k] - start[k]) / std::max(model.parameters[i].sigma, 1e-12);
+  };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return score(a) > score(b); });
+  // A parameter that stands in for confounded ones (identifiability redundancies name it as a
+  // partner) carries their combination: its change is not comparable with its own true change.
+  // The base frame is the cell's placement (camera 0 <- robot base), not a robot dimension.
+  std::map<std::string, int> carries;
+  const nlohmann::json no_redundancies = nlohmann::json::array();
+  const nlohmann::json& ident_report = ident.report;
+  const nlohmann::json& analysis =
+      ident_report.contains("result") ? ident_report.at("result") : ident_report;
+  const nlohmann::json& redundancies =
+      analysis.contains("identifiability") &&
+              analysis.at("identifiability").contains("redundancies")
+          ? analysis.at("identifiability").at("redundancies")
+          : no_redundancies;
+  for (const auto& red : redundancies)
+    for (const auto& partner : red.value("partners", nlohmann::json::array()))
+      ++carries[partner.value("name", "")];
+  nlohmann::json params = nlohmann::json::array();
+  for (std::size_t i : order) {
+    const auto k = static_cast<Eigen::Index>(i);
+    const int body = model.parameters[i].body;
+    const bool base_frame = body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0;
+    const auto carried = carries.find(model.parameters[i].name);
+    params.push_back({{"name", model.parameters[i].name},
+                      {"unit", unit_name(model.parameters[i].unit)},
+                      {"estimated_change", estimate[k] - start[k]},
+                      {"true_change", truth[k] - true_nominal[k]},
+                      {"base_frame", base_frame},
+                      {"stands_in_for", carried == carries.end() ? 0 : carried->second}});
+  }
+  report["parameters"] = params;
+  report["status"] = calibrated_errors.absolute.n > 0 ? "ok" : "failed";
+  report["improved"] = calibrated_errors.absolute.n > 0 &&
+                       calibrated_errors.absolute.rms < nominal_errors.absolute.rms;
+  write_json(report, results.report("validation").string());
+  return report;
+}
+
+}  // namespace robocal::app

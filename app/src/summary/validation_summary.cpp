@@ -1,0 +1,128 @@
+// The closing summary of a validation in plain words (`robocal validate`, `robocal demo`).
+#include "summary/validation_summary.hpp"
+
+#include "session/results_layout.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <string>
+
+namespace robocal::app {
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+std::string fmt_param_change(const std::string& unit, double delta) {
+  if (unit == "length") return fmt::format("{:+8.3f} mm", delta * 1e3);
+  if (unit == "angle") return fmt::format("{:+8.4f} deg", delta * kRadToDeg);
+  return fmt::format("{:+8.2e}", delta);
+}
+
+}  // namespace
+
+void print_validation_summary(std::FILE* out, const nlohmann::json& v,
+                              const nlohmann::json& ident) {
+  if (v.value("status", "") == "no_truth") {
+    fmt::print(out, "\n=== No validation: {}\n", v.value("message", ""));
+    return;
+  }
+  const double before = v.at("nominal").at("rms_m").get<double>();
+  const double after = v.at("calibrated").at("rms_m").get<double>();
+  fmt::print(out,
+             "\n=== Result: end-effector position error on {} held-out poses, against the truth\n",
+             v.at("held_out_poses").get<int>());
+  fmt::print(out, "  nominal model (base frame fitted): {:8.1f} µm RMS, {:8.1f} µm max\n",
+             before * 1e6, v.at("nominal").at("max_m").get<double>() * 1e6);
+  fmt::print(
+      out,
+      "  calibrated model:                  {:8.1f} µm RMS, {:8.1f} µm max  ({:.0f}x better)\n",
+      after * 1e6, v.at("calibrated").at("max_m").get<double>() * 1e6,
+      after > 0 ? before / after : 0.0);
+  if (v.contains("calibrated_pixels"))
+    fmt::print(out,
+               "  calibrated from pixels (camera-in-the-loop): {:5.1f} µm RMS, {:8.1f} µm max  "
+               "(line above: from measured 6-D poses)\n",
+               v["calibrated_pixels"].at("rms_m").get<double>() * 1e6,
+               v["calibrated_pixels"].at("max_m").get<double>() * 1e6);
+  if (v.contains("held_out_by_region") && v.contains("measured_region")) {
+    const auto& by_region = v["held_out_by_region"];
+    fmt::print(out,
+               "  by region (measured region = convex hull of the {} measured board positions):\n",
+               v["measured_region"].value("measured_poses", 0));
+    for (const char* side : {"inside", "outside"}) {
+      const auto& part = by_region.at(side);
+      const int n = part.value("held_out_poses", 0);
+      const bool in = std::string(side) == "inside";
+      std::string line = fmt::format(
+          "    {:<24} {:4} poses", in ? "inside (interpolation):" : "outside (extrapolation):", n);
+      if (n > 0) {
+        line += fmt::format(": calibrated {:.1f} µm RMS, {:.1f} µm max",
+                            part.at("calibrated").at("rms_m").get<double>() * 1e6,
+                            part.at("calibrated").at("max_m").get<double>() * 1e6);
+        if (part.contains("calibrated_pixels"))
+          line += fmt::format("; from pixels {:.1f} µm RMS, {:.1f} µm max",
+                              part["calibrated_pixels"].at("rms_m").get<double>() * 1e6,
+                              part["calibrated_pixels"].at("max_m").get<double>() * 1e6);
+        if (!in)
+          line += fmt::format(" (up to {:.0f} mm outside, median {:.0f} mm)",
+                              part.value("distance_max_m", 0.0) * 1e3,
+                              part.value("distance_median_m", 0.0) * 1e3);
+      }
+      fmt::print(out, "{}\n", line);
+    }
+  }
+  fmt::print(out, "  robot accuracy in its own frame (after best-fit rigid registration):\n");
+  fmt::print(out, "    nominal {:.1f} µm RMS, calibrated {:.1f} µm RMS ({:.1f} µm max)\n",
+             v.at("nominal_registered").at("rms_m").get<double>() * 1e6,
+             v.at("calibrated_registered").at("rms_m").get<double>() * 1e6,
+             v.at("calibrated_registered").at("max_m").get<double>() * 1e6);
+  if (v.contains("held_out_by_region")) {
+    const auto& in = v["held_out_by_region"].at("inside");
+    const auto& out_part = v["held_out_by_region"].at("outside");
+    if (in.contains("calibrated_registered") && out_part.contains("calibrated_registered"))
+      fmt::print(out,
+                 "    calibrated inside the measured region {:.1f} µm RMS, outside {:.1f} µm "
+                 "RMS\n",
+                 in["calibrated_registered"].at("rms_m").get<double>() * 1e6,
+                 out_part["calibrated_registered"].at("rms_m").get<double>() * 1e6);
+  }
+  fmt::print(
+      out,
+      "\n  robot dimensions that changed most (estimated change; true change in brackets;"
+      "\n  the base frame, i.e. where the robot stands in the cameras' world, is left out):\n");
+  int listed = 0;
+  bool any_stand_in = false;
+  for (const auto& p : v.at("parameters")) {
+    if (listed == 8) break;
+    if (p.value("base_frame", false)) continue;
+    const auto unit = p.at("unit").get<std::string>();
+    const int stands_in_for = p.value("stands_in_for", 0);
+    any_stand_in = any_stand_in || stands_in_for > 0;
+    fmt::print(out, "    {:<24} {}  ({}){}\n", p.at("name").get<std::string>(),
+               fmt_param_change(unit, p.at("estimated_change").get<double>()),
+               fmt_param_change(unit, p.at("true_change").get<double>()),
+               stands_in_for > 0 ? fmt::format("  *{}", stands_in_for) : std::string());
+    ++listed;
+  }
+  if (any_stand_in)
+    fmt::print(out,
+               "    *N: also carries N parameters it cannot be told apart from (held at nominal), "
+               "so its change is\n       their combination, not comparable with its own true "
+               "change\n");
+  if (ident.contains("not_identified") && !ident["not_identified"].empty()) {
+    const auto& messages = ident["not_identified"];
+    fmt::print(out, "\n  what could not be identified ({} parameters held at nominal):\n",
+               ident.value("held_at_nominal", 0));
+    for (std::size_t k = 0; k < std::min<std::size_t>(6, messages.size()); ++k) {
+      const auto m = messages[k].get<std::string>();
+      fmt::print(out, "    - {}\n", m.size() > 240 ? m.substr(0, 237) + "..." : m);
+    }
+    if (messages.size() > 6)
+      fmt::print(out, "    ... {} more in {}\n", messages.size() - 6,
+                 ResultsLayout::kIdentification);
+  }
+}
+
+}  // namespace robocal::app

@@ -1,0 +1,37 @@
+#include "robocal/core/files.hpp"
+
+#include "robocal/core/input_error.hpp"
+
+#include <fstream>
+#include <sstream>
+
+namespace robocal::core {
+
+namespace fs = std::filesystem;
+
+std::string read_text_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.string() + ": cannot open file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void write_file_atomic(const fs::path& path, const std::string& bytes, Overwrite overwrite) {
+  std::error_code ec;
+  if (overwrite == Overwrite::kRefuse && fs::exists(path, ec))
+    throw InputError(path.string() + ": exists; recorded data is never overwritten");
+  if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
+  fs::path tmp = path;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw InputError(tmp.string() + ": cannot write file");
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (!out.flush()) throw InputError(tmp.string() + ": write failed");
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) throw InputError(path.string() + ": cannot rename temporary file: " + ec.message());
+}
+
+}  // namespace robocal::core

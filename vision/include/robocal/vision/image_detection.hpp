@@ -1,0 +1,48 @@
+#pragma once
+// Images -> board detections on worker threads: the one loop behind every caller (intrinsics
+// from a folder of views, the rig's shared views, the end-effector board at each robot pose).
+// One bad image never stops the others: it comes back with its problem in words.
+#include "robocal/vision/apriltag_detector.hpp"
+#include "robocal/vision/observations.hpp"
+#include "robocal/vision/target.hpp"
+#include "robocal/vision/target_detection.hpp"
+
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace robocal::vision {
+
+struct DetectionRequest {
+  std::filesystem::path image;
+  // Expected image size (0 = not checked) and who expects it, for the message
+  // "<file>: image is 640x400 but <expected_by> for 640x480" (e.g. "camera 'left' is
+  // calibrated").
+  int width = 0;
+  int height = 0;
+  std::string expected_by;
+};
+
+struct ImageDetection {
+  // "<file>: <why>" when the image is unreadable, has the wrong size or the target was not
+  // found (detection status kRejected); empty when the target was found (kFound / kPartial).
+  std::string problem;
+  TargetDetection detection;  // as detected (also when rejected); empty when not read
+  int width = 0;              // of the image read; 0 when unreadable
+  int height = 0;
+};
+
+// Detects `board` in every requested image on up to `threads` workers, each with its own
+// detector (`detector` options; the family is the board's). `done` (optional) is called once per
+// image, from the worker that finished it. Results are in request order.
+std::vector<ImageDetection> detect_in_images(const std::vector<DetectionRequest>& requests,
+                                             const TargetBoard& board, int threads,
+                                             const std::function<void()>& done = {},
+                                             const AprilTagDetectorOptions& detector = {});
+
+// A detection as the estimators read it: the corners (sigma unknown: 0), the edge blur and the
+// per-tag joint corner covariances. Empty for a rejected detection.
+CameraFrame camera_frame(const TargetDetection& detection);
+
+}  // namespace robocal::vision
