@@ -23,7 +23,7 @@ set(allowed_core "")
 set(allowed_vision "core")
 set(allowed_calib "core;vision_camera")
 set(allowed_robotio "core;vision;calib")
-set(allowed_planner "core;vision;calib;robotio")
+set(allowed_planner "core;vision;calib")
 set(allowed_app "core;vision;calib;robotio;planner")
 
 # Headers of vision that calib may include (the camera models, no OpenCV).
