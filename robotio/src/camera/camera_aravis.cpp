@@ -575,11 +575,9 @@ StreamStatistics AravisCamera::statistics() const {
   stats.failed_frames = failures;
   stats.underruns = underruns;
   if (ARV_IS_GV_STREAM(impl_->stream)) {
-    guint64 resent = 0;
-    guint64 missing = 0;
-    arv_gv_stream_get_statistics(ARV_GV_STREAM(impl_->stream), &resent, &missing);
-    stats.resent_packets = resent;
-    stats.missing_packets = missing;
+    stats.resent_packets = arv_stream_get_info_uint64_by_name(impl_->stream, "n_resent_packets");
+    stats.missing_packets = arv_stream_get_info_uint64_by_name(impl_->stream, "n_missing_packets");
+    stats.resend_requests = arv_stream_get_info_uint64_by_name(impl_->stream, "n_resend_requests");
   }
   return stats;
 }

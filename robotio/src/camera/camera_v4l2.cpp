@@ -43,11 +43,12 @@ unsigned char clamp_byte(double value) {
 // YUYV (YUV 4:2:2, BT.601 limited range): Y0 U Y1 V for each pair of pixels.
 cv::Mat yuyv_to_bgr(const unsigned char* data, int width, int height, std::size_t stride) {
   cv::Mat bgr(height, width, CV_8UC3);
+  const auto columns = static_cast<std::size_t>(width);
   for (int row = 0; row < height; ++row) {
     const unsigned char* in = data + static_cast<std::size_t>(row) * stride;
     auto* out = bgr.ptr<unsigned char>(row);
-    for (int col = 0; col < width; ++col) {
-      const int pair = col / 2;
+    for (std::size_t col = 0; col < columns; ++col) {
+      const std::size_t pair = col / 2;
       const double luma = 1.164383 * (in[pair * 4 + (col % 2) * 2] - 16.0);
       const double u = in[pair * 4 + 1] - 128.0;
       const double v = in[pair * 4 + 3] - 128.0;
@@ -61,10 +62,11 @@ cv::Mat yuyv_to_bgr(const unsigned char* data, int width, int height, std::size_
 
 cv::Mat yuyv_to_grey(const unsigned char* data, int width, int height, std::size_t stride) {
   cv::Mat grey(height, width, CV_8UC1);
+  const auto columns = static_cast<std::size_t>(width);
   for (int row = 0; row < height; ++row) {
     const unsigned char* in = data + static_cast<std::size_t>(row) * stride;
     auto* out = grey.ptr<unsigned char>(row);
-    for (int col = 0; col < width; ++col) {
+    for (std::size_t col = 0; col < columns; ++col) {
       out[col] = in[col * 2];
     }
   }

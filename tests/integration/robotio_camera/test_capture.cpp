@@ -40,7 +40,7 @@ std::string netns_unavailable() {
   } while (false)
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("robocal_capture_" + name);
+  fs::path dir = fs::temp_directory_path() / ("robocal_capture_" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -97,7 +97,7 @@ TEST(Capture, EveryPoseRecordedWithFramesBitExactAndReplayableAsARecordedSession
   const fs::path session = fresh_dir("bit_exact");
   GantryCell cell;
   // Enough history for every frame rendered in this test.
-  CameraRig rig(cell, 4 * kPoses);
+  CameraRig rig(cell, std::size_t{4} * kPoses);
   const auto targets = gantry_targets(kPoses);
   CaptureOptions options;
   options.session_start_ns = host_time_ns();

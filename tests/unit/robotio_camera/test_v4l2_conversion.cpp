@@ -61,7 +61,7 @@ TEST(V4l2Conversion, YuyvLumaIsTheBt601LumaOfTheTruth) {
   double worst = 0.0;
   for (int y = 0; y < 32; ++y) {
     for (int x = 0; x < 48; ++x) {
-      const cv::Vec3b p = rgb.at<cv::Vec3b>(y, x);
+      const cv::Vec3b& p = rgb.at<cv::Vec3b>(y, x);
       // BT.601 studio-range luma, rounded once by the generator.
       const double luma = 16.0 + (65.481 * p[0] + 128.553 * p[1] + 24.966 * p[2]) / 255.0;
       worst = std::max(worst, std::abs(grey.at<unsigned char>(y, x) - luma));
@@ -108,7 +108,7 @@ void expect_jpeg_close_to_truth(const std::string& file) {
   double grey_error = 0.0;
   for (int y = 0; y < 32; ++y) {
     for (int x = 0; x < 48; ++x) {
-      const cv::Vec3b p = truth.at<cv::Vec3b>(y, x);
+      const cv::Vec3b& p = truth.at<cv::Vec3b>(y, x);
       const double luma = 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];  // JFIF full range
       grey_error += std::abs(grey.at<unsigned char>(y, x) - luma);
     }

@@ -31,6 +31,7 @@ struct StreamStatistics {
   std::uint64_t completed_frames = 0;
   std::uint64_t failed_frames = 0;    // incomplete, wrong size, aborted
   std::uint64_t underruns = 0;        // no buffer free when a frame arrived
+  std::uint64_t resend_requests = 0;  // GigE Vision: packet resend requests sent
   std::uint64_t resent_packets = 0;   // GigE Vision: packets recovered by resend requests
   std::uint64_t missing_packets = 0;  // GigE Vision: packets never received
 };

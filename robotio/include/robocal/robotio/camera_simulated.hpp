@@ -3,6 +3,11 @@
 // simulated controller really holds, read from its truth channel (never from the measurement
 // pipeline), and served as a GigE Vision camera through Aravis' fake camera. Capture then opens
 // it with AravisCamera, exactly as a real camera.
+//
+// The frame is rendered inside the fake camera's thread, which also answers the GigE Vision
+// control channel: a render that takes longer than the client's heartbeat window (Aravis: about
+// 5 s) makes the client report the camera lost. Keep renders short (image size, blur) on a busy
+// machine.
 #include "robocal/robotio/camera_fake_gige.hpp"
 #include "robocal/vision/camera_model.hpp"
 #include "robocal/vision/renderer.hpp"
