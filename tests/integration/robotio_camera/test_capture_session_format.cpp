@@ -1,8 +1,8 @@
-// A captured session is read by the pipeline's own session reader (app/src/session.hpp, the one
+// A captured session is read by the pipeline's own session reader (app/src/session/session.hpp, the one
 // `measure`, `identify` and `batch` use): every pose loads with its readings, nothing flagged.
 #include "camera_cell.hpp"
 #include "robocal/robotio/capture.hpp"
-#include "session.hpp"
+#include "session/session.hpp"
 
 #include <gtest/gtest.h>
 
