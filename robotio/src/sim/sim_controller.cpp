@@ -262,13 +262,7 @@ struct SimController::Impl {
   double t() const { return now_seconds() - t0; }
 
   std::vector<long> counts_of(const Eigen::VectorXd& readings) const {
-    std::vector<long> c;
-    for (int i = 0; i < robot.axes.size(); ++i) {
-      const auto k = static_cast<std::size_t>(i);
-      c.push_back(
-          std::lround(readings[i] * robot.axes.unit_factor[k] * robot.axes.steps_per_unit[k]));
-    }
-    return c;
+    return axis_counts(robot.axes, readings);
   }
   double units_of(long count, int axis) const {
     return static_cast<double>(count) / robot.axes.steps_per_unit[static_cast<std::size_t>(axis)];
@@ -363,9 +357,9 @@ struct SimController::Impl {
     m.duration = trapezoid_seconds(m.length, m.feed, m.acceleration);
     m.start = now;
     ++counters.motions;
-    std::vector<double> target;
+    std::vector<double> target(m.to.size());
     for (int i = 0; i < robot.axes.size(); ++i)
-      target.push_back(units_of(m.to[static_cast<std::size_t>(i)], i));
+      target[static_cast<std::size_t>(i)] = units_of(m.to[static_cast<std::size_t>(i)], i);
     write_log({{"ev", "motion_start"},
                {"id", m.id},
                {"ch", m.channel},
@@ -382,10 +376,10 @@ struct SimController::Impl {
   }
 
   std::vector<double> readings_of(const std::vector<long>& c) const {
-    std::vector<double> r;
+    std::vector<double> r(c.size());
     for (int i = 0; i < robot.axes.size(); ++i)
-      r.push_back(units_of(c[static_cast<std::size_t>(i)], i) /
-                  robot.axes.unit_factor[static_cast<std::size_t>(i)]);
+      r[static_cast<std::size_t>(i)] = units_of(c[static_cast<std::size_t>(i)], i) /
+                                       robot.axes.unit_factor[static_cast<std::size_t>(i)];
     return r;
   }
 
