@@ -70,12 +70,20 @@ std::vector<long> GcodeLink::counts_for(const Eigen::VectorXd& readings) const {
 }
 
 FirmwareInfo GcodeLink::connect() {
-  transport_->open();
-  handshake();
-  FirmwareInfo info = identify();
-  status_.state = LinkState::kIdle;
-  set_last_known(do_read().values);
-  return info;
+  for (int round = 0;; ++round) {
+    try {
+      if (round > 0) std::this_thread::sleep_for(milliseconds(250));
+      transport_->open();
+      handshake();
+      FirmwareInfo info = identify();
+      status_.state = LinkState::kIdle;
+      set_last_known(do_read().values);
+      return info;
+    } catch (const LinkError&) {
+      // A connection lost while identifying is retried; anything the controller said is final.
+      if (transport_->is_open() || round >= options_.reconnect_attempts) throw;
+    }
+  }
 }
 
 void GcodeLink::disconnect() {
