@@ -604,6 +604,16 @@ struct SimController::Impl {
     return f;
   }
 
+  // A fault drawn for a line the firmware then rejects (a duplicate line number after a lost ok)
+  // never takes effect: it is logged as void and not counted.
+  void void_fault(Channel& c, std::optional<FaultKind> fault) {
+    if (!fault || *fault == FaultKind::kBusy || *fault == FaultKind::kGarbage ||
+        *fault == FaultKind::kSlow)
+      return;  // these happened before the line was judged
+    --counters.faults[static_cast<std::size_t>(*fault)];
+    write_log({{"ev", "fault_void"}, {"kind", to_string(*fault)}, {"ch", c.name}});
+  }
+
   void handle_line(Channel& c, Pending& item) {
     ReceivedLine rl = split_received_line(item.text);
     if (item.fault == FaultKind::kCorrupt && rl.has_checksum) rl.valid = false;
@@ -632,6 +642,7 @@ struct SimController::Impl {
     if (rl.has_number) {
       const bool m110 = rl.command.rfind("M110", 0) == 0;
       if (!rl.valid || fault == FaultKind::kResend) {
+        if (fault != FaultKind::kCorrupt && fault != FaultKind::kResend) void_fault(c, fault);
         send(c, fmt::format("Error:checksum mismatch, Last Line: {}", c.last_n));
         send(c, resend_request(options.dialect, c.last_n + 1));
         send(c, "ok");
@@ -644,6 +655,7 @@ struct SimController::Impl {
         return;
       }
       if (rl.number != c.last_n + 1) {
+        void_fault(c, fault);
         send(c,
              fmt::format("Error:Line Number is not Last Line Number+1, Last Line: {}", c.last_n));
         send(c, resend_request(options.dialect, c.last_n + 1));
