@@ -161,7 +161,7 @@ std::optional<FirmwareInfo> parse_firmware_line(const std::string& line) {
     name = trim(t.substr(name_at + 14));
     // Marlin: "FIRMWARE_NAME:Marlin 2.1.2 (Github) SOURCE_CODE_URL:..."; RRF: "FIRMWARE_NAME:
     // RepRapFirmware for Duet 3 MB6HC FIRMWARE_VERSION: 3.4.5 ELECTRONICS: ...".
-    const std::size_t next_key = name.find_first_of(":");
+    const std::size_t next_key = name.find(':');
     if (next_key != std::string_view::npos) {
       const std::size_t key_start = name.rfind(' ', next_key);
       name = trim(name.substr(0, key_start == std::string_view::npos ? 0 : key_start));

@@ -43,7 +43,7 @@ ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
   return axes;
 }
 
-GcodeLink::GcodeLink(SafetyGuard& guard, GcodeLinkOptions options)
+GcodeLink::GcodeLink(SafetyGuard& guard, const GcodeLinkOptions& options)
     : GcodeLink(guard, options, make_transport(options.address, options.baud)) {}
 
 GcodeLink::GcodeLink(SafetyGuard& guard, GcodeLinkOptions options,
@@ -56,21 +56,34 @@ GcodeLink::GcodeLink(SafetyGuard& guard, GcodeLinkOptions options,
 
 GcodeLink::~GcodeLink() = default;
 
-std::vector<long> GcodeLink::counts_for(const Eigen::VectorXd& readings) const {
-  std::vector<long> c;
-  for (int i = 0; i < options_.axes.size(); ++i)
-    c.push_back(std::lround(readings[i] * options_.axes.unit_factor[static_cast<std::size_t>(i)] *
-                            options_.axes.steps_per_unit[static_cast<std::size_t>(i)]));
+std::vector<long> axis_counts(const ActuatorAxes& axes, const Eigen::VectorXd& readings) {
+  std::vector<long> c(static_cast<std::size_t>(axes.size()));
+  for (int i = 0; i < axes.size(); ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    c[k] = std::lround(readings[i] * axes.unit_factor[k] * axes.steps_per_unit[k]);
+  }
   return c;
 }
 
+std::vector<long> GcodeLink::counts_for(const Eigen::VectorXd& readings) const {
+  return axis_counts(options_.axes, readings);
+}
+
 FirmwareInfo GcodeLink::connect() {
-  transport_->open();
-  handshake();
-  const FirmwareInfo info = identify();
-  status_.state = LinkState::kIdle;
-  set_last_known(do_read().values);
-  return info;
+  for (int round = 0;; ++round) {
+    try {
+      if (round > 0) std::this_thread::sleep_for(milliseconds(250));
+      transport_->open();
+      handshake();
+      FirmwareInfo info = identify();
+      status_.state = LinkState::kIdle;
+      set_last_known(do_read().values);
+      return info;
+    } catch (const LinkError&) {
+      // A connection lost while identifying is retried; anything the controller said is final.
+      if (transport_->is_open() || round >= options_.reconnect_attempts) throw;
+    }
+  }
 }
 
 void GcodeLink::disconnect() {

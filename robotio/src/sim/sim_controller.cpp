@@ -262,13 +262,7 @@ struct SimController::Impl {
   double t() const { return now_seconds() - t0; }
 
   std::vector<long> counts_of(const Eigen::VectorXd& readings) const {
-    std::vector<long> c;
-    for (int i = 0; i < robot.axes.size(); ++i) {
-      const auto k = static_cast<std::size_t>(i);
-      c.push_back(
-          std::lround(readings[i] * robot.axes.unit_factor[k] * robot.axes.steps_per_unit[k]));
-    }
-    return c;
+    return axis_counts(robot.axes, readings);
   }
   double units_of(long count, int axis) const {
     return static_cast<double>(count) / robot.axes.steps_per_unit[static_cast<std::size_t>(axis)];
@@ -363,9 +357,9 @@ struct SimController::Impl {
     m.duration = trapezoid_seconds(m.length, m.feed, m.acceleration);
     m.start = now;
     ++counters.motions;
-    std::vector<double> target;
+    std::vector<double> target(m.to.size());
     for (int i = 0; i < robot.axes.size(); ++i)
-      target.push_back(units_of(m.to[static_cast<std::size_t>(i)], i));
+      target[static_cast<std::size_t>(i)] = units_of(m.to[static_cast<std::size_t>(i)], i);
     write_log({{"ev", "motion_start"},
                {"id", m.id},
                {"ch", m.channel},
@@ -382,10 +376,10 @@ struct SimController::Impl {
   }
 
   std::vector<double> readings_of(const std::vector<long>& c) const {
-    std::vector<double> r;
+    std::vector<double> r(c.size());
     for (int i = 0; i < robot.axes.size(); ++i)
-      r.push_back(units_of(c[static_cast<std::size_t>(i)], i) /
-                  robot.axes.unit_factor[static_cast<std::size_t>(i)]);
+      r[static_cast<std::size_t>(i)] = units_of(c[static_cast<std::size_t>(i)], i) /
+                                       robot.axes.unit_factor[static_cast<std::size_t>(i)];
     return r;
   }
 
@@ -610,6 +604,16 @@ struct SimController::Impl {
     return f;
   }
 
+  // A fault drawn for a line the firmware then rejects (a duplicate line number after a lost ok)
+  // never takes effect: it is logged as void and not counted.
+  void void_fault(Channel& c, std::optional<FaultKind> fault) {
+    if (!fault || *fault == FaultKind::kBusy || *fault == FaultKind::kGarbage ||
+        *fault == FaultKind::kSlow)
+      return;  // these happened before the line was judged
+    --counters.faults[static_cast<std::size_t>(*fault)];
+    write_log({{"ev", "fault_void"}, {"kind", to_string(*fault)}, {"ch", c.name}});
+  }
+
   void handle_line(Channel& c, Pending& item) {
     ReceivedLine rl = split_received_line(item.text);
     if (item.fault == FaultKind::kCorrupt && rl.has_checksum) rl.valid = false;
@@ -638,6 +642,7 @@ struct SimController::Impl {
     if (rl.has_number) {
       const bool m110 = rl.command.rfind("M110", 0) == 0;
       if (!rl.valid || fault == FaultKind::kResend) {
+        if (fault != FaultKind::kCorrupt && fault != FaultKind::kResend) void_fault(c, fault);
         send(c, fmt::format("Error:checksum mismatch, Last Line: {}", c.last_n));
         send(c, resend_request(options.dialect, c.last_n + 1));
         send(c, "ok");
@@ -650,6 +655,7 @@ struct SimController::Impl {
         return;
       }
       if (rl.number != c.last_n + 1) {
+        void_fault(c, fault);
         send(c,
              fmt::format("Error:Line Number is not Last Line Number+1, Last Line: {}", c.last_n));
         send(c, resend_request(options.dialect, c.last_n + 1));

@@ -298,6 +298,59 @@ TEST_F(LinkTest, CtrlCDuringAMoveSendsTheStopAndTheSessionResumes) {
   EXPECT_TRUE(l->move_actuators(targets[0], kSpeed).confirmed);
 }
 
+TEST_F(LinkTest, LostCameraDuringAMoveStopsTheRobot) {
+  start();
+  auto l = link(Wire::kTcp);
+  l->connect();
+  calib::TaskTarget high;
+  high.pose.translation() = Eigen::Vector3d(0.0, 0.0, 0.12);
+  const Eigen::VectorXd far =
+      calib::solve_ik(model_, model_.nominal_parameters(), high).actuator_readings;
+  std::thread camera([this] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    guard_->camera_lost("cam1");
+  });
+  try {
+    l->move_actuators(far, MoveSpeed{0.02, 1.0});
+    ADD_FAILURE() << "the move finished although the camera was lost";
+  } catch (const MotionInterrupted& e) {
+    EXPECT_NE(std::string(e.what()).find("camera cam1 lost"), std::string::npos) << e.what();
+  }
+  camera.join();
+  EXPECT_GE(received(log(), "M410"), 1);
+  EXPECT_TRUE(events(log(), "motion_end").back()["stopped"].get<bool>());
+}
+
+TEST_F(LinkTest, EmergencyStopHaltsTheController) {
+  start();
+  auto l = link(Wire::kTcp);
+  l->connect();
+  l->stop(GcodeLink::StopKind::kEmergency);
+  try {
+    l->read_actuators();
+    FAIL() << "a halted controller answered";
+  } catch (const LinkError& e) {
+    EXPECT_NE(std::string(e.what()).find("halted"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(received(log(), "M112"), 1);
+  ASSERT_FALSE(events(log(), "stop").empty());
+  EXPECT_EQ(events(log(), "stop").back()["cmd"], "M112");
+}
+
+// RepRapFirmware has no quick stop: the controlled stop is M112 then M999, and the link is
+// usable again afterwards.
+TEST_F(LinkTest, RrfControlledStopRestartsTheFirmware) {
+  start({"--firmware", "rrf"});
+  auto l = link(Wire::kPty);
+  l->connect();
+  l->stop(GcodeLink::StopKind::kControlled);
+  EXPECT_EQ(received(log(), "M112"), 1);
+  EXPECT_EQ(received(log(), "M999"), 1);
+  EXPECT_EQ(received(log(), "M410"), 0);
+  const std::vector<Eigen::VectorXd> targets = delta_targets(model_, 1, 2);
+  EXPECT_TRUE(l->move_actuators(targets[0], kSpeed).confirmed);
+}
+
 // ---- bad input ------------------------------------------------------------------------------
 
 TEST_F(LinkTest, SerialDeviceThatDoesNotExistIsNamed) {

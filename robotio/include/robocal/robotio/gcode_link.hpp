@@ -36,6 +36,8 @@ struct ActuatorAxes {
 // revolute in degrees. Throws std::invalid_argument for more than 9 actuators.
 ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
                             double steps_per_degree);
+// Step counts of actuator readings (rounded to whole steps, as a firmware plans them).
+std::vector<long> axis_counts(const ActuatorAxes& axes, const Eigen::VectorXd& readings);
 
 struct GcodeLinkOptions {
   std::string address;  // serial device path, or tcp:HOST:PORT
@@ -53,7 +55,7 @@ struct GcodeLinkOptions {
 
 class GcodeLink final : public RobotLink {
  public:
-  GcodeLink(SafetyGuard& guard, GcodeLinkOptions options);
+  GcodeLink(SafetyGuard& guard, const GcodeLinkOptions& options);
   // Test hook / custom transports: the link owns `transport`.
   GcodeLink(SafetyGuard& guard, GcodeLinkOptions options, std::unique_ptr<Transport> transport);
   ~GcodeLink() override;
