@@ -10,6 +10,8 @@ packages=(
   libopencv-dev libopencv-contrib-dev libapriltag-dev libceres-dev libeigen3-dev
   # cameras: Aravis' pkg-config file needs libusb-1.0-0-dev, which libaravis-dev does not pull in
   libv4l-dev libaravis-dev libusb-1.0-0-dev
+  # planner: collision and distance queries (FCL; pulls in libccd and octomap)
+  libfcl-dev
   # file formats, command line, logging
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks
