@@ -58,29 +58,26 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   const int frame = target_frame(model, cell);
   if (frame < 0) throw std::invalid_argument("the target's frame is not a body of the robot");
   FeasibilityOptions fo = feasibility_options_from_cell(cell);
-  const ReachChecker reach(model, params, fo.reach);
-  Eigen::VectorXd lo, hi;
-  reach.reading_limits(lo, hi);
+  // Reachable, collision-free poses inside the workspace (visibility not yet asked).
+  FeasibilityOptions no_sight = fo;
+  no_sight.check_visibility = false;
+  const FeasibilityChecker reach(model, params, cell, frame, no_sight);
   std::mt19937 rng(options.seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
   const std::vector<Eigen::Vector3d> outline = board_outline(cell.target.board);
   Eigen::Vector3d board_mid = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& p : outline) board_mid += p / 4.0;
   const double half_diag = 0.5 * (outline[2] - outline[0]).norm();
+  const double short_side =
+      std::min((outline[1] - outline[0]).norm(), (outline[3] - outline[0]).norm());
   std::vector<Eigen::VectorXd> configs;
   std::vector<Eigen::Vector3d> centres, normals;
-  for (int k = 0; k < 20 * options.samples && static_cast<int>(configs.size()) < options.samples;
-       ++k) {
-    Eigen::VectorXd x(lo.size());
-    for (Eigen::Index i = 0; i < lo.size(); ++i) x(i) = lo(i) + u(rng) * (hi(i) - lo(i));
-    const ReachResult r = reach.reach_check(x);
-    if (!r.ok()) continue;
-    const Eigen::Isometry3d board =
-        r.body_poses[static_cast<std::size_t>(frame)] * cell.target.frame_T_board;
-    if (cell.workspace.declared && !cell.workspace.contains(board * board_mid)) continue;
-    configs.push_back(x);
-    centres.push_back(board * board_mid);
-    normals.push_back(-board.linear().col(2));
+  for (const Candidate& cand :
+       reach.sample(static_cast<std::size_t>(10 * options.samples), rng, nullptr)) {
+    if (!cand.feasible()) continue;
+    if (static_cast<int>(configs.size()) >= options.samples) break;
+    configs.push_back(cand.readings);
+    centres.emplace_back(cand.world_T_board * board_mid);
+    normals.emplace_back(-cand.world_T_board.linear().col(2));
   }
   if (configs.empty())
     throw std::invalid_argument("robot '" + model.name +
@@ -104,36 +101,52 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   const double fx = cam.params[0], fy = cam.params[1];
   const double half_fov =
       std::min(std::atan(0.5 * cam.width / fx), std::atan(0.5 * cam.height / fy));
-  double distance = radius / std::sin(0.85 * half_fov);
+  // Distance: the volume's sphere inside the narrower half field of view (15 % margin), but
+  // no farther than keeps the target's image at min_image_size (10 % margin) on the far side.
+  const double fov_distance = radius / std::sin(0.85 * half_fov);
+  const double size_distance =
+      cell.visibility.min_image_size > 0
+          ? std::min(fx, fy) * short_side / (1.1 * cell.visibility.min_image_size) - radius
+          : 1e300;
   // Two directions perpendicular to n for spreading the cameras around it.
-  Eigen::Vector3d e1 = n.unitOrthogonal();
+  const Eigen::Vector3d e1 = n.unitOrthogonal();
   const Eigen::Vector3d e2 = n.cross(e1);
   const Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? e2 : Eigen::Vector3d::UnitZ();
   const int ncam = std::max(1, options.cameras);
-  for (int attempt = 0; attempt < 7; ++attempt) {
-    out.world_T_camera.clear();
+  auto place = [&](double distance) {
+    CameraPlacement pl = out;
     const double tilt = ncam > 1 ? 0.5 * options.triangulation_angle : 0.0;
     for (int i = 0; i < ncam; ++i) {
       const double phi = 2 * M_PI * i / ncam;
       const Eigen::Vector3d dir =
           (std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * e1 + std::sin(phi) * e2))
               .normalized();
-      out.world_T_camera.push_back(look_at(c + distance * dir, c, up));
+      pl.world_T_camera.push_back(look_at(c + distance * dir, c, up));
     }
-    out.distance = distance;
-    out.baseline =
-        ncam > 1
-            ? (out.world_T_camera[0].translation() - out.world_T_camera[1].translation()).norm()
-            : 0.0;
-    const Cell placed = with_cameras(cell, out);
+    pl.distance = distance;
+    pl.baseline =
+        ncam > 1 ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
+                 : 0.0;
+    const Cell placed = with_cameras(cell, pl);
     const FeasibilityChecker checker(model, params, placed, frame,
                                      feasibility_options_from_cell(placed));
     std::size_t seen = 0;
     for (const Eigen::VectorXd& x : configs) seen += checker.evaluate(x).feasible() ? 1 : 0;
-    out.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
-    if (out.coverage >= options.min_coverage) break;
-    distance *= 1.15;
+    pl.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
+    return pl;
+  };
+  // Try distances from 60 % to 160 % of the field-of-view distance (capped by the image-size
+  // limit); keep the best coverage, the nearer on ties (bigger images).
+  const double top = std::min(1.6 * fov_distance, std::max(size_distance, 0.3 * fov_distance));
+  CameraPlacement best;
+  best.coverage = -1;
+  for (int k = 0; k <= 6; ++k) {
+    const double distance = std::min(top, fov_distance * (0.6 + 0.1 * 1.67 * k));
+    const CameraPlacement pl = place(distance);
+    if (pl.coverage > best.coverage + 1e-9) best = pl;
+    if (best.coverage >= 0.999) break;
   }
+  out = best;
   std::ostringstream s;
   s << ncam << " camera(s) " << out.distance << " m from the working volume's centre ("
     << c.transpose() << "), looking along " << (-n).transpose() << ", baseline " << out.baseline

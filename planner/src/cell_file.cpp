@@ -77,7 +77,9 @@ struct Reader {
       if (std::find(known.begin(), known.end(), key) == known.end()) {
         std::string list;
         for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-        fail(kv.first, where + ": unknown key '" + key + "' (known: " + list + ")");
+        std::string msg = where;
+        msg.append(": unknown key '").append(key).append("' (known: ").append(list).append(")");
+        fail(kv.first, msg);
       }
     }
   }

@@ -36,7 +36,7 @@ std::string check_cell(const calib::Mechanism& model, const Eigen::VectorXd& par
     Eigen::VectorXd x(lo.size());
     for (Eigen::Index i = 0; i < lo.size(); ++i) x(i) = lo(i) + u(rng) * (hi(i) - lo(i));
     const ReachResult r = reach.reach_check(x);
-    if (r.ok()) reached.push_back(r.body_poses[static_cast<std::size_t>(frame)].translation());
+    if (r.ok()) reached.emplace_back(r.body_poses[static_cast<std::size_t>(frame)].translation());
   }
   if (reached.empty())
     return "robot '" + model.name +

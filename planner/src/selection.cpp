@@ -381,7 +381,7 @@ Selection select_poses(const ObservabilityModel& model, const SelectionOptions& 
         if (sel.exchanges % 20 == 0) st.refresh();
       }
     } else {
-      std::vector<std::size_t> all = members;
+      const std::vector<std::size_t>& all = members;
       double current = index_value(st.normal(), all.size(), options.index);
       for (int it = 0; it < limit; ++it) {
         // Members whose removal costs least information, outsiders that add most.

@@ -7,6 +7,7 @@
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "robocal/planner/camera_placement.hpp"
 #include "robocal/planner/cell.hpp"
 #include "robocal/planner/feasibility.hpp"
 #include "robocal/planner/plan.hpp"
@@ -502,6 +503,70 @@ TEST(PlannerBadInput, NothingFeasibleSaysWhichConstraintRemovedHowMany) {
   std::size_t total = r.counts.feasible;
   for (const auto& [why, n] : r.counts.removed) total += n;
   EXPECT_EQ(total, 400u);
+}
+
+}  // namespace
+}  // namespace robocal::planner
+
+namespace robocal::planner {
+namespace {
+
+// The same cell in millimetres plans the same poses; a roughly known camera narrows the set.
+TEST(PlannerCells, MillimetreCellPlansTheSameAndRoughCameraIsStricter) {
+  const Delta& d = delta();
+  const Cell m = load_cell_file(kCells + "delta_two_cameras.yaml");
+  const Cell mm = load_cell_file(kCells + "delta_mm.yaml");
+  const Cell rough = load_cell_file(kCells + "delta_unknown_camera.yaml");
+  const FeasibilityChecker cm(d.model, d.params, m, d.model.tool, feasibility_options_from_cell(m));
+  const FeasibilityChecker cmm(d.model, d.params, mm, d.model.tool,
+                               feasibility_options_from_cell(mm));
+  const FeasibilityChecker crough(d.model, d.params, rough, d.model.tool,
+                                  feasibility_options_from_cell(rough));
+  std::mt19937 r1(9), r2(9), r3(9);
+  const auto a = cm.sample(800, r1, nullptr);
+  const auto b = cmm.sample(800, r2, nullptr);
+  const auto c = crough.sample(800, r3, nullptr);
+  int feasible = 0, rough_feasible = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].rejection, b[i].rejection) << i;
+    feasible += a[i].feasible() ? 1 : 0;
+    rough_feasible += c[i].feasible() ? 1 : 0;
+    if (c[i].feasible()) {
+      EXPECT_TRUE(a[i].feasible()) << "rough camera accepted a pose the known one rejects";
+    }
+  }
+  EXPECT_GT(feasible, 10);
+  EXPECT_LE(rough_feasible, feasible);
+}
+
+// Camera placement: the proposal sees most of the reachable working volume, checked here by
+// projecting the target's outline at reachable poses into each proposed camera.
+TEST(PlannerCells, ProposedCamerasSeeTheWorkingVolume) {
+  const Delta& d = delta();
+  const Cell cell = load_cell_file(kCells + "delta_two_cameras.yaml");
+  const CameraPlacement p = propose_cameras(d.model, d.params, cell);
+  ASSERT_EQ(p.world_T_camera.size(), 2u);
+  EXPECT_GE(p.coverage, 0.5) << p.summary;
+  EXPECT_GT(p.baseline, 0.1);
+  const Cell placed = with_cameras(cell, p);
+  // Independent: the outline of the board at reachable poses, projected.
+  const FeasibilityChecker reach_only(d.model, d.params, placed, d.model.tool,
+                                      feasibility_options_from_cell(placed));
+  std::mt19937 rng(12);
+  int reachable = 0, seen = 0;
+  for (const Candidate& c : reach_only.sample(1500, rng, nullptr)) {
+    if (c.rejection != Rejection::kNone && c.rejection < Rejection::kFacingAway) continue;
+    ++reachable;
+    const RobotGeometry g = geometry_at(d.model, solve_state(d.model, c.readings));
+    const Eigen::Isometry3d board =
+        g.poses[static_cast<std::size_t>(d.model.tool)] * placed.target.frame_T_board;
+    bool all = true;
+    for (const CellCamera& cam : placed.cameras)
+      all = all && seen_by(placed, cam, board, g).visible;
+    seen += all ? 1 : 0;
+  }
+  ASSERT_GT(reachable, 30);
+  EXPECT_GE(static_cast<double>(seen) / reachable, 0.5);
 }
 
 }  // namespace
