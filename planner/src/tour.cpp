@@ -2,6 +2,7 @@
 #include "robocal/planner/tour.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <map>
 #include <utility>
@@ -79,6 +80,32 @@ Tour plan_tour(const std::vector<Eigen::VectorXd>& poses, const SegmentTest& seg
       }
     }
     if (!moved) break;
+  }
+  // Poses the nearest-neighbour walk could not reach from its end (a straight motion there
+  // passes an obstacle): insert each where both new motions are free, cheapest first.
+  for (std::size_t j = 0; j < n; ++j) {
+    if (used[j]) continue;
+    std::vector<std::size_t> seq0;
+    if (has_start) seq0.push_back(n);
+    seq0.insert(seq0.end(), path.begin(), path.end());
+    double best = std::numeric_limits<double>::infinity();
+    std::size_t best_pos = 0;
+    for (std::size_t k = 0; k + 1 <= seq0.size(); ++k) {
+      const bool last = k + 1 == seq0.size();
+      const double cost =
+          dist(seq0[k], j) + (last ? 0.0 : dist(j, seq0[k + 1]) - dist(seq0[k], seq0[k + 1]));
+      if (cost >= best) continue;
+      if (!cache.free(seq0[k], j)) continue;
+      if (!last && !cache.free(j, seq0[k + 1])) continue;
+      best = cost;
+      best_pos = k;
+    }
+    if (std::isfinite(best)) {
+      const std::size_t offset =
+          has_start ? 1 : 0;  // seq0 index k -> insert after path[k - offset]
+      path.insert(path.begin() + static_cast<std::ptrdiff_t>(best_pos + 1 - offset), j);
+      used[j] = true;
+    }
   }
   for (std::size_t j = 0; j < n; ++j)
     if (!used[j]) {
