@@ -167,7 +167,7 @@ CommandSpec plan_command() {
       "Plan measurement poses: reachable, collision-free, seen by the cameras, most informative",
       [](CLI::App& cmd) -> CommandAction {
         auto o = std::make_shared<PlanCommandOptions>();
-        cmd.description(
+        cmd.footer(
             "Plans where to move the robot to calibrate it. Candidate poses are sampled in\n"
             "joint space; a candidate is kept when the robot reaches it on its intended\n"
             "assembly mode (limits with margin, ball-joint cones, away from singularities),\n"
