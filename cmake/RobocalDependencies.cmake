@@ -9,6 +9,8 @@ find_package(nlohmann_json 3.11 REQUIRED)
 find_package(CLI11 2.1 REQUIRED)
 find_package(fmt 9 REQUIRED)
 find_package(spdlog 1.10 REQUIRED)
+# FCL ships a CMake config (target `fcl`, which links ccd and octomap).
+find_package(fcl 0.7 REQUIRED)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)

@@ -12,6 +12,8 @@ packages=(
   libv4l-dev libaravis-dev libusb-1.0-0-dev
   # camera tests: a network namespace per test run (ip netns) for two fake GigE cameras
   iproute2
+  # planner: collision and distance queries (FCL; pulls in libccd and octomap)
+  libfcl-dev
   # file formats, command line, logging
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks

@@ -1,0 +1,51 @@
+#pragma once
+// Camera placement: where to put cameras so they see the robot's working volume.
+//
+// From the robot's reachable configurations (reach.hpp, within the cell's workspace when it
+// declares one) the target's centre positions and face normals give the working volume (centre,
+// radius incl. the target's half diagonal) and the mean direction the printed face looks to.
+// The cameras look at the volume's centre from that side, on a circle around the mean face
+// direction, each tilted by half the triangulation angle (two cameras: the baseline is
+// 2·d·sin(angle/2)). The distance d fits the volume's sphere into the narrower half field of
+// view with a 15 % margin. Each proposal is then checked with the full feasibility test
+// (feasibility.hpp, obstacles and occlusion included): if fewer than `min_coverage` of the
+// reachable poses are visible to all cameras, d grows by 15 % (up to 6 times).
+#include "robocal/calib/mechanism.hpp"
+#include "robocal/planner/cell.hpp"
+
+#include <Eigen/Geometry>
+
+#include <string>
+#include <vector>
+
+namespace robocal::planner {
+
+struct PlacementOptions {
+  int cameras = 2;
+  double triangulation_angle = 0.6;  // rad (~34°) between the two cameras' lines of sight
+  double min_coverage = 0.5;         // fraction of reachable poses visible to every camera
+  int samples = 600;                 // reachable configurations sampled
+  unsigned seed = 3;
+};
+
+struct CameraPlacement {
+  std::vector<Eigen::Isometry3d> world_T_camera;
+  Eigen::Vector3d look_at = Eigen::Vector3d::Zero();
+  Eigen::Vector3d view_direction = Eigen::Vector3d::UnitZ();  // from the volume to the cameras
+  double distance = 0.0;                                      // m, camera to look-at point
+  double baseline = 0.0;                                      // m, between the first two cameras
+  double volume_radius = 0.0;
+  double coverage = 0.0;  // fraction of reachable sampled poses visible to every camera
+  std::string summary;
+};
+
+// `cell` supplies the target mount, obstacles, workspace, margins and visibility limits; its
+// cameras supply the intrinsics (the first camera's model is used for every proposed camera) and
+// their poses are ignored. Throws std::invalid_argument when the robot reaches nothing.
+CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                                const Cell& cell, const PlacementOptions& options = {});
+
+// The cell with its cameras moved to a placement (camera i gets pose i, known).
+Cell with_cameras(const Cell& cell, const CameraPlacement& placement);
+
+}  // namespace robocal::planner

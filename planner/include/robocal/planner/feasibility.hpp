@@ -1,0 +1,122 @@
+#pragma once
+// Feasibility of a candidate measurement pose, in this order (the first failed test is the
+// candidate's rejection, so a summary can say which constraint removed how many candidates):
+//  1. reach (reach.hpp): actuator limits with margin, assembly on the intended mode, away from
+//     singularities, passive limits, ball-joint cones;
+//  2. the declared safe workspace contains the measured frame's origin and the target's outline;
+//  3. collision (collision_scene.hpp, FCL): links vs obstacles with clearance, links vs links;
+//  4. visibility for every required camera: the target's printed face turned towards the camera
+//     within the maximum incidence, every required corner projecting inside the image with the
+//     border margin, the target's image at least `min_image_size` px on its shortest side, and
+//     the lines of sight free of obstacles and links.
+#include "robocal/calib/mechanism.hpp"
+#include "robocal/planner/cell.hpp"
+#include "robocal/planner/collision_scene.hpp"
+#include "robocal/planner/reach.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace robocal::planner {
+
+enum class Rejection : std::uint8_t {
+  kNone,
+  kActuatorLimit,
+  kNoAssembly,
+  kModeChange,
+  kSingular,
+  kPassiveLimit,
+  kConeLimit,
+  kOutsideWorkspace,
+  kObstacleCollision,
+  kSelfCollision,
+  kFacingAway,    // printed face turned away or beyond the maximum incidence
+  kOutsideImage,  // a required corner outside the image (with border margin) or behind
+  kTooSmall,      // target image smaller than min_image_size
+  kOccluded,      // a line of sight blocked by an obstacle or a link
+};
+const char* to_string(Rejection r);
+Rejection rejection_of(ReachVerdict v);
+
+// What one camera sees of the target at a candidate.
+struct CameraView {
+  bool visible = false;
+  Rejection problem = Rejection::kNone;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // pixel of the board's outline centre
+  std::array<Eigen::Vector2d, 4> outline{};          // pixels of the outline corners
+  double image_size = 0.0;                           // px, shortest outline side
+  double incidence = 0.0;                            // rad
+};
+
+struct Candidate {
+  Eigen::VectorXd readings;
+  Eigen::VectorXd passive;
+  Eigen::Isometry3d world_T_frame = Eigen::Isometry3d::Identity();  // measured frame
+  Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
+  std::vector<CameraView> views;  // one per cell camera
+  Rejection rejection = Rejection::kNone;
+  std::string detail;  // why, for the first failed test
+  bool feasible() const { return rejection == Rejection::kNone; }
+};
+
+// How many candidates each constraint removed.
+struct FeasibilityCounts {
+  std::size_t evaluated = 0;
+  std::size_t feasible = 0;
+  std::map<Rejection, std::size_t> removed;
+  std::map<Rejection, std::string> example;  // one detail per constraint
+  void add(const Candidate& c);
+  // "of 5000 candidates 1210 are feasible; removed: 1800 cannot assemble, 900 collide with an
+  // obstacle (e.g. ...), ..."
+  std::string summary() const;
+};
+
+struct FeasibilityOptions {
+  ReachOptions reach;
+  CollisionOptions collision;
+  bool check_visibility = true;
+};
+
+// Options from the cell's margins (joint margins, clearances).
+FeasibilityOptions feasibility_options_from_cell(const Cell& cell);
+
+class FeasibilityChecker {
+ public:
+  // `frame` = measured body (the target's frame). The model and cell must outlive the checker.
+  FeasibilityChecker(const calib::Mechanism& model, const Eigen::VectorXd& params, const Cell& cell,
+                     int frame, const FeasibilityOptions& options);
+
+  Candidate evaluate(const Eigen::VectorXd& readings) const;
+  // Straight-line motion in actuator space between two feasible candidates, sampled every
+  // `step` joint units (rad or m) on the largest move: every intermediate configuration must
+  // assemble on the same mode (warm-started from the previous step) and be collision-free.
+  bool segment_free(const Eigen::VectorXd& from, const Eigen::VectorXd& to, double step,
+                    std::string* why) const;
+  // Uniform joint-space samples within the actuator limits (with margin), each evaluated.
+  std::vector<Candidate> sample(std::size_t count, std::mt19937& rng,
+                                FeasibilityCounts* counts) const;
+
+  const ReachChecker& reach() const { return reach_; }
+  const CollisionScene& scene() const { return scene_; }
+  const Cell& cell() const { return *cell_; }
+  int frame() const { return frame_; }
+
+ private:
+  const Cell* cell_;
+  int frame_;
+  FeasibilityOptions options_;
+  ReachChecker reach_;
+  CollisionScene scene_;
+  std::vector<Eigen::Vector3d> corners_;  // required corners, board frame
+  std::vector<Eigen::Vector3d> outline_;  // board frame
+  std::vector<int> required_;             // camera indices
+};
+
+}  // namespace robocal::planner

@@ -1,0 +1,219 @@
+// Planning end to end (see plan.hpp).
+#include "robocal/planner/plan.hpp"
+
+#include "robocal/calib/kinematics.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <sstream>
+
+namespace robocal::planner {
+
+int target_frame(const calib::Mechanism& model, const Cell& cell) {
+  if (cell.target.frame.empty()) return model.tool;
+  return model.body_index(cell.target.frame);
+}
+
+std::string check_cell(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                       const Cell& cell) {
+  std::ostringstream err;
+  const int frame = target_frame(model, cell);
+  if (frame < 0)
+    return cell.source + ":" + std::to_string(cell.target.line) + ": target.frame '" +
+           cell.target.frame + "' is not a body of robot '" + model.name + "'";
+  // The robot's reach: distance of the measured frame from the base over a few configurations.
+  FeasibilityOptions fo = feasibility_options_from_cell(cell);
+  ReachChecker reach(model, params, fo.reach);
+  Eigen::VectorXd lo, hi;
+  reach.reading_limits(lo, hi);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Eigen::Vector3d> reached;
+  for (int k = 0; k < 400 && reached.size() < 60; ++k) {
+    Eigen::VectorXd x(lo.size());
+    for (Eigen::Index i = 0; i < lo.size(); ++i) x(i) = lo(i) + u(rng) * (hi(i) - lo(i));
+    const ReachResult r = reach.reach_check(x);
+    if (r.ok()) reached.emplace_back(r.body_poses[static_cast<std::size_t>(frame)].translation());
+  }
+  if (reached.empty())
+    return "robot '" + model.name +
+           "' assembles at none of 400 sampled actuator positions within its limits and the cell's "
+           "joint margin";
+  double reach_radius = 0.0;
+  for (const Eigen::Vector3d& p : reached) reach_radius = std::max(reach_radius, p.norm());
+  const double plausible = 100.0 * std::max(reach_radius, 0.1);
+  auto too_far = [&](const Eigen::Vector3d& p) { return p.norm() > plausible; };
+  const std::string unit_hint =
+      " m from the robot's base, but the robot reaches only " + std::to_string(reach_radius) +
+      " m: the cell's lengths look like millimetres (cell files are in metres; write 'units: mm' "
+      "at the top if the file is in millimetres)";
+  if (cell.workspace.declared && (too_far(cell.workspace.min) || too_far(cell.workspace.max)))
+    return cell.source + ":" + std::to_string(cell.workspace.line) + ": the workspace extends to " +
+           std::to_string(std::max(cell.workspace.min.norm(), cell.workspace.max.norm())) +
+           unit_hint;
+  for (const CellCamera& c : cell.cameras)
+    if (too_far(c.world_T_camera.translation()))
+      return cell.source + ":" + std::to_string(c.line) + ": camera '" + c.name + "' is " +
+             std::to_string(c.world_T_camera.translation().norm()) + unit_hint;
+  for (const Obstacle& o : cell.obstacles)
+    if (too_far(o.world_T_obstacle.translation()))
+      return cell.source + ":" + std::to_string(o.line) + ": obstacle '" + o.name + "' is " +
+             std::to_string(o.world_T_obstacle.translation().norm()) + unit_hint;
+  // An obstacle that encloses the robot's base (the fixed bodies hanging from the world).
+  CollisionScene scene(model, cell, fo.collision);
+  std::vector<Eigen::Isometry3d> poses;
+  calib::JointState home;
+  home.q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.bodies.size()));
+  calib::body_poses(model, params, home, poses);
+  for (std::size_t b = 0; b < model.bodies.size(); ++b) {
+    if (model.bodies[b].parent >= 0) continue;
+    for (const std::string& name : scene.obstacles_containing(poses[b].translation())) {
+      int line = 0;
+      for (const Obstacle& o : cell.obstacles)
+        if (o.name == name) line = o.line;
+      return cell.source + ":" + std::to_string(line) + ": obstacle '" + name +
+             "' encloses the robot's base (" + model.bodies[b].name + " at " +
+             [&] {
+               std::ostringstream s;
+               s << poses[b].translation().transpose();
+               return s.str();
+             }() +
+             "): the robot would start inside it; check its centre and size";
+    }
+  }
+  for (const CellCamera& c : cell.cameras)
+    for (const std::string& name : scene.obstacles_containing(c.world_T_camera.translation()))
+      return cell.source + ":" + std::to_string(c.line) + ": camera '" + c.name +
+             "' sits inside obstacle '" + name + "'";
+  // A required camera that sees no part of the reachable region (its centre in front of the
+  // camera and inside the image).
+  for (const int ci : cell.required_cameras()) {
+    const CellCamera& c = cell.cameras[static_cast<std::size_t>(ci)];
+    const Eigen::Isometry3d cTw = c.world_T_camera.inverse();
+    int seen = 0;
+    for (const Eigen::Vector3d& p : reached) {
+      const auto px = vision::project(c.model, cTw * p);
+      if (px && vision::in_image(c.model, *px)) ++seen;
+    }
+    if (seen == 0)
+      return cell.source + ":" + std::to_string(c.line) + ": camera '" + c.name +
+             "' cannot see the robot's working volume at all (none of " +
+             std::to_string(reached.size()) +
+             " reachable positions of the measured frame projects into its image): check its "
+             "position and viewing direction (look_at)";
+  }
+  return err.str();
+}
+
+PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                             const Cell& cell, const PlanOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PlanResult res;
+  auto say = [&](const std::string& s) {
+    if (options.progress) options.progress(s);
+  };
+  const std::string bad = check_cell(model, params, cell);
+  if (!bad.empty()) {
+    res.status = PlanStatus::kBadCell;
+    res.message = bad;
+    return res;
+  }
+  res.frame = target_frame(model, cell);
+  const FeasibilityChecker checker(model, params, cell, res.frame,
+                                   feasibility_options_from_cell(cell));
+  say("sampling " + std::to_string(options.pool) + " candidate poses in joint space");
+  std::mt19937 rng(options.seed);
+  std::vector<Candidate> sampled = checker.sample(options.pool, rng, &res.counts);
+  for (Candidate& c : sampled)
+    if (c.feasible()) res.pool.push_back(std::move(c));
+  say(res.counts.summary());
+  // Sequential mode: the measured poses join the pool (first) so the selection knows them.
+  std::vector<Eigen::VectorXd> readings;
+  std::vector<std::size_t> measured_idx;
+  for (std::size_t k = 0; k < options.measured.size(); ++k) {
+    Candidate c = checker.evaluate(options.measured[k]);
+    PlannedPose p;
+    p.id = "measured" + std::to_string(k + 1);
+    p.readings = options.measured[k];
+    p.candidate = c;
+    res.measured.push_back(p);
+    const ReachResult r = checker.reach().reach_check(options.measured[k]);
+    if (!r.ok()) {
+      res.warnings.push_back(p.id + " cannot be assembled on the intended mode (" +
+                             std::string(to_string(r.verdict)) + "); ignored for the selection");
+      continue;
+    }
+    measured_idx.push_back(readings.size());
+    readings.push_back(options.measured[k]);
+  }
+  const std::size_t offset = readings.size();
+  for (const Candidate& c : res.pool) readings.push_back(c.readings);
+  const auto L_guess = static_cast<std::size_t>(6);
+  if (res.pool.size() < std::max<std::size_t>(options.selection.count / 2, L_guess)) {
+    res.status = PlanStatus::kInfeasible;
+    res.message = "too few feasible candidate poses to plan (" + std::to_string(res.pool.size()) +
+                  "): " + res.counts.summary();
+    return res;
+  }
+  say("identification Jacobians of " + std::to_string(readings.size()) + " poses");
+  calib::MechanismPredictor predictor(model, res.frame);
+  const ObservabilityModel obs =
+      build_observability_model(predictor, params, readings, options.observability);
+  res.identifiability = obs.messages;
+  if (res.pool.size() * 6 < obs.columns())
+    res.warnings.push_back("only " + std::to_string(res.pool.size()) + " feasible poses for " +
+                           std::to_string(obs.columns()) + " identifiable parameters");
+  say("selecting " + std::to_string(options.selection.count) + " poses by " +
+      to_string(options.selection.index) + " over " + std::to_string(obs.columns()) +
+      " identifiable parameters");
+  // Selection works on pool indices: measured poses are readings[0..offset).
+  res.selection = select_poses(obs, options.selection, measured_idx);
+  std::vector<Eigen::VectorXd> chosen;
+  std::vector<const Candidate*> chosen_c;
+  for (const std::size_t i : res.selection.chosen) {
+    if (i < offset) continue;
+    chosen.push_back(readings[i]);
+    chosen_c.push_back(&res.pool[i - offset]);
+  }
+  if (options.order) {
+    say("ordering " + std::to_string(chosen.size()) +
+        " poses (nearest neighbour + 2-opt, every motion checked)");
+    const double step = options.motion_step;
+    res.tour = plan_tour(
+        chosen,
+        [&](const Eigen::VectorXd& a, const Eigen::VectorXd& b, std::string* why) {
+          return checker.segment_free(a, b, step, why);
+        },
+        options.start);
+    for (const std::string& p : res.tour.problems) res.warnings.push_back(p);
+  } else {
+    for (std::size_t k = 0; k < chosen.size(); ++k) res.tour.order.push_back(k);
+    res.tour.complete = true;
+  }
+  for (std::size_t k = 0; k < res.tour.order.size(); ++k) {
+    const std::size_t i = res.tour.order[k];
+    PlannedPose p;
+    p.id = "pose" + std::to_string(k + 1);
+    p.readings = chosen[i];
+    p.candidate = *chosen_c[i];
+    res.poses.push_back(std::move(p));
+  }
+  res.plan_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!res.tour.complete) {
+    res.status = PlanStatus::kInfeasible;
+    res.message = "the selected poses cannot all be joined by collision-free motions: " +
+                  (res.tour.problems.empty() ? std::string("?") : res.tour.problems.front());
+  } else if (!res.selection.accepted) {
+    res.status = PlanStatus::kNotAccepted;
+    res.message = res.selection.message;
+  } else {
+    res.status = PlanStatus::kOk;
+    res.message = res.selection.message;
+  }
+  return res;
+}
+
+}  // namespace robocal::planner

@@ -1,0 +1,573 @@
+// Feasibility and plans on the rotary Delta cell, checked against geometry written here (not the
+// planner's functions): link capsules and the plate box from the robot file posed by calib's
+// forward kinematics, distances by convex minimisation along segments, projections by vision's
+// camera model.
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/inverse_kinematics.hpp"
+#include "robocal/calib/kinematics.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal/planner/camera_placement.hpp"
+#include "robocal/planner/cell.hpp"
+#include "robocal/planner/feasibility.hpp"
+#include "robocal/planner/plan.hpp"
+#include "robocal/planner/plan_output.hpp"
+#include "robocal/planner/selection.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <random>
+#include <sstream>
+
+namespace robocal::planner {
+namespace {
+
+const std::string kData = std::string(ROBOCAL_TESTDATA_DIR);
+const std::string kCells = kData + "/cells/";
+
+// ---- independent geometry -------------------------------------------------------------------
+
+// Minimum of a convex function on [0, 1] (golden section; 80 steps -> 1e-16 in t).
+double convex_min(const std::function<double(double)>& f) {
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  double a = 0, b = 1, c = b - g * (b - a), d = a + g * (b - a);
+  double fc = f(c), fd = f(d);
+  for (int i = 0; i < 80; ++i) {
+    if (fc < fd) {
+      b = d;
+      d = c;
+      fd = fc;
+      c = b - g * (b - a);
+      fc = f(c);
+    } else {
+      a = c;
+      c = d;
+      fc = fd;
+      d = a + g * (b - a);
+      fd = f(d);
+    }
+  }
+  return std::min({f(0.0), f(1.0), fc, fd});
+}
+
+struct Box {
+  Eigen::Vector3d centre;
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d half;
+};
+
+double point_box(const Eigen::Vector3d& p, const Box& b) {
+  const Eigen::Vector3d q = b.rotation.transpose() * (p - b.centre);
+  return (q.cwiseAbs() - b.half).cwiseMax(0.0).norm();
+}
+double segment_box(const Eigen::Vector3d& a, const Eigen::Vector3d& c, const Box& b) {
+  return convex_min([&](double t) { return point_box(a + t * (c - a), b); });
+}
+double point_segment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d d = b - a;
+  const double t = std::clamp((p - a).dot(d) / std::max(d.squaredNorm(), 1e-300), 0.0, 1.0);
+  return (p - (a + t * d)).norm();
+}
+double segment_segment(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                       const Eigen::Vector3d& d) {
+  return convex_min([&](double t) { return point_segment(a + t * (b - a), c, d); });
+}
+// Two boxes whose axes are parallel to the world axes (the Delta's plate stays level and the
+// cell's fixture is axis-aligned): per-axis gaps.
+double aligned_box_box(const Box& a, const Box& b) {
+  const Eigen::Vector3d ha = a.rotation.cwiseAbs() * a.half, hb = b.rotation.cwiseAbs() * b.half;
+  return ((a.centre - b.centre).cwiseAbs() - ha - hb).cwiseMax(0.0).norm();
+}
+
+struct Capsule {
+  Eigen::Vector3d a, b;
+  double radius;
+  int body;
+};
+
+struct RobotGeometry {
+  std::vector<Capsule> capsules;
+  std::vector<Box> boxes;
+  std::vector<Eigen::Isometry3d> poses;
+};
+
+// The Delta at a solved state: its robot-file shapes in the world.
+RobotGeometry geometry_at(const calib::Mechanism& m, const calib::JointState& state) {
+  RobotGeometry g;
+  calib::body_poses(m, m.nominal_parameters(), state, g.poses);
+  for (std::size_t b = 0; b < m.bodies.size(); ++b)
+    for (const calib::CollisionShape& s : m.bodies[b].collision) {
+      const Eigen::Isometry3d& T = g.poses[b];
+      if (s.kind == calib::ShapeKind::kCapsule)
+        g.capsules.push_back({T * s.a, T * s.b, s.radius, static_cast<int>(b)});
+      else
+        g.boxes.push_back({T * s.a, T.linear() * s.rotation, s.half_size});
+    }
+  return g;
+}
+
+Box obstacle_box(const Obstacle& o) {
+  return {o.world_T_obstacle.translation(), o.world_T_obstacle.linear(), 0.5 * o.size};
+}
+
+// Smallest link-to-obstacle distance (surface to surface) over the cell's box obstacles.
+double obstacle_distance(const RobotGeometry& g, const Cell& cell) {
+  double d = 1e300;
+  for (const Obstacle& o : cell.obstacles) {
+    const Box ob = obstacle_box(o);
+    for (const Capsule& c : g.capsules) d = std::min(d, segment_box(c.a, c.b, ob) - c.radius);
+    for (const Box& b : g.boxes) d = std::min(d, aligned_box_box(b, ob));
+  }
+  return d;
+}
+
+// Rods of different arms (bodies 6,16 / 19,22 / 25,28): the self-collision pairs that matter.
+double rod_rod_distance(const RobotGeometry& g) {
+  double d = 1e300;
+  for (std::size_t i = 0; i < g.capsules.size(); ++i)
+    for (std::size_t j = i + 1; j < g.capsules.size(); ++j) {
+      const Capsule &a = g.capsules[i], &b = g.capsules[j];
+      if (a.radius > 0.02 || b.radius > 0.02) continue;  // the upper arms meet at the base
+      d = std::min(d, segment_segment(a.a, a.b, b.a, b.b) - a.radius - b.radius);
+    }
+  return d;
+}
+
+struct Seen {
+  bool visible = true;
+  std::string why;
+};
+
+// The target seen by a camera: all corners inside the image with the margin, incidence, size,
+// and every corner's line of sight (stopped 5 mm before the board) clear of the obstacles and
+// of every link.
+Seen seen_by(const Cell& cell, const CellCamera& cam, const Eigen::Isometry3d& world_T_board,
+             const RobotGeometry& g) {
+  Seen s;
+  const Eigen::Isometry3d cTw = cam.world_T_camera.inverse();
+  const Eigen::Vector3d eye = cam.world_T_camera.translation();
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const vision::TargetCorner& c : cell.target.board.corners) centre += world_T_board * c.point;
+  centre /= static_cast<double>(cell.target.board.corners.size());
+  const double incidence =
+      std::acos((-world_T_board.linear().col(2)).dot((eye - centre).normalized()));
+  if (incidence > cell.visibility.max_incidence) return {false, "incidence"};
+  for (const vision::TargetCorner& c : cell.target.board.corners) {
+    const Eigen::Vector3d p = world_T_board * c.point;
+    const auto px = vision::project(cam.model, cTw * p);
+    if (!px) return {false, "behind"};
+    if (px->x() < -0.5 + cell.margins.image_border || px->y() < -0.5 + cell.margins.image_border ||
+        px->x() > cam.model.width - 0.5 - cell.margins.image_border ||
+        px->y() > cam.model.height - 0.5 - cell.margins.image_border)
+      return {false, "outside image"};
+    lo = lo.cwiseMin(*px);
+    hi = hi.cwiseMax(*px);
+    const Eigen::Vector3d end = p + 0.005 * (eye - p).normalized();
+    for (const Obstacle& o : cell.obstacles)
+      if (segment_box(eye, end, obstacle_box(o)) <= 0) return {false, "occluded by obstacle"};
+    for (const Capsule& k : g.capsules)
+      if (segment_segment(eye, end, k.a, k.b) <= k.radius) return {false, "occluded by link"};
+    for (const Box& b : g.boxes)
+      if (segment_box(eye, end, b) <= 0) return {false, "occluded by plate"};
+  }
+  // Level board facing a camera: the outline's image is close to a rectangle; its shorter side.
+  if (std::min(hi.x() - lo.x(), hi.y() - lo.y()) < cell.visibility.min_image_size * 0.9)
+    return {false, "small"};
+  return s;
+}
+
+struct Delta {
+  calib::Mechanism model = calib::load_robot_file(kData + "/robots/rotary_delta.yaml");
+  Eigen::VectorXd params = model.nominal_parameters();
+};
+
+Delta& delta() {
+  static Delta d;
+  return d;
+}
+
+calib::JointState solve_state(const calib::Mechanism& m, const Eigen::VectorXd& readings,
+                              const Eigen::VectorXd& seed = Eigen::VectorXd()) {
+  const calib::ForwardResult f =
+      calib::forward_kinematics(m, m.nominal_parameters(), readings, m.tool, seed);
+  EXPECT_TRUE(f.closure.ok()) << calib::to_string(f.closure.status);
+  return f.state;
+}
+
+// ---- tests ------------------------------------------------------------------------------------
+
+TEST(Planner, EveryPlannedPoseAndMotionIsCollisionFreeAndVisible) {
+  const Delta& d = delta();
+  const Cell cell = load_cell_file(kCells + "delta_two_cameras.yaml");
+  PlanOptions o;
+  o.pool = 2500;
+  o.selection.count = 25;
+  const PlanResult plan = plan_measurements(d.model, d.params, cell, o);
+  ASSERT_NE(plan.status, PlanStatus::kBadCell) << plan.message;
+  ASSERT_EQ(plan.poses.size(), 25u) << plan.message;
+  ASSERT_TRUE(plan.tour.complete);
+  for (const PlannedPose& p : plan.poses) {
+    const calib::JointState st = solve_state(d.model, p.readings);
+    const RobotGeometry g = geometry_at(d.model, st);
+    EXPECT_GE(obstacle_distance(g, cell), cell.margins.clearance - 1e-9) << p.id;
+    EXPECT_GE(rod_rod_distance(g), cell.margins.self_clearance - 1e-9) << p.id;
+    const Eigen::Isometry3d board =
+        g.poses[static_cast<std::size_t>(d.model.tool)] * cell.target.frame_T_board;
+    EXPECT_TRUE(
+        cell.workspace.contains(g.poses[static_cast<std::size_t>(d.model.tool)].translation()));
+    for (const CellCamera& cam : cell.cameras) {
+      const Seen s = seen_by(cell, cam, board, g);
+      EXPECT_TRUE(s.visible) << p.id << " camera " << cam.name << ": " << s.why;
+    }
+  }
+  // Every motion of the tour, at 4x the planner's sampling density, warm-started (same mode).
+  for (std::size_t k = 1; k < plan.poses.size(); ++k) {
+    const Eigen::VectorXd& a = plan.poses[k - 1].readings;
+    const Eigen::VectorXd& b = plan.poses[k].readings;
+    const int steps = std::max(
+        1, static_cast<int>(std::ceil((b - a).cwiseAbs().maxCoeff() / (o.motion_step / 4))));
+    Eigen::VectorXd seed =
+        calib::forward_kinematics(d.model, d.params, a, d.model.tool).closure.passive;
+    for (int s = 1; s < steps; ++s) {
+      const Eigen::VectorXd x = a + (b - a) * (static_cast<double>(s) / steps);
+      const calib::ForwardResult f =
+          calib::forward_kinematics(d.model, d.params, x, d.model.tool, seed);
+      ASSERT_TRUE(f.closure.ok()) << "segment " << k << " step " << s;
+      ASSERT_LT((f.closure.passive - seed).cwiseAbs().maxCoeff(), 0.2)
+          << "mode jump on segment " << k;
+      seed = f.closure.passive;
+      const RobotGeometry g = geometry_at(d.model, f.state);
+      ASSERT_GE(obstacle_distance(g, cell), cell.margins.clearance - 1e-3)
+          << "segment " << k << " step " << s;  // between the planner's samples: <= 1 mm of motion
+    }
+  }
+  // The plan file and the preview are written, the plan file names every pose.
+  const std::string yaml = plan_to_yaml(d.model, cell, plan, o);
+  for (const PlannedPose& p : plan.poses)
+    EXPECT_NE(yaml.find("id: " + p.id + "\n"), std::string::npos);
+  const std::string svg = plan_to_svg(cell, plan);
+  EXPECT_NE(svg.find("<svg"), std::string::npos);
+  EXPECT_NE(svg.find("fixture"), std::string::npos);
+}
+
+TEST(Planner, ObstacleRemovesExactlyTheCandidatesThatReachIt) {
+  const Delta& d = delta();
+  const Cell cell = load_cell_file(kCells + "delta_two_cameras.yaml");
+  const FeasibilityChecker checker(d.model, d.params, cell, d.model.tool,
+                                   feasibility_options_from_cell(cell));
+  std::mt19937 rng(11);
+  FeasibilityCounts counts;
+  int checked = 0, removed = 0, inside_region = 0;
+  for (const Candidate& c : checker.sample(1500, rng, &counts)) {
+    if (c.rejection != Rejection::kNone && c.rejection != Rejection::kObstacleCollision &&
+        c.rejection != Rejection::kSelfCollision && c.rejection < Rejection::kFacingAway)
+      continue;  // removed before the collision test (reach, workspace)
+    const RobotGeometry g = geometry_at(d.model, solve_state(d.model, c.readings));
+    const double dist = obstacle_distance(g, cell);
+    if (std::abs(dist - cell.margins.clearance) < 1e-6) continue;  // on the boundary
+    ++checked;
+    const bool hit = dist < cell.margins.clearance;
+    EXPECT_EQ(hit, c.rejection == Rejection::kObstacleCollision)
+        << "distance " << dist << " " << c.detail;
+    removed += hit ? 1 : 0;
+    // The plate's centre inside the fixture's region (inflated by the clearance): always removed.
+    const Box ob = obstacle_box(cell.obstacles[0]);
+    if (point_box(g.poses[static_cast<std::size_t>(d.model.tool)].translation(), ob) <
+        cell.margins.clearance) {
+      ++inside_region;
+      EXPECT_EQ(c.rejection, Rejection::kObstacleCollision);
+    }
+  }
+  EXPECT_GT(checked, 200);
+  EXPECT_GT(removed, 30);
+  EXPECT_GT(inside_region, 3);
+}
+
+// One camera straight below x = -0.75 m: it sees the half of the workspace at x < 0 only.
+TEST(Planner, CameraThatSeesHalfTheWorkspace) {
+  const Delta& d = delta();
+  const Cell cell = parse_cell_yaml(
+      "cameras:\n  - {name: low, file: camera_1600x1200.yaml, pose: {position: [-0.75, 0, -2.4], "
+      "look_at: [-0.75, 0, -0.9]}}\n"
+      "workspace: {min: [-0.55, -0.55, -1.3], max: [0.55, 0.55, -0.5]}\n"
+      "margins: {image_border: 20}\n"
+      "target: {file: ../vision/apriltag_4x3.yaml, position: [0.054, -0.0735, -0.01], rpy: [0, 0, "
+      "pi/2]}\n"
+      "visibility: {min_image_size: 60}\n",
+      "half.yaml", kCells);
+  const FeasibilityChecker checker(d.model, d.params, cell, d.model.tool,
+                                   feasibility_options_from_cell(cell));
+  std::mt19937 rng(5);
+  int left_seen = 0, left_total = 0, right_seen = 0, agree = 0;
+  for (const Candidate& c : checker.sample(2500, rng, nullptr)) {
+    if (c.rejection != Rejection::kNone && c.rejection < Rejection::kFacingAway) continue;
+    const RobotGeometry g = geometry_at(d.model, solve_state(d.model, c.readings));
+    const Eigen::Isometry3d board =
+        g.poses[static_cast<std::size_t>(d.model.tool)] * cell.target.frame_T_board;
+    const Seen s = seen_by(cell, cell.cameras[0], board, g);
+    EXPECT_EQ(s.visible, c.feasible()) << s.why << " / " << c.detail;
+    agree += s.visible == c.feasible() ? 1 : 0;
+    const Eigen::Vector3d p = c.world_T_board * Eigen::Vector3d(0.0735, 0.054, 0);  // board centre
+    // Image edge at depth z: x = -0.75 + (800 - 20.5) / 1600 * depth; the board half-width inside.
+    const double depth = p.z() + 2.4;
+    const double edge = -0.75 + (799.5 - 20) / 1600.0 * depth;
+    if (c.feasible()) {
+      EXPECT_LT(p.x(), edge) << "visible beyond the image edge";
+    }
+    if (p.x() < edge - 0.12 && std::abs(p.y()) < 0.3) {
+      ++left_total;
+      left_seen += c.feasible() ? 1 : 0;
+    }
+    if (p.x() > 0.2) right_seen += c.feasible() ? 1 : 0;
+  }
+  EXPECT_GT(left_total, 50);
+  EXPECT_EQ(left_seen, left_total);  // well inside the image: always visible
+  EXPECT_EQ(right_seen, 0);
+  EXPECT_GT(agree, 100);
+}
+
+// The ball-joint cones: a candidate is removed exactly when a rod leaves its cone around the
+// rod's direction at mid-range (computed here from the body poses); tighter cones remove the
+// outer ring of the workspace.
+TEST(Planner, BallJointConeRemovesTheOuterRing) {
+  calib::Mechanism model = delta().model;
+  for (calib::Body& b : model.bodies)
+    if (b.limits.cone > 0) b.limits.cone = 20 * M_PI / 180;
+  const Eigen::VectorXd params = model.nominal_parameters();
+  const ReachChecker reach(model, params, ReachOptions{});
+  ASSERT_EQ(reach.cones().size(), 5u);
+  // Neutral rod directions, independently: rods at mid-range readings in the cut frames.
+  const Eigen::VectorXd mid = reach.middle_readings();
+  const calib::JointState mid_state = solve_state(model, mid);
+  std::vector<Eigen::Isometry3d> mid_poses;
+  calib::body_poses(model, params, mid_state, mid_poses);
+  auto rod_in_cut = [&](const std::vector<Eigen::Isometry3d>& P, const calib::Closure& c) {
+    const int rod_end = c.body_b;
+    const int rod_top = model.bodies[static_cast<std::size_t>(rod_end)].parent;
+    return (P[static_cast<std::size_t>(c.body_a)].linear().transpose() *
+            (P[static_cast<std::size_t>(rod_end)].translation() -
+             P[static_cast<std::size_t>(rod_top)].translation()))
+        .normalized()
+        .eval();
+  };
+  std::mt19937 rng(3);
+  Eigen::VectorXd lo, hi;
+  reach.reading_limits(lo, hi);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<double> kept_r, removed_r;
+  for (int k = 0; k < 3000; ++k) {
+    Eigen::VectorXd x(3);
+    for (int i = 0; i < 3; ++i) x(i) = lo(i) + u(rng) * (hi(i) - lo(i));
+    const ReachResult r = reach.reach_check(x);
+    if (!r.ok() && r.verdict != ReachVerdict::kConeLimit) continue;
+    const calib::ForwardResult f = calib::forward_kinematics(model, params, x, model.tool);
+    std::vector<Eigen::Isometry3d> P;
+    calib::body_poses(model, params, f.state, P);
+    double worst = 0;
+    for (const calib::Closure& c : model.closures)
+      worst = std::max(
+          worst, std::acos(std::clamp(rod_in_cut(P, c).dot(rod_in_cut(mid_poses, c)), -1.0, 1.0)));
+    EXPECT_EQ(worst > 20 * M_PI / 180, r.verdict == ReachVerdict::kConeLimit) << worst * 180 / M_PI;
+    const Eigen::Vector3d t = P[static_cast<std::size_t>(model.tool)].translation();
+    const Eigen::Vector3d tm = mid_poses[static_cast<std::size_t>(model.tool)].translation();
+    (r.ok() ? kept_r : removed_r).push_back((t - tm).norm());
+  }
+  ASSERT_GT(kept_r.size(), 50u);
+  ASSERT_GT(removed_r.size(), 50u);
+  // Outer ring: everything near the mid-range pose is kept, the removed poses lie farther out.
+  std::sort(kept_r.begin(), kept_r.end());
+  std::sort(removed_r.begin(), removed_r.end());
+  EXPECT_GT(removed_r.front(), 0.05);
+  EXPECT_GT(removed_r[removed_r.size() / 2], 1.5 * kept_r[kept_r.size() / 2]);
+}
+
+TEST(Planner, AcceptanceTestRejectsAPlanarSet) {
+  const Delta& d = delta();
+  const Cell cell = load_cell_file(kCells + "delta_two_cameras.yaml");
+  const FeasibilityChecker checker(d.model, d.params, cell, d.model.tool,
+                                   feasibility_options_from_cell(cell));
+  std::mt19937 rng(2);
+  std::vector<Eigen::VectorXd> pool;
+  for (const Candidate& c : checker.sample(3000, rng, nullptr))
+    if (c.feasible()) pool.push_back(c.readings);
+  ASSERT_GT(pool.size(), 60u);
+  // 40 poses in the plane z = -0.9 by inverse kinematics.
+  std::vector<std::size_t> planar;
+  for (int i = 0; i < 8; ++i)
+    for (int j = 0; j < 5; ++j) {
+      calib::TaskTarget t;
+      t.pose.translation() = Eigen::Vector3d(-0.25 + 0.07 * i, -0.2 + 0.1 * j, -0.9);
+      const calib::IkResult ik = calib::solve_ik(d.model, d.params, t);
+      ASSERT_TRUE(ik.ok());
+      planar.push_back(pool.size());
+      pool.push_back(ik.actuator_readings);
+    }
+  const calib::MechanismPredictor pred(d.model, d.model.tool);
+  const ObservabilityModel obs = build_observability_model(pred, d.params, pool);
+  const IndexValues planar_values = evaluate_set(obs, planar);
+  const SelectionOptions defaults;
+  EXPECT_GT(planar_values.condition_number, defaults.max_condition);
+  // The planner's own selection of 40 from the 3-D pool passes the same test.
+  SelectionOptions so;
+  so.count = 40;
+  const Selection sel = select_poses(obs, so);
+  EXPECT_TRUE(sel.accepted) << sel.message;
+  EXPECT_LE(sel.values.condition_number, defaults.max_condition);
+  EXPECT_GT(sel.values.o[0], planar_values.o[0]);
+}
+
+// ---- bad input: a clear explanation, no plan -------------------------------------------------
+
+std::string plan_error(const std::string& cell_text) {
+  const Delta& d = delta();
+  const Cell cell = parse_cell_yaml(cell_text, "bad.yaml", kCells);
+  PlanOptions o;
+  o.pool = 300;
+  o.selection.count = 10;
+  const PlanResult r = plan_measurements(d.model, d.params, cell, o);
+  EXPECT_EQ(r.status, PlanStatus::kBadCell) << r.message;
+  EXPECT_TRUE(r.poses.empty());
+  return r.message;
+}
+
+const char* kTarget =
+    "target: {file: ../vision/apriltag_4x3.yaml, position: [0.054, -0.0735, -0.01], rpy: [0, 0, "
+    "pi/2]}\n";
+
+TEST(PlannerBadInput, CameraThatCannotSeeTheWorkspace) {
+  const std::string msg = plan_error(
+      "cameras:\n  - {name: up, file: camera_1600x1200.yaml, pose: {position: [0, 0, 1.0], "
+      "look_at: [0, 0, 3.0]}}\n" +
+      std::string(kTarget));
+  EXPECT_NE(msg.find("bad.yaml:2:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("camera 'up' cannot see the robot's working volume at all"), std::string::npos)
+      << msg;
+}
+
+TEST(PlannerBadInput, ObstacleEnclosingTheBase) {
+  const std::string msg = plan_error(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [0, 0, -2.4], "
+      "look_at: [0, 0, -0.9]}}\n" +
+      std::string(kTarget) +
+      "obstacles:\n  - {name: cabinet, box: {center: [0, 0, 0], size: [1, 1, 0.4]}}\n");
+  EXPECT_NE(msg.find("bad.yaml:5:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("obstacle 'cabinet' encloses the robot's base"), std::string::npos) << msg;
+}
+
+TEST(PlannerBadInput, MillimetresInAMetreFile) {
+  const std::string msg = plan_error(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [0, 0, -2400], "
+      "look_at: [0, 0, -900]}}\n" +
+      std::string(kTarget));
+  EXPECT_NE(msg.find("bad.yaml:2:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("look like millimetres"), std::string::npos) << msg;
+  const std::string ws = plan_error(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [0, 0, -2.4], "
+      "look_at: [0, 0, -0.9]}}\n" +
+      std::string(kTarget) + "workspace: {min: [-550, -550, -1300], max: [550, 550, -500]}\n");
+  EXPECT_NE(ws.find("bad.yaml:4:"), std::string::npos) << ws;
+  EXPECT_NE(ws.find("look like millimetres"), std::string::npos) << ws;
+}
+
+TEST(PlannerBadInput, UnknownTargetFrame) {
+  const std::string msg = plan_error(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [0, 0, -2.4], "
+      "look_at: [0, 0, -0.9]}}\n"
+      "target: {file: ../vision/apriltag_4x3.yaml, frame: flange}\n");
+  EXPECT_NE(msg.find("'flange' is not a body"), std::string::npos) << msg;
+}
+
+TEST(PlannerBadInput, NothingFeasibleSaysWhichConstraintRemovedHowMany) {
+  const Delta& d = delta();
+  // Visible only at an incidence of at most 1 degree: practically nothing passes.
+  const Cell cell = parse_cell_yaml(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [0.9, 0.9, -2.4], "
+      "look_at: [0, 0, -0.9]}}\n" +
+          std::string(kTarget) + "visibility: {max_incidence: deg(1)}\n",
+      "tight.yaml", kCells);
+  PlanOptions o;
+  o.pool = 400;
+  o.selection.count = 10;
+  const PlanResult r = plan_measurements(d.model, d.params, cell, o);
+  EXPECT_EQ(r.status, PlanStatus::kInfeasible);
+  EXPECT_TRUE(r.poses.empty());
+  EXPECT_NE(r.message.find("of 400 candidates"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("target turned away from a required camera"), std::string::npos)
+      << r.message;
+  std::size_t total = r.counts.feasible;
+  for (const auto& [why, n] : r.counts.removed) total += n;
+  EXPECT_EQ(total, 400u);
+}
+
+}  // namespace
+}  // namespace robocal::planner
+
+namespace robocal::planner {
+namespace {
+
+// The same cell in millimetres plans the same poses; a roughly known camera narrows the set.
+TEST(PlannerCells, MillimetreCellPlansTheSameAndRoughCameraIsStricter) {
+  const Delta& d = delta();
+  const Cell m = load_cell_file(kCells + "delta_two_cameras.yaml");
+  const Cell mm = load_cell_file(kCells + "delta_mm.yaml");
+  const Cell rough = load_cell_file(kCells + "delta_unknown_camera.yaml");
+  const FeasibilityChecker cm(d.model, d.params, m, d.model.tool, feasibility_options_from_cell(m));
+  const FeasibilityChecker cmm(d.model, d.params, mm, d.model.tool,
+                               feasibility_options_from_cell(mm));
+  const FeasibilityChecker crough(d.model, d.params, rough, d.model.tool,
+                                  feasibility_options_from_cell(rough));
+  std::mt19937 r1(9), r2(9), r3(9);
+  const auto a = cm.sample(800, r1, nullptr);
+  const auto b = cmm.sample(800, r2, nullptr);
+  const auto c = crough.sample(800, r3, nullptr);
+  int feasible = 0, rough_feasible = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].rejection, b[i].rejection) << i;
+    feasible += a[i].feasible() ? 1 : 0;
+    rough_feasible += c[i].feasible() ? 1 : 0;
+    if (c[i].feasible()) {
+      EXPECT_TRUE(a[i].feasible()) << "rough camera accepted a pose the known one rejects";
+    }
+  }
+  EXPECT_GT(feasible, 10);
+  EXPECT_LE(rough_feasible, feasible);
+}
+
+// Camera placement: the proposal sees most of the reachable working volume, checked here by
+// projecting the target's outline at reachable poses into each proposed camera.
+TEST(PlannerCells, ProposedCamerasSeeTheWorkingVolume) {
+  const Delta& d = delta();
+  const Cell cell = load_cell_file(kCells + "delta_two_cameras.yaml");
+  const CameraPlacement p = propose_cameras(d.model, d.params, cell);
+  ASSERT_EQ(p.world_T_camera.size(), 2u);
+  EXPECT_GE(p.coverage, 0.5) << p.summary;
+  EXPECT_GT(p.baseline, 0.1);
+  const Cell placed = with_cameras(cell, p);
+  // Independent: the outline of the board at reachable poses, projected.
+  const FeasibilityChecker reach_only(d.model, d.params, placed, d.model.tool,
+                                      feasibility_options_from_cell(placed));
+  std::mt19937 rng(12);
+  int reachable = 0, seen = 0;
+  for (const Candidate& c : reach_only.sample(1500, rng, nullptr)) {
+    if (c.rejection != Rejection::kNone && c.rejection < Rejection::kFacingAway) continue;
+    ++reachable;
+    const RobotGeometry g = geometry_at(d.model, solve_state(d.model, c.readings));
+    const Eigen::Isometry3d board =
+        g.poses[static_cast<std::size_t>(d.model.tool)] * placed.target.frame_T_board;
+    bool all = true;
+    for (const CellCamera& cam : placed.cameras)
+      all = all && seen_by(placed, cam, board, g).visible;
+    seen += all ? 1 : 0;
+  }
+  ASSERT_GT(reachable, 30);
+  EXPECT_GE(static_cast<double>(seen) / reachable, 0.5);
+}
+
+}  // namespace
+}  // namespace robocal::planner
