@@ -4,7 +4,6 @@
 
 #include <sstream>
 
-
 namespace robocal::vision {
 
 CameraModel parse_camera_yaml(const std::string& text, const std::string& source) {

@@ -207,7 +207,17 @@ nlohmann::json corner_observations_json(const std::vector<std::vector<vision::Ca
       for (const auto& o : frame.corners)
         corners.push_back(
             {o.id, o.pixel.x(), o.pixel.y(), o.sigma_px > 0 ? o.sigma_px : default_sigma});
-      obs.push_back({{"frame", f}, {"camera", camera_names[c]}, {"corners", corners}});
+      nlohmann::json entry{{"frame", f}, {"camera", camera_names[c]}, {"corners", corners}};
+      // Corners of one tag share edge fits: their joint covariance (px^2, ordered u0 v0 u1 v1 ...
+      // like "corners" of the group), as the pose measurement used it.
+      if (!frame.corner_groups.empty()) {
+        nlohmann::json groups = nlohmann::json::array();
+        for (const auto& g : frame.corner_groups)
+          groups.push_back(
+              {{"corners", g.corner_ids}, {"covariance", matrix_to_json(g.covariance)}});
+        entry["corner_groups"] = groups;
+      }
+      obs.push_back(entry);
     }
   return obs;
 }
@@ -262,6 +272,29 @@ std::vector<PixelPose> read_used_pixel_poses(const ResultsLayout& results,
             throw InputError(fmt::format("{}: pose {} camera {}: a corner is not [id, u, v, sigma]",
                                          ppath.string(), pose.pose, name));
           frame.corners.push_back({static_cast<int>(v[0]), Eigen::Vector2d(v[1], v[2]), v[3]});
+        }
+        for (const auto& g : obs.value("corner_groups", nlohmann::json::array())) {
+          vision::CornerGroup group;
+          group.corner_ids = g.at("corners").get<std::vector<int>>();
+          const auto rows = g.at("covariance").get<std::vector<std::vector<double>>>();
+          const auto n = static_cast<Eigen::Index>(2 * group.corner_ids.size());
+          if (static_cast<Eigen::Index>(rows.size()) != n)
+            throw InputError(
+                fmt::format("{}: pose {} camera {}: a corner group's covariance is "
+                            "not {}x{}",
+                            ppath.string(), pose.pose, name, n, n));
+          group.covariance.resize(n, n);
+          for (Eigen::Index r = 0; r < n; ++r) {
+            const auto& row = rows[static_cast<std::size_t>(r)];
+            if (static_cast<Eigen::Index>(row.size()) != n)
+              throw InputError(
+                  fmt::format("{}: pose {} camera {}: a corner group's covariance "
+                              "is not {}x{}",
+                              ppath.string(), pose.pose, name, n, n));
+            for (Eigen::Index c = 0; c < n; ++c)
+              group.covariance(r, c) = row[static_cast<std::size_t>(c)];
+          }
+          frame.corner_groups.push_back(std::move(group));
         }
       }
       poses.push_back(std::move(pose));

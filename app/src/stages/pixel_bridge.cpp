@@ -2,9 +2,33 @@
 
 #include <fmt/core.h>
 
+#include <map>
 #include <stdexcept>
 
 namespace robocal::app {
+
+namespace {
+
+// Each grouped corner's own 2x2 block of its tag's joint covariance (the per-tag edge-fit
+// covariance the pose route uses). A pixel observation carries one corner, so the correlation
+// between corners of one tag is not carried; a corner in several groups keeps the first.
+std::map<int, Eigen::Matrix2d> corner_covariances(const vision::CameraFrame& frame) {
+  std::map<int, Eigen::Matrix2d> out;
+  for (const auto& group : frame.corner_groups) {
+    if (group.covariance.rows() != 2 * static_cast<Eigen::Index>(group.corner_ids.size()) ||
+        group.covariance.cols() != group.covariance.rows())
+      continue;
+    for (std::size_t k = 0; k < group.corner_ids.size(); ++k) {
+      const auto i = 2 * static_cast<Eigen::Index>(k);
+      const Eigen::Matrix2d block = group.covariance.block<2, 2>(i, i);
+      if (block.allFinite() && block.determinant() > 0.0 && block(0, 0) > 0.0)
+        out.emplace(group.corner_ids[k], block);
+    }
+  }
+  return out;
+}
+
+}  // namespace
 
 PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>& rig,
                                            const vision::BoardPoints& target,
@@ -31,11 +55,18 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
     m.id = pose.id;
     m.actuators = pose.actuators;
     for (std::size_t c = 0; c < rig.size(); ++c) {
+      const auto group_covariance = corner_covariances(pose.cameras[c]);
       std::vector<calib::PixelObservation> seen;
       for (const auto& corner : pose.cameras[c].corners) {
         const auto it = target.find(corner.id);
         if (it == target.end()) {
           ++out.unknown_corners;
+          continue;
+        }
+        const auto in_group = group_covariance.find(corner.id);
+        if (in_group != group_covariance.end()) {
+          seen.push_back(calib::PixelObservation::with_covariance(
+              static_cast<int>(c), corner.id, it->second, corner.pixel, in_group->second));
           continue;
         }
         const double sigma = corner.sigma_px > 0.0 ? corner.sigma_px : options.default_sigma_px;

@@ -53,8 +53,6 @@ void render_shots(const SimulatedCell& cell, const std::vector<Shot>& shots,
 
 }  // namespace
 
-}  // namespace
-
 nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log) {
   if (o.out.empty()) throw InputError("simulate needs an output folder (--out DIR)");
   std::error_code ec;

@@ -2,8 +2,8 @@
 // Uncertainty and residual diagnostics of an identification, as pure functions over the whitened
 // identification Jacobian and residuals (rows already multiplied by the inverse square root of
 // each measurement's covariance, so unit-variance noise is assumed).
-#include "robocal/core/chi_square.hpp"
 #include <Eigen/Core>
+#include "robocal/core/chi_square.hpp"
 
 #include <cstddef>
 #include <string>

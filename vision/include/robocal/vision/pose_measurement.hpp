@@ -149,7 +149,9 @@ PoseMeasurement measure_settled_pose(const std::vector<RigCamera>& rig, const Bo
 
 // Upper-tail probability of the chi-square distribution with `dof` degrees of freedom, and the x
 // with chi2_survival(x, dof) = p: core's chi-square functions (core/chi_square.hpp).
-inline double chi2_survival(double x, int dof) { return core::chi_square_survival(x, dof); }
+inline double chi2_survival(double x, int dof) {
+  return core::chi_square_survival(x, dof);
+}
 inline double chi2_quantile_upper(double p, int dof) {
   return core::chi_square_quantile_upper(p, dof);
 }
