@@ -209,6 +209,8 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
   const YAML::Node poses = root["poses"];
   if (!poses || !poses.IsSequence()) fail(source, root, "missing 'poses' (a list)");
   Eigen::Index actuator_count = -1;
+  std::map<std::string, YAML::Node> ids;         // pose id -> its node (for line numbers)
+  std::map<std::string, YAML::Node> unobserved;  // poses that only distances may observe
   for (const YAML::Node& p : poses) {
     check_keys(source, p, "pose",
                {"id", "actuators", "point", "point_sigma", "pose", "probe", "pixels", "comment"});
@@ -362,9 +364,11 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
         m.observations.emplace_back(o);
       }
     }
-    if (m.observations.empty())
-      fail(source, p,
-           fmt::format("pose '{}' has no observation (point, pose, probe or pixels)", m.id));
+    // A pose without an observation of its own is allowed when a distance names it (a caliper
+    // between two printed positions, a ball-bar): checked once the distances are read.
+    if (m.observations.empty()) unobserved.emplace(m.id, p);
+    if (!ids.emplace(m.id, p).second)
+      fail(source, p["id"], fmt::format("pose id '{}' appears more than once", m.id));
     file.measurements.poses.push_back(std::move(m));
   }
   if (const YAML::Node ds = root["distances"]) {
@@ -376,6 +380,14 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
       DistanceMeasurement dm;
       dm.first = d["a"].Scalar();
       dm.second = d["b"].Scalar();
+      for (const auto& [key, id] : {std::pair{"a", dm.first}, {"b", dm.second}})
+        if (!ids.count(id))
+          fail(source, d[key],
+               fmt::format("distance names pose '{}', which is not in 'poses'", id));
+      if (dm.first == dm.second)
+        fail(source, d, fmt::format("distance from pose '{}' to itself", dm.first));
+      unobserved.erase(dm.first);
+      unobserved.erase(dm.second);
       dm.observation.measured_distance = number(source, d["distance"], "distance") * length_unit;
       dm.observation.sigma = d["sigma"]
                                  ? positive(source, d["sigma"], "distance sigma") * length_unit
@@ -384,6 +396,13 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
         fail(source, d, "distance needs 'sigma' (or noise.position_sigma)");
       file.measurements.distances.push_back(dm);
     }
+  }
+  if (!unobserved.empty()) {
+    const auto& [id, node] = *unobserved.begin();
+    fail(source, node,
+         fmt::format("pose '{}' has no observation (point, pose, probe or pixels) and no "
+                     "distance names it",
+                     id));
   }
   return file;
 }
