@@ -1,5 +1,7 @@
 #include "robocal/calib/identification.hpp"
 
+#include "robocal/calib/conventions.hpp"
+
 #include <ceres/ceres.h>
 #include <fmt/core.h>
 
@@ -464,6 +466,9 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
           "probably mismatched by 1000 (millimetres vs metres); convert the measurements to metres",
           ratio));
   }
+
+  // 1b. Convention swaps (quaternion order, degrees, inverted poses) against the nominal model.
+  if (auto swap = check_conventions(model, nominal, measurements)) return invalid(swap->message);
 
   // 2. Identifiability over the candidates.
   std::vector<std::size_t> candidates = options.candidates;
