@@ -467,6 +467,37 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
           ratio));
   }
 
+  // 1a. Probe heights in millimetres declared as metres: at the nominal model a height is off by
+  // at most millimetres; a value 1000x too large is off by decimetres to metres.
+  {
+    std::vector<double> misfit;
+    std::vector<double> misfit_mm;
+    const PoseMeasurement* worst = nullptr;
+    double worst_misfit = 0.0;
+    for (const auto* pose : as.poses) {
+      FramePrediction pred;
+      std::string why;
+      if (!model.predict(nominal, pose->actuators, slot_of[pose->id], false, pred, why)) continue;
+      for (const auto& obs : pose->observations)
+        if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs)) {
+          const double predicted = ph->normal.dot(pred.pose.translation()) - ph->offset;
+          misfit.push_back(std::abs(ph->measured_height - predicted));
+          misfit_mm.push_back(std::abs(1e-3 * ph->measured_height - predicted));
+          if (misfit.back() > worst_misfit) {
+            worst_misfit = misfit.back();
+            worst = pose;
+          }
+        }
+    }
+    if (!misfit.empty() && median_of(misfit) > 0.05 && median_of(misfit_mm) < 0.01)
+      return invalid(fmt::format(
+          "probe heights are implausible in metres: median {:.3g} m from the nominal model, {:.3g} "
+          "m if they were millimetres (largest at pose '{}'{}); declare units: {{length: mm}} or "
+          "convert them",
+          median_of(misfit), median_of(misfit_mm), worst->id,
+          worst->line > 0 ? fmt::format(", line {}", worst->line) : ""));
+  }
+
   // 1b. Convention swaps (quaternion order, degrees, inverted poses) against the nominal model.
   if (auto swap = check_conventions(model, nominal, measurements)) return invalid(swap->message);
 

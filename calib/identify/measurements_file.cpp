@@ -215,6 +215,7 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
     check_keys(source, p, "pose",
                {"id", "actuators", "point", "point_sigma", "pose", "probe", "pixels", "comment"});
     PoseMeasurement m;
+    m.line = p.Mark().line + 1;
     if (!p["id"]) fail(source, p, "pose without 'id'");
     m.id = p["id"].Scalar();
     if (!p["actuators"]) fail(source, p, fmt::format("pose '{}' has no 'actuators'", m.id));
@@ -239,14 +240,44 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
     }
     if (const YAML::Node ps = p["pose"]) {
       check_keys(source, ps, "pose observation",
-                 {"position", "rotation_vector", "quaternion", "position_sigma", "rotation_sigma",
-                  "covariance"});
+                 {"position", "rotation_vector", "quaternion", "quaternion_xyzw", "matrix",
+                  "position_sigma", "rotation_sigma", "covariance"});
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       if (!ps["position"]) fail(source, ps, fmt::format("pose '{}': pose needs 'position'", m.id));
       T.translation() = vector(source, ps["position"], "position", 3) * length_unit;
-      if (ps["rotation_vector"] && ps["quaternion"])
-        fail(source, ps, "give either rotation_vector or quaternion, not both");
-      if (ps["rotation_vector"]) {
+      if ((ps["rotation_vector"] ? 1 : 0) + (ps["quaternion"] ? 1 : 0) +
+              (ps["quaternion_xyzw"] ? 1 : 0) + (ps["matrix"] ? 1 : 0) >
+          1)
+        fail(source, ps,
+             "give one of rotation_vector, quaternion, quaternion_xyzw or matrix, not several");
+      if (ps["quaternion_xyzw"]) {
+        // w last (ROS, scipy, Eigen's coeffs()): [x, y, z, w].
+        const Eigen::VectorXd q =
+            vector(source, ps["quaternion_xyzw"], "quaternion_xyzw [x, y, z, w]", 4);
+        if (std::abs(q.norm() - 1.0) > 1e-6)
+          fail(source, ps["quaternion_xyzw"],
+               fmt::format("quaternion_xyzw must have unit norm (has {:.9g})", q.norm()));
+        T.linear() = Eigen::Quaterniond(q(3), q(0), q(1), q(2)).normalized().toRotationMatrix();
+      } else if (ps["matrix"]) {
+        // 3×3 rotation (9 numbers) or 4×4 homogeneous transform (16; its translation must agree
+        // with `position`), row-major.
+        const YAML::Node mx = ps["matrix"];
+        const Eigen::VectorXd v = vector(source, mx, "matrix (9 or 16 numbers, row-major)");
+        if (v.size() != 9 && v.size() != 16)
+          fail(source, mx, fmt::format("matrix must have 9 or 16 numbers (has {})", v.size()));
+        const int stride = v.size() == 9 ? 3 : 4;
+        Eigen::Matrix3d R;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) R(r, c) = v(r * stride + c);
+        if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) ||
+            R.determinant() < 0.0)
+          fail(source, mx, "matrix is not a rotation (orthonormal, determinant +1)");
+        if (stride == 4 && (Eigen::Vector3d(v(3), v(7), v(11)) * length_unit -
+                            T.translation())
+                                   .norm() > 1e-9)
+          fail(source, mx, "the 4x4 matrix's translation differs from 'position'");
+        T.linear() = R;
+      } else if (ps["rotation_vector"]) {
         const Eigen::Vector3d w =
             vector(source, ps["rotation_vector"], "rotation_vector", 3) * angle_unit;
         if (w.norm() > 0)
@@ -258,7 +289,10 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
                fmt::format("quaternion must have unit norm (has {:.9g})", q.norm()));
         T.linear() = Eigen::Quaterniond(q(0), q(1), q(2), q(3)).normalized().toRotationMatrix();
       } else {
-        fail(source, ps, fmt::format("pose '{}': pose needs rotation_vector or quaternion", m.id));
+        fail(source, ps,
+             fmt::format("pose '{}': pose needs rotation_vector, quaternion, quaternion_xyzw or "
+                         "matrix",
+                         m.id));
       }
       Matrix6d cov = Matrix6d::Zero();
       if (ps["covariance"]) {

@@ -77,6 +77,7 @@ struct PoseMeasurement {
   std::string id;
   Eigen::VectorXd actuators;
   std::vector<Observation> observations;
+  int line = 0;  // line in the measurements file (0 = not from a file), for messages
 };
 
 // Distance between the measured frame at two poses (ball-bar, scale bar), by pose id.
