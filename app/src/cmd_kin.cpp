@@ -2,8 +2,8 @@
 // as JSON. `--set NAME=VALUE` studies a perturbed robot without editing the file.
 #include "cli_common.hpp"
 #include "command_registry.hpp"
-#include "robocal/calib/frame_checks.hpp"
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/frame_checks.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/robot_file.hpp"

@@ -30,7 +30,8 @@ struct Misfit {
   double angle = NAN;
 };
 
-Misfit misfit(const std::vector<Observed>& obs, const std::vector<std::optional<Eigen::Isometry3d>>& pred) {
+Misfit misfit(const std::vector<Observed>& obs,
+              const std::vector<std::optional<Eigen::Isometry3d>>& pred) {
   std::vector<double> dp;
   std::vector<double> da;
   const std::size_t n = obs.size();
@@ -101,8 +102,9 @@ std::optional<ConventionMismatch> check_conventions(const FramePredictor& model,
   const auto as_declared = predict_all(identity);
   const Misfit declared = misfit(obs, as_declared);
 
-  auto decide = [&](const std::string& declared_text, const std::string& alt_text, const Misfit& alt,
-                    bool use_angle, const std::string& advice) -> std::optional<ConventionMismatch> {
+  auto decide = [&](const std::string& declared_text, const std::string& alt_text,
+                    const Misfit& alt, bool use_angle,
+                    const std::string& advice) -> std::optional<ConventionMismatch> {
     const double d = use_angle ? declared.angle : declared.position;
     const double a = use_angle ? alt.angle : alt.position;
     const double floor = use_angle ? min_misfit_angle : min_misfit_position;
@@ -119,8 +121,8 @@ std::optional<ConventionMismatch> check_conventions(const FramePredictor& model,
     m.message = fmt::format(
         "the data fit the nominal model far better read as {} than as declared ({}): median "
         "mismatch of the pose-to-pose {} {} vs {}; {}",
-        alt_text, declared_text, use_angle ? "rotation angles" : "distances", amount(a),
-        amount(d), advice);
+        alt_text, declared_text, use_angle ? "rotation angles" : "distances", amount(a), amount(d),
+        advice);
     return m;
   };
 
@@ -147,7 +149,8 @@ std::optional<ConventionMismatch> check_conventions(const FramePredictor& model,
                    "encoder scale in the robot file"},
         std::tuple{1e-3, "actuator readings in millimetres",
                    "convert the readings to metres, or set the encoder scale in the robot file"}}) {
-    const auto alt = predict_all([f = factor](const Eigen::VectorXd& q) { return Eigen::VectorXd(q * f); });
+    const auto alt =
+        predict_all([f = factor](const Eigen::VectorXd& q) { return Eigen::VectorXd(q * f); });
     const Misfit m_alt = misfit(obs, alt);
     if (auto m = decide("actuator readings in the robot file's units", text, m_alt, false, advice))
       return m;
@@ -169,7 +172,8 @@ std::optional<ConventionMismatch> check_conventions(const FramePredictor& model,
       o.rotation = inv.linear();
     }
     if (all)
-      if (auto m = decide("poses of the measured frame in the world", "inverted poses (the world in "
+      if (auto m = decide("poses of the measured frame in the world",
+                          "inverted poses (the world in "
                           "the measured frame, e.g. target->camera for camera->target)",
                           misfit(alt, as_declared), false,
                           "invert the poses before writing them (position and rotation of the "

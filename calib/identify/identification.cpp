@@ -217,7 +217,14 @@ double spread(const std::vector<Eigen::Vector3d>& pts) {
 }
 
 // Observation types whose noise is estimated separately (index = group id used below).
-enum Group : int { kPointRows, kPosePosition, kPoseRotation, kProbeRows, kDistanceRows, kPixelRows };
+enum Group : int {
+  kPointRows,
+  kPosePosition,
+  kPoseRotation,
+  kProbeRows,
+  kDistanceRows,
+  kPixelRows
+};
 std::vector<NoiseGroup> observation_groups() {
   std::vector<NoiseGroup> g(6);
   g[kPointRows].type = "point";
@@ -270,8 +277,9 @@ double median_of(std::vector<double> v) {
 }
 
 std::string sigma_text(double sigma, const std::string& unit) {
-  if (unit == "m") return sigma < 1e-3 ? fmt::format("{:.3g} um", sigma * 1e6)
-                                       : fmt::format("{:.3g} mm", sigma * 1e3);
+  if (unit == "m")
+    return sigma < 1e-3 ? fmt::format("{:.3g} um", sigma * 1e6)
+                        : fmt::format("{:.3g} mm", sigma * 1e3);
   if (unit == "rad") return fmt::format("{:.3g} mrad", sigma * 1e3);
   return fmt::format("{:.3g} {}", sigma, unit);
 }
@@ -289,8 +297,7 @@ void add_noise_warnings(const NoiseEstimate& noise, bool applied,
         "{} noise {}: stated {}, the residuals show {} ({:.2g}x, 95 % interval {:.2g}-{:.2g}x "
         "from {:.0f} degrees of freedom); {}",
         g.type, over ? "overstated" : "understated", sigma_text(g.stated_sigma, g.unit),
-        sigma_text(g.estimated_sigma(), g.unit), g.scale, g.scale_low, g.scale_high,
-        g.redundancy,
+        sigma_text(g.estimated_sigma(), g.unit), g.scale, g.scale_low, g.scale_high, g.redundancy,
         applied ? "uncertainties use the estimated noise (--stated-noise keeps the stated one)"
                 : "uncertainties keep the stated noise as asked, so they are " +
                       std::string(over ? "pessimistic" : "optimistic")));
@@ -560,9 +567,8 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     return result;
   }
   const bool priors_complete = with_prior == with_effect && with_effect > 0;
-  const bool map_everything =
-      options.estimate_redundant ||
-      (priors_complete && static_cast<std::size_t>(as.rows) < with_effect);
+  const bool map_everything = options.estimate_redundant ||
+                              (priors_complete && static_cast<std::size_t>(as.rows) < with_effect);
   if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything &&
       options.identifiability.rank_tolerance < options.identifiability.ill_conditioning_ratio) {
     // Little data: keep only the directions this design separates well (the ill-conditioning
@@ -582,20 +588,20 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
         held += (held.empty() ? "" : ", ") + cand_names[k];
     result.gauge =
         map_everything
-            ? fmt::format("{} equations for {} free parameters: the data determine {} "
-                          "combinations; the robot file's tolerances (priors) supply the rest, so "
-                          "every parameter is estimated (MAP) and the held directions stay near "
-                          "nominal within their tolerance",
-                          as.rows, with_effect, result.identifiability.rank)
-            : fmt::format("{} equations for {} free parameters: the data determine {} "
-                          "combinations, so {} parameters are estimated and {} are held at their "
-                          "nominal values (the gauge, chosen for this robot and this data: each "
-                          "held parameter moves the measurements like a combination of estimated "
-                          "ones, see the redundancies){}{}",
-                          as.rows, with_effect, result.identifiability.rank,
-                          result.identifiability.rank,
-                          with_effect - result.identifiability.rank, held.empty() ? "" : ": ",
-                          held);
+            ? fmt::format(
+                  "{} equations for {} free parameters: the data determine {} "
+                  "combinations; the robot file's tolerances (priors) supply the rest, so "
+                  "every parameter is estimated (MAP) and the held directions stay near "
+                  "nominal within their tolerance",
+                  as.rows, with_effect, result.identifiability.rank)
+            : fmt::format(
+                  "{} equations for {} free parameters: the data determine {} "
+                  "combinations, so {} parameters are estimated and {} are held at their "
+                  "nominal values (the gauge, chosen for this robot and this data: each "
+                  "held parameter moves the measurements like a combination of estimated "
+                  "ones, see the redundancies){}{}",
+                  as.rows, with_effect, result.identifiability.rank, result.identifiability.rank,
+                  with_effect - result.identifiability.rank, held.empty() ? "" : ": ", held);
   }
   if (map_everything) {
     // Every candidate that has an effect is estimated; the prior makes the problem well posed.
@@ -828,9 +834,8 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
   }
   std::vector<std::string> est_names;
   for (std::size_t i : result.estimated) est_names.push_back(result.names[i]);
-  result.uncertainty =
-      parameter_uncertainty(row_scale.cwiseInverse().asDiagonal() * Je, est_names,
-                            options.covariance, re.cwiseQuotient(row_scale));
+  result.uncertainty = parameter_uncertainty(row_scale.cwiseInverse().asDiagonal() * Je, est_names,
+                                             options.covariance, re.cwiseQuotient(row_scale));
   if (result.noise_applied && result.uncertainty.ok) {
     // One observation type: the classical variance factor; several: per-type, see `noise`.
     int estimable = 0;
@@ -848,9 +853,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
   if (result.noise.ok) {
     const auto& groups = result.noise.groups;  // same order as as.groups
     auto test_scale_of = [&](const NoiseGroup& g) {
-      return options.outliers.robust_scale ? g.robust_scale
-             : result.noise_applied        ? g.scale
-                                           : 1.0;
+      return options.outliers.robust_scale ? g.robust_scale : result.noise_applied ? g.scale : 1.0;
     };
     // normal_inverse is in the reweighted problem's units (rows / row_scale).
     for (std::size_t k = 0; k < per_pose.size(); ++k) {
@@ -859,13 +862,13 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
       Eigen::VectorXd fit_scale(count);
       Eigen::VectorXd test_scale(count);
       for (int i = 0; i < count; ++i) {
-        const auto& g = groups[static_cast<std::size_t>(
-            as.row_group[static_cast<std::size_t>(start_row + i)])];
+        const auto& g =
+            groups[static_cast<std::size_t>(as.row_group[static_cast<std::size_t>(start_row + i)])];
         fit_scale(i) = g.scale;
         test_scale(i) = test_scale_of(g);
         for (Eigen::Index c = 0; c < n_est; ++c)
-          Jp(i, c) = Jb(start_row + i, static_cast<Eigen::Index>(
-                                           result.estimated[static_cast<std::size_t>(c)])) /
+          Jp(i, c) = Jb(start_row + i,
+                        static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)])) /
                      fit_scale(i);
       }
       // Residual covariance in units of the fit scale, then re-expressed in the test scale.

@@ -24,8 +24,7 @@ std::string noise_value(double sigma, const std::string& unit) {
 // Up to `limit` names, then "and N more".
 std::string name_list(const std::vector<std::string>& names, std::size_t limit) {
   std::string out;
-  for (std::size_t i = 0; i < names.size() && i < limit; ++i)
-    out += (i ? ", " : "") + names[i];
+  for (std::size_t i = 0; i < names.size() && i < limit; ++i) out += (i ? ", " : "") + names[i];
   if (names.size() > limit) out += fmt::format(" and {} more", names.size() - limit);
   return out;
 }
@@ -103,10 +102,10 @@ std::string summary_text(const IdentificationResult& r) {
 }
 
 std::string validation_line(const std::string& label, const ValidationReport& v) {
-  std::string s = fmt::format("{}: {} poses, position RMS {} -> {} (max {} -> {})", label,
-                              v.after.poses, length(v.before.position_rms),
-                              length(v.after.position_rms), length(v.before.position_max),
-                              length(v.after.position_max));
+  std::string s =
+      fmt::format("{}: {} poses, position RMS {} -> {} (max {} -> {})", label, v.after.poses,
+                  length(v.before.position_rms), length(v.after.position_rms),
+                  length(v.before.position_max), length(v.after.position_max));
   if (v.after.orientation_max > 0)
     s += fmt::format(", orientation RMS {:.3g} -> {:.3g} mrad", v.before.orientation_rms * 1e3,
                      v.after.orientation_rms * 1e3);

@@ -272,9 +272,8 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
         if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) ||
             R.determinant() < 0.0)
           fail(source, mx, "matrix is not a rotation (orthonormal, determinant +1)");
-        if (stride == 4 && (Eigen::Vector3d(v(3), v(7), v(11)) * length_unit -
-                            T.translation())
-                                   .norm() > 1e-9)
+        if (stride == 4 &&
+            (Eigen::Vector3d(v(3), v(7), v(11)) * length_unit - T.translation()).norm() > 1e-9)
           fail(source, mx, "the 4x4 matrix's translation differs from 'position'");
         T.linear() = R;
       } else if (ps["rotation_vector"]) {

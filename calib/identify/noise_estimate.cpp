@@ -100,8 +100,7 @@ NoiseEstimate estimate_noise(const Eigen::MatrixXd& whitened_jacobian,
     grp.scale = grp.estimable ? scale[g] : 1.0;
     std::vector<double> normalised;
     for (Eigen::Index i = 0; i < m; ++i)
-      if (row_group[static_cast<std::size_t>(i)] == static_cast<int>(g) &&
-          out.redundancy(i) > 1e-6)
+      if (row_group[static_cast<std::size_t>(i)] == static_cast<int>(g) && out.redundancy(i) > 1e-6)
         normalised.push_back(std::abs(r(i)) / std::sqrt(out.redundancy(i)));
     grp.robust_scale = grp.scale;
     if (normalised.size() >= 5) {
@@ -119,11 +118,10 @@ NoiseEstimate estimate_noise(const Eigen::MatrixXd& whitened_jacobian,
   }
   out.groups = std::move(groups);
   out.ok = true;
-  out.message =
-      fmt::format("noise estimated for {} observation type(s) in {} iteration(s)",
-                  std::count_if(out.groups.begin(), out.groups.end(),
-                                [](const NoiseGroup& g) { return g.estimable; }),
-                  out.iterations + 1);
+  out.message = fmt::format("noise estimated for {} observation type(s) in {} iteration(s)",
+                            std::count_if(out.groups.begin(), out.groups.end(),
+                                          [](const NoiseGroup& g) { return g.estimable; }),
+                            out.iterations + 1);
   return out;
 }
 

@@ -136,8 +136,9 @@ Eigen::Matrix3d orientation_of(const std::string& source, const YAML::Node& node
   const std::string what = "body '" + body + "': orientation";
   if (!node.IsMap() || node.size() != 1)
     fail(source, node,
-         what + " must be one of {quaternion: [w, x, y, z]}, {quaternion_xyzw: [x, y, z, w]}, "
-                "{rotation_vector: [rx, ry, rz]}, {matrix: [9 numbers, row-major]}");
+         what +
+             " must be one of {quaternion: [w, x, y, z]}, {quaternion_xyzw: [x, y, z, w]}, "
+             "{rotation_vector: [rx, ry, rz]}, {matrix: [9 numbers, row-major]}");
   const std::string form = node.begin()->first.Scalar();
   const YAML::Node v = node.begin()->second;
   auto numbers = [&](std::size_t n) {
@@ -152,8 +153,9 @@ Eigen::Matrix3d orientation_of(const std::string& source, const YAML::Node& node
     const Eigen::Quaterniond q = form == "quaternion" ? Eigen::Quaterniond(x[0], x[1], x[2], x[3])
                                                       : Eigen::Quaterniond(x[3], x[0], x[1], x[2]);
     if (std::abs(q.norm() - 1.0) > 1e-6)
-      fail(source, v, what + ": quaternion must have unit norm (has " + std::to_string(q.norm()) +
-                          "; w first for 'quaternion', w last for 'quaternion_xyzw')");
+      fail(source, v,
+           what + ": quaternion must have unit norm (has " + std::to_string(q.norm()) +
+               "; w first for 'quaternion', w last for 'quaternion_xyzw')");
     return q.normalized().toRotationMatrix();
   }
   if (form == "rotation_vector") {

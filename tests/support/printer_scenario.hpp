@@ -25,10 +25,15 @@ namespace robocal::test {
 // The parameters a printer firmware's 9-factor calibration adjusts, in this model's names:
 // three endstop offsets, three diagonal rods, three tower positions (radius / angle).
 inline const std::vector<std::string>& printer_parameters() {
-  static const std::vector<std::string> names = {
-      "carriage_a.encoder_offset", "carriage_b.encoder_offset", "carriage_c.encoder_offset",
-      "rod_a.length",              "rod_b.length",              "rod_c.length",
-      "tower_a.x",                 "tower_b.x",                 "tower_c.y"};
+  static const std::vector<std::string> names = {"carriage_a.encoder_offset",
+                                                 "carriage_b.encoder_offset",
+                                                 "carriage_c.encoder_offset",
+                                                 "rod_a.length",
+                                                 "rod_b.length",
+                                                 "rod_c.length",
+                                                 "tower_a.x",
+                                                 "tower_b.x",
+                                                 "tower_c.y"};
   return names;
 }
 
@@ -49,8 +54,8 @@ inline Eigen::VectorXd commanded_readings(const calib::Mechanism& model,
   t.pose.translation() = target;
   const auto ik = calib::solve_ik(model, model.nominal_parameters(), t);
   if (!ik.ok())
-    throw std::runtime_error(fmt::format("IK failed at ({}, {}, {})", target.x(), target.y(),
-                                         target.z()));
+    throw std::runtime_error(
+        fmt::format("IK failed at ({}, {}, {})", target.x(), target.y(), target.z()));
   return ik.actuator_readings;
 }
 

@@ -42,15 +42,18 @@ struct PrinterCli : robocal::test::ScratchDirTest {
     return path;
   }
   std::vector<std::string> printer_free() {
-    return {"--free", "carriage_*.encoder_offset", "--free", "rod_*.length", "--free",
-            "tower_a.x", "--free", "tower_b.x", "--free", "tower_c.y"};
+    return {"--free", "carriage_*.encoder_offset",
+            "--free", "rod_*.length",
+            "--free", "tower_a.x",
+            "--free", "tower_b.x",
+            "--free", "tower_c.y"};
   }
 };
 
 TEST_F(PrinterCli, HeightsAndDistanceOnlyPosesIdentifyWithASummary) {
   const std::string m = write_file(true);
-  std::vector<std::string> args = {"identify", "--robot", robot, "--measurements", m, "--json",
-                                   file("r.json")};
+  std::vector<std::string> args = {"identify", "--robot", robot,         "--measurements",
+                                   m,          "--json",  file("r.json")};
   for (const auto& a : printer_free()) args.push_back(a);
   testing::internal::CaptureStdout();
   ASSERT_EQ(run(args), 0);
@@ -112,7 +115,8 @@ TEST_F(PrinterCli, BadInputNamesFileLineAndProblem) {
   MeasurementsFile mm = f;
   for (auto& p : mm.measurements.poses)
     for (auto& o : p.observations)
-      if (auto* h = std::get_if<ProbeHeightObservation>(&o)) h->measured_height = 1e3 * (h->measured_height + 1e-3);  // bed 1 mm lower, in mm
+      if (auto* h = std::get_if<ProbeHeightObservation>(&o))
+        h->measured_height = 1e3 * (h->measured_height + 1e-3);  // bed 1 mm lower, in mm
   save_measurements_file(mm, file("mm.yaml"));
   testing::internal::CaptureStderr();
   EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("mm.yaml")}), 3);

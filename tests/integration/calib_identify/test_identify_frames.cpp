@@ -40,10 +40,9 @@ const Eigen::Matrix3d kLocked = (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()
 
 std::string quaternion_tool(const Eigen::Matrix3d& R, bool w_last = false) {
   const Eigen::Quaterniond q(R);
-  const std::string nums = w_last ? fmt::format("{:.17g}, {:.17g}, {:.17g}, {:.17g}", q.x(), q.y(),
-                                                q.z(), q.w())
-                                  : fmt::format("{:.17g}, {:.17g}, {:.17g}, {:.17g}", q.w(), q.x(),
-                                                q.y(), q.z());
+  const std::string nums =
+      w_last ? fmt::format("{:.17g}, {:.17g}, {:.17g}, {:.17g}", q.x(), q.y(), q.z(), q.w())
+             : fmt::format("{:.17g}, {:.17g}, {:.17g}, {:.17g}", q.w(), q.x(), q.y(), q.z());
   return fmt::format(
       "  - {{name: tool, parent: wrist3, convention: xyz_rpy, joint: fixed, params: {{x: 0.01, z: "
       "0.05}}, orientation: {{{}: [{}]}}}}",
@@ -51,12 +50,14 @@ std::string quaternion_tool(const Eigen::Matrix3d& R, bool w_last = false) {
 }
 
 TEST(RobotFileFrames, QuaternionToolFrameGivesTheSameKinematicsAsItsRpyTwin) {
-  const Mechanism rpy = parse_robot_yaml(
-      ur5_with_tool("  - {name: tool, parent: wrist3, convention: xyz_rpy, rotation_order: xyz, joint: fixed, params: "
-                    "{x: 0.01, z: 0.05, roll: 0.3, pitch: pi/2, yaw: -0.2}}"),
-      "ur5_rpy.yaml");
+  const Mechanism rpy =
+      parse_robot_yaml(ur5_with_tool("  - {name: tool, parent: wrist3, convention: xyz_rpy, "
+                                     "rotation_order: xyz, joint: fixed, params: "
+                                     "{x: 0.01, z: 0.05, roll: 0.3, pitch: pi/2, yaw: -0.2}}"),
+                       "ur5_rpy.yaml");
   for (bool w_last : {false, true}) {
-    const Mechanism quat = parse_robot_yaml(ur5_with_tool(quaternion_tool(kLocked, w_last)), "ur5_q.yaml");
+    const Mechanism quat =
+        parse_robot_yaml(ur5_with_tool(quaternion_tool(kLocked, w_last)), "ur5_q.yaml");
     const MechanismPredictor a(rpy);
     const MechanismPredictor b(quat);
     std::mt19937 rng(1);
@@ -66,8 +67,7 @@ TEST(RobotFileFrames, QuaternionToolFrameGivesTheSameKinematicsAsItsRpyTwin) {
       std::string why;
       ASSERT_TRUE(a.predict(rpy.nominal_parameters(), q, -1, false, pa, why));
       ASSERT_TRUE(b.predict(quat.nominal_parameters(), q, -1, false, pb, why));
-      EXPECT_LT((pa.pose.matrix() - pb.pose.matrix()).cwiseAbs().maxCoeff(), 1e-12)
-;
+      EXPECT_LT((pa.pose.matrix() - pb.pose.matrix()).cwiseAbs().maxCoeff(), 1e-12);
     }
   }
 }
@@ -85,23 +85,23 @@ TEST(RobotFileFrames, BadOrientationIsRefusedWithLine) {
 }
 
 TEST(RobotFileFrames, GimbalLockedRpyFrameIsWarnedByKinCheck) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("robocal_frames_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("robocal_frames_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   const std::string path = (dir / "locked.yaml").string();
   std::ofstream(path) << ur5_with_tool(
       "  - {name: tool, parent: wrist3, convention: xyz_rpy, joint: fixed, params: {pitch: pi/2}}");
   EXPECT_EQ(gimbal_lock_warnings(load_robot_file(path)).size(), 1u);
   testing::internal::CaptureStderr();
-  EXPECT_EQ(robocal::test::run_robocal({"kin", "check", path, "--output", (dir / "c.json").string()}),
-            0);
+  EXPECT_EQ(
+      robocal::test::run_robocal({"kin", "check", path, "--output", (dir / "c.json").string()}), 0);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("gimbal lock"), std::string::npos) << err;
   EXPECT_NE(err.find("'tool'"), std::string::npos) << err;
   // Away from the lock, and the library robots: no warning.
-  EXPECT_TRUE(gimbal_lock_warnings(load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) +
-                                                   "/robots/ur5.yaml"))
-                  .empty());
+  EXPECT_TRUE(
+      gimbal_lock_warnings(load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/ur5.yaml"))
+          .empty());
   std::filesystem::remove_all(dir);
 }
 
@@ -123,8 +123,8 @@ double heldout_after_identification(const Mechanism& model) {
   auto opt = solve_options_from_model(model, false);
   const auto res = identify(pred, nominal, meas, opt);
   EXPECT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
-  const auto held = simulate_measurements(pred, truth, sample_actuators(pred, {truth}, 30, rng),
-                                          sim, rng);
+  const auto held =
+      simulate_measurements(pred, truth, sample_actuators(pred, {truth}, 30, rng), sim, rng);
   const auto e = prediction_errors(pred, res.estimate, held.poses);
   return std::max(e.position_max, e.orientation_max);
 }
@@ -132,10 +132,11 @@ double heldout_after_identification(const Mechanism& model) {
 TEST(RobotFileFrames, IdentificationAtTheLockConvergesLikeAwayFromIt) {
   const double at_lock = heldout_after_identification(
       parse_robot_yaml(ur5_with_tool(quaternion_tool(kLocked)), "ur5_lock.yaml"));
-  const double away = heldout_after_identification(parse_robot_yaml(
-      ur5_with_tool("  - {name: tool, parent: wrist3, convention: xyz_rpy, rotation_order: xyz, joint: fixed, params: "
-                    "{x: 0.01, z: 0.05, roll: 0.3, pitch: 0.4, yaw: -0.2}}"),
-      "ur5_away.yaml"));
+  const double away = heldout_after_identification(
+      parse_robot_yaml(ur5_with_tool("  - {name: tool, parent: wrist3, convention: xyz_rpy, "
+                                     "rotation_order: xyz, joint: fixed, params: "
+                                     "{x: 0.01, z: 0.05, roll: 0.3, pitch: 0.4, yaw: -0.2}}"),
+                       "ur5_away.yaml"));
   EXPECT_LT(at_lock, 1e-9);
   EXPECT_LT(away, 1e-9);
 }

@@ -11,7 +11,8 @@ using namespace robocal::calib;
 using namespace robocal::test;
 
 struct Noise : ::testing::Test {
-  Mechanism model = load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
+  Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
   MechanismPredictor pred{model};
   Eigen::VectorXd nominal = model.nominal_parameters();
 
@@ -54,14 +55,15 @@ TEST_F(Noise, StatedNoiseFiveTimesOffEitherWayIsEstimatedAndTheCovarianceIsConsi
       // Said in words, the right way round.
       bool warned = false;
       for (const auto& w : res.warnings)
-        warned = warned ||
-                 w.find(stated > 20e-6 ? "overstated" : "understated") != std::string::npos;
+        warned =
+            warned || w.find(stated > 20e-6 ? "overstated" : "understated") != std::string::npos;
       EXPECT_TRUE(warned);
       ASSERT_TRUE(res.uncertainty.ok);
       Eigen::VectorXd e(static_cast<Eigen::Index>(res.estimated.size()));
       for (std::size_t k = 0; k < res.estimated.size(); ++k)
-        e(static_cast<Eigen::Index>(k)) = res.estimate(static_cast<Eigen::Index>(res.estimated[k])) -
-                                          truth(static_cast<Eigen::Index>(res.estimated[k]));
+        e(static_cast<Eigen::Index>(k)) =
+            res.estimate(static_cast<Eigen::Index>(res.estimated[k])) -
+            truth(static_cast<Eigen::Index>(res.estimated[k]));
       nees += e.dot(res.uncertainty.covariance.ldlt().solve(e)) / static_cast<double>(e.size());
     }
     nees /= draws;
@@ -86,8 +88,7 @@ TEST_F(Noise, StatedNoiseKeptWhenAskedButStillCompared) {
   const double ratio = kept.uncertainty.sigma(0) / scaled.uncertainty.sigma(0);
   EXPECT_NEAR(ratio, 5.0, 0.5);
   bool warned = false;
-  for (const auto& w : kept.warnings)
-    warned = warned || w.find("pessimistic") != std::string::npos;
+  for (const auto& w : kept.warnings) warned = warned || w.find("pessimistic") != std::string::npos;
   EXPECT_TRUE(warned);
 }
 

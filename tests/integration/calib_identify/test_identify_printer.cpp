@@ -12,7 +12,8 @@ using namespace robocal::calib;
 using namespace robocal::test;
 
 struct Printer : ::testing::Test {
-  Mechanism model = load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
+  Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
   MechanismPredictor pred{model};
   Eigen::VectorXd nominal = model.nominal_parameters();
 
@@ -41,7 +42,8 @@ TEST_F(Printer, SevenHeightsIdentifyTheIdentifiableSubsetWithAnExplainedGauge) {
   PrinterData data;
   add_probe_heights(model, truth, probe_pattern(0.08), 10e-6, rng, data);
   // Every free parameter of the robot file (dozens): not refused.
-  const auto all = identify(pred, nominal, data.measurements, solve_options_from_model(model, false));
+  const auto all =
+      identify(pred, nominal, data.measurements, solve_options_from_model(model, false));
   std::cout << summary_text(all);
   ASSERT_EQ(all.status, IdentificationStatus::kConverged) << all.message;
   EXPECT_TRUE(all.limited_data);

@@ -156,7 +156,8 @@ bodies:
   EXPECT_TRUE(partner_found) << red->explanation;
 }
 
-// One pose of the modular arm cannot calibrate its 18+ parameters: only a subset is estimated, and the identifiability analysis of that pose says "underdetermined".
+// One pose of the modular arm cannot calibrate its 18+ parameters: only a subset is estimated, and
+// the identifiability analysis of that pose says "underdetermined".
 TEST(IdentifyRobots, OnePoseModularArmIsUnderdetermined) {
   const Mechanism model = robot("modular_arm");
   const MechanismPredictor pred(model);

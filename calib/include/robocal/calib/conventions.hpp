@@ -17,8 +17,8 @@
 namespace robocal::calib {
 
 struct ConventionMismatch {
-  std::string declared;     // e.g. "quaternions [w, x, y, z]"
-  std::string alternative;  // e.g. "quaternions [x, y, z, w] (w last)"
+  std::string declared;             // e.g. "quaternions [w, x, y, z]"
+  std::string alternative;          // e.g. "quaternions [x, y, z, w] (w last)"
   double declared_misfit = 0.0;     // median invariant mismatch as declared (m or rad)
   double alternative_misfit = 0.0;  // same, read the other way
   std::string message;              // plain words: what, by how much, what to change
@@ -26,11 +26,8 @@ struct ConventionMismatch {
 
 // The first alternative reading that fits the nominal model at least `ratio` times better than
 // the declared one (and the declared misfit above `min_misfit_*`), or nothing.
-std::optional<ConventionMismatch> check_conventions(const FramePredictor& model,
-                                                    const Eigen::VectorXd& nominal,
-                                                    const Measurements& measurements,
-                                                    double ratio = 5.0,
-                                                    double min_misfit_position = 5e-3,
-                                                    double min_misfit_angle = 0.05);
+std::optional<ConventionMismatch> check_conventions(
+    const FramePredictor& model, const Eigen::VectorXd& nominal, const Measurements& measurements,
+    double ratio = 5.0, double min_misfit_position = 5e-3, double min_misfit_angle = 0.05);
 
 }  // namespace robocal::calib

@@ -153,10 +153,10 @@ struct SolveOptions {
 };
 
 enum class IdentificationStatus {
-  kConverged,     // solved; result parameters updated
-  kNotConverged,  // usable but hit the iteration limit; result parameters updated
-  kDiverged,      // solve failed or worsened the fit: nominal kept
-  kInvalidInput,  // nothing solved (message says why)
+  kConverged,        // solved; result parameters updated
+  kNotConverged,     // usable but hit the iteration limit; result parameters updated
+  kDiverged,         // solve failed or worsened the fit: nominal kept
+  kInvalidInput,     // nothing solved (message says why)
   kNotIdentifiable,  // valid data, but no free parameter changes the measurements: nothing to
                      // estimate (message says so; the front end adds what to measure next)
 };
