@@ -1,5 +1,7 @@
 #include "robocal/calib/identification.hpp"
 
+#include "robocal/calib/conventions.hpp"
+
 #include <ceres/ceres.h>
 #include <fmt/core.h>
 
@@ -23,6 +25,8 @@ const char* to_string(IdentificationStatus status) {
       return "diverged";
     case IdentificationStatus::kInvalidInput:
       return "invalid_input";
+    case IdentificationStatus::kNotIdentifiable:
+      return "not_identifiable";
   }
   return "unknown";
 }
@@ -212,6 +216,94 @@ double spread(const std::vector<Eigen::Vector3d>& pts) {
   return std::sqrt(s / static_cast<double>(pts.size()));
 }
 
+// Observation types whose noise is estimated separately (index = group id used below).
+enum Group : int {
+  kPointRows,
+  kPosePosition,
+  kPoseRotation,
+  kProbeRows,
+  kDistanceRows,
+  kPixelRows
+};
+std::vector<NoiseGroup> observation_groups() {
+  std::vector<NoiseGroup> g(6);
+  g[kPointRows].type = "point";
+  g[kPointRows].unit = "m";
+  g[kPosePosition].type = "pose position";
+  g[kPosePosition].unit = "m";
+  g[kPoseRotation].type = "pose rotation";
+  g[kPoseRotation].unit = "rad";
+  g[kProbeRows].type = "probe height";
+  g[kProbeRows].unit = "m";
+  g[kDistanceRows].type = "distance";
+  g[kDistanceRows].unit = "m";
+  g[kPixelRows].type = "pixel";
+  g[kPixelRows].unit = "px";
+  return g;
+}
+
+// Stated σ of each residual row of an observation (diagonal of the inverse information).
+std::vector<std::pair<int, double>> row_labels(const Observation& obs) {
+  std::vector<std::pair<int, double>> out;
+  auto diag_sigma = [](const auto& weight) {
+    const auto info = (weight.transpose() * weight).eval();
+    return info.inverse().diagonal().cwiseSqrt().eval();
+  };
+  std::visit(
+      [&](const auto& o) {
+        using O = std::decay_t<decltype(o)>;
+        if constexpr (std::is_same_v<O, PoseObservation>) {
+          const auto s = diag_sigma(o.weight);
+          for (int i = 0; i < 6; ++i) out.emplace_back(i < 3 ? kPosePosition : kPoseRotation, s(i));
+        } else if constexpr (std::is_same_v<O, PointObservation>) {
+          const auto s = diag_sigma(o.weight);
+          for (int i = 0; i < 3; ++i) out.emplace_back(kPointRows, s(i));
+        } else if constexpr (std::is_same_v<O, PixelObservation>) {
+          const auto s = diag_sigma(o.weight);
+          for (int i = 0; i < 2; ++i) out.emplace_back(kPixelRows, s(i));
+        } else {
+          out.emplace_back(kProbeRows, o.sigma);
+        }
+      },
+      obs);
+  return out;
+}
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+std::string sigma_text(double sigma, const std::string& unit) {
+  if (unit == "m")
+    return sigma < 1e-3 ? fmt::format("{:.3g} um", sigma * 1e6)
+                        : fmt::format("{:.3g} mm", sigma * 1e3);
+  if (unit == "rad") return fmt::format("{:.3g} mrad", sigma * 1e3);
+  return fmt::format("{:.3g} {}", sigma, unit);
+}
+
+// Plain-words warnings when the residuals say the stated noise was wrong, either way: the
+// interval of the estimated scale excludes 1 and the scale is off by more than 1.5×.
+void add_noise_warnings(const NoiseEstimate& noise, bool applied,
+                        std::vector<std::string>& warnings) {
+  for (const auto& g : noise.groups) {
+    if (!g.estimable || g.rows == 0) continue;
+    const bool over = g.scale_high < 1.0 && g.scale < 1.0 / 1.5;
+    const bool under = g.scale_low > 1.0 && g.scale > 1.5;
+    if (!over && !under) continue;
+    warnings.push_back(fmt::format(
+        "{} noise {}: stated {}, the residuals show {} ({:.2g}x, 95 % interval {:.2g}-{:.2g}x "
+        "from {:.0f} degrees of freedom); {}",
+        g.type, over ? "overstated" : "understated", sigma_text(g.stated_sigma, g.unit),
+        sigma_text(g.estimated_sigma(), g.unit), g.scale, g.scale_low, g.scale_high, g.redundancy,
+        applied ? "uncertainties use the estimated noise (--stated-noise keeps the stated one)"
+                : "uncertainties keep the stated noise as asked, so they are " +
+                      std::string(over ? "pessimistic" : "optimistic")));
+  }
+}
+
 // The assembled least-squares problem over the accepted poses (cost functions owned here so
 // they can be evaluated outside Ceres for Jacobians and diagnostics).
 struct Assembly {
@@ -220,6 +312,15 @@ struct Assembly {
   std::vector<std::unique_ptr<ceres::CostFunction>> distance_costs;
   std::vector<std::string> distance_labels;
   int rows = 0;
+  // Observation type of every residual row (index into `groups`) for the noise estimate.
+  std::vector<int> row_group;
+  std::vector<NoiseGroup> groups = observation_groups();
+  std::vector<std::vector<double>> stated =
+      std::vector<std::vector<double>>(groups.size());  // per group: the stated σ of its rows
+  void label(int group, double sigma) {
+    row_group.push_back(group);
+    stated[static_cast<std::size_t>(group)].push_back(sigma);
+  }
 };
 
 // Evaluates every block at `params`: stacked whitened residuals and Jacobian (rows × P), and the
@@ -341,6 +442,8 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     if (!pose.observations.empty()) {
       as.pose_costs.push_back(std::make_unique<PoseCost>(model, pose, static_cast<int>(k)));
       as.rows += as.pose_costs.back()->num_residuals();
+      for (const auto& obs : pose.observations)
+        for (const auto& [group, sigma] : row_labels(obs)) as.label(group, sigma);
     }
     for (const auto& obs : pose.observations)
       if (auto p = observed_position(obs)) {
@@ -360,6 +463,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
                                                                slot_of[d.first], *by_id[d.second],
                                                                slot_of[d.second], d.observation));
     as.rows += 1;
+    as.label(kDistanceRows, d.observation.sigma);
   }
   if (measured_pts.size() >= 3) {
     const double ratio = spread(measured_pts) / std::max(spread(predicted_pts), 1e-300);
@@ -370,6 +474,40 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
           ratio));
   }
 
+  // 1a. Probe heights in millimetres declared as metres: at the nominal model a height is off by
+  // at most millimetres; a value 1000x too large is off by decimetres to metres.
+  {
+    std::vector<double> misfit;
+    std::vector<double> misfit_mm;
+    const PoseMeasurement* worst = nullptr;
+    double worst_misfit = 0.0;
+    for (const auto* pose : as.poses) {
+      FramePrediction pred;
+      std::string why;
+      if (!model.predict(nominal, pose->actuators, slot_of[pose->id], false, pred, why)) continue;
+      for (const auto& obs : pose->observations)
+        if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs)) {
+          const double predicted = ph->normal.dot(pred.pose.translation()) - ph->offset;
+          misfit.push_back(std::abs(ph->measured_height - predicted));
+          misfit_mm.push_back(std::abs(1e-3 * ph->measured_height - predicted));
+          if (misfit.back() > worst_misfit) {
+            worst_misfit = misfit.back();
+            worst = pose;
+          }
+        }
+    }
+    if (!misfit.empty() && median_of(misfit) > 0.05 && median_of(misfit_mm) < 0.01)
+      return invalid(fmt::format(
+          "probe heights are implausible in metres: median {:.3g} m from the nominal model, {:.3g} "
+          "m if they were millimetres (largest at pose '{}'{}); declare units: {{length: mm}} or "
+          "convert them",
+          median_of(misfit), median_of(misfit_mm), worst->id,
+          worst->line > 0 ? fmt::format(", line {}", worst->line) : ""));
+  }
+
+  // 1b. Convention swaps (quaternion order, degrees, inverted poses) against the nominal model.
+  if (auto swap = check_conventions(model, nominal, measurements)) return invalid(swap->message);
+
   // 2. Identifiability over the candidates.
   std::vector<std::size_t> candidates = options.candidates;
   if (candidates.empty())
@@ -378,8 +516,6 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     if (c >= P) throw std::invalid_argument("candidate parameter index out of range");
   result.candidates = candidates;
   const std::size_t poses_used = as.pose_costs.size();
-  const double rows_per_pose =
-      poses_used > 0 ? static_cast<double>(as.rows) / static_cast<double>(poses_used) : 1.0;
   if (as.rows == 0) return invalid("no usable measurements (all poses excluded or empty)");
   result.equations = as.rows;
 
@@ -409,21 +545,65 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
   }
   result.identifiability =
       analyze_identifiability(Jc, cand_names, options.identifiability, cand_pref);
-  // Too few poses: to tell a structural redundancy from a lack of data there must be at least
-  // one equation per candidate that has an effect (min_equations_per_parameter of them), and
-  // enough for the identifiable set.
-  const double needed_rows =
-      options.min_equations_per_parameter *
-      static_cast<double>(std::max(with_effect, result.identifiability.rank));
-  if (static_cast<double>(as.rows) < needed_rows) {
-    const auto needed_poses = static_cast<long>(std::ceil(needed_rows / rows_per_pose));
-    return invalid(fmt::format(
-        "too few poses: {} usable poses give {} measurement equations for {} free parameters; at "
-        "least {} poses are needed with these observations (several times more for a reliable "
-        "fit)",
-        poses_used, as.rows, with_effect, needed_poses));
+  for (std::size_t g = 0; g < as.groups.size(); ++g)
+    as.groups[g].stated_sigma = median_of(as.stated[g]);
+  // The count check comes after the analysis: with little data (fewer equations than free
+  // parameters with an effect) the data determine only `rank` combinations; those are estimated
+  // and the rest held at nominal — an automatically chosen gauge, explained in words. Priors are
+  // information too: with a prior on every candidate that has an effect, everything is estimated
+  // (MAP). Refused only when no parameter changes the measurements at all.
+  std::size_t with_prior = 0;
+  for (std::size_t k = 0; k < candidates.size(); ++k)
+    if (!options.prior_sigma.empty() && options.prior_sigma[candidates[k]] > 0.0 &&
+        !std::binary_search(result.identifiability.no_effect.begin(),
+                            result.identifiability.no_effect.end(), k))
+      ++with_prior;
+  if (result.identifiability.rank == 0 && with_prior == 0) {
+    result.status = IdentificationStatus::kNotIdentifiable;
+    result.message = fmt::format(
+        "nothing is identifiable: {} usable poses give {} measurement equations, and none of the "
+        "{} free parameters changes them",
+        poses_used, as.rows, candidates.size());
+    return result;
   }
-  if (options.estimate_redundant) {
+  const bool priors_complete = with_prior == with_effect && with_effect > 0;
+  const bool map_everything = options.estimate_redundant ||
+                              (priors_complete && static_cast<std::size_t>(as.rows) < with_effect);
+  if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything &&
+      options.identifiability.rank_tolerance < options.identifiability.ill_conditioning_ratio) {
+    // Little data: keep only the directions this design separates well (the ill-conditioning
+    // ratio as rank tolerance), so the gauge holds the weak ones instead of estimating them
+    // from noise (7 bed heights on the linear delta: without this, base tilt and rod lengths
+    // changed by 65 mrad and 8 mm to fit 10 µm of noise).
+    IdentifiabilityOptions strict = options.identifiability;
+    strict.rank_tolerance = options.identifiability.ill_conditioning_ratio;
+    result.identifiability = analyze_identifiability(Jc, cand_names, strict, cand_pref);
+  }
+  if (static_cast<std::size_t>(as.rows) < with_effect) {
+    result.limited_data = true;
+    std::string held;
+    for (std::size_t k : result.identifiability.redundant)
+      if (!std::binary_search(result.identifiability.no_effect.begin(),
+                              result.identifiability.no_effect.end(), k))
+        held += (held.empty() ? "" : ", ") + cand_names[k];
+    result.gauge =
+        map_everything
+            ? fmt::format(
+                  "{} equations for {} free parameters: the data determine {} "
+                  "combinations; the robot file's tolerances (priors) supply the rest, so "
+                  "every parameter is estimated (MAP) and the held directions stay near "
+                  "nominal within their tolerance",
+                  as.rows, with_effect, result.identifiability.rank)
+            : fmt::format(
+                  "{} equations for {} free parameters: the data determine {} "
+                  "combinations, so {} parameters are estimated and {} are held at their "
+                  "nominal values (the gauge, chosen for this robot and this data: each "
+                  "held parameter moves the measurements like a combination of estimated "
+                  "ones, see the redundancies){}{}",
+                  as.rows, with_effect, result.identifiability.rank, result.identifiability.rank,
+                  with_effect - result.identifiability.rank, held.empty() ? "" : ": ", held);
+  }
+  if (map_everything) {
     // Every candidate that has an effect is estimated; the prior makes the problem well posed.
     for (std::size_t k = 0; k < candidates.size(); ++k)
       if (!std::binary_search(result.identifiability.no_effect.begin(),
@@ -431,7 +611,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
         result.estimated.push_back(candidates[k]);
     bool all_priors = !options.prior_sigma.empty();
     for (std::size_t i : result.estimated) all_priors = all_priors && options.prior_sigma[i] > 0.0;
-    if (!all_priors)
+    if (!all_priors && options.estimate_redundant)
       return invalid("estimate_redundant needs a prior (prior_sigma > 0) on every candidate");
   } else {
     std::vector<bool> estimate_it(candidates.size(), false);
@@ -600,12 +780,18 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     }
     per_pose.push_back(std::move(pr));
   }
+  // Provisional flags (stated noise, robust scale): only used to leave the poses a robust loss
+  // rejected out of the covariance; the final test below uses normalised residuals.
   result.residuals = diagnose_residuals(per_pose, options.outliers);
 
   // Covariance from the inlier rows (outliers flagged by the robust fit do not inform it).
   std::vector<Eigen::Index> keep_rows;
+  std::vector<bool> pose_in_fit(pose_rows.size(), true);
   for (std::size_t k = 0; k < pose_rows.size(); ++k) {
-    if (options.robust_loss != RobustLoss::kNone && result.residuals.poses[k].outlier) continue;
+    if (options.robust_loss != RobustLoss::kNone && result.residuals.poses[k].outlier) {
+      pose_in_fit[k] = false;
+      continue;
+    }
     for (int i = 0; i < pose_rows[k].second; ++i) keep_rows.push_back(pose_rows[k].first + i);
   }
   for (Eigen::Index i = pose_rows.empty() ? 0 : pose_rows.back().first + pose_rows.back().second;
@@ -616,12 +802,14 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
       static_cast<Eigen::Index>(keep_rows.size()) + static_cast<Eigen::Index>(prior_terms.size()),
       n_est);
   Eigen::VectorXd re(Je.rows());
+  std::vector<int> je_group;
   Je.setZero();
   for (std::size_t k = 0; k < keep_rows.size(); ++k) {
     for (Eigen::Index c = 0; c < n_est; ++c)
       Je(static_cast<Eigen::Index>(k), c) = Jb(
           keep_rows[k], static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)]));
     re(static_cast<Eigen::Index>(k)) = rb(keep_rows[k]);
+    je_group.push_back(as.row_group[static_cast<std::size_t>(keep_rows[k])]);
   }
   for (std::size_t t = 0; t < prior_terms.size(); ++t) {
     const auto row = static_cast<Eigen::Index>(keep_rows.size() + t);
@@ -631,10 +819,68 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     re(row) = (best(static_cast<Eigen::Index>(prior_terms[t].first)) -
                nominal(static_cast<Eigen::Index>(prior_terms[t].first))) /
               prior_terms[t].second;
+    je_group.push_back(-1);  // a prior is information, not noise to estimate
+  }
+  // A posteriori noise per observation type (noise_estimate.hpp); applied to the covariance
+  // unless the stated noise is declared known.
+  result.noise = estimate_noise(Je, re, je_group, as.groups);
+  Eigen::VectorXd row_scale = Eigen::VectorXd::Ones(Je.rows());
+  if (result.noise.ok) {
+    result.noise_applied = !options.keep_stated_noise &&
+                           std::any_of(result.noise.groups.begin(), result.noise.groups.end(),
+                                       [](const NoiseGroup& g) { return g.estimable; });
+    if (result.noise_applied) row_scale = result.noise.row_scale;
+    add_noise_warnings(result.noise, result.noise_applied, result.warnings);
   }
   std::vector<std::string> est_names;
   for (std::size_t i : result.estimated) est_names.push_back(result.names[i]);
-  result.uncertainty = parameter_uncertainty(Je, est_names, options.covariance, re);
+  result.uncertainty = parameter_uncertainty(row_scale.cwiseInverse().asDiagonal() * Je, est_names,
+                                             options.covariance, re.cwiseQuotient(row_scale));
+  if (result.noise_applied && result.uncertainty.ok) {
+    // One observation type: the classical variance factor; several: per-type, see `noise`.
+    int estimable = 0;
+    double factor = 1.0;
+    for (const auto& g : result.noise.groups)
+      if (g.estimable) {
+        ++estimable;
+        factor = g.scale * g.scale;
+      }
+    if (estimable == 1) result.uncertainty.variance_factor *= factor;
+  }
+  // Final outlier test on normalised residuals: each pose's whitened residual divided by its
+  // type's noise scale (the robust one when asked), tested against its own covariance
+  // I ∓ J_b C J_bᵀ, so leverage and any mix of σ are accounted for.
+  if (result.noise.ok) {
+    const auto& groups = result.noise.groups;  // same order as as.groups
+    auto test_scale_of = [&](const NoiseGroup& g) {
+      return options.outliers.robust_scale ? g.robust_scale : result.noise_applied ? g.scale : 1.0;
+    };
+    // normal_inverse is in the reweighted problem's units (rows / row_scale).
+    for (std::size_t k = 0; k < per_pose.size(); ++k) {
+      const auto [start_row, count] = pose_rows[k];
+      Eigen::MatrixXd Jp(count, n_est);
+      Eigen::VectorXd fit_scale(count);
+      Eigen::VectorXd test_scale(count);
+      for (int i = 0; i < count; ++i) {
+        const auto& g =
+            groups[static_cast<std::size_t>(as.row_group[static_cast<std::size_t>(start_row + i)])];
+        fit_scale(i) = g.scale;
+        test_scale(i) = test_scale_of(g);
+        for (Eigen::Index c = 0; c < n_est; ++c)
+          Jp(i, c) = Jb(start_row + i,
+                        static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)])) /
+                     fit_scale(i);
+      }
+      // Residual covariance in units of the fit scale, then re-expressed in the test scale.
+      const Eigen::VectorXd ratio = fit_scale.cwiseQuotient(test_scale);
+      per_pose[k].residual_covariance =
+          ratio.asDiagonal() *
+          pose_residual_covariance(Jp, result.noise.normal_inverse, pose_in_fit[k]) *
+          ratio.asDiagonal();
+      per_pose[k].whitened = per_pose[k].whitened.cwiseQuotient(test_scale);
+    }
+    result.residuals = diagnose_residuals(per_pose, options.outliers);
+  }
   if (result.uncertainty.ok) {
     std::vector<Eigen::MatrixXd> frame_jacobians;
     for (const auto* pose : as.poses) {
@@ -662,6 +908,12 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
           "chi-square {:.3g}): a local minimum (try multi-start), an unmodelled error or "
           "optimistic noise",
           std::sqrt(ratio), ratio));
+    if (prior_terms.empty() && static_cast<double>(as.rows) <= static_cast<double>(n_est))
+      result.warnings.push_back(fmt::format(
+          "no redundancy: {} equations for {} estimated parameters, so the fit passes through "
+          "every measurement exactly; neither the noise nor outliers can be checked (measure a "
+          "few more points)",
+          as.rows, n_est));
   }
   if (result.residuals.outliers > 0)
     result.warnings.push_back(

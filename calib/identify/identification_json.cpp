@@ -141,6 +141,25 @@ nlohmann::json to_json(const IdentificationResult& r) {
                             {"orientation_error_rad", num(p.orientation_error)},
                             {"outlier", p.outlier}});
   j["residuals"] = res;
+  j["limited_data"] = r.limited_data;
+  if (r.limited_data) j["gauge"] = r.gauge;
+  // A posteriori noise per observation type beside the stated noise (noise_estimate.hpp).
+  nlohmann::json noise = nlohmann::json::array();
+  for (const auto& g : r.noise.groups) {
+    if (g.rows == 0) continue;
+    noise.push_back({{"type", g.type},
+                     {"unit", g.unit},
+                     {"rows", g.rows},
+                     {"stated_sigma", num(g.stated_sigma)},
+                     {"estimable", g.estimable},
+                     {"estimated_sigma", num(g.estimated_sigma())},
+                     {"scale", num(g.scale)},
+                     {"scale_95_low", num(g.scale_low)},
+                     {"scale_95_high", num(g.scale_high)},
+                     {"robust_scale", num(g.robust_scale)},
+                     {"degrees_of_freedom", num(g.redundancy)}});
+  }
+  j["noise"] = {{"applied", r.noise_applied}, {"types", noise}};
   return j;
 }
 

@@ -211,10 +211,13 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
   const YAML::Node poses = root["poses"];
   if (!poses || !poses.IsSequence()) fail(source, root, "missing 'poses' (a list)");
   Eigen::Index actuator_count = -1;
+  std::map<std::string, YAML::Node> ids;         // pose id -> its node (for line numbers)
+  std::map<std::string, YAML::Node> unobserved;  // poses that only distances may observe
   for (const YAML::Node& p : poses) {
     check_keys(source, p, "pose",
                {"id", "actuators", "point", "point_sigma", "pose", "probe", "pixels", "comment"});
     PoseMeasurement m;
+    m.line = p.Mark().line + 1;
     if (!p["id"]) fail(source, p, "pose without 'id'");
     m.id = p["id"].Scalar();
     if (!p["actuators"]) fail(source, p, fmt::format("pose '{}' has no 'actuators'", m.id));
@@ -239,14 +242,43 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
     }
     if (const YAML::Node ps = p["pose"]) {
       check_keys(source, ps, "pose observation",
-                 {"position", "rotation_vector", "quaternion", "position_sigma", "rotation_sigma",
-                  "covariance"});
+                 {"position", "rotation_vector", "quaternion", "quaternion_xyzw", "matrix",
+                  "position_sigma", "rotation_sigma", "covariance"});
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       if (!ps["position"]) fail(source, ps, fmt::format("pose '{}': pose needs 'position'", m.id));
       T.translation() = vector(source, ps["position"], "position", 3) * length_unit;
-      if (ps["rotation_vector"] && ps["quaternion"])
-        fail(source, ps, "give either rotation_vector or quaternion, not both");
-      if (ps["rotation_vector"]) {
+      if ((ps["rotation_vector"] ? 1 : 0) + (ps["quaternion"] ? 1 : 0) +
+              (ps["quaternion_xyzw"] ? 1 : 0) + (ps["matrix"] ? 1 : 0) >
+          1)
+        fail(source, ps,
+             "give one of rotation_vector, quaternion, quaternion_xyzw or matrix, not several");
+      if (ps["quaternion_xyzw"]) {
+        // w last (ROS, scipy, Eigen's coeffs()): [x, y, z, w].
+        const Eigen::VectorXd q =
+            vector(source, ps["quaternion_xyzw"], "quaternion_xyzw [x, y, z, w]", 4);
+        if (std::abs(q.norm() - 1.0) > 1e-6)
+          fail(source, ps["quaternion_xyzw"],
+               fmt::format("quaternion_xyzw must have unit norm (has {:.9g})", q.norm()));
+        T.linear() = Eigen::Quaterniond(q(3), q(0), q(1), q(2)).normalized().toRotationMatrix();
+      } else if (ps["matrix"]) {
+        // 3×3 rotation (9 numbers) or 4×4 homogeneous transform (16; its translation must agree
+        // with `position`), row-major.
+        const YAML::Node mx = ps["matrix"];
+        const Eigen::VectorXd v = vector(source, mx, "matrix (9 or 16 numbers, row-major)");
+        if (v.size() != 9 && v.size() != 16)
+          fail(source, mx, fmt::format("matrix must have 9 or 16 numbers (has {})", v.size()));
+        const int stride = v.size() == 9 ? 3 : 4;
+        Eigen::Matrix3d R;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) R(r, c) = v(r * stride + c);
+        if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) ||
+            R.determinant() < 0.0)
+          fail(source, mx, "matrix is not a rotation (orthonormal, determinant +1)");
+        if (stride == 4 &&
+            (Eigen::Vector3d(v(3), v(7), v(11)) * length_unit - T.translation()).norm() > 1e-9)
+          fail(source, mx, "the 4x4 matrix's translation differs from 'position'");
+        T.linear() = R;
+      } else if (ps["rotation_vector"]) {
         const Eigen::Vector3d w =
             vector(source, ps["rotation_vector"], "rotation_vector", 3) * angle_unit;
         if (w.norm() > 0)
@@ -258,7 +290,10 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
                fmt::format("quaternion must have unit norm (has {:.9g})", q.norm()));
         T.linear() = Eigen::Quaterniond(q(0), q(1), q(2), q(3)).normalized().toRotationMatrix();
       } else {
-        fail(source, ps, fmt::format("pose '{}': pose needs rotation_vector or quaternion", m.id));
+        fail(source, ps,
+             fmt::format("pose '{}': pose needs rotation_vector, quaternion, quaternion_xyzw or "
+                         "matrix",
+                         m.id));
       }
       Matrix6d cov = Matrix6d::Zero();
       if (ps["covariance"]) {
@@ -364,9 +399,11 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
         m.observations.emplace_back(o);
       }
     }
-    if (m.observations.empty())
-      fail(source, p,
-           fmt::format("pose '{}' has no observation (point, pose, probe or pixels)", m.id));
+    // A pose without an observation of its own is allowed when a distance names it (a caliper
+    // between two printed positions, a ball-bar): checked once the distances are read.
+    if (m.observations.empty()) unobserved.emplace(m.id, p);
+    if (!ids.emplace(m.id, p).second)
+      fail(source, p["id"], fmt::format("pose id '{}' appears more than once", m.id));
     file.measurements.poses.push_back(std::move(m));
   }
   if (const YAML::Node ds = root["distances"]) {
@@ -378,6 +415,14 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
       DistanceMeasurement dm;
       dm.first = d["a"].Scalar();
       dm.second = d["b"].Scalar();
+      for (const auto& [key, id] : {std::pair{"a", dm.first}, {"b", dm.second}})
+        if (!ids.count(id))
+          fail(source, d[key],
+               fmt::format("distance names pose '{}', which is not in 'poses'", id));
+      if (dm.first == dm.second)
+        fail(source, d, fmt::format("distance from pose '{}' to itself", dm.first));
+      unobserved.erase(dm.first);
+      unobserved.erase(dm.second);
       dm.observation.measured_distance = number(source, d["distance"], "distance") * length_unit;
       dm.observation.sigma = d["sigma"]
                                  ? positive(source, d["sigma"], "distance sigma") * length_unit
@@ -386,6 +431,13 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
         fail(source, d, "distance needs 'sigma' (or noise.position_sigma)");
       file.measurements.distances.push_back(dm);
     }
+  }
+  if (!unobserved.empty()) {
+    const auto& [id, node] = *unobserved.begin();
+    fail(source, node,
+         fmt::format("pose '{}' has no observation (point, pose, probe or pixels) and no "
+                     "distance names it",
+                     id));
   }
   return file;
 }

@@ -132,7 +132,8 @@ ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residual
   for (const auto& r : residuals)
     for (Eigen::Index i = 0; i < r.whitened.size(); ++i)
       magnitudes.push_back(std::abs(r.whitened(i)));
-  if (options.robust_scale && !magnitudes.empty()) {
+  const bool normalised = !residuals.empty() && residuals.front().residual_covariance.size() > 0;
+  if (options.robust_scale && !normalised && !magnitudes.empty()) {
     auto mid = magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2);
     std::nth_element(magnitudes.begin(), mid, magnitudes.end());
     const double robust = 1.4826 * *mid;
@@ -145,6 +146,18 @@ ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residual
     s.id = r.id;
     s.dof = static_cast<int>(r.whitened.size());
     s.chi_square = r.whitened.squaredNorm() / (out.scale * out.scale);
+    if (r.residual_covariance.size() > 0) {
+      // Normalised: directions of the block the fit absorbed (eigenvalue ~0) carry no test.
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(r.residual_covariance);
+      const Eigen::VectorXd proj = eig.eigenvectors().transpose() * r.whitened;
+      s.dof = 0;
+      s.chi_square = 0.0;
+      for (Eigen::Index i = 0; i < proj.size(); ++i)
+        if (eig.eigenvalues()(i) > 1e-6) {
+          s.chi_square += proj(i) * proj(i) / eig.eigenvalues()(i);
+          ++s.dof;
+        }
+    }
     s.threshold = s.dof > 0 ? chi_square_quantile(1.0 - options.probability, s.dof) : 0.0;
     s.outlier = s.dof > 0 && (!std::isfinite(s.chi_square) || s.chi_square > s.threshold);
     s.position_error = r.position_error;

@@ -126,6 +126,58 @@ Eigen::Vector3d vec3(const std::string& source, const YAML::Node& node, const st
           number(source, node[2], what)};
 }
 
+// ---- Frames given as users have them (issue 22) -------------------------------------------
+// `orientation:` of an xyz_rpy body: {quaternion: [w, x, y, z]}, {quaternion_xyzw: [x, y, z, w]},
+// {rotation_vector: [rx, ry, rz]} (rad) or {matrix: [9 numbers, row-major]}. The rotation R0 is
+// applied after the translation and BEFORE roll/pitch/yaw, which then default to 0 and act as
+// local increments: a frame is never parameterised at a gimbal lock, whatever R0 is.
+Eigen::Matrix3d orientation_of(const std::string& source, const YAML::Node& node,
+                               const std::string& body) {
+  const std::string what = "body '" + body + "': orientation";
+  if (!node.IsMap() || node.size() != 1)
+    fail(source, node,
+         what +
+             " must be one of {quaternion: [w, x, y, z]}, {quaternion_xyzw: [x, y, z, w]}, "
+             "{rotation_vector: [rx, ry, rz]}, {matrix: [9 numbers, row-major]}");
+  const std::string form = node.begin()->first.Scalar();
+  const YAML::Node v = node.begin()->second;
+  auto numbers = [&](std::size_t n) {
+    if (!v.IsSequence() || v.size() != n)
+      fail(source, v, what + "." + form + " must have " + std::to_string(n) + " numbers");
+    std::vector<double> x;
+    for (std::size_t i = 0; i < n; ++i) x.push_back(number(source, v[i], what));
+    return x;
+  };
+  if (form == "quaternion" || form == "quaternion_xyzw") {
+    const auto x = numbers(4);
+    const Eigen::Quaterniond q = form == "quaternion" ? Eigen::Quaterniond(x[0], x[1], x[2], x[3])
+                                                      : Eigen::Quaterniond(x[3], x[0], x[1], x[2]);
+    if (std::abs(q.norm() - 1.0) > 1e-6)
+      fail(source, v,
+           what + ": quaternion must have unit norm (has " + std::to_string(q.norm()) +
+               "; w first for 'quaternion', w last for 'quaternion_xyzw')");
+    return q.normalized().toRotationMatrix();
+  }
+  if (form == "rotation_vector") {
+    const auto x = numbers(3);
+    const Eigen::Vector3d w(x[0], x[1], x[2]);
+    return w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix()
+                        : Eigen::Matrix3d::Identity();
+  }
+  if (form == "matrix") {
+    const auto x = numbers(9);
+    Eigen::Matrix3d R;
+    R << x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8];
+    if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) || R.determinant() < 0)
+      fail(source, v, what + ".matrix is not a rotation (orthonormal, determinant +1)");
+    return R;
+  }
+  fail(source, node.begin()->first,
+       what + ": unknown form '" + form +
+           "' (quaternion, quaternion_xyzw, rotation_vector, matrix)");
+}
+// ---- end of frames given as users have them --------------------------------------------------
+
 void check_keys(const std::string& source, const YAML::Node& map, const std::string& what,
                 const std::set<std::string>& allowed) {
   if (!map.IsMap()) fail(source, map, what + " must be a mapping");
@@ -207,7 +259,8 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   for (const auto& b : bodies) {
     check_keys(source, b, "body",
                {"name", "parent", "convention", "joint", "role", "params", "free", "fixed", "sigma",
-                "encoder", "limits", "cone", "home", "collision", "rotation_order", "axis"});
+                "encoder", "limits", "cone", "home", "collision", "rotation_order", "axis",
+                "orientation"});
     if (!b["name"]) fail(source, b, "body without 'name'");
     RawBody r{b, text(source, b["name"], "name"), "world"};
     if (r.name == "world") fail(source, b["name"], "'world' is the root frame, not a body name");
@@ -378,7 +431,22 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       }
       if (op.joint) body.joint_op = static_cast<int>(body.ops.size());
       body.ops.push_back(e);
+      if (op.kind == OpKind::kTransZ && b["orientation"]) {
+        // Issue 22: the fixed orientation R0 = Rx Ry Rz (held parameters), then roll/pitch/yaw.
+        const Eigen::Vector3d a =
+            orientation_of(source, b["orientation"], body.name).eulerAngles(0, 1, 2);
+        const OpKind kinds[3] = {OpKind::kRotX, OpKind::kRotY, OpKind::kRotZ};
+        for (int k = 0; k < 3; ++k) {
+          ElementaryOp r;
+          r.kind = kinds[k];
+          r.param = add_param("orientation_" + std::string(1, "xyz"[k]), ParamUnit::kAngle,
+                              geom_group, a(k), false, line_of(b["orientation"]));
+          body.ops.push_back(r);
+        }
+      }
     }
+    if (b["orientation"] && body.convention != "xyz_rpy")
+      fail(source, b["orientation"], "'orientation' is only for xyz_rpy bodies");
     if (body.role == JointRole::kActuated) {
       double scale = 1.0, offset = 0.0;
       if (const YAML::Node enc = b["encoder"]) {

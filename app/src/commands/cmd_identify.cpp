@@ -5,6 +5,7 @@
 #include "cli/command_registry.hpp"
 #include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/identification_json.hpp"
+#include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/measurements_file.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/pixel_observations.hpp"
@@ -51,6 +52,8 @@ struct IdentifyOptions {
   std::string kind = "point";
   double pixel_sigma = 0.1;
   bool free_intrinsics = false;
+  bool quiet = false;         // no terminal summary
+  bool stated_noise = false;  // keep the stated noise for the covariance (do not scale)
 };
 
 bool matches(const std::string& name, const std::vector<std::string>& patterns) {
@@ -194,6 +197,7 @@ int run_identify(const IdentifyOptions& o) {
   else if (o.robust != "none")
     throw InputError("--robust must be none, huber or cauchy");
   opt.robust_scale = o.robust_scale;
+  opt.keep_stated_noise = o.stated_noise;
   opt.multi_start = o.multi_start;
   opt.seed = o.seed;
   if (o.multi_start > 0 && opt.prior_sigma.empty()) {
@@ -272,9 +276,24 @@ int run_identify(const IdentifyOptions& o) {
     core::write_file_atomic(o.out_robot, text);
     doc["calibrated_robot"] = o.out_robot;
   }
-  write_json(doc, o.json);
+  if (!o.json.empty()) write_json(doc, o.json);
   if (res.status == IdentificationStatus::kInvalidInput)
     throw InputError(fmt::format("{}: {}", o.measurements, res.message));
+  if (!o.quiet) {
+    // The plain-words summary always (JSON only where asked); stderr when JSON takes stdout.
+    std::FILE* out = human_stream(o.json);
+    std::string text = summary_text(res);
+    text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit.poses));
+    if (!held.empty())
+      text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held));
+    if (doc.contains("calibrated_robot"))
+      text += fmt::format("calibrated robot file: {}\n", o.out_robot);
+    fmt::print(out, "{}", text);
+  }
+  if (res.status == IdentificationStatus::kNotIdentifiable) {
+    fmt::print(stderr, "identification refused: {}\n", res.message);
+    return kExitFailure;
+  }
   if (!usable) {
     fmt::print(stderr, "identification failed: {}\n", res.message);
     return kExitFailure;
@@ -296,7 +315,12 @@ CommandSpec identify_command() {
                 "identification.json and results/calibrated_robot.yaml (--robot: another robot "
                 "file, checked against the session).\n"
                 "  robocal identify --robot R --measurements M   any measurements file "
-                "(testdata/measurements/README.md); the options below apply to this mode.");
+                "(testdata/measurements/README.md); the options below apply to this mode.\n"
+                "With little data (fewer equations than free parameters) the identifiable "
+                "combinations are estimated and the rest held at nominal (the gauge), said in "
+                "words. Exit codes: 0 identified, 1 nothing identifiable or the solve failed "
+                "(the summary says what to measure next), 2 bad command line, 3 bad robot or "
+                "measurements file (file:line and the problem), 4 internal error.");
             cmd.add_option("session", o->session, "Session folder (app/SESSION.md)");
             cmd.add_option("--route", o->route,
                            "Session mode: identify from the measured 6-D poses (pose), or also "
@@ -307,7 +331,14 @@ CommandSpec identify_command() {
             cmd.add_option("--robot", o->robot, "Robot file (YAML)");
             cmd.add_option("--measurements", o->measurements,
                            "Measurements file (testdata/measurements/README.md)");
-            cmd.add_option("--json", o->json, "Result JSON file ('-' = stdout)");
+            cmd.add_option("--json", o->json,
+                           "Result JSON file ('-' = stdout; the summary then goes to stderr)");
+            cmd.add_flag("--quiet", o->quiet, "No terminal summary");
+            cmd.add_flag("--stated-noise", o->stated_noise,
+                         "Keep the stated measurement noise for the uncertainties (e.g. it comes "
+                         "from the detector's covariance). Default: the noise of each observation "
+                         "type is estimated from the residuals and the covariance scaled by it; "
+                         "both are reported");
             cmd.add_option("--out-robot", o->out_robot,
                            "Write the calibrated robot file here (only when the solve succeeds)");
             cmd.add_option("--free", o->free_patterns,

@@ -3,9 +3,12 @@
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/frame_checks.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/robot_file.hpp"
+
+#include <fmt/core.h>
 
 #include <Eigen/Geometry>
 
@@ -286,6 +289,11 @@ int run_check(const KinOptions& o) {
   if (c.equations > c.rank && c.rank >= 0)
     notes.push_back(std::to_string(c.equations - c.rank) +
                     " constraint row(s) redundant at home (e.g. a planar loop closed in 3-D)");
+  // Issue 22: frames at or near gimbal lock (stderr too: a warning a user must see).
+  for (const std::string& w : gimbal_lock_warnings(m)) {
+    notes.push_back("warning: " + w);
+    fmt::print(stderr, "warning: {}\n", w);
+  }
   doc["notes"] = notes;
   write_json(doc, o.output);
   return c.ok() || c.status == SolveStatus::kSingular ? int{kExitOk} : int{kExitFailure};

@@ -22,6 +22,7 @@
 //  4. a diverged or unusable solve keeps the nominal model and says so;
 //  5. covariance, correlations, per-pose residuals with outlier flags, predicted accuracy.
 #include "robocal/calib/identifiability.hpp"
+#include "robocal/calib/noise_estimate.hpp"
 #include "robocal/calib/observations.hpp"
 #include "robocal/calib/uncertainty.hpp"
 
@@ -76,6 +77,7 @@ struct PoseMeasurement {
   std::string id;
   Eigen::VectorXd actuators;
   std::vector<Observation> observations;
+  int line = 0;  // line in the measurements file (0 = not from a file), for messages
 };
 
 // Distance between the measured frame at two poses (ball-bar, scale bar), by pose id.
@@ -140,17 +142,23 @@ struct SolveOptions {
   double gradient_tolerance = 1e-14;
   double parameter_tolerance = 1e-13;
   int max_iterations = 200;
-  // Minimum equations per free parameter before solving (1 = just determined).
-  double min_equations_per_parameter = 1.0;
+  // The stated measurement noise (σ in the file, detector covariances) is only a guess unless
+  // this is set: by default the noise scale of every observation type is estimated from the
+  // residuals (noise_estimate.hpp) and the covariance, intervals and predicted accuracy are scaled
+  // by it. Set it when the stated noise is known (e.g. the detector's covariance): then the
+  // estimate is reported and compared (warnings both ways) but not applied.
+  bool keep_stated_noise = false;
   CovarianceOptions covariance;
   OutlierOptions outliers;
 };
 
 enum class IdentificationStatus {
-  kConverged,     // solved; result parameters updated
-  kNotConverged,  // usable but hit the iteration limit; result parameters updated
-  kDiverged,      // solve failed or worsened the fit: nominal kept
-  kInvalidInput,  // nothing solved (message says why)
+  kConverged,        // solved; result parameters updated
+  kNotConverged,     // usable but hit the iteration limit; result parameters updated
+  kDiverged,         // solve failed or worsened the fit: nominal kept
+  kInvalidInput,     // nothing solved (message says why)
+  kNotIdentifiable,  // valid data, but no free parameter changes the measurements: nothing to
+                     // estimate (message says so; the front end adds what to measure next)
 };
 const char* to_string(IdentificationStatus status);
 
@@ -189,6 +197,15 @@ struct IdentificationResult {
   double objective = 0.0;     // the minimised objective (robust loss and priors included)
   std::size_t equations = 0;  // measurement equations (whitened residual rows) used
   RelinearisationReport relinearisation;
+  // Little data: fewer equations than free parameters with an effect. The data determine only
+  // `identifiability.rank` combinations; the others are held at nominal (the gauge) and `gauge`
+  // says so in words (which were held, and why: the redundancy explanations).
+  bool limited_data = false;
+  std::string gauge;
+  // A posteriori noise per observation type (noise_estimate.hpp), beside the stated noise;
+  // `noise_applied` when the covariance was scaled by it (SolveOptions::keep_stated_noise).
+  NoiseEstimate noise;
+  bool noise_applied = false;
   int iterations = 0;
   int starts_run = 1;
   double solve_seconds = 0.0;

@@ -77,6 +77,10 @@ struct PoseResidual {
   Eigen::VectorXd whitened;        // r / σ (unit variance when the noise model is right)
   double position_error = 0.0;     // metres (Euclidean), for reporting
   double orientation_error = 0.0;  // radians (angle), for reporting (0 if not observed)
+  // Covariance of `whitened` under the noise model (noise_estimate.hpp: I − J_b C J_bᵀ for rows
+  // in the fit): when given, the test statistic is rᵀ Q⁺ r with the rank of Q as dof (correct for
+  // any leverage and any mix of σ) and `whitened` is taken as already scaled (no robust rescaling).
+  Eigen::MatrixXd residual_covariance;
 };
 
 struct OutlierOptions {

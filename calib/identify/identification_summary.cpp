@@ -1,0 +1,115 @@
+#include "robocal/calib/identification_summary.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace robocal::calib {
+namespace {
+
+std::string length(double metres) {
+  const double a = std::abs(metres);
+  if (a < 1e-3) return fmt::format("{:.3g} um", metres * 1e6);
+  if (a < 1.0) return fmt::format("{:.4g} mm", metres * 1e3);
+  return fmt::format("{:.5g} m", metres);
+}
+
+std::string noise_value(double sigma, const std::string& unit) {
+  if (unit == "m") return length(sigma);
+  if (unit == "rad") return fmt::format("{:.3g} mrad", sigma * 1e3);
+  return fmt::format("{:.3g} {}", sigma, unit);
+}
+
+// Up to `limit` names, then "and N more".
+std::string name_list(const std::vector<std::string>& names, std::size_t limit) {
+  std::string out;
+  for (std::size_t i = 0; i < names.size() && i < limit; ++i) out += (i ? ", " : "") + names[i];
+  if (names.size() > limit) out += fmt::format(" and {} more", names.size() - limit);
+  return out;
+}
+
+}  // namespace
+
+std::string summary_text(const IdentificationResult& r) {
+  std::string s = fmt::format("identify: {} - {}\n", to_string(r.status), r.message);
+  if (r.status == IdentificationStatus::kInvalidInput) return s;
+  for (const auto& e : r.excluded) s += fmt::format("  excluded pose {}: {}\n", e.id, e.reason);
+  if (r.limited_data) s += fmt::format("Little data: {}.\n", r.gauge);
+  if (r.status == IdentificationStatus::kNotIdentifiable ||
+      r.status == IdentificationStatus::kDiverged) {
+    for (const auto& w : r.warnings) s += "  warning: " + w + "\n";
+    return s;
+  }
+  // Estimated parameters with σ (the covariance already carries the estimated noise when applied).
+  s += fmt::format("Estimated {} parameter(s):\n", r.estimated.size());
+  for (std::size_t k = 0; k < r.estimated.size(); ++k) {
+    const auto i = static_cast<Eigen::Index>(r.estimated[k]);
+    std::string sigma;
+    if (r.uncertainty.ok)
+      sigma = fmt::format(" +- {:.3g}", r.uncertainty.sigma(static_cast<Eigen::Index>(k)));
+    s += fmt::format("  {:<28} {:+.6g}{}  (nominal {:.6g}, change {:+.3g})\n",
+                     r.names[r.estimated[k]], r.estimate(i), sigma, r.nominal(i),
+                     r.estimate(i) - r.nominal(i));
+  }
+  // Held parameters: the redundancy explanations say what each moves like.
+  std::vector<std::string> held;
+  for (const auto& red : r.identifiability.redundancies)
+    if (std::find(r.estimated.begin(), r.estimated.end(), r.candidates[red.parameter]) ==
+        r.estimated.end())
+      held.push_back(red.explanation);
+  if (!held.empty()) {
+    s += fmt::format("Held at nominal ({}):\n", held.size());
+    for (std::size_t k = 0; k < held.size() && k < 12; ++k) s += "  " + held[k] + "\n";
+    if (held.size() > 12) s += fmt::format("  ... and {} more (see the JSON)\n", held.size() - 12);
+  }
+  std::vector<std::string> no_effect;
+  for (std::size_t k : r.identifiability.no_effect) no_effect.push_back(r.identifiability.names[k]);
+  if (!no_effect.empty())
+    s += fmt::format("No effect on these measurements: {}\n", name_list(no_effect, 8));
+  // Noise: stated vs what the residuals show.
+  bool header = false;
+  for (const auto& g : r.noise.groups) {
+    if (g.rows == 0) continue;
+    if (!header) {
+      s += "Noise (stated -> estimated from the residuals):\n";
+      header = true;
+    }
+    if (!g.estimable) {
+      s += fmt::format("  {:<14} {} ({} rows; no redundancy left to estimate it)\n", g.type,
+                       noise_value(g.stated_sigma, g.unit), g.rows);
+      continue;
+    }
+    s += fmt::format("  {:<14} {} -> {} ({:.2g}x, 95 % {:.2g}-{:.2g}x, {:.0f} dof){}\n", g.type,
+                     noise_value(g.stated_sigma, g.unit), noise_value(g.estimated_sigma(), g.unit),
+                     g.scale, g.scale_low, g.scale_high, g.redundancy,
+                     r.noise_applied ? "" : " [stated noise kept]");
+  }
+  s += fmt::format("Fit residuals: position RMS {}, max {}", length(r.residuals.position_rms),
+                   length(r.residuals.position_max));
+  if (r.residuals.orientation_max > 0)
+    s += fmt::format("; orientation RMS {:.3g} mrad", r.residuals.orientation_rms * 1e3);
+  s += fmt::format("; {} outlier pose(s)\n", r.residuals.outliers);
+  for (const auto& p : r.residuals.poses)
+    if (p.outlier)
+      s += fmt::format("  outlier {}: chi-square {:.3g} > {:.3g} ({} dof), error {}\n", p.id,
+                       p.chi_square, p.threshold, p.dof, length(p.position_error));
+  if (r.uncertainty.ok)
+    s += fmt::format("Predicted accuracy at the measured poses: position RMS {}, worst {}\n",
+                     length(r.predicted.position_rms_overall), length(r.predicted.position_worst));
+  for (const auto& w : r.warnings) s += "  warning: " + w + "\n";
+  return s;
+}
+
+std::string validation_line(const std::string& label, const ValidationReport& v) {
+  std::string s =
+      fmt::format("{}: {} poses, position RMS {} -> {} (max {} -> {})", label, v.after.poses,
+                  length(v.before.position_rms), length(v.after.position_rms),
+                  length(v.before.position_max), length(v.after.position_max));
+  if (v.after.orientation_max > 0)
+    s += fmt::format(", orientation RMS {:.3g} -> {:.3g} mrad", v.before.orientation_rms * 1e3,
+                     v.after.orientation_rms * 1e3);
+  return s + "\n";
+}
+
+}  // namespace robocal::calib

@@ -1,0 +1,128 @@
+// Issue 21 through the command line, as a printer user would: a measurements file with 7 bed
+// heights and 12 caliper distances between printed positions (no other observation there);
+// a terminal summary with --json FILE; nothing identifiable -> exit 1; bad input -> exit 3 with
+// file:line and the problem.
+#include "command_registry.hpp"
+#include "printer_scenario.hpp"
+#include "robocal/calib/measurements_file.hpp"
+#include "run_robocal.hpp"
+#include "scratch_dir.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <regex>
+
+namespace {
+
+using namespace robocal::calib;
+constexpr auto& run = robocal::test::run_robocal;
+using robocal::test::read_text;
+
+struct PrinterCli : robocal::test::ScratchDirTest {
+  PrinterCli() : ScratchDirTest("robocal_printer_cli_") {}
+  std::string robot = std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml";
+
+  std::string write_file(bool distances) {
+    const Mechanism model = load_robot_file(robot);
+    std::mt19937 rng(21);
+    const Eigen::VectorXd truth = robocal::test::printer_truth(model, rng);
+    robocal::test::PrinterData data;
+    robocal::test::add_probe_heights(model, truth, robocal::test::probe_pattern(0.08), 10e-6, rng,
+                                     data);
+    if (distances)
+      robocal::test::add_printed_distances(model, truth, robocal::test::printed_points(),
+                                           robocal::test::printed_pairs(), 10e-6, rng, data);
+    MeasurementsFile f;
+    f.robot = model.name;
+    f.measurements = data.measurements;
+    const std::string path = file(distances ? "heights_distances.yaml" : "heights.yaml");
+    save_measurements_file(f, path);
+    return path;
+  }
+  std::vector<std::string> printer_free() {
+    return {"--free", "carriage_*.encoder_offset",
+            "--free", "rod_*.length",
+            "--free", "tower_a.x",
+            "--free", "tower_b.x",
+            "--free", "tower_c.y"};
+  }
+};
+
+TEST_F(PrinterCli, HeightsAndDistanceOnlyPosesIdentifyWithASummary) {
+  const std::string m = write_file(true);
+  std::vector<std::string> args = {"identify", "--robot", robot,         "--measurements",
+                                   m,          "--json",  file("r.json")};
+  for (const auto& a : printer_free()) args.push_back(a);
+  testing::internal::CaptureStdout();
+  ASSERT_EQ(run(args), 0);
+  const std::string out = testing::internal::GetCapturedStdout();
+  EXPECT_NE(out.find("Estimated 9 parameter(s)"), std::string::npos) << out;
+  EXPECT_NE(out.find("Noise (stated -> estimated"), std::string::npos) << out;
+  const auto doc = nlohmann::json::parse(read_text(file("r.json")));
+  EXPECT_EQ(doc["status"], "converged");
+  EXPECT_EQ(doc["excluded_poses"].size(), 0u);
+  EXPECT_TRUE(doc.contains("noise"));
+  // --quiet: nothing on the terminal.
+  args.push_back("--quiet");
+  testing::internal::CaptureStdout();
+  ASSERT_EQ(run(args), 0);
+  EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
+}
+
+TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableIsExit1) {
+  const std::string m = write_file(false);
+  std::vector<std::string> args = {"identify", "--robot", robot, "--measurements", m};
+  for (const auto& a : printer_free()) args.push_back(a);
+  testing::internal::CaptureStdout();
+  ASSERT_EQ(run(args), 0);
+  const std::string out = testing::internal::GetCapturedStdout();
+  EXPECT_NE(out.find("Little data"), std::string::npos) << out;
+  EXPECT_NE(out.find("held at their nominal values"), std::string::npos) << out;
+  // Horizontal tool offsets do not move bed heights: nothing identifiable, exit 1, said so.
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", m, "--free", "tool.z", "--fix",
+                 "tool.z", "--free", "base.x", "--free", "base.y", "--quiet"}),
+            1);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("nothing is identifiable"), std::string::npos) << err;
+}
+
+TEST_F(PrinterCli, BadInputNamesFileLineAndProblem) {
+  const std::string good = read_text(write_file(true));
+  auto expect_refused = [&](const std::string& text, const std::string& what) {
+    std::ofstream(file("bad.yaml")) << text;
+    testing::internal::CaptureStderr();
+    EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("bad.yaml")}), 3) << what;
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_NE(err.find(what), std::string::npos) << err;
+    return err;
+  };
+  // A distance naming a pose that does not exist.
+  std::string t = good;
+  t.replace(t.find("a: print0"), 9, "a: print99");
+  const std::string e1 = expect_refused(t, "distance names pose 'print99'");
+  EXPECT_TRUE(std::regex_search(e1, std::regex("bad\\.yaml:[0-9]+:"))) << e1;
+  // A negative σ.
+  t = good;
+  const auto s = t.find("sigma: ");
+  t.replace(s, 7, "sigma: -");
+  const std::string e2 = expect_refused(t, "must be > 0");
+  EXPECT_TRUE(std::regex_search(e2, std::regex("bad\\.yaml:[0-9]+:"))) << e2;
+  // Heights in millimetres declared as metres.
+  const MeasurementsFile f = load_measurements_file(file("heights_distances.yaml"));
+  MeasurementsFile mm = f;
+  for (auto& p : mm.measurements.poses)
+    for (auto& o : p.observations)
+      if (auto* h = std::get_if<ProbeHeightObservation>(&o))
+        h->measured_height = 1e3 * (h->measured_height + 1e-3);  // bed 1 mm lower, in mm
+  save_measurements_file(mm, file("mm.yaml"));
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("mm.yaml")}), 3);
+  const std::string e3 = testing::internal::GetCapturedStderr();
+  EXPECT_NE(e3.find("implausible in metres"), std::string::npos) << e3;
+  EXPECT_TRUE(std::regex_search(e3, std::regex("line [0-9]+"))) << e3;
+}
+
+}  // namespace
