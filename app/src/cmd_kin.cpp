@@ -233,11 +233,10 @@ int run_ik(const KinOptions& o) {
     }
   }
   if (!ok)
-    doc["reason"] = ik.status == SolveStatus::kOtherMode
-                        ? "the target is reached only on " + ik.mode.describe() +
-                              " (every seed tried)"
-                        : std::string("no solution reaches the target (") + to_string(ik.status) +
-                              ")";
+    doc["reason"] =
+        ik.status == SolveStatus::kOtherMode
+            ? "the target is reached only on " + ik.mode.describe() + " (every seed tried)"
+            : std::string("no solution reaches the target (") + to_string(ik.status) + ")";
   write_json(doc, o.output);
   return ok ? int{kExitOk} : int{kExitFailure};
 }
@@ -324,11 +323,10 @@ int run_check(const KinOptions& o) {
                          {"equations", c.equations},      {"sigma_min", c.sigma_min},
                          {"sigma_max", c.sigma_max}};
   if (c.passive.size() == static_cast<Eigen::Index>(m.passive.size()))
-    doc["home_closure"]["assembly_mode"] =
-        mode_json(m, r.params,
-                  make_joint_state(m, r.params, readings_from_joint_values(m, r.params, home_q),
-                                   c.passive),
-                  c.mode);
+    doc["home_closure"]["assembly_mode"] = mode_json(
+        m, r.params,
+        make_joint_state(m, r.params, readings_from_joint_values(m, r.params, home_q), c.passive),
+        c.mode);
   nlohmann::json invariants = nlohmann::json::array();
   for (const ModeInvariant& inv : m.assembly_mode.invariants) {
     std::vector<std::string> names;
@@ -351,7 +349,7 @@ int run_check(const KinOptions& o) {
   doc["notes"] = notes;
   write_json(doc, o.output);
   return (c.ok() || c.status == SolveStatus::kSingular) && c.mode.acceptable() ? int{kExitOk}
-                                                                              : int{kExitFailure};
+                                                                               : int{kExitFailure};
 }
 
 void add_common(CLI::App* sub, KinOptions& o) {

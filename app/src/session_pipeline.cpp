@@ -1133,7 +1133,8 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
              fk.closure.mode.verdict == calib::ModeVerdict::kOther ||
              fk.closure.mode.verdict == calib::ModeVerdict::kAmbiguous;
     };
-    if (off_mode(true_fk) || off_mode(nominal_fk) || off_mode(calibrated_fk) || off_mode(pixel_fk)) {
+    if (off_mode(true_fk) || off_mode(nominal_fk) || off_mode(calibrated_fk) ||
+        off_mode(pixel_fk)) {
       ++branch_disagreements;
       continue;
     }

@@ -2,6 +2,9 @@
 
 #include "mode_check.hpp"
 #include "robocal/calib/kinematics.hpp"
+#include "tree_evaluator.hpp"
+
+#include <Eigen/SVD>
 
 #include <sstream>
 
@@ -35,8 +38,13 @@ std::string ModeCheck::describe() const {
         << " has the opposite sign to the robot file's declaration (margin " << margin << ")";
       break;
     case ModeVerdict::kAmbiguous:
-      s << "ambiguous assembly mode: invariant " << invariant << " is " << distance
-        << " from 0, at or near a singularity where modes meet";
+      if (invariant == "closure_conditioning")
+        s << "ambiguous assembly mode: the loops are near a singular configuration (constraint "
+             "Jacobian sigma_min/sigma_max "
+          << conditioning << "), where assembly modes meet";
+      else
+        s << "ambiguous assembly mode: invariant " << invariant << " is " << distance
+          << " from 0, at or near a singularity where modes meet";
       break;
   }
   return s.str();
@@ -63,7 +71,23 @@ ModeCheck check_assembly_mode(const Mechanism& model, const Eigen::VectorXd& par
   if (model.assembly_mode.invariants.empty()) return {};
   std::vector<Eigen::Isometry3d> poses;
   body_poses(model, params, state, poses);
-  return check_assembly_mode(model, poses, state);
+  double conditioning = -1.0;
+  const auto n = static_cast<Eigen::Index>(model.passive.size());
+  if (n > 0 && model.constraint_rows() > 0) {
+    detail::TreeEvaluator ev(model, params);
+    ev.update(state.q);
+    Eigen::MatrixXd J(ev.rows(), n);
+    for (Eigen::Index j = 0; j < n; ++j)
+      ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    conditioning = sv.size() >= n && sv[0] > 0.0 ? sv[sv.size() - 1] / sv[0] : 0.0;
+  }
+  return detail::check_mode(
+      model, state.q,
+      [&](int b) { return Eigen::Vector3d(poses[static_cast<std::size_t>(b)].translation()); },
+      [&](int b) { return Eigen::Matrix3d(poses[static_cast<std::size_t>(b)].linear()); },
+      conditioning);
 }
 
 JointState home_joint_state(const Mechanism& model) {

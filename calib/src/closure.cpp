@@ -1,7 +1,7 @@
 #include "robocal/calib/closure.hpp"
 
-#include "robocal/calib/closed_form.hpp"
 #include "mode_check.hpp"
+#include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
 
@@ -163,7 +163,22 @@ struct ClosureSolver::Impl {
     if (lm.converged)
       r.mode = detail::check_mode(
           *model, q, [&](int b) -> const Eigen::Vector3d& { return ev.pose(b).p; },
-          [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; });
+          [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; }, conditioning(sys));
+  }
+
+  // Estimate of sigma_min / sigma_max of the constraint Jacobian at a converged answer (the
+  // evaluator holds its poses), for the ambiguous verdict near singular loops. Reuses the LU
+  // factors of the last Newton step when there is one (the hot path: no new Jacobian).
+  template <class System>
+  double conditioning(System& sys) {
+    const auto n = static_cast<Eigen::Index>(model->passive.size());
+    if (n == 0 || model->assembly_mode.invariants.empty() || model->constraint_rows() != n)
+      return -1.0;
+    if (!ws.lu_current) {
+      sys.jacobian(ws.J);
+      ws.lu.compute(ws.J);
+    }
+    return detail::sigma_ratio_estimate(ws.lu, ws.J, ws.g, ws.dx);
   }
 
   // Continuation from the home configuration to `readings` (closure.hpp, step 2).
@@ -175,12 +190,26 @@ struct ClosureSolver::Impl {
       home_q[i] = model->bodies[model->actuated[static_cast<std::size_t>(i)]].home;
     const Eigen::VectorXd home = readings_from_joint_values(*model, params, home_q);
     r.passive = model->home_passive();
-    const int steps = std::max(1, options.continuation_steps);
-    for (int k = 0; k <= steps; ++k) {
-      const double t = static_cast<double>(k) / steps;
-      set_actuators(home + t * (readings - home));
+    set_actuators(home);
+    attempt(sys, r);
+    if (!r.ok()) return false;
+    // Adaptive steps: a step that does not close, or closes on another mode, is halved (it jumped
+    // branches); a step that succeeds lets the next one grow.
+    Eigen::VectorXd last = r.passive;
+    double t = 0.0, h = 1.0 / std::max(1, options.continuation_steps);
+    while (t < 1.0) {
+      const double t_try = std::min(1.0, t + h);
+      set_actuators(home + t_try * (readings - home));
+      r.passive = last;
       attempt(sys, r);
-      if (!r.ok()) return false;
+      if (r.ok() && r.mode.verdict != ModeVerdict::kOther) {
+        t = t_try;
+        last = r.passive;
+        h = std::min(2.0 * h, 0.25);
+      } else {
+        h *= 0.5;
+        if (h < 1.0 / 4096) return false;
+      }
     }
     return true;
   }
@@ -233,8 +262,8 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   ClosureSystem sys{&s.ev, &s.q, &m};
   const bool warm = seed.size() == n;
   result.passive = warm ? seed : s.seed();
-  result.seed_used = warm ? "warm" : (m.closed_form.kind != ClosedFormKind::kNone ? "closed_form"
-                                                                                  : "home");
+  result.seed_used =
+      warm ? "warm" : (m.closed_form.kind != ClosedFormKind::kNone ? "closed_form" : "home");
   s.attempt(sys, result);
   // Serial chains (no passive joint) have one answer per reading: the verdict is reported, there is
   // nothing to re-seed.

@@ -1,7 +1,8 @@
 #include "robocal/calib/inverse_kinematics.hpp"
 
-#include "robocal/calib/closed_form.hpp"
 #include "mode_check.hpp"
+#include "robocal/calib/closed_form.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
 
 #include <cmath>
@@ -193,9 +194,60 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   run(x, out);
   const bool check = options.enforce_mode && !model.assembly_mode.invariants.empty();
   if (check && !(out.ok() && out.mode.acceptable())) {
-    // Re-seed (inverse_kinematics.hpp): home, then deterministic spread seeds.
-    std::mt19937 rng(12345);
+    // Re-seed (inverse_kinematics.hpp): task-space continuation from home, then home and
+    // deterministic spread seeds.
     bool found = false;
+    const auto accept = [&](const Eigen::VectorXd& xs, const IkResult& r) {
+      found = true;
+      x = xs;
+      out.status = r.status;
+      out.residual = r.residual;
+      out.mode = r.mode;
+    };
+    {
+      // The target moves from the task value at home (on the intended mode by the file's
+      // declaration) to the requested one; each step is warm-started from the previous answer
+      // and halved when it fails or lands on another mode.
+      Eigen::VectorXd xs(na + np);
+      xs.head(na) = home_q;
+      if (np > 0) xs.tail(np) = passive_for(model, params, home_q);
+      const JointState home_state = make_joint_state(
+          model, params, readings_from_joint_values(model, params, home_q), xs.tail(np));
+      const Eigen::Isometry3d from = frame_pose(model, params, home_state, model.task.frame);
+      const double joint_from =
+          model.task.type == TaskType::kJoint ? home_state.q[model.task.joint] : 0.0;
+      const Eigen::Vector3d turn = rotation_log(from.linear().transpose() * target.pose.linear());
+      const auto target_at = [&](double t) {
+        TaskTarget g = target;
+        g.pose.translation() =
+            from.translation() + t * (target.pose.translation() - from.translation());
+        g.pose.linear() = from.linear() * rotation_exp(t * turn);
+        g.joint_value = joint_from + t * (target.joint_value - joint_from);
+        return g;
+      };
+      Eigen::VectorXd last = xs;
+      double t = 0.0, h = 1.0 / 16;
+      IkResult r;
+      while (t < 1.0) {
+        const double t_try = std::min(1.0, t + h);
+        sys.target = target_at(t_try);
+        xs = last;
+        r.iterations = out.iterations;
+        run(xs, r);
+        out.iterations = r.iterations;
+        if (r.ok() && r.mode.verdict != ModeVerdict::kOther) {
+          t = t_try;
+          last = xs;
+          h = std::min(2.0 * h, 0.25);
+        } else {
+          h *= 0.5;
+          if (h < 1.0 / 4096) break;
+        }
+      }
+      sys.target = target;
+      if (t >= 1.0 && r.ok() && r.mode.acceptable()) accept(last, r);
+    }
+    std::mt19937 rng(12345);
     for (int k = from_home ? 1 : 0; k <= options.multi_start && !found; ++k) {
       Eigen::VectorXd xs(na + np);
       xs.head(na) = k == 0 ? home_q : spread_seed(model, rng);
@@ -204,13 +256,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       r.iterations = out.iterations;
       run(xs, r);
       out.iterations = r.iterations;
-      if (r.ok() && r.mode.acceptable()) {
-        found = true;
-        x = xs;
-        out.status = r.status;
-        out.residual = r.residual;
-        out.mode = r.mode;
-      }
+      if (r.ok() && r.mode.acceptable()) accept(xs, r);
     }
     if (!found && out.ok()) out.status = SolveStatus::kOtherMode;
   }

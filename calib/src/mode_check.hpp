@@ -4,6 +4,7 @@
 // solvers check every answer without converting or recomputing poses.
 #include "robocal/calib/assembly_mode.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -37,6 +38,11 @@ double invariant_value(const ModeInvariant& inv, const Mechanism& m, const Eigen
       M.col(2) = unit_or_zero(p(5) - p(4));
       return M.determinant();
     }
+    case InvariantKind::kTilt: {
+      const double c = (rotation(b[0]) * inv.axis).dot(rotation(b[1]) * inv.axis);
+      const double c0 = std::cos(inv.max_angle);
+      return std::clamp((c - c0) / (1.0 - c0), -1.0, 1.0);
+    }
     case InvariantKind::kJoint: {
       const Body& body = m.bodies[static_cast<std::size_t>(b[0])];
       const double v = q[b[0]];
@@ -46,10 +52,12 @@ double invariant_value(const ModeInvariant& inv, const Mechanism& m, const Eigen
   return 0.0;
 }
 
+// conditioning: sigma_min / sigma_max of the closure Jacobian at the state, < 0 if unknown.
 template <class Position, class Rotation>
 ModeCheck check_mode(const Mechanism& m, const Eigen::VectorXd& q, const Position& position,
-                     const Rotation& rotation) {
+                     const Rotation& rotation, double conditioning = -1.0) {
   ModeCheck out;
+  out.conditioning = conditioning;
   const AssemblyModeSpec& spec = m.assembly_mode;
   if (spec.invariants.empty()) return out;
   out.margin = 1e300;
@@ -83,6 +91,9 @@ ModeCheck check_mode(const Mechanism& m, const Eigen::VectorXd& q, const Positio
   } else if (out.distance < spec.ambiguity) {
     out.verdict = ModeVerdict::kAmbiguous;
     out.invariant = spec.invariants[nearest].name;
+  } else if (conditioning >= 0.0 && conditioning < spec.min_conditioning) {
+    out.verdict = ModeVerdict::kAmbiguous;
+    out.invariant = "closure_conditioning";
   } else {
     out.verdict = ModeVerdict::kIntended;
   }

@@ -185,21 +185,23 @@ struct InvariantShape {
 const std::map<std::string, InvariantShape> kInvariantKinds = {
     {"side", {InvariantKind::kSide, 2}},         {"turn", {InvariantKind::kTurn, 3}},
     {"parallel", {InvariantKind::kParallel, 4}}, {"triple", {InvariantKind::kTriple, 6}},
-    {"joint", {InvariantKind::kJoint, 1}},
+    {"joint", {InvariantKind::kJoint, 1}},       {"tilt", {InvariantKind::kTilt, 2}},
 };
 
 ModeInvariant parse_invariant(const YAML::Node& n, const std::string& source, const Mechanism& m) {
-  check_keys(source, n, "assembly_mode invariant", {"name", "type", "bodies", "axis", "sign"});
+  check_keys(source, n, "assembly_mode invariant",
+             {"name", "type", "bodies", "axis", "max_angle", "sign"});
   ModeInvariant inv;
   inv.line = line_of(n);
   if (!n["name"]) fail(source, n, "assembly_mode invariant needs a 'name'");
   inv.name = text(source, n["name"], "invariant name");
   const std::string what = "assembly_mode invariant '" + inv.name + "'";
-  if (!n["type"]) fail(source, n, what + " needs a 'type' (side, turn, parallel, triple, joint)");
+  if (!n["type"])
+    fail(source, n, what + " needs a 'type' (side, turn, parallel, triple, joint, tilt)");
   const std::string type = text(source, n["type"], what + ": type");
   const auto shape = kInvariantKinds.find(type);
   if (shape == kInvariantKinds.end())
-    fail(source, n["type"], what + ": type must be side, turn, parallel, triple or joint");
+    fail(source, n["type"], what + ": type must be side, turn, parallel, triple, joint or tilt");
   inv.kind = shape->second.kind;
   const std::vector<std::string> names = string_list(source, n["bodies"], what + ": bodies");
   if (names.size() != shape->second.bodies)
@@ -215,10 +217,19 @@ ModeInvariant parse_invariant(const YAML::Node& n, const std::string& source, co
       m.bodies[static_cast<std::size_t>(inv.bodies[0])].joint == JointType::kFixed)
     fail(source, n["bodies"], what + ": a joint invariant needs a moving joint");
   if (n["axis"]) {
-    if (inv.kind != InvariantKind::kSide) fail(source, n["axis"], what + ": axis is for type side");
+    if (inv.kind != InvariantKind::kSide && inv.kind != InvariantKind::kTilt)
+      fail(source, n["axis"], what + ": axis is for types side and tilt");
     inv.axis = vec3(source, n["axis"], what + ": axis");
     if (inv.axis.norm() < 1e-12) fail(source, n["axis"], what + ": axis must not be zero");
     inv.axis.normalize();
+  }
+  if (inv.kind == InvariantKind::kTilt) {
+    if (!n["max_angle"]) fail(source, n, what + ": type tilt needs 'max_angle' (rad)");
+    inv.max_angle = number(source, n["max_angle"], what + ": max_angle");
+    if (!(inv.max_angle > 0.0 && inv.max_angle < M_PI))
+      fail(source, n["max_angle"], what + ": max_angle must be in (0, pi)");
+  } else if (n["max_angle"]) {
+    fail(source, n["max_angle"], what + ": max_angle is for type tilt");
   }
   if (!n["sign"]) fail(source, n, what + " needs 'sign: 1' or 'sign: -1' (the intended side)");
   inv.sign = number(source, n["sign"], what + ": sign");
@@ -228,13 +239,19 @@ ModeInvariant parse_invariant(const YAML::Node& n, const std::string& source, co
 
 void parse_assembly_mode(const YAML::Node& node, const std::string& source, Mechanism& m) {
   if (!node) return;
-  check_keys(source, node, "assembly_mode", {"ambiguity", "invariants"});
+  check_keys(source, node, "assembly_mode", {"ambiguity", "min_conditioning", "invariants"});
   AssemblyModeSpec& spec = m.assembly_mode;
   spec.line = line_of(node);
   if (node["ambiguity"]) {
     spec.ambiguity = number(source, node["ambiguity"], "assembly_mode.ambiguity");
     if (!(spec.ambiguity >= 0.0 && spec.ambiguity < 1.0))
       fail(source, node["ambiguity"], "assembly_mode.ambiguity must be in [0, 1)");
+  }
+  if (node["min_conditioning"]) {
+    spec.min_conditioning =
+        number(source, node["min_conditioning"], "assembly_mode.min_conditioning");
+    if (!(spec.min_conditioning >= 0.0 && spec.min_conditioning < 1.0))
+      fail(source, node["min_conditioning"], "assembly_mode.min_conditioning must be in [0, 1)");
   }
   const YAML::Node list = node["invariants"];
   if (!list || !list.IsSequence() || list.size() == 0)

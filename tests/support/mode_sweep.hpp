@@ -24,9 +24,9 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cmath>
 #include <map>
 #include <optional>
 #include <random>
@@ -160,10 +160,9 @@ inline NominalReference nominal_reference(const Mechanism& m, const Eigen::Vecto
     for (std::size_t i = 0; i < 3; ++i) c[i] = A[i] + qj(i) * Eigen::Vector3d::UnitX();
     out.tool = three_spheres(c, r, Eigen::Vector3d::UnitX());
   } else if (m.name == "four_bar") {
-    // Spatial parallelogram: the output follows the crank, q3 = q1, q4 = q5 = 0; the tool sits
-    // on the output link at (1, 0, 0) + (-sin q1, cos q1, 0).
+    // Spatial parallelogram: the output link stays parallel to the crank, so the tool (the
+    // output link's end) sits at (1, 0, 0) + (-sin q1, cos q1, 0).
     const double a = qj(0);
-    out.passive = Eigen::Vector3d(a, 0.0, 0.0);
     out.tool = Eigen::Vector3d(1.0 - std::sin(a), std::cos(a), 0.0);
   } else if (m.name == "wire_robot_branch") {
     // Parallelogram: the forearm keeps the turntable's orientation, q3 = -q2.
@@ -327,11 +326,12 @@ inline Counts sweep_robot(const Mechanism& m, int values, int draws, double tole
       if (e > agreement) {
         ++total.silent_wrong;
         if (std::getenv("ROBOCAL_SWEEP_VERBOSE"))
-          std::fprintf(stderr, "silent: model %zu q %s error %.3g seed %s distance %.3g ref %.3g\n",
-                       k, format(q).c_str(), e, r.seed_used, r.mode.distance,
-                       ref_distance ? *ref_distance : -1.0);
-      }
-      else
+          std::fprintf(
+              stderr,
+              "silent: model %zu q %s error %.3g seed %s distance %.3g cond %.3g ref %.3g\n", k,
+              format(q).c_str(), e, r.seed_used, r.mode.distance, r.mode.conditioning,
+              ref_distance ? *ref_distance : -1.0);
+      } else
         total.max_error = std::max(total.max_error, e);
     }
   }

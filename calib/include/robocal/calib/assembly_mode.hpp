@@ -10,9 +10,11 @@
 // Verdicts:
 //  - intended:  every invariant has its declared sign, each at least `ambiguity` away from 0;
 //  - other:     at least one invariant has the opposite sign (ModeCheck::invariant names them);
-//  - ambiguous: no invariant flipped, but one lies within `ambiguity` of 0 — the configuration is
-//               at or near a singularity where two modes meet, so a small error in the geometry
-//               or the readings can put the real robot on either side;
+//  - ambiguous: no invariant flipped, but one lies within `ambiguity` of 0, or the closure's
+//               constraint Jacobian is nearly singular (sigma_min / sigma_max below
+//               `min_conditioning`) — the configuration is at or near a singularity where modes
+//               meet, so a small error in the geometry or the readings can put the real robot on
+//               either side (ModeCheck::invariant is then "closure_conditioning");
 //  - undeclared: the robot file declares no mode (nothing can be checked).
 // ModeCheck::distance is the distance-to-singularity measure: min over the invariants of |value|
 // (dimensionless, 0 = where modes meet, 1 = as far as the invariant can be).
@@ -42,6 +44,9 @@ struct ModeCheck {
   double margin = 0.0;
   // Distance to the nearest singularity where modes meet: min |value| (0..1).
   double distance = 0.0;
+  // sigma_min / sigma_max of the closure's constraint Jacobian at the answer (solvers: a cheap
+  // estimate; check_assembly_mode(model, params, state): exact); -1 = not evaluated (no loop).
+  double conditioning = -1.0;
   bool intended() const { return verdict == ModeVerdict::kIntended; }
   // Not on another mode (intended, ambiguous or undeclared).
   bool acceptable() const { return verdict != ModeVerdict::kOther; }
@@ -55,10 +60,11 @@ struct ModeCheck {
 double invariant_value(const ModeInvariant& invariant, const std::vector<Eigen::Isometry3d>& poses,
                        const JointState& state, const Mechanism& model);
 
-// The verdict for an open-tree state (normally a solved closure).
+// The verdict for an open-tree state (normally a solved closure), including the closure's
+// conditioning (exact, by SVD) when the robot has loops.
 ModeCheck check_assembly_mode(const Mechanism& model, const Eigen::VectorXd& params,
                               const JointState& state);
-// Same from already computed body poses (body_poses()).
+// The invariants only, from already computed body poses (body_poses()).
 ModeCheck check_assembly_mode(const Mechanism& model, const std::vector<Eigen::Isometry3d>& poses,
                               const JointState& state);
 

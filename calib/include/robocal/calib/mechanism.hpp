@@ -186,6 +186,9 @@ enum class InvariantKind : std::uint8_t {
   kParallel,  // unit(p1 - p0) . unit(p3 - p2): a rod pair is a parallelogram (+) or crossed (-)
   kTriple,    // det[unit(p1 - p0), unit(p3 - p2), unit(p5 - p4)]: side of three rods' plane
   kJoint,     // sin(q) of a revolute joint (q for a prismatic one): elbow / wrist sign
+  kTilt,      // (cos t - cos max_angle) / (1 - cos max_angle), clamped to [-1, 1], with t the angle
+              // between `axis` in frame bodies[0] and in frame bodies[1]: a platform stays within
+              // max_angle of its designed orientation (plate tilt modes of a perturbed Delta)
 };
 
 struct ModeInvariant {
@@ -193,6 +196,7 @@ struct ModeInvariant {
   InvariantKind kind = InvariantKind::kSide;
   std::vector<int> bodies;  // frames the invariant reads (count depends on kind)
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // kSide: direction in frame bodies[0]
+  double max_angle = 0.0;                           // kTilt only (rad)
   double sign = 1.0;  // declared sign of the value on the intended mode
   int line = 0;
 };
@@ -201,6 +205,10 @@ struct AssemblyModeSpec {
   std::vector<ModeInvariant> invariants;  // empty: the file declares no mode
   // |value| below which an invariant cannot tell the modes apart (ambiguous verdict).
   double ambiguity = 0.02;
+  // sigma_min / sigma_max of the closure's constraint Jacobian (d closure / d passive joints)
+  // below which a closed answer is ambiguous: near a singularity of the loops, where modes the
+  // invariants do not separate (e.g. a Delta plate free to tilt) meet.
+  double min_conditioning = 0.01;
   int line = 0;
 };
 
