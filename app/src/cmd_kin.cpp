@@ -145,8 +145,12 @@ int run_fk(const KinOptions& o, bool jacobian) {
     doc["assembly_mode"] = mode_json(m, r.params, fk.state, fk.closure.mode);
     doc["seed"] = fk.closure.seed_used;
   }
-  // An answer on another assembly mode is refused: no pose, exit 1, the reason.
-  const bool ok = closed && fk.closure.mode.acceptable();
+  // An answer on another assembly mode is refused: no pose, exit 1, the reason. A serial chain's
+  // forward answer is unique (no loop to re-seed): reported with its verdict.
+  const bool serial = m.passive.empty();
+  const bool ok = closed && (fk.closure.mode.acceptable() || serial);
+  if (ok && !fk.closure.mode.acceptable())
+    doc["note"] = "these joint values put the arm in " + fk.closure.mode.describe();
   if (!ok)
     doc["reason"] = fk.closure.status == SolveStatus::kOtherMode || !fk.closure.mode.acceptable()
                         ? "the loops close only on " + fk.closure.mode.describe() +
@@ -365,7 +369,10 @@ void add_common(CLI::App* sub, KinOptions& o) {
 }  // namespace
 
 CommandSpec kin_command() {
-  return {"kin", "Kinematics of a robot file: fk, ik, jacobian, check (JSON output)",
+  return {"kin",
+          "Kinematics of a robot file: fk, ik, jacobian, check (JSON output). Every answer "
+          "carries its assembly-mode verdict; one that only another mode gives is refused "
+          "(exit 1, with the reason)",
           [](CLI::App& cmd) -> CommandAction {
             auto o = std::make_shared<KinOptions>();
             cmd.require_subcommand(1);

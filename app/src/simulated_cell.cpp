@@ -143,6 +143,14 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
     for (const calib::Closure& c : cell.model.closures)
       in_loop = in_loop || (c.body_a >= cell.target_frame && c.body_a < tool.subtree_end) ||
                 (c.body_b >= cell.target_frame && c.body_b < tool.subtree_end);
+    // Identification places the robot in the cameras' world by moving its first body, which must
+    // therefore be a fixed base frame.
+    const calib::Body& root = cell.model.bodies.front();
+    if (root.joint != calib::JointType::kFixed)
+      throw calib::RobotFileError(robot_file + ":" + std::to_string(root.line) +
+                                  ": the first body '" + root.name +
+                                  "' is a moving joint: a robot needs a fixed base frame first, "
+                                  "from which the mechanism hangs (testdata/robots/README.md)");
     if (tool.joint != calib::JointType::kFixed || in_loop)
       throw calib::RobotFileError(
           robot_file + ":" + std::to_string(tool.line) + ": the tool frame '" + tool.name +

@@ -210,7 +210,13 @@ ModeInvariant parse_invariant(const YAML::Node& n, const std::string& source, co
              " bodies, got " + std::to_string(names.size()));
   for (const std::string& b : names) {
     const int i = m.body_index(b);
-    if (i < 0) fail(source, n["bodies"], what + " names a missing body '" + b + "'");
+    if (i < 0) {
+      std::string message = what;
+      message += " names a missing body '";
+      message += b;
+      message += "'";
+      fail(source, n["bodies"], message);
+    }
     inv.bodies.push_back(i);
   }
   if (inv.kind == InvariantKind::kJoint &&
