@@ -197,6 +197,12 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
     // Re-seed (inverse_kinematics.hpp): task-space continuation from home, then home and
     // deterministic spread seeds.
     bool found = false;
+    ModeCheck other_mode = out.ok() ? out.mode : ModeCheck{};  // an answer seen on another mode
+    const auto note_other = [&](const IkResult& r) {
+      if (r.ok() && r.mode.verdict == ModeVerdict::kOther &&
+          other_mode.verdict != ModeVerdict::kOther)
+        other_mode = r.mode;
+    };
     const auto accept = [&](const Eigen::VectorXd& xs, const IkResult& r) {
       found = true;
       x = xs;
@@ -257,8 +263,13 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       run(xs, r);
       out.iterations = r.iterations;
       if (r.ok() && r.mode.acceptable()) accept(xs, r);
+      note_other(r);
     }
-    if (!found && out.ok()) out.status = SolveStatus::kOtherMode;
+    // The target is reached, but only on another mode: refused as such (the last answer kept).
+    if (!found && other_mode.verdict == ModeVerdict::kOther) {
+      out.status = SolveStatus::kOtherMode;
+      out.mode = other_mode;
+    }
   }
   out.actuator_q = x.head(na);
   out.passive = x.tail(np);
