@@ -1,6 +1,5 @@
 #include "robocal/calib/mechanism_predictor.hpp"
 
-#include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/kinematics.hpp"
 
 #include <fmt/core.h>
@@ -68,8 +67,10 @@ bool MechanismPredictor::predict(const Eigen::VectorXd& params, const Eigen::Vec
   ClosureResult closure = solver_->solve(actuators, seed);
   if (!closure.ok() && seed.size() > 0) closure = solver_->solve(actuators);  // cold restart
   if (!closure.ok()) {
-    why = fmt::format("closure {} (residual {:.3g} after {} iterations)", to_string(closure.status),
-                      closure.residual, closure.iterations);
+    why = closure.status == SolveStatus::kOtherMode
+              ? fmt::format("closure {}: {}", to_string(closure.status), closure.mode.describe())
+              : fmt::format("closure {} (residual {:.3g} after {} iterations)",
+                            to_string(closure.status), closure.residual, closure.iterations);
     return false;
   }
   const JointState state = make_joint_state(model_, params, actuators, closure.passive);
@@ -206,19 +207,14 @@ std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predicto
       ClosureOptions diag;
       diag.diagnose = true;
       const ClosureResult c = solve_closure(m, params, readings, {}, diag);
-      ok = c.ok() && (c.unknowns == 0 ||
-                      (c.rank == c.unknowns && c.sigma_min >= min_relative_sigma * c.sigma_max));
+      // The assembly-mode check (assembly_mode.hpp): design and held-out poses lie on the
+      // intended mode, clear of the boundaries where modes meet (ambiguous is refused too).
+      ok = c.ok() && c.mode.verdict != ModeVerdict::kOther &&
+           c.mode.verdict != ModeVerdict::kAmbiguous &&
+           (c.unknowns == 0 ||
+            (c.rank == c.unknowns && c.sigma_min >= min_relative_sigma * c.sigma_max));
       if (ok && within_workspace && m.workspace.min_task_conditioning > 0.0)
         ok = task_conditioning(predictor, params, readings) >= m.workspace.min_task_conditioning;
-    }
-    // Where the robot has a closed form, the nominal tree solution must be the intended
-    // assembly mode (the exact construction agrees with it to machine precision).
-    if (ok && m.closed_form.kind != ClosedFormKind::kNone) {
-      const auto cf = closed_form_forward(m.closed_form, q);
-      FramePrediction pred;
-      std::string why;
-      ok = cf.has_value() && predictor.predict(nominal, readings, -1, false, pred, why) &&
-           (pred.pose.translation() - *cf).norm() < 1e-6;
     }
     if (ok) out.push_back(readings);
   }

@@ -1,5 +1,6 @@
 #include "robocal/calib/closure.hpp"
 
+#include "mode_check.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
@@ -22,11 +23,21 @@ const char* to_string(SolveStatus status) {
       return "no_solution";
     case SolveStatus::kInvalidInput:
       return "invalid_input";
+    case SolveStatus::kOtherMode:
+      return "other_assembly_mode";
   }
   return "unknown";
 }
 
 namespace {
+
+// Status of one Levenberg-Marquardt run.
+SolveStatus lm_status(const detail::LmOutcome& lm) {
+  if (lm.converged) return SolveStatus::kConverged;
+  if (!std::isfinite(lm.residual) || (lm.stalled && lm.residual > 1e-6))
+    return SolveStatus::kNoSolution;
+  return SolveStatus::kNotConverged;
+}
 
 // Closure rows (and optionally rows pinning the tool position) as a function of the passive
 // joints; actuated joint values are already in q.
@@ -136,6 +147,72 @@ struct ClosureSolver::Impl {
     detail::levenberg_marquardt(pinned, x, pin_ws, 50, 1e-10, 0.5);
     return x;
   }
+
+  // One Levenberg-Marquardt run from r.passive at the current actuators; fills status,
+  // residual, iterations (added) and the mode verdict of a closed answer.
+  template <class System>
+  void attempt(System& sys, ClosureResult& r) {
+    const detail::LmOutcome lm = detail::levenberg_marquardt(
+        sys, r.passive, ws, options.max_iterations, options.tolerance, 0.5);
+    r.residual = lm.residual;
+    r.iterations += lm.iterations;
+    r.status = lm_status(lm);
+    r.mode = ModeCheck{};
+    // On convergence the evaluator holds the poses of the returned state (the LM loop's last
+    // evaluation is the accepted point).
+    if (lm.converged)
+      r.mode = detail::check_mode(
+          *model, q, [&](int b) -> const Eigen::Vector3d& { return ev.pose(b).p; },
+          [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; }, conditioning(sys));
+  }
+
+  // Estimate of sigma_min / sigma_max of the constraint Jacobian at a converged answer (the
+  // evaluator holds its poses), for the ambiguous verdict near singular loops. Reuses the LU
+  // factors of the last Newton step when there is one (the hot path: no new Jacobian).
+  template <class System>
+  double conditioning(System& sys) {
+    const auto n = static_cast<Eigen::Index>(model->passive.size());
+    if (n == 0 || model->assembly_mode.invariants.empty() || model->constraint_rows() != n)
+      return -1.0;
+    if (!ws.lu_current) {
+      sys.jacobian(ws.J);
+      ws.lu.compute(ws.J);
+    }
+    return detail::sigma_ratio_estimate(ws.lu, ws.J, ws.g, ws.dx);
+  }
+
+  // Continuation from the home configuration to `readings` (closure.hpp, step 2).
+  template <class System>
+  bool continuation(System& sys, const Eigen::VectorXd& readings, ClosureResult& r) {
+    const auto na = static_cast<Eigen::Index>(model->actuated.size());
+    Eigen::VectorXd home_q(na);
+    for (Eigen::Index i = 0; i < na; ++i)
+      home_q[i] = model->bodies[model->actuated[static_cast<std::size_t>(i)]].home;
+    const Eigen::VectorXd home = readings_from_joint_values(*model, params, home_q);
+    r.passive = model->home_passive();
+    set_actuators(home);
+    attempt(sys, r);
+    if (!r.ok()) return false;
+    // Adaptive steps: a step that does not close, or closes on another mode, is halved (it jumped
+    // branches); a step that succeeds lets the next one grow.
+    Eigen::VectorXd last = r.passive;
+    double t = 0.0, h = 1.0 / std::max(1, options.continuation_steps);
+    while (t < 1.0) {
+      const double t_try = std::min(1.0, t + h);
+      set_actuators(home + t_try * (readings - home));
+      r.passive = last;
+      attempt(sys, r);
+      if (r.ok() && r.mode.verdict != ModeVerdict::kOther) {
+        t = t_try;
+        last = r.passive;
+        h = std::min(2.0 * h, 0.25);
+      } else {
+        h *= 0.5;
+        if (h < 1.0 / 4096) return false;
+      }
+    }
+    return true;
+  }
 };
 
 ClosureSolver::ClosureSolver(const Mechanism& model, const Eigen::VectorXd& params,
@@ -182,18 +259,39 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
     result.status = SolveStatus::kInvalidInput;
     return result;
   }
-  result.passive = seed.size() == n ? seed : s.seed();
   ClosureSystem sys{&s.ev, &s.q, &m};
-  const detail::LmOutcome lm = detail::levenberg_marquardt(
-      sys, result.passive, s.ws, s.options.max_iterations, s.options.tolerance, 0.5);
-  result.residual = lm.residual;
-  result.iterations = lm.iterations;
-  if (lm.converged) {
-    result.status = SolveStatus::kConverged;
-  } else if (!std::isfinite(lm.residual) || (lm.stalled && lm.residual > 1e-6)) {
-    result.status = SolveStatus::kNoSolution;
-  } else {
-    result.status = SolveStatus::kNotConverged;
+  const bool warm = seed.size() == n;
+  result.passive = warm ? seed : s.seed();
+  result.seed_used =
+      warm ? "warm" : (m.closed_form.kind != ClosedFormKind::kNone ? "closed_form" : "home");
+  s.attempt(sys, result);
+  // Serial chains (no passive joint) have one answer per reading: the verdict is reported, there is
+  // nothing to re-seed.
+  if (s.options.enforce_mode && n > 0 && !m.assembly_mode.invariants.empty() &&
+      !(result.ok() && result.mode.acceptable())) {
+    // Other seeds (closure.hpp): the closed form after a warm start, then continuation from home.
+    ClosureResult retry = result;
+    bool found = false;
+    if (warm && m.closed_form.kind != ClosedFormKind::kNone) {
+      s.set_actuators(actuator_readings);
+      retry.passive = s.seed();
+      retry.seed_used = "closed_form";
+      s.attempt(sys, retry);
+      found = retry.ok() && retry.mode.acceptable();
+    }
+    if (!found) {
+      retry.seed_used = "continuation";
+      found = s.continuation(sys, actuator_readings, retry) && retry.mode.acceptable();
+    }
+    if (found) {
+      result = retry;
+    } else if (result.ok() || result.status == SolveStatus::kOtherMode) {
+      result.status = SolveStatus::kOtherMode;
+    } else if (retry.ok()) {
+      result = retry;
+      result.status = SolveStatus::kOtherMode;
+    }
+    s.set_actuators(actuator_readings);
   }
   if (s.options.diagnose && n > 0 && result.equations > 0) {
     sys.evaluate(result.passive, s.ws.r);

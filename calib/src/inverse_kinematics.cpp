@@ -1,7 +1,12 @@
 #include "robocal/calib/inverse_kinematics.hpp"
 
+#include "mode_check.hpp"
 #include "robocal/calib/closed_form.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
+
+#include <cmath>
+#include <random>
 
 namespace robocal::calib {
 namespace {
@@ -80,6 +85,36 @@ struct IkSystem {
 
 }  // namespace
 
+namespace {
+
+// Passive joints closing the loops at actuator joint values qa (any mode; the final IK solve
+// checks the mode of the whole state).
+Eigen::VectorXd passive_for(const Mechanism& model, const Eigen::VectorXd& params,
+                            const Eigen::VectorXd& qa) {
+  const auto np = static_cast<Eigen::Index>(model.passive.size());
+  if (np == 0) return {};
+  const Eigen::VectorXd readings = readings_from_joint_values(model, params, qa);
+  const ClosureResult c = solve_closure(model, params, readings);
+  return c.passive.size() == np ? c.passive : model.home_passive();
+}
+
+// Deterministic multi-start seeds: uniform within the actuated joints' limits (home +- pi where
+// a limit is open).
+Eigen::VectorXd spread_seed(const Mechanism& model, std::mt19937& rng) {
+  const auto na = static_cast<Eigen::Index>(model.actuated.size());
+  Eigen::VectorXd qa(na);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (Eigen::Index i = 0; i < na; ++i) {
+    const Body& b = model.bodies[model.actuated[static_cast<std::size_t>(i)]];
+    const double lo = b.limits.lower > -1e299 ? b.limits.lower : b.home - M_PI;
+    const double hi = b.limits.upper < 1e299 ? b.limits.upper : b.home + M_PI;
+    qa[i] = lo + (hi - lo) * u(rng);
+  }
+  return qa;
+}
+
+}  // namespace
+
 IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const TaskTarget& target,
                   const IkSeed& seed, const IkOptions& options) {
   IkResult out;
@@ -94,13 +129,17 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
 
   Eigen::VectorXd x(na + np);
   // Actuators: warm start, closed form (exact for nominal geometry), or home.
-  bool have_act = seed.actuator_q.size() == na;
-  if (have_act) {
+  Eigen::VectorXd home_q(na);
+  for (Eigen::Index i = 0; i < na; ++i) home_q[i] = model.bodies[model.actuated[i]].home;
+  bool from_home = false;
+  if (seed.actuator_q.size() == na) {
     x.head(na) = seed.actuator_q;
   } else {
-    for (Eigen::Index i = 0; i < na; ++i) x[i] = model.bodies[model.actuated[i]].home;
+    x.head(na) = home_q;
+    from_home = true;
     if (model.closed_form.kind != ClosedFormKind::kNone && model.task.type == TaskType::kPosition) {
       if (const auto total = closed_form_inverse(model.closed_form, target.pose.translation())) {
+        from_home = false;
         for (Eigen::Index i = 0; i < na; ++i) {
           const Body& b = model.bodies[model.actuated[i]];
           const ElementaryOp& op = b.ops[b.joint_op];
@@ -113,9 +152,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   if (seed.passive.size() == np) {
     x.tail(np) = seed.passive;
   } else if (np > 0) {
-    const Eigen::VectorXd readings = readings_from_joint_values(model, params, x.head(na));
-    const ClosureResult c = solve_closure(model, params, readings);
-    x.tail(np) = c.passive.size() == np ? c.passive : model.home_passive();
+    x.tail(np) = passive_for(model, params, x.head(na));
   }
 
   detail::TreeEvaluator ev(model, params);
@@ -124,26 +161,119 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   for (int b : model.actuated) sys.unknown_bodies.push_back(b);
   for (int b : model.passive) sys.unknown_bodies.push_back(b);
   detail::LmWorkspace ws;
-  const detail::LmOutcome lm =
-      detail::levenberg_marquardt(sys, x, ws, options.max_iterations, options.tolerance, 0.5);
-  out.iterations = lm.iterations;
-  out.residual = lm.residual;
+  // One damped Gauss-Newton run from x; status and verdict of its answer.
+  auto run = [&](Eigen::VectorXd& xs, IkResult& r) {
+    const detail::LmOutcome lm =
+        detail::levenberg_marquardt(sys, xs, ws, options.max_iterations, options.tolerance, 0.5);
+    r.iterations += lm.iterations;
+    r.residual = lm.residual;
+    r.mode = ModeCheck{};
+    // The pose residual (0.5 sum b_k x a_k) also vanishes at a half-turn error: a converged pose
+    // task must have its true rotation error near zero too.
+    const bool half_turn =
+        lm.converged && model.task.type == TaskType::kPose &&
+        (ev.pose(model.task.frame).R.transpose() * target.pose.linear()).trace() < 0.0;
+    if (lm.converged && !half_turn) {
+      r.status = SolveStatus::kConverged;
+      // The evaluator holds the poses of the accepted (returned) state.
+      r.mode = detail::check_mode(
+          model, q, [&](int b) -> const Eigen::Vector3d& { return ev.pose(b).p; },
+          [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; });
+    } else if (half_turn || !std::isfinite(lm.residual) || (lm.stalled && lm.residual > 1e-6)) {
+      r.status = SolveStatus::kNoSolution;
+    } else {
+      r.status = SolveStatus::kNotConverged;
+    }
+    if (options.respect_limits && r.status == SolveStatus::kConverged) {
+      for (Eigen::Index i = 0; i < na + np; ++i) {
+        const Body& b = model.bodies[sys.unknown_bodies[static_cast<std::size_t>(i)]];
+        if (xs[i] < b.limits.lower || xs[i] > b.limits.upper) r.status = SolveStatus::kNoSolution;
+      }
+    }
+  };
+  run(x, out);
+  const bool check = options.enforce_mode && !model.assembly_mode.invariants.empty();
+  if (check && !(out.ok() && out.mode.acceptable())) {
+    // Re-seed (inverse_kinematics.hpp): task-space continuation from home, then home and
+    // deterministic spread seeds.
+    bool found = false;
+    ModeCheck other_mode = out.ok() ? out.mode : ModeCheck{};  // an answer seen on another mode
+    const auto note_other = [&](const IkResult& r) {
+      if (r.ok() && r.mode.verdict == ModeVerdict::kOther &&
+          other_mode.verdict != ModeVerdict::kOther)
+        other_mode = r.mode;
+    };
+    const auto accept = [&](const Eigen::VectorXd& xs, const IkResult& r) {
+      found = true;
+      x = xs;
+      out.status = r.status;
+      out.residual = r.residual;
+      out.mode = r.mode;
+    };
+    {
+      // The target moves from the task value at home (on the intended mode by the file's
+      // declaration) to the requested one; each step is warm-started from the previous answer
+      // and halved when it fails or lands on another mode.
+      Eigen::VectorXd xs(na + np);
+      xs.head(na) = home_q;
+      if (np > 0) xs.tail(np) = passive_for(model, params, home_q);
+      const JointState home_state = make_joint_state(
+          model, params, readings_from_joint_values(model, params, home_q), xs.tail(np));
+      const Eigen::Isometry3d from = frame_pose(model, params, home_state, model.task.frame);
+      const double joint_from =
+          model.task.type == TaskType::kJoint ? home_state.q[model.task.joint] : 0.0;
+      const Eigen::Vector3d turn = rotation_log(from.linear().transpose() * target.pose.linear());
+      const auto target_at = [&](double t) {
+        TaskTarget g = target;
+        g.pose.translation() =
+            from.translation() + t * (target.pose.translation() - from.translation());
+        g.pose.linear() = from.linear() * rotation_exp(t * turn);
+        g.joint_value = joint_from + t * (target.joint_value - joint_from);
+        return g;
+      };
+      Eigen::VectorXd last = xs;
+      double t = 0.0, h = 1.0 / 16;
+      IkResult r;
+      while (t < 1.0) {
+        const double t_try = std::min(1.0, t + h);
+        sys.target = target_at(t_try);
+        xs = last;
+        r.iterations = out.iterations;
+        run(xs, r);
+        out.iterations = r.iterations;
+        if (r.ok() && r.mode.verdict != ModeVerdict::kOther) {
+          t = t_try;
+          last = xs;
+          h = std::min(2.0 * h, 0.25);
+        } else {
+          h *= 0.5;
+          if (h < 1.0 / 4096) break;
+        }
+      }
+      sys.target = target;
+      if (t >= 1.0 && r.ok() && r.mode.acceptable()) accept(last, r);
+    }
+    std::mt19937 rng(12345);
+    for (int k = from_home ? 1 : 0; k <= options.multi_start && !found; ++k) {
+      Eigen::VectorXd xs(na + np);
+      xs.head(na) = k == 0 ? home_q : spread_seed(model, rng);
+      if (np > 0) xs.tail(np) = passive_for(model, params, xs.head(na));
+      IkResult r;
+      r.iterations = out.iterations;
+      run(xs, r);
+      out.iterations = r.iterations;
+      if (r.ok() && r.mode.acceptable()) accept(xs, r);
+      note_other(r);
+    }
+    // The target is reached, but only on another mode: refused as such (the last answer kept).
+    if (!found && other_mode.verdict == ModeVerdict::kOther) {
+      out.status = SolveStatus::kOtherMode;
+      out.mode = other_mode;
+    }
+  }
   out.actuator_q = x.head(na);
   out.passive = x.tail(np);
   out.actuator_readings = readings_from_joint_values(model, params, out.actuator_q);
-  if (lm.converged) {
-    out.status = SolveStatus::kConverged;
-  } else if (!std::isfinite(lm.residual) || (lm.stalled && lm.residual > 1e-6)) {
-    out.status = SolveStatus::kNoSolution;
-  } else {
-    out.status = SolveStatus::kNotConverged;
-  }
-  if (options.respect_limits && out.status == SolveStatus::kConverged) {
-    for (Eigen::Index i = 0; i < na + np; ++i) {
-      const Body& b = model.bodies[sys.unknown_bodies[static_cast<std::size_t>(i)]];
-      if (x[i] < b.limits.lower || x[i] > b.limits.upper) out.status = SolveStatus::kNoSolution;
-    }
-  }
   return out;
 }
 

@@ -2,6 +2,9 @@
 // every error names file, line and problem.
 #include "robocal/calib/robot_file.hpp"
 
+#include "robocal/calib/assembly_mode.hpp"
+#include "robocal/calib/kinematics.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -222,11 +225,128 @@ double default_sigma(const std::map<std::string, double>& sigma, ParamUnit unit)
   return 1.0;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Assembly mode (issue 15): `assembly_mode:` -> Mechanism::assembly_mode, checked against the
+// file's own home configuration. Kept apart from the rest of the loader on purpose.
+
+struct InvariantShape {
+  InvariantKind kind;
+  std::size_t bodies;
+};
+
+const std::map<std::string, InvariantShape> kInvariantKinds = {
+    {"side", {InvariantKind::kSide, 2}},         {"turn", {InvariantKind::kTurn, 3}},
+    {"parallel", {InvariantKind::kParallel, 4}}, {"triple", {InvariantKind::kTriple, 6}},
+    {"joint", {InvariantKind::kJoint, 1}},       {"tilt", {InvariantKind::kTilt, 2}},
+};
+
+ModeInvariant parse_invariant(const YAML::Node& n, const std::string& source, const Mechanism& m) {
+  check_keys(source, n, "assembly_mode invariant",
+             {"name", "type", "bodies", "axis", "max_angle", "sign"});
+  ModeInvariant inv;
+  inv.line = line_of(n);
+  if (!n["name"]) fail(source, n, "assembly_mode invariant needs a 'name'");
+  inv.name = text(source, n["name"], "invariant name");
+  const std::string what = "assembly_mode invariant '" + inv.name + "'";
+  if (!n["type"])
+    fail(source, n, what + " needs a 'type' (side, turn, parallel, triple, joint, tilt)");
+  const std::string type = text(source, n["type"], what + ": type");
+  const auto shape = kInvariantKinds.find(type);
+  if (shape == kInvariantKinds.end())
+    fail(source, n["type"], what + ": type must be side, turn, parallel, triple, joint or tilt");
+  inv.kind = shape->second.kind;
+  const std::vector<std::string> names = string_list(source, n["bodies"], what + ": bodies");
+  if (names.size() != shape->second.bodies)
+    fail(source, n["bodies"].IsDefined() ? n["bodies"] : n,
+         what + ": type " + type + " needs " + std::to_string(shape->second.bodies) +
+             " bodies, got " + std::to_string(names.size()));
+  for (const std::string& b : names) {
+    const int i = m.body_index(b);
+    if (i < 0) {
+      std::string message = what;
+      message += " names a missing body '";
+      message += b;
+      message += "'";
+      fail(source, n["bodies"], message);
+    }
+    inv.bodies.push_back(i);
+  }
+  if (inv.kind == InvariantKind::kJoint &&
+      m.bodies[static_cast<std::size_t>(inv.bodies[0])].joint == JointType::kFixed)
+    fail(source, n["bodies"], what + ": a joint invariant needs a moving joint");
+  if (n["axis"]) {
+    if (inv.kind != InvariantKind::kSide && inv.kind != InvariantKind::kTilt)
+      fail(source, n["axis"], what + ": axis is for types side and tilt");
+    inv.axis = vec3(source, n["axis"], what + ": axis");
+    if (inv.axis.norm() < 1e-12) fail(source, n["axis"], what + ": axis must not be zero");
+    inv.axis.normalize();
+  }
+  if (inv.kind == InvariantKind::kTilt) {
+    if (!n["max_angle"]) fail(source, n, what + ": type tilt needs 'max_angle' (rad)");
+    inv.max_angle = number(source, n["max_angle"], what + ": max_angle");
+    if (!(inv.max_angle > 0.0 && inv.max_angle < M_PI))
+      fail(source, n["max_angle"], what + ": max_angle must be in (0, pi)");
+  } else if (n["max_angle"]) {
+    fail(source, n["max_angle"], what + ": max_angle is for type tilt");
+  }
+  if (!n["sign"]) fail(source, n, what + " needs 'sign: 1' or 'sign: -1' (the intended side)");
+  inv.sign = number(source, n["sign"], what + ": sign");
+  if (inv.sign != 1.0 && inv.sign != -1.0) fail(source, n["sign"], what + ": sign must be 1 or -1");
+  return inv;
+}
+
+void parse_assembly_mode(const YAML::Node& node, const std::string& source, Mechanism& m) {
+  if (!node) return;
+  check_keys(source, node, "assembly_mode", {"ambiguity", "min_conditioning", "invariants"});
+  AssemblyModeSpec& spec = m.assembly_mode;
+  spec.line = line_of(node);
+  if (node["ambiguity"]) {
+    spec.ambiguity = number(source, node["ambiguity"], "assembly_mode.ambiguity");
+    if (!(spec.ambiguity >= 0.0 && spec.ambiguity < 1.0))
+      fail(source, node["ambiguity"], "assembly_mode.ambiguity must be in [0, 1)");
+  }
+  if (node["min_conditioning"]) {
+    spec.min_conditioning =
+        number(source, node["min_conditioning"], "assembly_mode.min_conditioning");
+    if (!(spec.min_conditioning >= 0.0 && spec.min_conditioning < 1.0))
+      fail(source, node["min_conditioning"], "assembly_mode.min_conditioning must be in [0, 1)");
+  }
+  const YAML::Node list = node["invariants"];
+  if (!list || !list.IsSequence() || list.size() == 0)
+    fail(source, list.IsDefined() ? list : node,
+         "assembly_mode needs a non-empty list 'invariants' (testdata/robots/README.md)");
+  std::set<std::string> names;
+  for (const auto& n : list) {
+    spec.invariants.push_back(parse_invariant(n, source, m));
+    if (!names.insert(spec.invariants.back().name).second)
+      fail(source, n, "duplicate assembly_mode invariant '" + spec.invariants.back().name + "'");
+  }
+  // The home configuration is, by the file's own words, on the intended mode: every invariant
+  // must have its declared sign there, clear of the ambiguity band.
+  const JointState home = home_joint_state(m);
+  std::vector<Eigen::Isometry3d> poses;
+  body_poses(m, m.nominal_parameters(), home, poses);
+  for (const ModeInvariant& inv : spec.invariants) {
+    const double v = invariant_value(inv, poses, home, m);
+    if (!(inv.sign * v >= spec.ambiguity)) {
+      std::ostringstream msg;
+      msg.precision(3);
+      msg << source << ":" << inv.line << ": assembly_mode invariant '" << inv.name << "' is " << v
+          << " at the file's home configuration, but the file declares it "
+          << (inv.sign > 0 ? "positive" : "negative")
+          << (std::abs(v) < spec.ambiguity ? " (home sits on a mode boundary)" : "")
+          << ": the declared mode contradicts the home values (fix the sign or the bodies' "
+             "home:)";
+      throw RobotFileError(msg.str());
+    }
+  }
+}
+
 Mechanism parse(const YAML::Node& root, const std::string& source) {
   if (!root.IsMap()) fail(source, root, "a robot file must be a YAML mapping");
   check_keys(source, root, "robot file",
              {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool", "task",
-              "closed_form", "workspace", "bodies", "closures", "rods"});
+              "closed_form", "workspace", "bodies", "closures", "rods", "assembly_mode"});
   Mechanism m;
   m.source = source;
   if (!root["robot"]) fail(source, root, "missing 'robot' (the robot's name)");
@@ -698,6 +818,7 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
                std::to_string(c));
     m.workspace.min_task_conditioning = c;
   }
+  parse_assembly_mode(root["assembly_mode"], source, m);
   return m;
 }
 

@@ -96,6 +96,9 @@ struct LmWorkspace {
   Eigen::VectorXd r, g, dx, x_trial, r_trial;
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+  // The last accepted step was a plain Newton step: `lu` factors the Jacobian of the previous
+  // iterate (which at convergence is the solution's to within the last step).
+  bool lu_current = false;
   void resize(Eigen::Index rows, Eigen::Index cols) {
     if (J.rows() != rows || J.cols() != cols) {
       J.resize(rows, cols);
@@ -121,6 +124,39 @@ inline double max_abs(const Eigen::VectorXd& v) {
   return v.size() ? v.cwiseAbs().maxCoeff() : 0.0;
 }
 
+// Estimate of sigma_min / sigma_max of a square J from its LU factors (no allocation: v and w are
+// n-sized scratch vectors): sigma_max by power iteration on J^T J, sigma_min by inverse iteration
+// with the factors. Two and three iterations: cheap (O(n^2) each, ~1 us on the Delta) and, for
+// a threshold of 1e-2, accurate enough: sigma_max's power iteration from the all-ones vector is
+// within a few per cent after two steps on these Jacobians, and the inverse iteration's estimate
+// of sigma_min can only err high, by the ratio of the two smallest singular values to the 3rd
+// power (the sweep in tests/support/mode_sweep.hpp checks the verdicts it leads to).
+inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& lu,
+                                   const Eigen::MatrixXd& J, Eigen::VectorXd& v,
+                                   Eigen::VectorXd& w) {
+  const Eigen::Index n = J.cols();
+  if (n == 0 || J.rows() != n) return 1.0;
+  double big = 0.0, small = 0.0;
+  v.setOnes();
+  for (int k = 0; k < 2; ++k) {
+    v /= v.norm();
+    w.noalias() = J * v;
+    big = w.norm();
+    v.noalias() = J.transpose() * w;
+    if (!(v.norm() > 0.0)) return 0.0;
+  }
+  v.setOnes();
+  for (int k = 0; k < 3; ++k) {
+    v /= v.norm();
+    w = lu.transpose().solve(v);
+    v = lu.solve(w);
+    const double g = std::sqrt(v.norm());  // ||(J^T J)^-1 u|| -> 1 / sigma_min^2
+    if (!std::isfinite(g) || g <= 0.0) return 0.0;
+    small = 1.0 / g;
+  }
+  return big > 0.0 ? small / big : 0.0;
+}
+
 template <class System>
 LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, int max_iterations,
                               double tolerance, double max_step) {
@@ -128,6 +164,7 @@ LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, 
   const Eigen::Index n = x.size();
   const bool square = sys.rows() == n;
   ws.resize(sys.rows(), n);
+  ws.lu_current = false;
   sys.evaluate(x, ws.r);
   double cost = ws.r.squaredNorm();
   double lambda = 1e-12;
@@ -174,6 +211,7 @@ LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, 
       const double trial_cost = ws.r_trial.squaredNorm();
       if (std::isfinite(trial_cost) && (trial_cost < cost || max_abs(ws.r_trial) <= tolerance)) {
         accepted = true;
+        ws.lu_current = newton_ok && attempt == 0;
         x.swap(ws.x_trial);
         ws.r.swap(ws.r_trial);
         cost = trial_cost;

@@ -2,6 +2,7 @@
 // as JSON. `--set NAME=VALUE` studies a perturbed robot without editing the file.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
+#include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/frame_checks.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
@@ -97,6 +98,25 @@ nlohmann::json joints_json(const Mechanism& m, const std::vector<int>& bodies,
   return j;
 }
 
+// The assembly-mode verdict of a solved state and the value of every declared invariant.
+nlohmann::json mode_json(const Mechanism& m, const Eigen::VectorXd& params, const JointState& state,
+                         const ModeCheck& mode) {
+  nlohmann::json j = {{"verdict", to_string(mode.verdict)}, {"summary", mode.describe()}};
+  if (mode.verdict == ModeVerdict::kUndeclared) return j;
+  j["margin"] = mode.margin;
+  j["distance_to_singularity"] = mode.distance;
+  j["ambiguity_band"] = m.assembly_mode.ambiguity;
+  if (!mode.invariant.empty()) j["invariant"] = mode.invariant;
+  std::vector<Eigen::Isometry3d> poses;
+  body_poses(m, params, state, poses);
+  nlohmann::json values = nlohmann::json::object();
+  for (const ModeInvariant& inv : m.assembly_mode.invariants)
+    values[inv.name] = {{"value", invariant_value(inv, poses, state, m)},
+                        {"intended_sign", inv.sign > 0 ? "positive" : "negative"}};
+  j["invariants"] = values;
+  return j;
+}
+
 nlohmann::json header(const LoadedRobot& r) {
   return {{"robot", r.model.name},
           {"file", r.model.source},
@@ -122,8 +142,25 @@ int run_fk(const KinOptions& o, bool jacobian) {
   doc["actuator_readings"] = joints_json(m, m.actuated, q);
   if (fk.closure.passive.size() == static_cast<Eigen::Index>(m.passive.size()))
     doc["passive_joints"] = joints_json(m, m.passive, fk.closure.passive);
-  const bool ok =
+  const bool closed =
       fk.closure.status == SolveStatus::kConverged || fk.closure.status == SolveStatus::kSingular;
+  if (closed || fk.closure.status == SolveStatus::kOtherMode) {
+    doc["assembly_mode"] = mode_json(m, r.params, fk.state, fk.closure.mode);
+    doc["seed"] = fk.closure.seed_used;
+  }
+  // An answer on another assembly mode is refused: no pose, exit 1, the reason. A serial chain's
+  // forward answer is unique (no loop to re-seed): reported with its verdict.
+  const bool serial = m.passive.empty();
+  const bool ok = closed && (fk.closure.mode.acceptable() || serial);
+  if (ok && !fk.closure.mode.acceptable())
+    doc["note"] = "these joint values put the arm in " + fk.closure.mode.describe();
+  if (!ok)
+    doc["reason"] = fk.closure.status == SolveStatus::kOtherMode || !fk.closure.mode.acceptable()
+                        ? "the loops close only on " + fk.closure.mode.describe() +
+                              " (every seed tried); the robot cannot be in its intended mode at "
+                              "these readings"
+                        : std::string("the loops do not close at these readings (") +
+                              to_string(fk.closure.status) + ")";
   if (ok) doc["pose"] = pose_json(fk.pose);
   if (ok && jacobian) {
     const FrameJacobians J = frame_jacobians(m, r.params, fk.state, q, r.frame);
@@ -191,13 +228,24 @@ int run_ik(const KinOptions& o) {
   doc["status"] = to_string(ik.status);
   doc["residual"] = ik.residual;
   doc["iterations"] = ik.iterations;
+  const bool ok = ik.ok() && ik.mode.acceptable();
   if (ik.actuator_q.size() == static_cast<Eigen::Index>(m.actuated.size())) {
-    doc["actuator_readings"] = joints_json(m, m.actuated, ik.actuator_readings);
-    doc["actuator_joint_values"] = joints_json(m, m.actuated, ik.actuator_q);
-    doc["passive_joints"] = joints_json(m, m.passive, ik.passive);
+    const JointState state = make_joint_state(m, r.params, ik.actuator_readings, ik.passive);
+    if (ik.ok() || ik.status == SolveStatus::kOtherMode)
+      doc["assembly_mode"] = mode_json(m, r.params, state, ik.mode);
+    if (ok) {
+      doc["actuator_readings"] = joints_json(m, m.actuated, ik.actuator_readings);
+      doc["actuator_joint_values"] = joints_json(m, m.actuated, ik.actuator_q);
+      doc["passive_joints"] = joints_json(m, m.passive, ik.passive);
+    }
   }
+  if (!ok)
+    doc["reason"] =
+        ik.status == SolveStatus::kOtherMode
+            ? "the target is reached only on " + ik.mode.describe() + " (every seed tried)"
+            : std::string("no solution reaches the target (") + to_string(ik.status) + ")";
   write_json(doc, o.output);
-  return ik.ok() ? int{kExitOk} : int{kExitFailure};
+  return ok ? int{kExitOk} : int{kExitFailure};
 }
 
 const char* type_name(JointType t) {
@@ -281,6 +329,22 @@ int run_check(const KinOptions& o) {
                          {"constraint_rank", c.rank},     {"unknowns", c.unknowns},
                          {"equations", c.equations},      {"sigma_min", c.sigma_min},
                          {"sigma_max", c.sigma_max}};
+  if (c.passive.size() == static_cast<Eigen::Index>(m.passive.size()))
+    doc["home_closure"]["assembly_mode"] = mode_json(
+        m, r.params,
+        make_joint_state(m, r.params, readings_from_joint_values(m, r.params, home_q), c.passive),
+        c.mode);
+  nlohmann::json invariants = nlohmann::json::array();
+  for (const ModeInvariant& inv : m.assembly_mode.invariants) {
+    std::vector<std::string> names;
+    for (int b : inv.bodies) names.push_back(m.bodies[static_cast<std::size_t>(b)].name);
+    invariants.push_back({{"name", inv.name},
+                          {"bodies", names},
+                          {"intended_sign", inv.sign > 0 ? "positive" : "negative"}});
+  }
+  doc["assembly_mode"] = {{"declared", !m.assembly_mode.invariants.empty()},
+                          {"ambiguity_band", m.assembly_mode.ambiguity},
+                          {"invariants", invariants}};
   std::vector<std::string> notes;
   if (c.rank >= 0 && c.rank < c.unknowns)
     notes.push_back("constraint rank " + std::to_string(c.rank) + " < " +
@@ -296,7 +360,8 @@ int run_check(const KinOptions& o) {
   }
   doc["notes"] = notes;
   write_json(doc, o.output);
-  return c.ok() || c.status == SolveStatus::kSingular ? int{kExitOk} : int{kExitFailure};
+  return (c.ok() || c.status == SolveStatus::kSingular) && c.mode.acceptable() ? int{kExitOk}
+                                                                               : int{kExitFailure};
 }
 
 void add_common(CLI::App* sub, KinOptions& o) {
@@ -312,7 +377,10 @@ void add_common(CLI::App* sub, KinOptions& o) {
 }  // namespace
 
 CommandSpec kin_command() {
-  return {"kin", "Kinematics of a robot file: fk, ik, jacobian, check (JSON output)",
+  return {"kin",
+          "Kinematics of a robot file: fk, ik, jacobian, check (JSON output). Every answer "
+          "carries its assembly-mode verdict; one that only another mode gives is refused "
+          "(exit 1, with the reason)",
           [](CLI::App& cmd) -> CommandAction {
             auto o = std::make_shared<KinOptions>();
             cmd.require_subcommand(1);

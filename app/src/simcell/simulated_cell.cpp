@@ -93,6 +93,31 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   cell.model = calib::load_robot_file(robot_file);
   cell.nominal = cell.model.nominal_parameters();
   cell.target_frame = cell.model.tool;
+  // The end-effector board is mounted by moving the tool frame's own parameters
+  // (set_fixed_frame_pose): that is only a mounting when the tool is a fixed frame outside every
+  // loop. Refuse anything else before any work, in words (it used to surface as an internal
+  // "closure failed while placing a frame").
+  {
+    const calib::Body& tool = cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame));
+    bool in_loop = false;
+    for (const calib::Closure& c : cell.model.closures)
+      in_loop = in_loop || (c.body_a >= cell.target_frame && c.body_a < tool.subtree_end) ||
+                (c.body_b >= cell.target_frame && c.body_b < tool.subtree_end);
+    // Identification places the robot in the cameras' world by moving its first body, which must
+    // therefore be a fixed base frame.
+    const calib::Body& root = cell.model.bodies.front();
+    if (root.joint != calib::JointType::kFixed)
+      throw calib::RobotFileError(robot_file + ":" + std::to_string(root.line) +
+                                  ": the first body '" + root.name +
+                                  "' is a moving joint: a robot needs a fixed base frame first, "
+                                  "from which the mechanism hangs (testdata/robots/README.md)");
+    if (tool.joint != calib::JointType::kFixed || in_loop)
+      throw calib::RobotFileError(
+          robot_file + ":" + std::to_string(tool.line) + ": the tool frame '" + tool.name +
+          "' is " + (in_loop ? "part of a closed loop" : "a moving joint") +
+          ": a simulated target cannot be mounted on it without changing the mechanism; add a "
+          "fixed tool frame on the output link (testdata/robots/README.md)");
+  }
 
   // Boards: the end-effector target (CellOptions::ee_tags, 29 cm by default), a hand-held
   // calibration board with its own id range so the two can never be confused.

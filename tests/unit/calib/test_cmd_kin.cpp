@@ -3,9 +3,11 @@
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/robot_file.hpp"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -118,6 +120,51 @@ TEST(KinCli, BadInputGivesExitCode3AndSaysWhy) {
   const auto doc = nlohmann::json::parse(r.out);
   EXPECT_EQ(doc["status"], "no_solution");
   EXPECT_GT(doc["closure_residual"].get<double>(), 1e-3);
+}
+
+TEST(KinCli, AssemblyModeVerdictAndRefusal) {
+  // Issue 15's report: these readings came back 0.4 m from the closed form, "converged".
+  const auto m = robocal::calib::load_robot_file(robot("rotary_delta.yaml"));
+  for (const char* q : {"1.2,0.6,0.6", "1.5,0,0", "0.2,0.4,0.1"}) {
+    const CliRun r = run({"kin", "fk", robot("rotary_delta.yaml"), "--actuators", q});
+    ASSERT_EQ(r.code, 0) << q << r.err << r.out;
+    const auto doc = nlohmann::json::parse(r.out);
+    const std::string verdict = doc["assembly_mode"]["verdict"];
+    EXPECT_TRUE(verdict == "intended" || verdict == "ambiguous") << q << " " << verdict;
+    EXPECT_TRUE(doc["assembly_mode"].contains("distance_to_singularity"));
+    EXPECT_TRUE(doc["assembly_mode"]["invariants"].contains("plate_below_elbows"));
+    Eigen::Vector3d theta;
+    std::sscanf(q, "%lf,%lf,%lf", &theta[0], &theta[1], &theta[2]);
+    const auto T = robocal::calib::delta_forward(m.closed_form, theta);
+    ASSERT_TRUE(T);
+    for (int i = 0; i < 3; ++i)
+      EXPECT_NEAR(doc["pose"]["position"][i].get<double>(), (*T)[i], 1e-9) << q;
+  }
+  // A UR5 target only the other shoulder configuration reaches: refused, exit 1, the reason
+  // names the invariant.
+  const CliRun fk = run({"kin", "fk", robot("ur5.yaml"), "--actuators",
+                         "-1.553449,2.621361,0.869298,-1.699120,1.105503,0.246664"});
+  ASSERT_EQ(fk.code, 0) << fk.err;  // a serial arm's forward answer is unique: reported
+  const auto fd = nlohmann::json::parse(fk.out);
+  EXPECT_EQ(fd["assembly_mode"]["verdict"], "other");
+  EXPECT_NE(fd["assembly_mode"]["invariant"].get<std::string>().find("shoulder_back"),
+            std::string::npos);
+  std::string position, rotation;
+  for (int i = 0; i < 3; ++i) {
+    if (i > 0) {
+      position += ',';
+      rotation += ',';
+    }
+    position += fmt::format("{:.17g}", fd["pose"]["position"][i].get<double>());
+    rotation += fmt::format("{:.17g}", fd["pose"]["rotation_vector"][i].get<double>());
+  }
+  const CliRun ik =
+      run({"kin", "ik", robot("ur5.yaml"), "--position", position, "--rotation-vector", rotation});
+  EXPECT_EQ(ik.code, 1) << ik.out;
+  const auto id = nlohmann::json::parse(ik.out);
+  EXPECT_EQ(id["status"], "other_assembly_mode");
+  EXPECT_NE(id["reason"].get<std::string>().find("shoulder_back"), std::string::npos);
+  EXPECT_FALSE(id.contains("actuator_readings"));
 }
 
 }  // namespace

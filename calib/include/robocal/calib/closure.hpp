@@ -2,7 +2,19 @@
 // Closure solver: forward kinematics of closed-loop mechanisms. Given actuator readings, find the
 // passive joints that close every loop (damped Gauss-Newton / Levenberg-Marquardt with the exact
 // analytic constraint Jacobian), warm-started from the previous solution, or cold-started from a
-// closed-form seed (rotary Delta, linear delta, Gantry-Tau) so the intended assembly mode is kept.
+// closed-form seed (rotary Delta, linear delta, Gantry-Tau). Every answer carries the assembly-mode
+// verdict (assembly_mode.hpp); an answer on another mode is never reported as converged.
+//
+// Seeding strategy (documented in testdata/robots/README.md, "Assembly mode"):
+//  1. the caller's seed (warm start), else the closed-form seed, else the home configuration;
+//  2. if that does not converge on an acceptable mode (intended or ambiguous) and the robot file
+//     declares a mode: the closed-form seed (when 1 was a warm start), then continuation from the
+//     home configuration (declared to be on the intended mode): the readings move from their home
+//     values to the requested ones in steps, each step warm-started from the previous solution,
+//     so the solution follows the intended branch unless the path crosses a singularity;
+//  3. failing that, status kOtherMode (the answer found, with its verdict naming the flipped
+//     invariant) or the first attempt's failure.
+#include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/mechanism.hpp"
 
 #include <Eigen/Core>
@@ -21,6 +33,8 @@ enum class SolveStatus : std::uint8_t {
   kNotConverged,  // iteration limit reached; residual reported
   kNoSolution,    // stalled with a residual far from zero (loop cannot close / unreachable)
   kInvalidInput,  // NaN/inf or wrong vector sizes
+  kOtherMode,     // the loops close, but only on another assembly mode than the robot file's
+                  // (every seed tried); ClosureResult::mode names the flipped invariant
 };
 
 const char* to_string(SolveStatus status);
@@ -32,6 +46,11 @@ struct ClosureOptions {
   // ~10-20 us on the Delta; off for the hot path.
   bool diagnose = false;
   double rank_tolerance = 1e-9;  // relative singular value below which a direction is lost
+  // Retry other seeds (closed form, continuation from home) when the answer lies on another
+  // assembly mode, and refuse it (kOtherMode) if none helps. Off: return the first answer with its
+  // verdict (diagnostics, tests of the check itself).
+  bool enforce_mode = true;
+  int continuation_steps = 16;  // steps of the continuation from the home configuration
 };
 
 struct ClosureResult {
@@ -44,6 +63,11 @@ struct ClosureResult {
   int unknowns = 0;   // number of passive joints
   int equations = 0;  // constraint rows
   double sigma_min = 0.0, sigma_max = 0.0;
+  // Assembly-mode verdict of the returned state (kUndeclared when the file declares none or the
+  // loops did not close).
+  ModeCheck mode;
+  // Which seed gave the answer: "warm", "closed_form", "home", "continuation".
+  const char* seed_used = "";
   bool ok() const { return status == SolveStatus::kConverged; }
 };
 

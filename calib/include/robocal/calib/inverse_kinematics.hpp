@@ -5,7 +5,12 @@
 // output angle). Generic for any model, including calibrated ones: unknowns are the actuated and
 // passive joints, equations are the closure residual plus the task residual, solved by damped
 // Gauss-Newton with exact Jacobians. Seeds: warm start, closed form (Delta, linear delta,
-// Gantry-Tau), or home.
+// Gantry-Tau), or home. The answer carries the assembly-mode verdict (assembly_mode.hpp): the
+// branch is the robot file's declared one (serial arms: shoulder/elbow/wrist configuration;
+// parallel robots: elbow side, parallelograms, platform side). When the first answer lies on
+// another mode, the solver restarts from the home configuration and then from `multi_start`
+// deterministic seeds spread over the joint limits, keeping the first answer on an acceptable mode;
+// failing that, the status is kOtherMode and `mode` names the flipped invariant.
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/mechanism.hpp"
 
@@ -25,6 +30,8 @@ struct IkOptions {
   int max_iterations = 100;
   double tolerance = 1e-12;     // max |residual| (closure + task rows; m, rad)
   bool respect_limits = false;  // report kNoSolution when the answer violates joint limits
+  bool enforce_mode = true;     // re-seed / refuse answers on another assembly mode
+  int multi_start = 64;         // extra seeds tried after home when the mode is wrong
 };
 
 struct IkSeed {
@@ -39,6 +46,7 @@ struct IkResult {
   Eigen::VectorXd passive;
   double residual = 0.0;  // max |closure or task residual|
   int iterations = 0;
+  ModeCheck mode;  // verdict of the returned state
   bool ok() const { return status == SolveStatus::kConverged; }
 };
 

@@ -176,6 +176,42 @@ struct WorkspaceSpec {
   int line = 0;
 };
 
+// The intended assembly mode (robot file `assembly_mode:`; rule in testdata/robots/README.md and
+// assembly_mode.hpp): sign invariants of the loops and of the serial chain that a cheap check
+// evaluates on the body poses. Each invariant is a normalised value in [-1, 1] whose sign tells
+// the modes apart; it passes through 0 where two modes meet (a singular configuration).
+enum class InvariantKind : std::uint8_t {
+  kSide,      // axis (in frame bodies[0]) . unit(p[bodies[1]] - p[bodies[0]])
+  kTurn,      // axis of frame bodies[0] . unit(p1 - p0) x unit(p2 - p0): turning sense of 3 points
+  kParallel,  // unit(p1 - p0) . unit(p3 - p2): a rod pair is a parallelogram (+) or crossed (-)
+  kTriple,    // det[unit(p1 - p0), unit(p3 - p2), unit(p5 - p4)]: side of three rods' plane
+  kJoint,     // sin(q) of a revolute joint (q for a prismatic one): elbow / wrist sign
+  kTilt,      // (cos t - cos max_angle) / (1 - cos max_angle), clamped to [-1, 1], with t the angle
+              // between `axis` in frame bodies[0] and in frame bodies[1]: a platform stays within
+              // max_angle of its designed orientation (plate tilt modes of a perturbed Delta)
+};
+
+struct ModeInvariant {
+  std::string name;
+  InvariantKind kind = InvariantKind::kSide;
+  std::vector<int> bodies;  // frames the invariant reads (count depends on kind)
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // kSide: direction in frame bodies[0]
+  double max_angle = 0.0;                           // kTilt only (rad)
+  double sign = 1.0;  // declared sign of the value on the intended mode
+  int line = 0;
+};
+
+struct AssemblyModeSpec {
+  std::vector<ModeInvariant> invariants;  // empty: the file declares no mode
+  // |value| below which an invariant cannot tell the modes apart (ambiguous verdict).
+  double ambiguity = 0.02;
+  // sigma_min / sigma_max of the closure's constraint Jacobian (d closure / d passive joints)
+  // below which a closed answer is ambiguous: near a singularity of the loops, where modes the
+  // invariants do not separate (e.g. a Delta plate free to tilt) meet.
+  double min_conditioning = 0.01;
+  int line = 0;
+};
+
 struct Mechanism {
   std::string name;
   std::string source;  // file the model was read from (for messages)
@@ -189,6 +225,7 @@ struct Mechanism {
   TaskSpace task;
   ClosedFormSpec closed_form;
   WorkspaceSpec workspace;
+  AssemblyModeSpec assembly_mode;
 
   int constraint_rows() const;  // sum of closure_rows over closures
   // -1 if absent.

@@ -62,7 +62,8 @@ Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, do
 
 // `count` actuator reading vectors drawn uniformly within the actuated joints' limits (±1 joint
 // unit where a limit is open) that every model in `must_solve` can assemble, away from
-// singularities: closure converged and σ_min/σ_max of the constraint Jacobian ≥
+// singularities: closure converged with the assembly-mode verdict `intended` (assembly_mode.hpp;
+// neither another mode nor ambiguous) and σ_min/σ_max of the constraint Jacobian ≥
 // `min_relative_sigma` (0.01 keeps the Delta's plate clear of its stretched-arm and
 // parallel-rod singularities). When the robot file declares a working volume (`workspace:`) and
 // `within_workspace`, every model in `must_solve` must also have task_conditioning ≥ its

@@ -1,0 +1,103 @@
+#pragma once
+// Internal: evaluation of assembly-mode invariants over any pose source (the public
+// Eigen::Isometry3d poses of kinematics.hpp, or the solver's cached detail::Rigid poses), so the
+// solvers check every answer without converting or recomputing poses.
+#include "robocal/calib/assembly_mode.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace robocal::calib::detail {
+
+inline Eigen::Vector3d unit_or_zero(const Eigen::Vector3d& v) {
+  const double n = v.norm();
+  return n > 1e-300 ? Eigen::Vector3d(v / n) : Eigen::Vector3d::Zero();
+}
+
+// position(b) -> world origin of body b; rotation(b) -> world rotation of body b; q = per-body
+// joint values.
+template <class Position, class Rotation>
+double invariant_value(const ModeInvariant& inv, const Mechanism& m, const Eigen::VectorXd& q,
+                       const Position& position, const Rotation& rotation) {
+  const std::vector<int>& b = inv.bodies;
+  auto p = [&](std::size_t k) -> Eigen::Vector3d { return position(b[k]); };
+  switch (inv.kind) {
+    case InvariantKind::kSide:
+      return (rotation(b[0]) * inv.axis).dot(unit_or_zero(p(1) - p(0)));
+    case InvariantKind::kTurn: {
+      const Eigen::Vector3d axis = rotation(b[0]).col(2);
+      return axis.dot(unit_or_zero(p(1) - p(0)).cross(unit_or_zero(p(2) - p(0))));
+    }
+    case InvariantKind::kParallel:
+      return unit_or_zero(p(1) - p(0)).dot(unit_or_zero(p(3) - p(2)));
+    case InvariantKind::kTriple: {
+      Eigen::Matrix3d M;
+      M.col(0) = unit_or_zero(p(1) - p(0));
+      M.col(1) = unit_or_zero(p(3) - p(2));
+      M.col(2) = unit_or_zero(p(5) - p(4));
+      return M.determinant();
+    }
+    case InvariantKind::kTilt: {
+      const double c = (rotation(b[0]) * inv.axis).dot(rotation(b[1]) * inv.axis);
+      const double c0 = std::cos(inv.max_angle);
+      return std::clamp((c - c0) / (1.0 - c0), -1.0, 1.0);
+    }
+    case InvariantKind::kJoint: {
+      const Body& body = m.bodies[static_cast<std::size_t>(b[0])];
+      const double v = q[b[0]];
+      return body.joint == JointType::kRevolute ? std::sin(v) : std::tanh(v);
+    }
+  }
+  return 0.0;
+}
+
+// conditioning: sigma_min / sigma_max of the closure Jacobian at the state, < 0 if unknown.
+template <class Position, class Rotation>
+ModeCheck check_mode(const Mechanism& m, const Eigen::VectorXd& q, const Position& position,
+                     const Rotation& rotation, double conditioning = -1.0) {
+  ModeCheck out;
+  out.conditioning = conditioning;
+  const AssemblyModeSpec& spec = m.assembly_mode;
+  if (spec.invariants.empty()) return out;
+  out.margin = 1e300;
+  out.distance = 1e300;
+  std::size_t nearest = 0;
+  double flipped_margin = 0.0;
+  for (std::size_t k = 0; k < spec.invariants.size(); ++k) {
+    const ModeInvariant& inv = spec.invariants[k];
+    const double v = invariant_value(inv, m, q, position, rotation);
+    const double signed_v = inv.sign * v;
+    if (!std::isfinite(signed_v)) {
+      out.margin = -1.0;
+      out.distance = 0.0;
+      out.verdict = ModeVerdict::kAmbiguous;
+      out.invariant = inv.name;
+      return out;
+    }
+    out.margin = std::min(out.margin, signed_v);
+    if (std::abs(v) < out.distance) {
+      out.distance = std::abs(v);
+      nearest = k;
+    }
+    if (signed_v <= -spec.ambiguity) {
+      if (!out.invariant.empty()) out.invariant += ",";
+      out.invariant += inv.name;
+      flipped_margin = std::min(flipped_margin, signed_v);
+    }
+  }
+  if (!out.invariant.empty()) {
+    out.verdict = ModeVerdict::kOther;
+  } else if (out.distance < spec.ambiguity) {
+    out.verdict = ModeVerdict::kAmbiguous;
+    out.invariant = spec.invariants[nearest].name;
+  } else if (conditioning >= 0.0 && conditioning < spec.min_conditioning) {
+    out.verdict = ModeVerdict::kAmbiguous;
+    out.invariant = "closure_conditioning";
+  } else {
+    out.verdict = ModeVerdict::kIntended;
+  }
+  return out;
+}
+
+}  // namespace robocal::calib::detail
