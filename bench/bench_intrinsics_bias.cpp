@@ -38,8 +38,8 @@
 #include "robocal/vision/intrinsic_calibration.hpp"
 #include "robocal/vision/renderer.hpp"
 #include "robocal/vision/target_detection.hpp"
-#include "session_pipeline.hpp"
-#include "simulated_cell.hpp"
+#include "session/session_robot.hpp"
+#include "simcell/simulated_cell.hpp"
 
 #include <nlohmann/json.hpp>
 

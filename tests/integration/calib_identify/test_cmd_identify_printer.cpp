@@ -2,7 +2,7 @@
 // heights and 12 caliper distances between printed positions (no other observation there);
 // a terminal summary with --json FILE; nothing identifiable -> exit 1; bad input -> exit 3 with
 // file:line and the problem.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "printer_scenario.hpp"
 #include "robocal/calib/measurements_file.hpp"
 #include "run_robocal.hpp"

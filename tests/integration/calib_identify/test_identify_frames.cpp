@@ -1,7 +1,7 @@
 // Issue 22: frames as users have them. A quaternion tool frame gives the same kinematics as its
 // roll/pitch/yaw twin; `kin check` warns at gimbal lock; identification of a tool frame at the
 // lock (given as a quaternion: local increments) converges to the truth as it does away from it.
-#include "command_registry.hpp"
+#include "cli/command_registry.hpp"
 #include "robocal/calib/frame_checks.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
