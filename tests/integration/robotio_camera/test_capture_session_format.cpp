@@ -1,5 +1,5 @@
-// A captured session is read by the pipeline's own session reader (app/src/session/session.hpp, the one
-// `measure`, `identify` and `batch` use): every pose loads with its readings, nothing flagged.
+// A captured session is read by the pipeline's own session reader (app/src/session/session.hpp, the
+// one `measure`, `identify` and `batch` use): every pose loads with its readings, nothing flagged.
 #include "camera_cell.hpp"
 #include "robocal/robotio/capture.hpp"
 #include "session/session.hpp"
