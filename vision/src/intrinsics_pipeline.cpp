@@ -40,6 +40,7 @@ IntrinsicsRun calibrate_from_folder(const std::filesystem::path& dir, const Targ
   }
   IntrinsicsRun run;
   std::vector<DetectionRequest> requests;
+  requests.reserve(files.size());
   for (const auto& f : files) requests.push_back({f, 0, 0, {}});
   const auto detected = detect_in_images(requests, board, 1, {}, options.apriltag);
   std::vector<CalibrationView> views;

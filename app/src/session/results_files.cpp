@@ -185,6 +185,7 @@ std::vector<MeasuredPose> read_used_measured_poses(const ResultsLayout& results,
 
 std::vector<calib::PoseMeasurement> to_pose_measurements(const std::vector<MeasuredPose>& poses) {
   std::vector<calib::PoseMeasurement> out;
+  out.reserve(poses.size());
   for (const auto& p : poses)
     out.push_back({p.pose,
                    p.actuators,

@@ -47,6 +47,7 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
   const auto rig = read_rig_file(results.rig()).cameras;
   const auto target = board_points(load_board(s.path(s.ee_target)));
   std::vector<std::string> camera_names;
+  camera_names.reserve(rig.size());
   for (const auto& c : rig) camera_names.push_back(c.name);
   std::vector<PosePixels> poses;
   for (auto& p : read_used_pixel_poses(results, camera_names, measure_first(s.dir)))

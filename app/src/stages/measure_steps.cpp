@@ -38,6 +38,7 @@ IntrinsicsStep calibrate_camera(const std::string& camera, int width, int height
   IntrinsicsStep out;
   out.images = files.size();
   std::vector<vision::DetectionRequest> requests;
+  requests.reserve(files.size());
   for (const auto& f : files)
     requests.push_back({f, width, height, fmt::format("camera '{}' is recorded", camera)});
   StageProgress bar(log.out, fmt::format("{} intrinsics", camera), files.size());
