@@ -1,4 +1,4 @@
-#include "session/rig_files.hpp"
+#include "session/results_files.hpp"
 
 #include "robocal/vision/pose.hpp"
 
