@@ -7,6 +7,8 @@
 #include "robocal/vision/renderer.hpp"
 #include "robocal/vision/target_io.hpp"
 
+#include "netns_skip.hpp"
+
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
@@ -23,20 +25,6 @@ namespace {
 
 using std::chrono::milliseconds;
 constexpr milliseconds kGrabTimeout{3000};
-
-// Why the two-address tests cannot run, or empty.
-std::string netns_unavailable() {
-  const char* reason = std::getenv("ROBOCAL_NETNS_UNAVAILABLE");
-  return reason != nullptr ? std::string(reason) : std::string();
-}
-
-#define SKIP_WITHOUT_NETNS()                                                             \
-  do {                                                                                   \
-    const std::string reason = netns_unavailable();                                      \
-    if (!reason.empty()) {                                                               \
-      GTEST_SKIP() << "two fake GigE cameras need a test network namespace: " << reason; \
-    }                                                                                    \
-  } while (false)
 
 // Rendered views of the AprilTag test board, different poses per camera, 8-bit or 16-bit.
 std::vector<cv::Mat> rendered_views(int camera_index, int count, int bit_depth) {

@@ -4,6 +4,8 @@
 #include "robocal/robotio/camera_recorded.hpp"
 #include "robocal/robotio/capture.hpp"
 
+#include "netns_skip.hpp"
+
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 #include <opencv2/core.hpp>
@@ -25,19 +27,6 @@ namespace fs = std::filesystem;
 using testing::CameraRig;
 using testing::gantry_targets;
 using testing::GantryCell;
-
-std::string netns_unavailable() {
-  const char* reason = std::getenv("ROBOCAL_NETNS_UNAVAILABLE");
-  return reason != nullptr ? std::string(reason) : std::string();
-}
-
-#define SKIP_WITHOUT_NETNS()                                                             \
-  do {                                                                                   \
-    const std::string reason = netns_unavailable();                                      \
-    if (!reason.empty()) {                                                               \
-      GTEST_SKIP() << "two fake GigE cameras need a test network namespace: " << reason; \
-    }                                                                                    \
-  } while (false)
 
 fs::path fresh_dir(const std::string& name) {
   fs::path dir = fs::temp_directory_path() / ("robocal_capture_" + name);

@@ -1,6 +1,7 @@
 // A captured session is read by the pipeline's own session reader (app/src/session/session.hpp, the
 // one `measure`, `identify` and `batch` use): every pose loads with its readings, nothing flagged.
 #include "camera_cell.hpp"
+#include "netns_skip.hpp"
 #include "robocal/robotio/capture.hpp"
 #include "session/session.hpp"
 
@@ -15,9 +16,7 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(CaptureSessionFormat, ThePipelinesSessionReaderLoadsEveryCapturedPose) {
-  if (const char* reason = std::getenv("ROBOCAL_NETNS_UNAVAILABLE"); reason != nullptr) {
-    GTEST_SKIP() << "two fake GigE cameras need a test network namespace: " << reason;
-  }
+  SKIP_WITHOUT_NETNS();
   const fs::path dir = fs::temp_directory_path() / "robocal_capture_session_format";
   fs::remove_all(dir);
   testing::GantryCell cell;
