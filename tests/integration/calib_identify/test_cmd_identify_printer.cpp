@@ -11,10 +11,25 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cctype>
 #include <fstream>
-#include <regex>
+#include <string>
 
 namespace {
+
+// True when `text` holds `prefix`, then at least one digit, then `suffix` (a file:line or
+// "line N" in an error message). Written by hand: std::regex trips GCC 12's
+// -Wmaybe-uninitialized inside libstdc++ under the sanitizer build.
+bool names_number_after(const std::string& text, const std::string& prefix,
+                        const std::string& suffix) {
+  for (auto at = text.find(prefix); at != std::string::npos; at = text.find(prefix, at + 1)) {
+    auto end = at + prefix.size();
+    const auto digits_from = end;
+    while (end < text.size() && std::isdigit(static_cast<unsigned char>(text[end])) != 0) ++end;
+    if (end > digits_from && text.compare(end, suffix.size(), suffix) == 0) return true;
+  }
+  return false;
+}
 
 using namespace robocal::calib;
 constexpr auto& run = robocal::test::run_robocal;
@@ -103,13 +118,13 @@ TEST_F(PrinterCli, BadInputNamesFileLineAndProblem) {
   std::string t = good;
   t.replace(t.find("a: print0"), 9, "a: print99");
   const std::string e1 = expect_refused(t, "distance names pose 'print99'");
-  EXPECT_TRUE(std::regex_search(e1, std::regex("bad\\.yaml:[0-9]+:"))) << e1;
+  EXPECT_TRUE(names_number_after(e1, "bad.yaml:", ":")) << e1;
   // A negative σ.
   t = good;
   const auto s = t.find("sigma: ");
   t.replace(s, 7, "sigma: -");
   const std::string e2 = expect_refused(t, "must be > 0");
-  EXPECT_TRUE(std::regex_search(e2, std::regex("bad\\.yaml:[0-9]+:"))) << e2;
+  EXPECT_TRUE(names_number_after(e2, "bad.yaml:", ":")) << e2;
   // Heights in millimetres declared as metres.
   const MeasurementsFile f = load_measurements_file(file("heights_distances.yaml"));
   MeasurementsFile mm = f;
@@ -122,7 +137,7 @@ TEST_F(PrinterCli, BadInputNamesFileLineAndProblem) {
   EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("mm.yaml")}), 3);
   const std::string e3 = testing::internal::GetCapturedStderr();
   EXPECT_NE(e3.find("implausible in metres"), std::string::npos) << e3;
-  EXPECT_TRUE(std::regex_search(e3, std::regex("line [0-9]+"))) << e3;
+  EXPECT_TRUE(names_number_after(e3, "line ", "")) << e3;
 }
 
 }  // namespace
