@@ -59,7 +59,10 @@ class PoseCost final : public ceres::CostFunction {
     if (!model_.predict(params, pose_.actuators, slot_, want_jacobian, pred, why)) return false;
     int row = 0;
     bool ok = true;
+    std::vector<int> first_row;  // residual row of each observation
+    first_row.reserve(pose_.observations.size());
     for (const auto& obs : pose_.observations) {
+      first_row.push_back(row);
       std::visit(
           [&](const auto& o) {
             using O = std::decay_t<decltype(o)>;
@@ -86,6 +89,18 @@ class PoseCost final : public ceres::CostFunction {
           },
           obs);
       if (!ok) return false;
+    }
+    // Jointly measured corners: decorrelate their (marginally whitened) rows together.
+    for (const PixelGroup& g : pose_.pixel_groups) {
+      const int r0 = first_row[static_cast<std::size_t>(g.first)];
+      const auto n = static_cast<Eigen::Index>(2 * g.count);
+      Eigen::Map<Eigen::VectorXd> r(residuals + r0, n);
+      r = (g.decorrelation * r).eval();
+      if (want_jacobian) {
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
+            jacobians[0], num_residuals(), P);
+        J.middleRows(r0, n) = (g.decorrelation * J.middleRows(r0, n)).eval();
+      }
     }
     return true;
   }
@@ -181,6 +196,39 @@ bool finite_observation(const Observation& obs) {
                  o.normal.allFinite() && std::isfinite(o.sigma) && o.sigma > 0.0;
       },
       obs);
+}
+
+// The pose's pixel groups name runs of its own pixel observations with a matching decorrelation;
+// otherwise `why` says which group is malformed.
+bool valid_pixel_groups(const PoseMeasurement& pose, std::string& why) {
+  const auto n = static_cast<int>(pose.observations.size());
+  std::vector<bool> grouped(pose.observations.size(), false);
+  for (std::size_t k = 0; k < pose.pixel_groups.size(); ++k) {
+    const PixelGroup& g = pose.pixel_groups[k];
+    const auto size = static_cast<Eigen::Index>(2 * g.count);
+    if (g.count < 1 || g.first < 0 || g.first + g.count > n || g.decorrelation.rows() != size ||
+        g.decorrelation.cols() != size || !g.decorrelation.allFinite()) {
+      why = fmt::format(
+          "pixel group {} (observations {}..{}) does not fit the pose's {} "
+          "observations or its decorrelation is not {}x{} and finite",
+          k, g.first, g.first + g.count - 1, n, size, size);
+      return false;
+    }
+    for (int i = g.first; i < g.first + g.count; ++i) {
+      const auto at = static_cast<std::size_t>(i);
+      if (!std::holds_alternative<PixelObservation>(pose.observations[at])) {
+        why = fmt::format(
+            "pixel group {} includes observation {}, which is not a pixel observation", k, i);
+        return false;
+      }
+      if (grouped[at]) {
+        why = fmt::format("pixel group {} includes observation {}, already in another group", k, i);
+        return false;
+      }
+      grouped[at] = true;
+    }
+  }
+  return true;
 }
 
 // Every pixel observation of a pose can be evaluated at the start (camera known, corner in front
@@ -433,7 +481,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
           {pose.id, fmt::format("the nominal model cannot solve this pose: {}", why)});
       continue;
     }
-    if (!pixels_project(model, nominal, pose, pred, why)) {
+    if (!valid_pixel_groups(pose, why) || !pixels_project(model, nominal, pose, pred, why)) {
       result.excluded.push_back({pose.id, why});
       continue;
     }

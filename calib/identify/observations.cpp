@@ -70,6 +70,24 @@ PixelObservation PixelObservation::with_covariance(int camera, int corner,
   return o;
 }
 
+PixelGroup PixelGroup::from_covariance(int first, const std::vector<PixelObservation>& members,
+                                       const Eigen::MatrixXd& covariance) {
+  const auto n = 2 * static_cast<Eigen::Index>(members.size());
+  if (members.empty() || covariance.rows() != n || covariance.cols() != n)
+    throw std::invalid_argument(
+        fmt::format("a pixel group of {} corners needs a {}x{} covariance (got {}x{})",
+                    members.size(), n, n, covariance.rows(), covariance.cols()));
+  Eigen::MatrixXd marginal_inverse = Eigen::MatrixXd::Zero(n, n);
+  for (Eigen::Index k = 0; k < static_cast<Eigen::Index>(members.size()); ++k)
+    marginal_inverse.block<2, 2>(2 * k, 2 * k) =
+        members[static_cast<std::size_t>(k)].weight.inverse();
+  PixelGroup g;
+  g.first = first;
+  g.count = static_cast<int>(members.size());
+  g.decorrelation = sqrt_information(covariance) * marginal_inverse;
+  return g;
+}
+
 PixelObservation PixelObservation::with_sigma(int camera, int corner, const Eigen::Vector3d& point,
                                               const Eigen::Vector2d& pixel, double sigma_px) {
   if (!(sigma_px > 0.0))

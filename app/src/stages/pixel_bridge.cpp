@@ -2,28 +2,73 @@
 
 #include <fmt/core.h>
 
+#include <Eigen/Cholesky>
+
 #include <map>
+#include <set>
 #include <stdexcept>
 
 namespace robocal::app {
 
 namespace {
 
-// Each grouped corner's own 2x2 block of its tag's joint covariance (the per-tag edge-fit
-// covariance the pose route uses). A pixel observation carries one corner, so the correlation
-// between corners of one tag is not carried; a corner in several groups keeps the first.
-std::map<int, Eigen::Matrix2d> corner_covariances(const vision::CameraFrame& frame) {
-  std::map<int, Eigen::Matrix2d> out;
-  for (const auto& group : frame.corner_groups) {
-    if (group.covariance.rows() != 2 * static_cast<Eigen::Index>(group.corner_ids.size()) ||
-        group.covariance.cols() != group.covariance.rows())
+// One camera's corners as pixel observations, each tag's corners together with their joint
+// covariance (the per-tag edge-fit covariance the pose route uses) as one calib::PixelGroup;
+// corners in no usable group keep their own σ. Group `first` indices count from 0 (the caller
+// offsets them). A corner in several groups joins the first.
+struct CameraPixels {
+  std::vector<calib::PixelObservation> observations;
+  std::vector<calib::PixelGroup> groups;
+  int unknown_corners = 0;
+};
+
+CameraPixels camera_pixels(int camera, const vision::CameraFrame& frame,
+                           const vision::BoardPoints& target, double default_sigma_px) {
+  CameraPixels out;
+  std::map<int, const vision::CornerObservation*> by_id;
+  for (const auto& corner : frame.corners) {
+    if (target.count(corner.id) == 0) {
+      ++out.unknown_corners;
       continue;
-    for (std::size_t k = 0; k < group.corner_ids.size(); ++k) {
-      const auto i = 2 * static_cast<Eigen::Index>(k);
-      const Eigen::Matrix2d block = group.covariance.block<2, 2>(i, i);
-      if (block.allFinite() && block.determinant() > 0.0 && block(0, 0) > 0.0)
-        out.emplace(group.corner_ids[k], block);
     }
+    by_id.emplace(corner.id, &corner);
+  }
+  std::set<int> used;
+  for (const auto& group : frame.corner_groups) {
+    const auto n = static_cast<Eigen::Index>(group.corner_ids.size());
+    if (group.covariance.rows() != 2 * n || group.covariance.cols() != 2 * n ||
+        !group.covariance.allFinite())
+      continue;
+    std::vector<Eigen::Index> present;  // member positions within the group
+    for (Eigen::Index k = 0; k < n; ++k) {
+      const int id = group.corner_ids[static_cast<std::size_t>(k)];
+      if (by_id.count(id) != 0 && used.count(id) == 0) present.push_back(k);
+    }
+    if (present.empty()) continue;
+    Eigen::MatrixXd covariance(2 * present.size(), 2 * present.size());
+    for (std::size_t i = 0; i < present.size(); ++i)
+      for (std::size_t j = 0; j < present.size(); ++j)
+        covariance.block<2, 2>(2 * static_cast<Eigen::Index>(i), 2 * static_cast<Eigen::Index>(j)) =
+            group.covariance.block<2, 2>(2 * present[i], 2 * present[j]);
+    if (covariance.llt().info() != Eigen::Success) continue;  // degenerate fit: own σ below
+    std::vector<calib::PixelObservation> members;
+    for (std::size_t i = 0; i < present.size(); ++i) {
+      const int id = group.corner_ids[static_cast<std::size_t>(present[i])];
+      const auto k = 2 * static_cast<Eigen::Index>(i);
+      members.push_back(calib::PixelObservation::with_covariance(
+          camera, id, target.at(id), by_id.at(id)->pixel, covariance.block<2, 2>(k, k)));
+      used.insert(id);
+    }
+    if (members.size() > 1)
+      out.groups.push_back(calib::PixelGroup::from_covariance(
+          static_cast<int>(out.observations.size()), members, covariance));
+    out.observations.insert(out.observations.end(), members.begin(), members.end());
+  }
+  for (const auto& [id, corner] : by_id) {
+    if (used.count(id) != 0) continue;
+    const double sigma = corner->sigma_px > 0.0 ? corner->sigma_px : default_sigma_px;
+    out.observations.push_back(
+        calib::PixelObservation::with_sigma(camera, id, target.at(id), corner->pixel, sigma));
   }
   return out;
 }
@@ -55,26 +100,17 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
     m.id = pose.id;
     m.actuators = pose.actuators;
     for (std::size_t c = 0; c < rig.size(); ++c) {
-      const auto group_covariance = corner_covariances(pose.cameras[c]);
-      std::vector<calib::PixelObservation> seen;
-      for (const auto& corner : pose.cameras[c].corners) {
-        const auto it = target.find(corner.id);
-        if (it == target.end()) {
-          ++out.unknown_corners;
-          continue;
-        }
-        const auto in_group = group_covariance.find(corner.id);
-        if (in_group != group_covariance.end()) {
-          seen.push_back(calib::PixelObservation::with_covariance(
-              static_cast<int>(c), corner.id, it->second, corner.pixel, in_group->second));
-          continue;
-        }
-        const double sigma = corner.sigma_px > 0.0 ? corner.sigma_px : options.default_sigma_px;
-        seen.push_back(calib::PixelObservation::with_sigma(static_cast<int>(c), corner.id,
-                                                           it->second, corner.pixel, sigma));
+      CameraPixels seen =
+          camera_pixels(static_cast<int>(c), pose.cameras[c], target, options.default_sigma_px);
+      out.unknown_corners += seen.unknown_corners;
+      if (static_cast<int>(seen.observations.size()) < options.min_corners_per_camera) continue;
+      const auto offset = static_cast<int>(m.observations.size());
+      for (auto& g : seen.groups) {
+        g.first += offset;
+        m.pixel_groups.push_back(std::move(g));
       }
-      if (static_cast<int>(seen.size()) >= options.min_corners_per_camera)
-        m.observations.insert(m.observations.end(), seen.begin(), seen.end());
+      m.observations.insert(m.observations.end(), seen.observations.begin(),
+                            seen.observations.end());
     }
     if (m.observations.empty()) {
       out.skipped.push_back(fmt::format("{}: no camera saw at least {} target corners", pose.id,

@@ -7,6 +7,7 @@
 #include "pixel_fixture.hpp"
 
 #include <gtest/gtest.h>
+#include <Eigen/Cholesky>
 
 namespace {
 
@@ -220,6 +221,76 @@ TEST(PixelObservation, PosesWithUnusablePixelsAreExcludedWithAReason) {
   EXPECT_EQ(plain.status, IdentificationStatus::kInvalidInput);
   ASSERT_FALSE(plain.excluded.empty());
   EXPECT_NE(plain.excluded.back().reason.find("no cameras"), std::string::npos);
+}
+
+// Corners measured jointly (one tag's edge fit) are whitened by their joint covariance: with
+// known pixel offsets δ at the truth, the starting cost is ½ δᵀ C⁻¹ δ, computed here directly.
+TEST(PixelObservation, GroupedCornersAreWhitenedByTheirJointCovariance) {
+  PlanarPredictor planar;
+  const CameraRigPredictor rig(planar, planar_start_cameras());
+  const Eigen::VectorXd truth = rig_truth(rig);
+  auto meas = noise_free_pixels(rig, truth, 11);
+  ASSERT_FALSE(meas.poses.empty());
+  PoseMeasurement& pose = meas.poses[0];
+  ASSERT_GE(pose.observations.size(), 4u);
+  // A correlated 6x6 covariance for observations 1..3 (px²).
+  Eigen::MatrixXd A(6, 6);
+  A << 0.9, 0.1, 0.3, 0.0, -0.2, 0.1,  //
+      0.0, 0.7, 0.2, 0.4, 0.0, -0.1,   //
+      0.1, 0.0, 0.8, 0.1, 0.3, 0.0,    //
+      0.2, -0.3, 0.0, 0.6, 0.1, 0.2,   //
+      0.0, 0.1, -0.1, 0.0, 0.9, 0.3,   //
+      -0.1, 0.0, 0.2, 0.1, 0.0, 0.5;
+  const Eigen::MatrixXd C = 0.04 * (A * A.transpose() + 0.1 * Eigen::MatrixXd::Identity(6, 6));
+  Eigen::VectorXd delta(6);
+  delta << 0.11, -0.07, 0.05, 0.13, -0.09, 0.02;
+  std::vector<PixelObservation> members;
+  for (int k = 0; k < 3; ++k) {
+    auto& o = std::get<PixelObservation>(pose.observations[static_cast<std::size_t>(1 + k)]);
+    o = PixelObservation::with_covariance(o.camera, o.corner, o.point,
+                                          o.measured + delta.segment<2>(2 * k),
+                                          C.block<2, 2>(2 * k, 2 * k));
+    members.push_back(o);
+  }
+  pose.pixel_groups.push_back(PixelGroup::from_covariance(1, members, C));
+
+  const auto res = identify(rig, truth, meas, rig.solve_options(planar_geometry_first()));
+  ASSERT_NE(res.status, IdentificationStatus::kInvalidInput) << res.message;
+  ASSERT_TRUE(res.excluded.empty());
+  const double expected = 0.5 * delta.dot(C.llt().solve(delta));
+  EXPECT_NEAR(res.initial_cost, expected, 1e-9 * expected);
+  // Treating the same corners as independent gives a different cost: the group matters here.
+  const double independent = [&] {
+    double sum = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector2d d = delta.segment<2>(2 * k);
+      sum += 0.5 * d.dot(C.block<2, 2>(2 * k, 2 * k).llt().solve(d));
+    }
+    return sum;
+  }();
+  EXPECT_GT(std::abs(expected - independent), 0.05 * expected);
+}
+
+TEST(PixelObservation, MalformedPixelGroupsExcludeTheirPoseWithAReason) {
+  PlanarPredictor planar;
+  const CameraRigPredictor rig(planar, planar_start_cameras());
+  const Eigen::VectorXd truth = rig_truth(rig);
+  auto meas = noise_free_pixels(rig, truth, 13);
+  ASSERT_GE(meas.poses.size(), 3u);
+  const auto n = static_cast<int>(meas.poses[0].observations.size());
+  meas.poses[0].pixel_groups.push_back({n - 1, 2, Eigen::MatrixXd::Identity(4, 4)});  // past end
+  meas.poses[1].pixel_groups.push_back({0, 2, Eigen::MatrixXd::Identity(4, 4)});
+  meas.poses[1].pixel_groups.push_back({1, 2, Eigen::MatrixXd::Identity(4, 4)});  // overlaps
+  meas.poses[2].pixel_groups.push_back({0, 2, Eigen::MatrixXd::Identity(3, 3)});  // wrong size
+  const auto res = identify(rig, rig.initial_parameters(planar_nominal()), meas,
+                            rig.solve_options(planar_geometry_first()));
+  ASSERT_EQ(res.excluded.size(), 3u);
+  for (const auto& e : res.excluded)
+    EXPECT_NE(e.reason.find("pixel group"), std::string::npos) << e.reason;
+  EXPECT_NE(res.excluded[1].reason.find("already in another group"), std::string::npos);
+  EXPECT_THROW(
+      PixelGroup::from_covariance(0, {PixelObservation{}}, Eigen::MatrixXd::Identity(3, 3)),
+      std::invalid_argument);
 }
 
 }  // namespace

@@ -78,6 +78,7 @@ struct PoseMeasurement {
   Eigen::VectorXd actuators;
   std::vector<Observation> observations;
   int line = 0;  // line in the measurements file (0 = not from a file), for messages
+  std::vector<PixelGroup> pixel_groups{};  // jointly measured pixel observations (may be empty)
 };
 
 // Distance between the measured frame at two poses (ball-bar, scale bar), by pose id.

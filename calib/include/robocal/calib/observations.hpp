@@ -18,6 +18,7 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <vector>
 
 namespace robocal::calib {
 
@@ -136,6 +137,25 @@ struct PixelObservation {
                                           const Eigen::Matrix2d& covariance);
   static PixelObservation with_sigma(int camera, int corner, const Eigen::Vector3d& point,
                                      const Eigen::Vector2d& pixel, double sigma_px);
+};
+
+// Pixel observations measured jointly: the four corners of one refined AprilTag come from one
+// edge fit, so their errors correlate. Observations [first, first + count) of a pose, all
+// PixelObservation, each already whitened by its own 2 × 2 weight (the marginal of the joint
+// covariance), are decorrelated by `decorrelation` (2·count square), so that together they are
+// whitened by the joint covariance: decorrelation · blockdiag(weights) = joint square-root
+// information.
+struct PixelGroup {
+  int first = 0;
+  int count = 0;
+  Eigen::MatrixXd decorrelation;
+
+  // The group of `members` (their weights must be the marginal 2 × 2 blocks of `covariance`,
+  // e.g. made with PixelObservation::with_covariance) starting at observation `first`. Throws
+  // std::invalid_argument when the covariance is not 2·count square, symmetric, positive
+  // definite.
+  static PixelGroup from_covariance(int first, const std::vector<PixelObservation>& members,
+                                    const Eigen::MatrixXd& covariance);
 };
 
 namespace detail {
