@@ -1,5 +1,7 @@
 // Cell files (YAML) -> Cell. Every error names the file and the line of the offending node.
 #include "robocal/calib/robot_file.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal/core/yaml.hpp"
 #include "robocal/planner/cell.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/errors.hpp"
@@ -30,11 +32,7 @@ struct Reader {
   double length_unit = 1.0;  // metres per file length unit
 
   [[noreturn]] void fail(const YAML::Node& node, const std::string& what) const {
-    std::ostringstream msg;
-    msg << source;
-    if (node.IsDefined() && node.Mark().line >= 0) msg << ":" << node.Mark().line + 1;
-    msg << ": " << what;
-    throw CellFileError(msg.str());
+    throw CellFileError(core::yaml_where(source, node) + ": " + what);
   }
   static int line(const YAML::Node& node) {
     return node.IsDefined() && node.Mark().line >= 0 ? node.Mark().line + 1 : 0;
@@ -340,13 +338,7 @@ std::vector<int> Cell::required_cameras() const {
 Cell parse_cell_yaml(const std::string& text, const std::string& source,
                      const std::string& base_dir) {
   Reader r{source, base_dir, 1.0};
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw CellFileError(source + ":" + std::to_string(e.mark.line + 1) +
-                        ": YAML syntax error: " + e.msg);
-  }
+  const YAML::Node root = core::load_yaml_text(text, source);
   if (!root.IsMap())
     throw CellFileError(source + ": a cell file is a YAML map (see planner/README.md)");
   r.known_keys(root,
@@ -403,11 +395,7 @@ Cell parse_cell_yaml(const std::string& text, const std::string& source,
 }
 
 Cell load_cell_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw CellFileError(path + ": cannot open the cell file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_cell_yaml(ss.str(), path, fs::path(path).parent_path().string());
+  return parse_cell_yaml(core::read_text_file(path), path, fs::path(path).parent_path().string());
 }
 
 void read_stl(const std::string& path, double scale, std::vector<Eigen::Vector3d>& vertices,

@@ -1,6 +1,9 @@
 // Plan files (YAML) and SVG previews (see plan_output.hpp).
 #include "robocal/planner/plan_output.hpp"
 
+#include "robocal/core/files.hpp"
+#include "robocal/core/yaml.hpp"
+
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
@@ -191,54 +194,32 @@ std::string plan_to_svg(const Cell& cell, const PlanResult& plan) {
 }
 
 std::vector<Eigen::VectorXd> read_plan_actuators(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    throw std::runtime_error(path + ": cannot open the plan file");
-  } catch (const YAML::ParserException& e) {
-    throw std::runtime_error(path + ":" + std::to_string(e.mark.line + 1) +
-                             ": YAML syntax error: " + e.msg);
-  }
+  const YAML::Node root = core::load_yaml_text(core::read_text_file(path), path);
   const YAML::Node poses = root["poses"];
   if (!poses || !poses.IsSequence())
-    throw std::runtime_error(path + ": no 'poses:' list (not a plan file)");
+    throw core::InputError(path + ": no 'poses:' list (not a plan file)");
   std::vector<Eigen::VectorXd> out;
   for (const YAML::Node& p : poses) {
     const YAML::Node a = p["actuators"];
     const std::string where = path + ":" + std::to_string(p.Mark().line + 1);
     if (!a || !a.IsSequence() || a.size() == 0)
-      throw std::runtime_error(where + ": pose without 'actuators: [...]'");
+      throw core::InputError(where + ": pose without 'actuators: [...]'");
     Eigen::VectorXd x(static_cast<Eigen::Index>(a.size()));
     for (std::size_t i = 0; i < a.size(); ++i) {
       try {
         x(static_cast<Eigen::Index>(i)) = a[i].as<double>();
       } catch (const YAML::Exception&) {
-        throw std::runtime_error(where + ": actuator reading '" + a[i].Scalar() +
-                                 "' is not a number");
+        throw core::InputError(where + ": actuator reading '" + a[i].Scalar() +
+                               "' is not a number");
       }
     }
     if (!out.empty() && out.front().size() != x.size())
-      throw std::runtime_error(where + ": " + std::to_string(x.size()) +
-                               " actuator readings, the first pose has " +
-                               std::to_string(out.front().size()));
+      throw core::InputError(where + ": " + std::to_string(x.size()) +
+                             " actuator readings, the first pose has " +
+                             std::to_string(out.front().size()));
     out.push_back(x);
   }
   return out;
-}
-
-void write_text_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(path + ": cannot write (folder missing or not writable)");
-    out << text;
-    if (!out) throw std::runtime_error(path + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec)
-    throw std::runtime_error(path + ": cannot move the written file into place: " + ec.message());
 }
 
 }  // namespace robocal::planner

@@ -3,6 +3,7 @@
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "robocal/core/files.hpp"
 #include "robocal/planner/camera_placement.hpp"
 #include "robocal/planner/cell.hpp"
 #include "robocal/planner/plan.hpp"
@@ -51,12 +52,7 @@ const char* status_word(PlanStatus s) {
 }
 
 int run_plan(const PlanCommandOptions& o) {
-  Cell cell;
-  try {
-    cell = load_cell_file(o.cell);
-  } catch (const CellFileError& e) {
-    throw InputError(e.what());
-  }
+  const Cell cell = load_cell_file(o.cell);  // bad input: core::InputError, exit 3
   std::string robot = o.robot.empty() ? cell.robot_file : o.robot;
   if (robot.empty())
     throw InputError("no robot: give --robot NAME|FILE or name one in the cell file ('robot:')");
@@ -104,13 +100,7 @@ int run_plan(const PlanCommandOptions& o) {
   po.selection.target_accuracy = o.target_um * 1e-6;
   if (!parse_index(o.index, &po.selection.index))
     throw InputError("--index must be O1, O2, O3, O4 or O5 (got '" + o.index + "')");
-  if (!o.measured.empty()) {
-    try {
-      po.measured = read_plan_actuators(o.measured);
-    } catch (const std::runtime_error& e) {
-      throw InputError(e.what());
-    }
-  }
+  if (!o.measured.empty()) po.measured = read_plan_actuators(o.measured);
   po.progress = [&](const std::string& line) {
     if (!o.json) fmt::print(stderr, "plan: {}\n", line);
   };
@@ -128,10 +118,10 @@ int run_plan(const PlanCommandOptions& o) {
     }
     return kExitFailure;
   }
-  write_text_atomic(o.out, plan_to_yaml(model, cell, plan, po));
+  core::write_file_atomic(o.out, plan_to_yaml(model, cell, plan, po));
   report["plan_file"] = o.out;
   if (!o.svg.empty()) {
-    write_text_atomic(o.svg, plan_to_svg(cell, plan));
+    core::write_file_atomic(o.svg, plan_to_svg(cell, plan));
     report["preview"] = o.svg;
   }
   report["poses"] = plan.poses.size();

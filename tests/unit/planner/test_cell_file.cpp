@@ -96,7 +96,7 @@ TEST(CellFile, BadInputNamesTheLine) {
   EXPECT_NE(msg.find("'target'"), std::string::npos) << msg;
   // YAML syntax.
   msg = error_of("cameras: [\n");
-  EXPECT_NE(msg.find("YAML syntax"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("not valid YAML"), std::string::npos) << msg;
 }
 
 TEST(CellFile, MillimetresAreConverted) {

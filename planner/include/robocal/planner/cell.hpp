@@ -9,6 +9,7 @@
 // A camera pose maps camera coordinates to world (x_world = R x_cam + p), camera z = optical
 // axis, x right, y down (OpenCV). The target pose maps board coordinates (vision/target.hpp:
 // origin at the pattern's top-left corner, z into the board) to the measured frame's coordinates.
+#include "robocal/core/input_error.hpp"
 #include "robocal/vision/camera_model.hpp"
 #include "robocal/vision/target.hpp"
 
@@ -23,10 +24,8 @@
 namespace robocal::planner {
 
 // Any problem with a cell file (or a file it names); the message starts with "file:line: ".
-class CellFileError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+// The project's one bad-input type (core/input_error.hpp), under the name planner code uses.
+using CellFileError = core::InputError;
 
 struct CellCamera {
   std::string name;

@@ -25,9 +25,7 @@ std::string plan_to_yaml(const calib::Mechanism& model, const Cell& cell, const 
                          const PlanOptions& options);
 std::string plan_to_svg(const Cell& cell, const PlanResult& plan);
 // Actuator readings of every pose of a plan file (sequential mode: the poses already measured).
-// Throws std::runtime_error("file:line: problem").
+// Throws core::InputError("file:line: problem").
 std::vector<Eigen::VectorXd> read_plan_actuators(const std::string& path);
-// Writes text atomically; throws std::runtime_error naming the file when it cannot.
-void write_text_atomic(const std::string& path, const std::string& text);
 
 }  // namespace robocal::planner
