@@ -371,6 +371,53 @@ struct Assembly {
   }
 };
 
+// A cost whose whitened rows are divided by per-row scales (the robust loss's threshold then
+// counts in estimated rather than stated σ). Does not own the wrapped cost.
+class RowScaledCost final : public ceres::CostFunction {
+ public:
+  RowScaledCost(const ceres::CostFunction& inner, Eigen::VectorXd inverse_scale)
+      : inner_(inner), inverse_scale_(std::move(inverse_scale)) {
+    set_num_residuals(inner.num_residuals());
+    *mutable_parameter_block_sizes() = inner.parameter_block_sizes();
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    if (!inner_.Evaluate(parameters, residuals, jacobians)) return false;
+    const Eigen::Index m = num_residuals();
+    Eigen::Map<Eigen::VectorXd>(residuals, m).array() *= inverse_scale_.array();
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      const Eigen::Index n = parameter_block_sizes()[0];
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
+          jacobians[0], m, n);
+      J = inverse_scale_.asDiagonal() * J;
+    }
+    return true;
+  }
+
+ private:
+  const ceres::CostFunction& inner_;
+  Eigen::VectorXd inverse_scale_;
+};
+
+// Outlier-proof noise scale of each observation type from whitened residual rows
+// (1.4826 · median |r|; 1 where a type has no rows or zero spread).
+std::vector<double> robust_row_scales(const Eigen::VectorXd& r, const std::vector<int>& row_group,
+                                      std::size_t groups, int rows) {
+  std::vector<std::vector<double>> by_group(groups);
+  for (int i = 0; i < rows; ++i)
+    by_group[static_cast<std::size_t>(row_group[static_cast<std::size_t>(i)])].push_back(
+        std::abs(r(i)));
+  std::vector<double> scale(groups, 1.0);
+  for (std::size_t g = 0; g < groups; ++g) {
+    auto& v = by_group[g];
+    if (v.empty()) continue;
+    auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    if (*mid > 0.0) scale[g] = 1.4826 * *mid;
+  }
+  return scale;
+}
+
 // Evaluates every block at `params`: stacked whitened residuals and Jacobian (rows × P), and the
 // row range of each pose block. Returns false when some pose cannot be solved.
 bool evaluate_all(const Assembly& as, const Eigen::VectorXd& params, bool with_jacobian,
@@ -696,18 +743,31 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
       result.initial_cost = INFINITY;
   }
 
-  auto solve_from = [&](Eigen::VectorXd x, ceres::Solver::Summary& summary) {
+  // `row_scale` (one per pose-cost row, may be empty): the robust loss counts in these units.
+  auto solve_from = [&](Eigen::VectorXd x, ceres::Solver::Summary& summary,
+                        const std::vector<double>& row_scale = {}) {
     ceres::Problem::Options popt;
     popt.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     popt.loss_function_ownership = ceres::TAKE_OWNERSHIP;
     ceres::Problem problem(popt);
+    std::vector<std::unique_ptr<ceres::CostFunction>> scaled;
+    int first_row = 0;
     for (const auto& c : as.pose_costs) {
       ceres::LossFunction* loss = nullptr;
       if (options.robust_loss == RobustLoss::kHuber)
         loss = new ceres::HuberLoss(options.robust_scale);
       if (options.robust_loss == RobustLoss::kCauchy)
         loss = new ceres::CauchyLoss(options.robust_scale);
-      problem.AddResidualBlock(c.get(), loss, x.data());
+      ceres::CostFunction* cost = c.get();
+      if (!row_scale.empty()) {
+        Eigen::VectorXd inverse(c->num_residuals());
+        for (int i = 0; i < c->num_residuals(); ++i)
+          inverse(i) = 1.0 / row_scale[static_cast<std::size_t>(first_row + i)];
+        scaled.push_back(std::make_unique<RowScaledCost>(*c, std::move(inverse)));
+        cost = scaled.back().get();
+      }
+      first_row += c->num_residuals();
+      problem.AddResidualBlock(cost, loss, x.data());
     }
     for (const auto& c : as.distance_costs) problem.AddResidualBlock(c.get(), nullptr, x.data());
     std::unique_ptr<ceres::CostFunction> prior;
@@ -766,6 +826,40 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
       best_usable = true;
       best_summary = summary;
     }
+  }
+  // Robust loss at the estimated noise: refit from the first robust fit with the threshold in
+  // units of each observation type's outlier-proof residual scale there, and again from that
+  // fit (its residuals are no longer spread by the outliers) until the scales settle.
+  int pose_cost_rows = 0;
+  for (const auto& c : as.pose_costs) pose_cost_rows += c->num_residuals();
+  for (int pass = 0; pass < 4 && best_usable && pose_cost_rows > 0 &&
+                     options.robust_loss != RobustLoss::kNone && !options.keep_stated_noise;
+       ++pass) {
+    Eigen::VectorXd r1;
+    Eigen::MatrixXd unused;
+    if (evaluate_all(as, best, false, r1, unused)) {
+      const auto scale = robust_row_scales(r1, as.row_group, as.groups.size(), pose_cost_rows);
+      bool settled = !result.robust_loss_noise_scale.empty();
+      for (std::size_t g = 0; settled && g < scale.size(); ++g)
+        settled = std::abs(scale[g] / result.robust_loss_noise_scale[g] - 1.0) < 0.02;
+      if (settled) break;
+      std::vector<double> row_scale(static_cast<std::size_t>(pose_cost_rows));
+      for (int i = 0; i < pose_cost_rows; ++i)
+        row_scale[static_cast<std::size_t>(i)] =
+            scale[static_cast<std::size_t>(as.row_group[static_cast<std::size_t>(i)])];
+      ceres::Solver::Summary summary;
+      const Eigen::VectorXd x = solve_from(best, summary, row_scale);
+      Eigen::VectorXd rx;
+      if (summary.IsSolutionUsable() && x.allFinite() && evaluate_all(as, x, false, rx, unused) &&
+          rx.allFinite()) {
+        best = x;
+        best_cost = summary.final_cost;
+        best_summary = summary;
+        result.robust_loss_noise_scale = scale;
+        continue;
+      }
+    }
+    break;
   }
   result.starts_run = starts;
   result.iterations = static_cast<int>(best_summary.iterations.size());

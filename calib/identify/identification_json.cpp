@@ -145,7 +145,8 @@ nlohmann::json to_json(const IdentificationResult& r) {
   if (r.limited_data) j["gauge"] = r.gauge;
   // A posteriori noise per observation type beside the stated noise (noise_estimate.hpp).
   nlohmann::json noise = nlohmann::json::array();
-  for (const auto& g : r.noise.groups) {
+  for (std::size_t k = 0; k < r.noise.groups.size(); ++k) {
+    const auto& g = r.noise.groups[k];
     if (g.rows == 0) continue;
     noise.push_back({{"type", g.type},
                      {"unit", g.unit},
@@ -158,6 +159,9 @@ nlohmann::json to_json(const IdentificationResult& r) {
                      {"scale_95_high", num(g.scale_high)},
                      {"robust_scale", num(g.robust_scale)},
                      {"degrees_of_freedom", num(g.redundancy)}});
+    // The robust loss's σ unit for this type, as a multiple of the stated σ (absent: stated).
+    if (k < r.robust_loss_noise_scale.size())
+      noise.back()["robust_loss_sigma_scale"] = num(r.robust_loss_noise_scale[k]);
   }
   j["noise"] = {{"applied", r.noise_applied}, {"types", noise}};
   return j;

@@ -85,6 +85,9 @@ std::string summary_text(const IdentificationResult& r) {
                      g.scale, g.scale_low, g.scale_high, g.redundancy,
                      r.noise_applied ? "" : " [stated noise kept]");
   }
+  if (!r.robust_loss_noise_scale.empty())
+    s += "Robust loss: threshold counted in the noise estimated from the data, not the stated "
+         "noise\n";
   s += fmt::format("Fit residuals: position RMS {}, max {}", length(r.residuals.position_rms),
                    length(r.residuals.position_max));
   if (r.residuals.orientation_max > 0)

@@ -125,6 +125,46 @@ TEST(Identification, RobustLossFlagsOutliersAndKeepsAccuracy) {
   EXPECT_GT(planar_heldout_rms(plain.estimate, planar_truth()), 2.0 * e0);
 }
 
+// A stated noise 5× too large puts 12 σ outliers at ~2.4 stated σ, inside the loss's quadratic
+// zone: only a loss whose threshold counts in the noise estimated from the data rejects them.
+TEST(Identification, RobustLossCountsInTheEstimatedNoise) {
+  PlanarPredictor model;
+  std::mt19937 rng(8);
+  SimulationOptions sim;
+  sim.position_sigma = 1e-4;
+  auto clean = simulate_measurements(model, planar_truth(), planar_actuators(60, 8), sim, rng);
+  for (auto& pose : clean.poses) {  // the user's guess: 0.5 mm
+    auto& obs = std::get<PointObservation>(pose.observations[0]);
+    obs = PointObservation::with_sigma(obs.measured, 5e-4);
+  }
+  auto dirty = clean;
+  for (std::size_t k = 3; k < dirty.poses.size(); k += 10) {  // 6 of 60, all the same way
+    auto& obs = std::get<PointObservation>(dirty.poses[k].observations[0]);
+    obs.measured += Eigen::Vector3d(0.8e-3, -0.7e-3, 0.5e-3);  // 1.2 mm = 12 true σ
+  }
+  const double e0 = planar_heldout_rms(
+      identify(model, planar_nominal(), clean, planar_geometry_first()).estimate, planar_truth());
+  auto opt = planar_geometry_first();
+  opt.robust_loss = RobustLoss::kHuber;
+  opt.robust_scale = 3.0;
+  const auto estimated = identify(model, planar_nominal(), dirty, opt);
+  ASSERT_EQ(estimated.status, IdentificationStatus::kConverged) << estimated.message;
+  ASSERT_FALSE(estimated.robust_loss_noise_scale.empty());
+  // The point rows' scale: the true 0.1 mm over the stated 0.5 mm = 0.2, raised ~13 % by the
+  // 10 % of outlying rows inside the median (the 0.556 quantile of |N(0,1)| over its median).
+  EXPECT_NEAR(*std::min_element(estimated.robust_loss_noise_scale.begin(),
+                                estimated.robust_loss_noise_scale.end()),
+              0.227, 0.04);
+  opt.keep_stated_noise = true;
+  const auto stated = identify(model, planar_nominal(), dirty, opt);
+  ASSERT_EQ(stated.status, IdentificationStatus::kConverged) << stated.message;
+  EXPECT_TRUE(stated.robust_loss_noise_scale.empty());
+  const double e_estimated = planar_heldout_rms(estimated.estimate, planar_truth());
+  const double e_stated = planar_heldout_rms(stated.estimate, planar_truth());
+  EXPECT_LT(e_estimated, 1.5 * e0) << "outlier-free " << e0 << " estimated-scale " << e_estimated;
+  EXPECT_GT(e_stated, 2.0 * e_estimated) << "stated-scale " << e_stated;
+}
+
 TEST(Identification, MultiStartEscapesABadStart) {
   PlanarPredictor model;
   SimulationOptions sim;

@@ -129,7 +129,11 @@ struct SolveOptions {
   std::vector<double> lower_bound;
   std::vector<double> upper_bound;
   RobustLoss robust_loss = RobustLoss::kNone;
-  double robust_scale = 3.0;  // in whitened units (σ)
+  // The loss's threshold in σ. Unless keep_stated_noise is set, σ is the noise estimated from the
+  // data (a first robust fit at the stated noise, then the outlier-proof scale of each observation
+  // type's residuals, then the final fit): a stated noise 5× too large would otherwise hide
+  // every outlier inside the loss's quadratic zone.
+  double robust_scale = 3.0;
   // Multi-start: extra starts perturbed by N(0, start_sigma_i) around the start values (uses
   // prior_sigma when start_sigma is empty); the lowest final cost wins.
   int multi_start = 0;
@@ -207,6 +211,9 @@ struct IdentificationResult {
   // `noise_applied` when the covariance was scaled by it (SolveOptions::keep_stated_noise).
   NoiseEstimate noise;
   bool noise_applied = false;
+  // Robust loss at the estimated noise: per observation type (NoiseEstimate's order), the scale
+  // of the stated σ the loss threshold used (empty: the stated noise was used).
+  std::vector<double> robust_loss_noise_scale;
   int iterations = 0;
   int starts_run = 1;
   double solve_seconds = 0.0;
