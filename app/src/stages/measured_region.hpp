@@ -1,40 +1,20 @@
 #pragma once
-// The measured region: the part of the workspace the identification's poses cover, and how far
-// a configuration lies from it (app/SESSION.md, validation).
-//
-// Identification constrains the model where it was measured. A configuration far outside the
-// measured poses is predicted by extrapolation along directions the measurements constrain
-// weakly, and its error can be millimetres where the measured region's is micrometres. The
-// region is the convex hull of the measured end-effector positions: "inside" is interpolation
-// between measured poses, "outside" extrapolation, and the distance to the hull says how far.
+// The held-out figures split by the measured region (calib/measured_region.hpp: the convex hull
+// of the measured end-effector positions) for validation.json (app/SESSION.md).
+#include "robocal/calib/measured_region.hpp"
+
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include <cstddef>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace robocal::app {
 
-// A position within this distance of the hull counts as inside it (rounding only: the hull of
-// measured positions has no tolerance of its own).
-inline constexpr double kRegionInsideTolerance = 1e-6;  // m
-
-struct RegionDistance {
-  double outside_m = 0.0;                             // distance to the convex hull; 0 inside
-  double nearest_measured_m = 0.0;                    // distance to the nearest measured position
-  bool inside = false;                                // outside_m <= kRegionInsideTolerance
-  Eigen::Vector3d closest = Eigen::Vector3d::Zero();  // the hull's point nearest to the query
-  // closest = sum of weight * measured[index] (weights >= 0, summing to 1): at most 4 points.
-  std::vector<std::pair<std::size_t, double>> support;
-  bool converged = true;  // false: the iteration cap was hit (closest is still a hull point)
-};
-
-// Distance from `p` to the convex hull of `measured` (exact minimum-norm point, Wolfe's
-// algorithm; works for flat or collinear sets too). An empty set is infinitely far away.
-RegionDistance distance_to_region(const std::vector<Eigen::Vector3d>& measured,
-                                  const Eigen::Vector3d& p);
+using calib::distance_to_region;
+using calib::kRegionInsideTolerance;
+using calib::RegionDistance;
 
 // One prediction of the held-out positions (e.g. "calibrated": the pose route's model).
 struct NamedPoints {
