@@ -79,6 +79,15 @@ class PoseCost final : public ceres::CostFunction {
               residuals[row] = r(0);
               residuals[row + 1] = r(1);
               if (want_jacobian) J.middleRows(row, 2) = Jp;
+            } else if constexpr (std::is_same_v<O, ProbeHeightObservation>) {
+              // The bed plane may be estimated: the predictor evaluates it.
+              Eigen::RowVectorXd Jh;
+              if (!model_.probe_residual(o, params, pred, residuals[row],
+                                         want_jacobian ? &Jh : nullptr, why)) {
+                ok = false;
+                return;
+              }
+              if (want_jacobian) J.row(row) = Jh;
             } else {
               Eigen::Matrix<double, O::kResiduals, 1> r;
               const auto Jo = residual_and_twist_jacobian(o, pred.pose, r);

@@ -3,6 +3,7 @@
 // file. Also `--simulate` to write a synthetic measurements file from a perturbed robot.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
+#include "robocal/calib/bed_plane.hpp"
 #include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
@@ -19,6 +20,7 @@
 #include <fmt/core.h>
 #include <fnmatch.h>
 
+#include <algorithm>
 #include <memory>
 
 namespace robocal::app {
@@ -54,6 +56,7 @@ struct IdentifyOptions {
   bool free_intrinsics = false;
   bool quiet = false;         // no terminal summary
   bool stated_noise = false;  // keep the stated noise for the covariance (do not scale)
+  bool bed_tilt = false;      // estimate the bed's slopes with the geometry (probe heights)
 };
 
 bool matches(const std::string& name, const std::vector<std::string>& patterns) {
@@ -142,6 +145,23 @@ int run_identify_session(const IdentifyOptions& o) {
   return exit_code_of(report);
 }
 
+// The bed's estimated slopes (mm/m, with σ where estimated) for the JSON report.
+nlohmann::json bed_json(const IdentificationResult& res, const BedPlanePredictor& bed) {
+  nlohmann::json j = {{"plane", "z = tilt_x * x + tilt_y * y (world)"}};
+  for (const auto& [name, value] : {std::pair{"bed.tilt_x", bed.tilt_x(res.estimate)},
+                                    std::pair{"bed.tilt_y", bed.tilt_y(res.estimate)}}) {
+    nlohmann::json t = {{"mm_per_m", 1e3 * value}, {"estimated", false}};
+    const auto& names = res.uncertainty.names;
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (res.uncertainty.ok && it != names.end()) {
+      t["estimated"] = true;
+      t["sigma_mm_per_m"] = 1e3 * res.uncertainty.sigma(it - names.begin());
+    }
+    j[std::string(name).substr(4)] = t;
+  }
+  return j;
+}
+
 int run_identify(const IdentifyOptions& o) {
   if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
   if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
@@ -170,9 +190,14 @@ int run_identify(const IdentifyOptions& o) {
       throw InputError(fmt::format("{}: {}", o.measurements, e.what()));
     }
   }
-  const FramePredictor& pred = rig ? static_cast<const FramePredictor&>(*rig) : robot_pred;
-  const Eigen::VectorXd nominal =
+  const FramePredictor& observed = rig ? static_cast<const FramePredictor&>(*rig) : robot_pred;
+  const Eigen::VectorXd observed_nominal =
       rig ? rig->initial_parameters(model.nominal_parameters()) : model.nominal_parameters();
+  // --bed-tilt: the bed's two slopes join the unknowns, after everything else (bed_plane.hpp).
+  const BedPlanePredictor bed(observed);
+  const FramePredictor& pred = o.bed_tilt ? static_cast<const FramePredictor&>(bed) : observed;
+  const Eigen::VectorXd nominal =
+      o.bed_tilt ? bed.initial_parameters(observed_nominal) : observed_nominal;
 
   SolveOptions opt = solve_options_from_model(model, o.priors);
   if (!o.free_patterns.empty() || !o.fix_patterns.empty()) {
@@ -206,6 +231,7 @@ int run_identify(const IdentifyOptions& o) {
       opt.start_sigma[i] = model.parameters[i].sigma;
   }
   if (rig) opt = rig->solve_options(opt);
+  if (o.bed_tilt) opt = bed.solve_options(opt);
 
   // Held-out validation: every k-th pose is kept out of the fit.
   Measurements fit = file.measurements;
@@ -229,7 +255,9 @@ int run_identify(const IdentifyOptions& o) {
   if (rig) {
     auto pixels = [&](const std::vector<PoseMeasurement>& poses) {
       nlohmann::json j;
-      for (const auto& [key, params] : {std::pair{"before", nominal}, {"after", res.estimate}}) {
+      const auto n = static_cast<Eigen::Index>(rig->parameter_count());
+      for (const auto& [key, params] :
+           {std::pair{"before", observed_nominal}, {"after", res.estimate.head(n).eval()}}) {
         const auto e = pixel_errors(*rig, params, poses);
         j[key] = {{"observations", e.observations}, {"rms_px", e.rms_px}, {"max_px", e.max_px}};
       }
@@ -252,6 +280,7 @@ int run_identify(const IdentifyOptions& o) {
     }
     doc["cameras"] = cams;
   }
+  if (o.bed_tilt) doc["bed"] = bed_json(res, bed);
 
   const bool usable = res.status == IdentificationStatus::kConverged ||
                       res.status == IdentificationStatus::kNotConverged;
@@ -334,6 +363,11 @@ CommandSpec identify_command() {
             cmd.add_option("--json", o->json,
                            "Result JSON file ('-' = stdout; the summary then goes to stderr)");
             cmd.add_flag("--quiet", o->quiet, "No terminal summary");
+            cmd.add_flag("--bed-tilt", o->bed_tilt,
+                         "Probe heights are measured against a bed that may not be level: its two "
+                         "slopes are estimated with the geometry (where the data cannot tell them "
+                         "from the endstops, the bed is held level and the summary says so; a "
+                         "printed part measured with a caliper separates them)");
             cmd.add_flag("--stated-noise", o->stated_noise,
                          "Keep the stated measurement noise for the uncertainties (e.g. it comes "
                          "from the detector's covariance). Default: the noise of each observation "

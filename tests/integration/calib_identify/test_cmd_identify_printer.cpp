@@ -39,13 +39,14 @@ struct PrinterCli : robocal::test::ScratchDirTest {
   PrinterCli() : ScratchDirTest("robocal_printer_cli_") {}
   std::string robot = std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml";
 
-  std::string write_file(bool distances) {
+  // Heights (on a bed tilted by `tilt_x`, `tilt_y`) and, optionally, the printed part.
+  std::string write_file(bool distances, double tilt_x = 0.0, double tilt_y = 0.0) {
     const Mechanism model = load_robot_file(robot);
     std::mt19937 rng(21);
     const Eigen::VectorXd truth = robocal::test::printer_truth(model, rng);
     robocal::test::PrinterData data;
     robocal::test::add_probe_heights(model, truth, robocal::test::probe_pattern(0.08), 10e-6, rng,
-                                     data);
+                                     data, 0.0, tilt_x, tilt_y);
     if (distances)
       robocal::test::add_printed_distances(model, truth, robocal::test::printed_points(),
                                            robocal::test::printed_pairs(), 10e-6, rng, data);
@@ -84,6 +85,30 @@ TEST_F(PrinterCli, HeightsAndDistanceOnlyPosesIdentifyWithASummary) {
   testing::internal::CaptureStdout();
   ASSERT_EQ(run(args), 0);
   EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
+}
+
+// --bed-tilt on a bed tilted by 3 and −2 mm/m: the JSON reports both slopes, estimated, within
+// 4 σ of the truth.
+TEST_F(PrinterCli, BedTiltIsEstimatedAndReported) {
+  const std::string m = write_file(true, 3e-3, -2e-3);
+  std::vector<std::string> args = {"identify", "--robot",      robot,        "--measurements", m,
+                                   "--json",   file("r.json"), "--bed-tilt", "--quiet"};
+  for (const auto& a : printer_free()) args.push_back(a);
+  ASSERT_EQ(run(args), 0);
+  const auto doc = nlohmann::json::parse(read_text(file("r.json")));
+  ASSERT_TRUE(doc.contains("bed")) << doc.dump(2);
+  for (const auto& [key, truth] : {std::pair{"tilt_x", 3.0}, std::pair{"tilt_y", -2.0}}) {
+    const auto& t = doc["bed"][key];
+    ASSERT_TRUE(t["estimated"].get<bool>()) << doc["bed"].dump();
+    EXPECT_LT(std::abs(t["mm_per_m"].get<double>() - truth),
+              4.0 * t["sigma_mm_per_m"].get<double>())
+        << doc["bed"].dump();
+  }
+  // The calibrated robot file never carries the bed.
+  args.push_back("--out-robot");
+  args.push_back(file("cal.yaml"));
+  ASSERT_EQ(run(args), 0);
+  EXPECT_EQ(read_text(file("cal.yaml")).find("bed."), std::string::npos);
 }
 
 TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableIsExit1) {

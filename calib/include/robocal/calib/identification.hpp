@@ -67,6 +67,19 @@ class FramePredictor {
     why = "the model has no cameras: pixel observations need a CameraRigPredictor";
     return false;
   }
+  // Probe heights: the whitened residual of `obs` for `frame` predicted at `params` and, when
+  // `jacobian` is not null, its 1 × parameter_count derivative. This default measures against
+  // the observation's own fixed plane; a predictor that estimates the bed plane overrides it
+  // (BedPlanePredictor, bed_plane.hpp).
+  virtual bool probe_residual(const ProbeHeightObservation& obs, const Eigen::VectorXd& /*params*/,
+                              const FramePrediction& frame, double& residual,
+                              Eigen::RowVectorXd* jacobian, std::string& /*why*/) const {
+    const Eigen::Vector3d p = frame.pose.translation();
+    residual = (obs.normal.dot(p) - obs.offset - obs.measured_height) / obs.sigma;
+    if (jacobian != nullptr)
+      *jacobian = obs.normal.transpose() * frame.jacobian.topRows<3>() / obs.sigma;
+    return true;
+  }
 };
 
 using Observation =
