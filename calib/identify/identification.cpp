@@ -1169,6 +1169,40 @@ IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd
   return relinearise_once(model, nominal, measurements, options, std::move(result));
 }
 
+bool identification_jacobian(const FramePredictor& model, const Eigen::VectorXd& params,
+                             const Measurements& measurements, Eigen::MatrixXd& jacobian,
+                             std::string& why) {
+  Assembly as;
+  std::map<std::string, int> slot_of;
+  for (std::size_t k = 0; k < measurements.poses.size(); ++k) {
+    const PoseMeasurement& pose = measurements.poses[k];
+    slot_of[pose.id] = static_cast<int>(k);
+    if (!valid_pixel_groups(pose, why)) return false;
+    if (pose.observations.empty()) continue;
+    as.pose_costs.push_back(std::make_unique<PoseCost>(model, pose, static_cast<int>(k)));
+    as.rows += as.pose_costs.back()->num_residuals();
+  }
+  for (const auto& d : measurements.distances) {
+    const auto a = slot_of.find(d.first);
+    const auto b = slot_of.find(d.second);
+    if (a == slot_of.end() || b == slot_of.end()) {
+      why = fmt::format("distance {}-{} names a pose that is not in the measurements", d.first,
+                        d.second);
+      return false;
+    }
+    as.distance_costs.push_back(std::make_unique<DistanceCost>(
+        model, measurements.poses[static_cast<std::size_t>(a->second)], a->second,
+        measurements.poses[static_cast<std::size_t>(b->second)], b->second, d.observation));
+    as.rows += 1;
+  }
+  Eigen::VectorXd r;
+  if (!evaluate_all(as, params, true, r, jacobian)) {
+    why = "a pose cannot be predicted at these parameters";
+    return false;
+  }
+  return true;
+}
+
 ErrorStatistics prediction_errors(const FramePredictor& model, const Eigen::VectorXd& params,
                                   const std::vector<PoseMeasurement>& poses) {
   std::vector<double> pos;

@@ -4,6 +4,7 @@
 #include "printer_scenario.hpp"
 #include "robocal/calib/bed_plane.hpp"
 #include "robocal/calib/identification_summary.hpp"
+#include "robocal/calib/measurement_advice.hpp"
 
 #include <gtest/gtest.h>
 
@@ -34,6 +35,23 @@ struct Printer : ::testing::Test {
         EXPECT_TRUE(pred.predict(truth, r, -1, false, a, why));
         EXPECT_TRUE(pred.predict(params, r, -1, false, b, why));
         sum += std::pow(a.pose.translation().z() - b.pose.translation().z(), 2);
+        ++n;
+      }
+    return std::sqrt(sum / n);
+  }
+  // Held-out 3-D nozzle error on the same grid `z` above the bed, RMS.
+  double heldout_3d_rms(const Eigen::VectorXd& truth, const Eigen::VectorXd& params, double z) {
+    double sum = 0.0;
+    int n = 0;
+    for (double x = -0.06; x <= 0.061; x += 0.03)
+      for (double y = -0.06; y <= 0.061; y += 0.03) {
+        const Eigen::VectorXd r = commanded_readings(model, Eigen::Vector3d(x, y, z));
+        FramePrediction t;
+        FramePrediction a;
+        std::string why;
+        EXPECT_TRUE(pred.predict(truth, r, -1, false, t, why));
+        EXPECT_TRUE(pred.predict(params, r, -1, false, a, why));
+        sum += (t.pose.translation() - a.pose.translation()).squaredNorm();
         ++n;
       }
     return std::sqrt(sum / n);
@@ -137,23 +155,8 @@ TEST_F(Printer, TiltedBedIsEstimatedWithTheGeometry) {
   }
   const auto level = identify(pred, nominal, data.measurements, opt);
   ASSERT_EQ(level.status, IdentificationStatus::kConverged) << level.message;
-  auto heldout_3d = [&](const Eigen::VectorXd& params) {
-    double sum = 0.0;
-    int n = 0;
-    for (double x = -0.06; x <= 0.061; x += 0.03)
-      for (double y = -0.06; y <= 0.061; y += 0.03) {
-        const Eigen::VectorXd r = commanded_readings(model, Eigen::Vector3d(x, y, 0.002));
-        FramePrediction t, a;
-        std::string why;
-        EXPECT_TRUE(pred.predict(truth, r, -1, false, t, why));
-        EXPECT_TRUE(pred.predict(params, r, -1, false, a, why));
-        sum += (t.pose.translation() - a.pose.translation()).squaredNorm();
-        ++n;
-      }
-    return std::sqrt(sum / n);
-  };
-  const double with_bed = heldout_3d(tilted.estimate.head(nominal.size()));
-  const double assumed_level = heldout_3d(level.estimate);
+  const double with_bed = heldout_3d_rms(truth, tilted.estimate.head(nominal.size()), 0.002);
+  const double assumed_level = heldout_3d_rms(truth, level.estimate, 0.002);
   std::cout << "held-out 3-D RMS: bed estimated " << with_bed << ", bed assumed level "
             << assumed_level << "\n";
   EXPECT_LT(with_bed, 0.5 * assumed_level);
@@ -166,6 +169,81 @@ TEST_F(Printer, TiltedBedIsEstimatedWithTheGeometry) {
       identify(bed, bed.initial_parameters(nominal), heights.measurements, bed.solve_options(opt));
   ASSERT_EQ(only.status, IdentificationStatus::kConverged) << only.message;
   for (std::size_t i : only.estimated) EXPECT_LT(i, static_cast<std::size_t>(nominal.size()));
+}
+
+// Seven heights leave two printer parameters held: the advice names further measurements, and
+// where; simulated from the truth and added, they make all nine identifiable.
+TEST_F(Printer, AdviceSaysWhatToMeasureNextAndWhereAndItWorks) {
+  std::mt19937 rng(5);
+  const Eigen::VectorXd truth = printer_truth(model, rng);
+  PrinterData data;
+  add_probe_heights(model, truth, probe_pattern(0.08), 10e-6, rng, data);
+  auto opt = solve_options_from_model(model, false);
+  opt.candidates = printer_candidates(model);
+  const auto before = identify(pred, nominal, data.measurements, opt);
+  ASSERT_EQ(before.status, IdentificationStatus::kConverged) << before.message;
+  ASSERT_LT(before.estimated.size(), 9u);
+
+  // Candidates: bed points (heights) and positions one layer up (distances on a printed part).
+  std::vector<Eigen::VectorXd> bed;
+  std::vector<Eigen::VectorXd> layer;
+  for (double x = -0.09; x <= 0.091; x += 0.03)
+    for (double y = -0.09; y <= 0.091; y += 0.03) {
+      if (std::hypot(x, y) > 0.095) continue;
+      bed.push_back(commanded_readings(model, Eigen::Vector3d(x, y, 0.0)));
+      layer.push_back(commanded_readings(model, Eigen::Vector3d(x, y, 0.005)));
+    }
+  const auto advice =
+      advise_measurements(pred, before.estimate, data.measurements, opt.candidates, bed, layer);
+  std::cout << advice.text;
+  EXPECT_EQ(advice.rank_before, before.estimated.size());
+  EXPECT_EQ(advice.rank_reachable, 9u);
+  EXPECT_EQ(advice.rank_after, 9u);
+  ASSERT_FALSE(advice.suggestions.empty());
+  EXPECT_NE(advice.text.find("measure next"), std::string::npos);
+
+  // Take the advice on the true printer.
+  PrinterData more = data;
+  const MechanismPredictor truth_pred(model);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  int k = 0;
+  for (const auto& s : advice.suggestions) {
+    auto true_position = [&](const Eigen::VectorXd& q) -> Eigen::Vector3d {
+      FramePrediction f;
+      std::string why;
+      EXPECT_TRUE(truth_pred.predict(truth, q, -1, false, f, why));
+      return f.pose.translation();
+    };
+    const std::string a = "advised" + std::to_string(k++);
+    if (s.kind == "probe height") {
+      ProbeHeightObservation h;
+      h.sigma = 10e-6;
+      h.measured_height = true_position(s.actuators).z() + 10e-6 * n01(rng);
+      more.measurements.poses.push_back({a, s.actuators, {h}});
+    } else {
+      ASSERT_EQ(s.kind, "distance");
+      const std::string b = "advised" + std::to_string(k++);
+      more.measurements.poses.push_back({a, s.actuators, {}});
+      more.measurements.poses.push_back({b, s.actuators_b, {}});
+      DistanceMeasurement d;
+      d.first = a;
+      d.second = b;
+      d.observation.sigma = 10e-6;
+      d.observation.measured_distance =
+          (true_position(s.actuators) - true_position(s.actuators_b)).norm() + 10e-6 * n01(rng);
+      more.measurements.distances.push_back(d);
+    }
+  }
+  const auto after = identify(pred, nominal, more.measurements, opt);
+  std::cout << summary_text(after);
+  ASSERT_EQ(after.status, IdentificationStatus::kConverged) << after.message;
+  EXPECT_EQ(after.estimated.size(), 9u);
+  EXPECT_FALSE(after.limited_data);
+  const double e_before = heldout_3d_rms(truth, before.estimate, 0.002);
+  const double e_after = heldout_3d_rms(truth, after.estimate, 0.002);
+  std::cout << "held-out 3-D RMS: 7 heights " << e_before << ", with the advice " << e_after
+            << "\n";
+  EXPECT_LT(e_after, 0.5 * e_before);
 }
 
 // σ spread over six orders of magnitude (0.1 µm .. 0.1 m) per pose, noise drawn with each pose's

@@ -236,6 +236,13 @@ struct IdentificationResult {
 IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd& nominal,
                               const Measurements& measurements, const SolveOptions& options = {});
 
+// The whitened identification Jacobian of `measurements` at `params` (rows: every observation's
+// residual rows in order, then the distances; columns: every parameter), as identify builds it.
+// Returns false and says why when a pose cannot be predicted or a distance names a missing pose.
+bool identification_jacobian(const FramePredictor& model, const Eigen::VectorXd& params,
+                             const Measurements& measurements, Eigen::MatrixXd& jacobian,
+                             std::string& why);
+
 // Errors of a parameter vector against measured poses: position from point/pose observations,
 // orientation from pose observations.
 struct ErrorStatistics {

@@ -1,0 +1,62 @@
+#pragma once
+// What to measure next, and where (issue 21).
+//
+// With little data the identification estimates only the combinations the data separate and
+// holds the rest at nominal (the gauge). This says which further measurements, at which
+// positions, would make the held parameters identifiable: candidates of the kinds the user can
+// take (probe heights on the bed, 3-D points, distances between two positions), each added where
+// it raises the rank of the identification Jacobian the most (ties: where it raises the weakest
+// separated direction the most), until everything with an effect is identifiable with a few
+// equations to spare (AdviceOptions::redundancy) or the budget is spent. The same selection,
+// started from no data, designs a probe pattern.
+#include "robocal/calib/identification.hpp"
+
+#include <Eigen/Core>
+
+#include <string>
+#include <vector>
+
+namespace robocal::calib {
+
+struct AdviceOptions {
+  double height_sigma = 10e-6;          // m, a suggested probe height's noise
+  double point_sigma = 20e-6;           // m, per coordinate
+  double distance_sigma = 10e-6;        // m
+  bool points = false;                  // suggest 3-D points (needs a tracker or cameras)
+  bool distances = true;                // suggest distances between two positions of `pool`
+  std::size_t distance_positions = 24;  // distances pair the first N positions of `pool`
+  std::size_t max_suggestions = 12;
+  // Equations beyond the identifiable count to aim for once the rank is reached: an exactly
+  // determined fit has no check on its noise and is as ill-conditioned as the design allows.
+  std::size_t redundancy = 6;
+};
+
+struct SuggestedMeasurement {
+  std::string kind;  // "probe height", "3-D point" or "distance"
+  Eigen::VectorXd actuators;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // of the measured frame, at `params`
+  Eigen::VectorXd actuators_b;                         // distances: the second position
+  Eigen::Vector3d position_b = Eigen::Vector3d::Zero();
+  std::size_t rank_after = 0;  // identifiable parameters once this (and those before) are added
+};
+
+struct MeasurementAdvice {
+  std::size_t rank_before = 0;     // identifiable candidate parameters with today's data
+  std::size_t rank_reachable = 0;  // with every candidate measurement added
+  std::size_t rank_after = 0;      // with the suggestions added
+  std::vector<SuggestedMeasurement> suggestions;
+  std::string text;  // plain words ("" when nothing would help)
+};
+
+// `candidates`: indices of the parameters to make identifiable (empty = all). `height_pool`:
+// actuator readings with the measured frame on the bed (probe height candidates, may be empty);
+// `pool`: readings for 3-D point and distance candidates (may be empty). Poses of either pool the
+// model cannot predict are skipped.
+MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::VectorXd& params,
+                                      const Measurements& current,
+                                      const std::vector<std::size_t>& candidates,
+                                      const std::vector<Eigen::VectorXd>& height_pool,
+                                      const std::vector<Eigen::VectorXd>& pool,
+                                      const AdviceOptions& options = {});
+
+}  // namespace robocal::calib
