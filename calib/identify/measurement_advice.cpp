@@ -1,10 +1,14 @@
 #include "robocal/calib/measurement_advice.hpp"
 
 #include "robocal/calib/identifiability.hpp"
+#include "robocal/calib/inverse_kinematics.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
 
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <cmath>
+#include <random>
 
 namespace robocal::calib {
 
@@ -66,6 +70,7 @@ MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::
   if (cols.empty())
     for (std::size_t i = 0; i < model.parameter_count(); ++i) cols.push_back(i);
   std::vector<std::string> names;
+  names.reserve(cols.size());
   const auto all_names = model.parameter_names();
   for (std::size_t i : cols) names.push_back(all_names[i]);
 
@@ -78,7 +83,7 @@ MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::
 
   // The candidates and their rows.
   std::vector<Candidate> pool_rows;
-  auto add = [&](Measurements m, SuggestedMeasurement what) {
+  auto add = [&](const Measurements& m, SuggestedMeasurement what) {
     Eigen::MatrixXd rows;
     if (!identification_jacobian(model, params, m, rows, why)) return;
     FramePrediction a;
@@ -125,7 +130,9 @@ MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::
       }
   }
 
-  auto [rank, weakest] = strength(J, names);
+  const auto start = strength(J, names);
+  std::size_t rank = start.first;
+  double weakest = start.second;
   advice.rank_before = rank;
   {
     Eigen::MatrixXd everything = J;
@@ -189,6 +196,95 @@ MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::
     advice.text +=
         fmt::format("  ({} parameters stay confounded with every measurement of these kinds.)\n",
                     cols.size() - advice.rank_after);
+  return advice;
+}
+
+namespace {
+
+// Where the measured frame is at each pose of `poses` (at `params`), skipping what cannot be
+// predicted.
+std::vector<Eigen::Vector3d> positions(const FramePredictor& model, const Eigen::VectorXd& params,
+                                       const std::vector<const PoseMeasurement*>& poses) {
+  std::vector<Eigen::Vector3d> out;
+  for (const auto* p : poses) {
+    FramePrediction f;
+    std::string why;
+    if (model.predict(params, p->actuators, -1, false, f, why))
+      out.emplace_back(f.pose.translation());
+  }
+  return out;
+}
+
+// Readings that put the frame on a grid over the area of `around` (1.15 × its radius about its
+// centroid, 7 × 7 steps) at its mean height.
+std::vector<Eigen::VectorXd> grid_like(const MechanismPredictor& robot,
+                                       const Eigen::VectorXd& robot_params,
+                                       const std::vector<Eigen::Vector3d>& around) {
+  std::vector<Eigen::VectorXd> out;
+  if (around.empty()) return out;
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : around) c += p;
+  c /= static_cast<double>(around.size());
+  double radius = 0.0;
+  for (const auto& p : around) radius = std::max(radius, (p - c).head<2>().norm());
+  radius = std::max(1.15 * radius, 1e-3);
+  for (int i = -3; i <= 3; ++i)
+    for (int j = -3; j <= 3; ++j) {
+      const Eigen::Vector2d xy = c.head<2>() + radius / 3.0 * Eigen::Vector2d(i, j);
+      if ((xy - c.head<2>()).norm() > radius + 1e-12) continue;
+      TaskTarget t;
+      t.pose.translation() = Eigen::Vector3d(xy.x(), xy.y(), c.z());
+      const auto ik = solve_ik(robot.model(), robot_params, t);
+      if (ik.ok()) out.push_back(ik.actuator_readings);
+    }
+  return out;
+}
+
+}  // namespace
+
+MeasurementAdvice advise_like_the_data(const MechanismPredictor& robot, const FramePredictor& model,
+                                       const Eigen::VectorXd& params, const Measurements& current,
+                                       const std::vector<std::size_t>& candidates,
+                                       AdviceOptions options) {
+  const Eigen::VectorXd robot_params =
+      params.head(static_cast<Eigen::Index>(robot.parameter_count()));
+  std::vector<const PoseMeasurement*> probed;
+  bool points = false;
+  for (const auto& p : current.poses) {
+    bool height = false;
+    for (const auto& o : p.observations) {
+      height = height || std::holds_alternative<ProbeHeightObservation>(o);
+      points = points || std::holds_alternative<PointObservation>(o) ||
+               std::holds_alternative<PoseObservation>(o);
+    }
+    if (height) probed.push_back(&p);
+  }
+  std::vector<const PoseMeasurement*> distance_poses;
+  for (const auto& d : current.distances)
+    for (const auto& p : current.poses)
+      if (p.id == d.first || p.id == d.second) distance_poses.push_back(&p);
+  const auto probed_at = positions(robot, robot_params, probed);
+  const auto height_pool = grid_like(robot, robot_params, probed_at);
+  // Distances like the user's, or, for a printer that only probed, on a part printed one layer
+  // (5 mm) above the bed: a caliper is at hand where a probe is.
+  auto distance_at = positions(robot, robot_params, distance_poses);
+  if (distance_at.empty())
+    for (const auto& p : probed_at) distance_at.emplace_back(p + Eigen::Vector3d(0.0, 0.0, 5e-3));
+  std::vector<Eigen::VectorXd> pool = grid_like(robot, robot_params, distance_at);
+  options.distances = !distance_at.empty();
+  options.points = points;
+  auto add_sampled = [&] {
+    std::mt19937 rng(1);
+    for (auto& q : sample_actuators(robot, {robot_params}, 40, rng)) pool.push_back(std::move(q));
+  };
+  if (points) add_sampled();
+  auto advice = advise_measurements(model, params, current, candidates, height_pool, pool, options);
+  if (advice.suggestions.empty() && !points) {
+    // Nothing of the user's kinds helps: what 3-D points (a tracker, cameras) would add.
+    options.points = true;
+    add_sampled();
+    advice = advise_measurements(model, params, current, candidates, height_pool, pool, options);
+  }
   return advice;
 }
 

@@ -7,6 +7,7 @@
 #include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
+#include "robocal/calib/measurement_advice.hpp"
 #include "robocal/calib/measurements_file.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/pixel_observations.hpp"
@@ -162,6 +163,25 @@ nlohmann::json bed_json(const IdentificationResult& res, const BedPlanePredictor
   return j;
 }
 
+nlohmann::json advice_json(const MeasurementAdvice& a) {
+  auto position = [](const Eigen::Vector3d& p) { return std::vector<double>{p.x(), p.y(), p.z()}; };
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& s : a.suggestions) {
+    nlohmann::json j = {{"kind", s.kind},
+                        {"position_m", position(s.position)},
+                        {"actuators", std::vector<double>(s.actuators.data(),
+                                                          s.actuators.data() + s.actuators.size())},
+                        {"identifiable_after", s.rank_after}};
+    if (s.kind == "distance") j["second_position_m"] = position(s.position_b);
+    list.push_back(j);
+  }
+  return {{"identifiable_now", a.rank_before},
+          {"identifiable_with_more_data", a.rank_reachable},
+          {"identifiable_with_suggestions", a.rank_after},
+          {"suggestions", list},
+          {"text", a.text}};
+}
+
 int run_identify(const IdentifyOptions& o) {
   if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
   if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
@@ -281,6 +301,15 @@ int run_identify(const IdentifyOptions& o) {
     doc["cameras"] = cams;
   }
   if (o.bed_tilt) doc["bed"] = bed_json(res, bed);
+  // Little data or nothing identifiable: what to measure next, and where.
+  MeasurementAdvice advice;
+  if (res.limited_data || res.status == IdentificationStatus::kNotIdentifiable) {
+    const bool solved = res.status == IdentificationStatus::kConverged ||
+                        res.status == IdentificationStatus::kNotConverged;
+    advice = advise_like_the_data(robot_pred, pred, solved ? res.estimate : nominal,
+                                  fit.poses.empty() ? file.measurements : fit, opt.candidates);
+    doc["advice"] = advice_json(advice);
+  }
 
   const bool usable = res.status == IdentificationStatus::kConverged ||
                       res.status == IdentificationStatus::kNotConverged;
@@ -317,10 +346,11 @@ int run_identify(const IdentifyOptions& o) {
       text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held));
     if (doc.contains("calibrated_robot"))
       text += fmt::format("calibrated robot file: {}\n", o.out_robot);
+    text += advice.text;
     fmt::print(out, "{}", text);
   }
   if (res.status == IdentificationStatus::kNotIdentifiable) {
-    fmt::print(stderr, "identification refused: {}\n", res.message);
+    fmt::print(stderr, "identification refused: {}\n{}", res.message, advice.text);
     return kExitFailure;
   }
   if (!usable) {

@@ -120,6 +120,17 @@ TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableI
   const std::string out = testing::internal::GetCapturedStdout();
   EXPECT_NE(out.find("Little data"), std::string::npos) << out;
   EXPECT_NE(out.find("held at their nominal values"), std::string::npos) << out;
+  // What to measure next, and where: distances on a printed part separate the rest.
+  EXPECT_NE(out.find("measure next"), std::string::npos) << out;
+  EXPECT_NE(out.find("the distance between the positions at"), std::string::npos) << out;
+  args.push_back("--json");
+  args.push_back(file("advice.json"));
+  args.push_back("--quiet");
+  ASSERT_EQ(run(args), 0);
+  const auto doc = nlohmann::json::parse(read_text(file("advice.json")));
+  ASSERT_TRUE(doc.contains("advice"));
+  EXPECT_EQ(doc["advice"]["identifiable_with_suggestions"].get<int>(), 9) << doc["advice"].dump(2);
+  EXPECT_LT(doc["advice"]["identifiable_now"].get<int>(), 9);
   // Horizontal tool offsets do not move bed heights: nothing identifiable, exit 1, said so.
   testing::internal::CaptureStderr();
   EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", m, "--free", "tool.z", "--fix",
@@ -127,6 +138,8 @@ TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableI
             1);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("nothing is identifiable"), std::string::npos) << err;
+  // Horizontal offsets need a horizontal measurement: the advice names 3-D points.
+  EXPECT_NE(err.find("a 3-D point at"), std::string::npos) << err;
 }
 
 TEST_F(PrinterCli, BadInputNamesFileLineAndProblem) {

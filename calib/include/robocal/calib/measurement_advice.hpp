@@ -59,4 +59,18 @@ MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::
                                       const std::vector<Eigen::VectorXd>& pool,
                                       const AdviceOptions& options = {});
 
+class MechanismPredictor;
+
+// Advice with candidates like the user's own data, for the identify command: probe heights on a
+// grid over the probed area (1.15 × its radius) at the probed height; distances between grid
+// positions at the height of the distance measurements (or, with probe heights only, on a part
+// printed 5 mm above the bed); 3-D points at sampled configurations when the data hold points or
+// poses, or when nothing of the user's kinds would help. Grid positions are reached through the
+// robot's inverse kinematics at `params` (the robot's own parameters: the head of `params` for a
+// wrapping `model`). Empty advice when nothing would help.
+MeasurementAdvice advise_like_the_data(const MechanismPredictor& robot, const FramePredictor& model,
+                                       const Eigen::VectorXd& params, const Measurements& current,
+                                       const std::vector<std::size_t>& candidates,
+                                       AdviceOptions options = {});
+
 }  // namespace robocal::calib
