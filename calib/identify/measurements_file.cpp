@@ -242,17 +242,27 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
     }
     if (const YAML::Node ps = p["pose"]) {
       check_keys(source, ps, "pose observation",
-                 {"position", "rotation_vector", "quaternion", "quaternion_xyzw", "matrix",
+                 {"position", "rotation_vector", "quaternion", "quaternion_xyzw", "matrix", "rpy",
                   "position_sigma", "rotation_sigma", "covariance"});
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       if (!ps["position"]) fail(source, ps, fmt::format("pose '{}': pose needs 'position'", m.id));
       T.translation() = vector(source, ps["position"], "position", 3) * length_unit;
       if ((ps["rotation_vector"] ? 1 : 0) + (ps["quaternion"] ? 1 : 0) +
-              (ps["quaternion_xyzw"] ? 1 : 0) + (ps["matrix"] ? 1 : 0) >
+              (ps["quaternion_xyzw"] ? 1 : 0) + (ps["matrix"] ? 1 : 0) + (ps["rpy"] ? 1 : 0) >
           1)
-        fail(source, ps,
-             "give one of rotation_vector, quaternion, quaternion_xyzw or matrix, not several");
-      if (ps["quaternion_xyzw"]) {
+        fail(
+            source, ps,
+            "give one of rotation_vector, quaternion, quaternion_xyzw, matrix or rpy, not several");
+      if (ps["rpy"]) {
+        // Roll, pitch, yaw about the fixed x, y, z axes (URDF, ROS, most robot controllers):
+        // R = Rz(yaw) Ry(pitch) Rx(roll), angles in units.angle (degrees allowed).
+        const Eigen::Vector3d a =
+            vector(source, ps["rpy"], "rpy [roll, pitch, yaw]", 3) * angle_unit;
+        T.linear() = (Eigen::AngleAxisd(a.z(), Eigen::Vector3d::UnitZ()) *
+                      Eigen::AngleAxisd(a.y(), Eigen::Vector3d::UnitY()) *
+                      Eigen::AngleAxisd(a.x(), Eigen::Vector3d::UnitX()))
+                         .toRotationMatrix();
+      } else if (ps["quaternion_xyzw"]) {
         // w last (ROS, scipy, Eigen's coeffs()): [x, y, z, w].
         const Eigen::VectorXd q =
             vector(source, ps["quaternion_xyzw"], "quaternion_xyzw [x, y, z, w]", 4);
@@ -291,9 +301,10 @@ MeasurementsFile parse_measurements_yaml(const std::string& text, const std::str
         T.linear() = Eigen::Quaterniond(q(0), q(1), q(2), q(3)).normalized().toRotationMatrix();
       } else {
         fail(source, ps,
-             fmt::format("pose '{}': pose needs rotation_vector, quaternion, quaternion_xyzw or "
-                         "matrix",
-                         m.id));
+             fmt::format(
+                 "pose '{}': pose needs rotation_vector, quaternion, quaternion_xyzw, rpy or "
+                 "matrix",
+                 m.id));
       }
       Matrix6d cov = Matrix6d::Zero();
       if (ps["covariance"]) {

@@ -82,6 +82,41 @@ poses:
   EXPECT_NEAR(Eigen::AngleAxisd(po.measured_rotation).angle(), M_PI / 2, 1e-12);
 }
 
+// Euler angles as robot controllers and URDF give them: roll, pitch, yaw about the fixed x, y, z
+// axes, here in degrees. Closed form: R = Rz(yaw) Ry(pitch) Rx(roll), each elementary rotation
+// written out.
+TEST(MeasurementsFile, RollPitchYawInDegreesIsTheFixedAxisRotation) {
+  const auto f = parse_measurements_yaml(R"(
+units: {length: m, angle: deg}
+noise: {position_sigma: 0.00002, rotation_sigma: 0.01}
+poses:
+  - id: a
+    actuators: [1, 2]
+    pose: {position: [0.41, -0.02, 0.33], rpy: [30, -20, 110]}
+)",
+                                         "m.yaml");
+  const auto& po = std::get<PoseObservation>(f.measurements.poses[0].observations[0]);
+  const double r = 30 * M_PI / 180;
+  const double p = -20 * M_PI / 180;
+  const double y = 110 * M_PI / 180;
+  Eigen::Matrix3d Rx;
+  Rx << 1, 0, 0, 0, std::cos(r), -std::sin(r), 0, std::sin(r), std::cos(r);
+  Eigen::Matrix3d Ry;
+  Ry << std::cos(p), 0, std::sin(p), 0, 1, 0, -std::sin(p), 0, std::cos(p);
+  Eigen::Matrix3d Rz;
+  Rz << std::cos(y), -std::sin(y), 0, std::sin(y), std::cos(y), 0, 0, 0, 1;
+  EXPECT_LT((po.measured_rotation - Rz * Ry * Rx).cwiseAbs().maxCoeff(), 1e-15);
+  // Two orientations for one pose are refused.
+  EXPECT_THROW(parse_measurements_yaml(R"(
+poses:
+  - id: a
+    actuators: [1, 2]
+    pose: {position: [0, 0, 0], rpy: [0, 0, 0], rotation_vector: [0, 0, 0], position_sigma: 1e-5, rotation_sigma: 1e-4}
+)",
+                                       "m.yaml"),
+               MeasurementsFileError);
+}
+
 TEST(MeasurementsFile, ErrorsNameFileLineAndItem) {
   EXPECT_NE(measurements_error("poses:\n  - id: a\n    actuators: [1, x2]\n    point: [0, 0, 0]\n")
                 .find("m.yaml:3"),
