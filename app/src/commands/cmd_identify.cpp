@@ -77,7 +77,8 @@ std::vector<Eigen::Vector3d> grid_target() {
 }
 
 int run_simulate(const IdentifyOptions& o) {
-  const Mechanism model = load_robot(o.robot);
+  const std::string robot_file = resolve_robot(o.robot);  // a file or a library robot
+  const Mechanism model = load_robot(robot_file);
   const MechanismPredictor pred(model);
   std::mt19937 rng(o.seed);
   const Eigen::VectorXd nominal = model.nominal_parameters();
@@ -185,7 +186,8 @@ nlohmann::json advice_json(const MeasurementAdvice& a) {
 int run_identify(const IdentifyOptions& o) {
   if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
   if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
-  const Mechanism model = load_robot(o.robot);
+  const std::string robot_file = resolve_robot(o.robot);  // a file or a library robot
+  const Mechanism model = load_robot(robot_file);
   const MeasurementsFile file = load_measurements_file(o.measurements);
   if (!file.robot.empty() && file.robot != model.name)
     throw InputError(fmt::format("{}: measurements are for robot '{}', the robot file is '{}'",
@@ -322,14 +324,14 @@ int run_identify(const IdentifyOptions& o) {
                     "{:.3g} m.",
                     res.estimated.size(), res.residuals.position_rms,
                     res.predicted.position_rms_overall),
-        fmt::format("Nominal model: {}.", o.robot)};
+        fmt::format("Nominal model: {}.", robot_file)};
     // Camera parameters (after the robot's) are reported in the JSON, not in the robot file.
     std::vector<std::size_t> robot_estimated;
     for (std::size_t i : res.estimated)
       if (i < model.parameters.size()) robot_estimated.push_back(i);
     const Eigen::VectorXd robot_values =
         res.estimate.head(static_cast<Eigen::Index>(model.parameters.size()));
-    const std::string text = calibrated_robot_yaml(core::read_text_file(o.robot), model,
+    const std::string text = calibrated_robot_yaml(core::read_text_file(robot_file), model,
                                                    robot_values, robot_estimated, provenance);
     core::write_file_atomic(o.out_robot, text);
     doc["calibrated_robot"] = o.out_robot;
