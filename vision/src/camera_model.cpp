@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace robocal::vision {
@@ -220,6 +221,23 @@ bool project_jacobians(const CameraModel& camera, const Eigen::Vector3d& p_cam,
     }
     return true;
   });
+}
+
+double projection_difference_px(const CameraModel& other, const CameraModel& reference) {
+  double sum = 0;
+  int n = 0;
+  for (int j = 0; j <= 10; ++j) {
+    for (int i = 0; i <= 10; ++i) {
+      const Eigen::Vector2d px(i * (reference.width - 1) / 10.0, j * (reference.height - 1) / 10.0);
+      const auto ray = unproject(reference, px);
+      if (!ray) continue;
+      const auto p = project(other, *ray / ray->z());
+      if (!p) continue;
+      sum += (*p - px).squaredNorm();
+      ++n;
+    }
+  }
+  return n > 0 ? std::sqrt(sum / n) : std::numeric_limits<double>::infinity();
 }
 
 }  // namespace robocal::vision

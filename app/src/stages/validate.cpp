@@ -30,26 +30,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// RMS pixel distance between two camera models over a grid of 3-D points 1 m in front of the
-// camera spanning the image (the points are placed with the true model).
-double projection_difference_px(const vision::CameraModel& estimated,
-                                const vision::CameraModel& truth) {
-  double sum = 0;
-  int n = 0;
-  for (int j = 0; j <= 10; ++j) {
-    for (int i = 0; i <= 10; ++i) {
-      const Eigen::Vector2d px(i * (truth.width - 1) / 10.0, j * (truth.height - 1) / 10.0);
-      const auto ray = vision::unproject(truth, px);
-      if (!ray) continue;
-      const auto p = vision::project(estimated, *ray / ray->z());
-      if (!p) continue;
-      sum += (*p - px).squaredNorm();
-      ++n;
-    }
-  }
-  return n > 0 ? std::sqrt(sum / n) : std::numeric_limits<double>::infinity();
-}
-
 nlohmann::json stats_json(const calib::PositionErrorStats& e) {
   return {{"rms_m", e.rms}, {"max_m", e.max}, {"poses", e.n}};
 }
@@ -93,7 +73,7 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     if (!fs::exists(f)) continue;
     const auto est = vision::load_camera_file(f);
     const auto& true_model = truth_file.cameras[c].model;
-    const double projection = projection_difference_px(est, true_model);
+    const double projection = vision::projection_difference_px(est, true_model);
     cams.push_back({{"camera", s.cameras[c].name},
                     {"fx", est.params[0]},
                     {"fx_true", true_model.params[0]},

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <map>
+#include <ostream>
 #include <thread>
 
 namespace robocal::test {
@@ -126,6 +127,10 @@ struct FaultCase {
   std::string kind;
   Wire wire;
 };
+// How GoogleTest shows the parameter (test listings, failures): "stall over Pty", not raw bytes.
+void PrintTo(const FaultCase& c, std::ostream* os) {
+  *os << c.kind << " over " << (c.wire == Wire::kTcp ? "Tcp" : "Pty");
+}
 
 class FaultTest : public LinkTest, public ::testing::WithParamInterface<FaultCase> {};
 

@@ -240,3 +240,21 @@ TEST(CameraModel, WarmStartedUnprojectionAgrees) {
   ASSERT_TRUE(warm.has_value());
   EXPECT_LT((*cold - *warm).norm(), 1e-13);
 }
+
+// Two distortion-free pinholes differing only in fx: a ray through reference pixel (u, v) lands
+// at u' = cx + (fx'/fx)(u − cx), so the RMS difference over the 11 × 11 grid is
+// |fx'/fx − 1| · RMS(u − cx), written out here.
+TEST(CameraModel, ProjectionDifferenceOfTwoFocalLengthsIsTheClosedForm) {
+  const auto reference =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 640, 480, 600.0, 600.0, 319.5, 239.5);
+  auto other = reference;
+  other.params[0] = 606.0;  // fx 1 % longer
+  double sum = 0.0;
+  for (int j = 0; j <= 10; ++j)
+    for (int i = 0; i <= 10; ++i) {
+      const double u = i * 639.0 / 10.0;
+      sum += std::pow(0.01 * (u - 319.5), 2);
+    }
+  EXPECT_NEAR(rv::projection_difference_px(other, reference), std::sqrt(sum / 121.0), 1e-9);
+  EXPECT_NEAR(rv::projection_difference_px(reference, reference), 0.0, 1e-9);
+}

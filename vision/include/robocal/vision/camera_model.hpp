@@ -64,6 +64,11 @@ std::optional<Eigen::Vector3d> unproject(const CameraModel& camera, const Eigen:
 std::optional<Eigen::Vector3d> unproject(const CameraModel& camera, const Eigen::Vector2d& pixel,
                                          const Eigen::Vector3d& initial_bearing);
 
+// How far apart two models of one camera put the same rays: RMS pixel distance over an 11 × 11
+// grid of rays through `reference`'s image (each ray unprojected with `reference`, projected with
+// `other`). Infinity when no ray can be compared. E.g. an estimated camera against the truth.
+double projection_difference_px(const CameraModel& other, const CameraModel& reference);
+
 // True when a pixel lies inside the image area shrunk by `margin` pixels on each side
 // ([-0.5, width-0.5] x [-0.5, height-0.5] at margin 0).
 bool in_image(const CameraModel& camera, const Eigen::Vector2d& pixel, double margin = 0.0);
