@@ -178,7 +178,14 @@ struct ClosureSolver::Impl {
       sys.jacobian(ws.J);
       ws.lu.compute(ws.J);
     }
-    return detail::sigma_ratio_estimate(ws.lu, ws.J, ws.g, ws.dx);
+    const double estimate = detail::sigma_ratio_estimate(ws.lu, ws.J, ws.g, ws.dx);
+    // The estimate only ever overstates the ratio (its power iterations approach sigma_max from
+    // below and sigma_min from above), so a state just inside the ambiguity threshold could pass
+    // as intended: near the threshold the exact singular values decide.
+    if (estimate >= 4.0 * model->assembly_mode.min_conditioning) return estimate;
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(ws.J);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    return sv.size() == n && sv[0] > 0.0 ? sv[n - 1] / sv[0] : 0.0;
   }
 
   // Continuation from the home configuration to `readings` (closure.hpp, step 2).

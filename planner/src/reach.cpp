@@ -150,6 +150,11 @@ ReachResult ReachChecker::reach_check(const Eigen::VectorXd& readings,
   const Eigen::VectorXd seed =
       warm_seed.size() > 0 ? warm_seed : solver_.closed_form_seed(readings);
   const calib::ClosureResult solved = solver_.solve(readings, seed);
+  if (solved.status == calib::SolveStatus::kOtherMode) {  // closes only on another mode
+    out.verdict = ReachVerdict::kModeChange;
+    out.detail = solved.mode.describe();
+    return out;
+  }
   if (solved.status != calib::SolveStatus::kConverged &&
       solved.status != calib::SolveStatus::kSingular) {
     out.verdict = ReachVerdict::kNoAssembly;
@@ -165,7 +170,22 @@ ReachResult ReachChecker::reach_check(const Eigen::VectorXd& readings,
     out.detail = s.str();
     return out;
   }
-  if (seed.size() == solved.passive.size() && seed.size() > 0) {
+  // The robot file's assembly-mode invariants decide (calib's verdict, issue 15): another mode
+  // is refused naming the flipped invariant, an ambiguous answer (at a boundary where modes
+  // meet) is treated as singular. Only robots that declare no invariants fall back to the
+  // seed-continuity rule.
+  if (solved.mode.verdict == calib::ModeVerdict::kOther) {
+    out.verdict = ReachVerdict::kModeChange;
+    out.detail = solved.mode.describe();
+    return out;
+  }
+  if (solved.mode.verdict == calib::ModeVerdict::kAmbiguous) {
+    out.verdict = ReachVerdict::kSingular;
+    out.detail = solved.mode.describe();
+    return out;
+  }
+  if (solved.mode.verdict == calib::ModeVerdict::kUndeclared &&
+      seed.size() == solved.passive.size() && seed.size() > 0) {
     Eigen::Index worst = 0;
     const double jump = (solved.passive - seed).cwiseAbs().maxCoeff(&worst);
     if (jump > options_.max_branch_jump) {

@@ -2,6 +2,7 @@
 // planner's functions): link capsules and the plate box from the robot file posed by calib's
 // forward kinematics, distances by convex minimisation along segments, projections by vision's
 // camera model.
+#include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
 #include "robocal/calib/kinematics.hpp"
@@ -13,6 +14,8 @@
 #include "robocal/planner/plan.hpp"
 #include "robocal/planner/plan_output.hpp"
 #include "robocal/planner/selection.hpp"
+
+#include "mode_sweep.hpp"
 
 #include <gtest/gtest.h>
 
@@ -385,6 +388,43 @@ TEST(Planner, BallJointConeRemovesTheOuterRing) {
   std::sort(removed_r.begin(), removed_r.end());
   EXPECT_GT(removed_r.front(), 0.05);
   EXPECT_GT(removed_r[removed_r.size() / 2], 1.5 * kept_r[kept_r.size() / 2]);
+}
+
+// Every pose the planner calls reachable is on the intended assembly mode: the exact public check
+// agrees, and the platform is where the Delta's closed form (tests/support/mode_sweep.hpp,
+// written independently) puts it. Refusals for another or an ambiguous mode say which invariant.
+TEST(Planner, ReachablePosesAreOnTheIntendedAssemblyMode) {
+  const calib::Mechanism& model = delta().model;
+  const Eigen::VectorXd params = model.nominal_parameters();
+  const ReachChecker reach(model, params, ReachOptions{});
+  Eigen::VectorXd lo, hi;
+  reach.reading_limits(lo, hi);
+  // Readings over the whole actuator range (beyond the reach limits), so every verdict occurs.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-0.6, 1.5);
+  int reachable = 0;
+  int mode_refusals = 0;
+  for (int k = 0; k < 2000; ++k) {
+    const Eigen::Vector3d x(u(rng), u(rng), u(rng));
+    const ReachResult r = reach.reach_check(x);
+    if (r.verdict == ReachVerdict::kModeChange ||
+        (r.verdict == ReachVerdict::kSingular && r.detail.find("ambiguous") != std::string::npos)) {
+      ++mode_refusals;
+      EXPECT_NE(r.detail.find("assembly mode"), std::string::npos) << r.detail;
+    }
+    if (!r.ok()) continue;
+    ++reachable;
+    const calib::ModeCheck exact = calib::check_assembly_mode(model, params, r.state);
+    EXPECT_EQ(exact.verdict, calib::ModeVerdict::kIntended) << exact.describe();
+    const auto ref = calib::sweep::nominal_reference(model, params, x);
+    ASSERT_TRUE(ref.tool.has_value()) << x.transpose();
+    std::vector<Eigen::Isometry3d> P;
+    calib::body_poses(model, params, r.state, P);
+    EXPECT_LT((P[static_cast<std::size_t>(model.tool)].translation() - *ref.tool).norm(), 1e-9)
+        << x.transpose();
+  }
+  EXPECT_GT(reachable, 100);
+  RecordProperty("mode_refusals", mode_refusals);
 }
 
 TEST(Planner, AcceptanceTestRejectsAPlanarSet) {

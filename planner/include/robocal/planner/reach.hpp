@@ -4,13 +4,15 @@
 // singularities? ONE function, reach_check(), is the planner's only way to the closure solver,
 // so the assembly-mode verdict of calib (issue 15) slots in here.
 //
-// Until that verdict exists the intended mode is established as follows: the closure solver is
-// cold-started from the robot's closed-form seed (rotary/linear delta, Gantry-Tau: the closed
-// form picks the intended branch) or from the robot file's home values; the solved passive joints
-// must stay continuous with that seed (no passive joint more than `max_branch_jump` away from it:
-// a Newton step that lands on another branch moves some joint by ~1 rad or more), and the
-// constraint Jacobian must keep σ_min/σ_max >= `min_relative_sigma` (0.01, the margin
-// sample_actuators uses to keep the Delta clear of its singularities).
+// The intended mode: the closure solver is cold-started from the robot's closed-form seed
+// (rotary/linear delta, Gantry-Tau: the closed form picks the intended branch) or from the robot
+// file's home values, and the answer's assembly-mode verdict (calib/assembly_mode.hpp: the robot
+// file's invariants) must be `intended`: `other` is refused as a mode change naming the flipped
+// invariant, `ambiguous` as singular. A robot file that declares no invariants falls back to
+// continuity with the seed (no passive joint more than `max_branch_jump` away from it: a Newton
+// step that lands on another branch moves some joint by ~1 rad or more). The constraint Jacobian
+// must keep σ_min/σ_max >= `min_relative_sigma` (0.01, the margin sample_actuators uses to keep
+// the Delta clear of its singularities).
 //
 // Ball-joint cones: a spherical cut body with `cone:` in the robot file limits the angle between
 // the rod it holds and the rod's direction at the reference configuration (actuators at the
