@@ -135,15 +135,14 @@ int main(int argc, char** argv) {
     nlohmann::json out;
     out["robot"] = "linear_delta";
     out["draws"] = draws;
-    out["heights"] = {
-        {"probe_points", 7},
-        {"sigma_um", 10},
-        {"identified_parameters", h.identified},
-        {"heldout_points", h.points},
-        {"heldout_height_rms_before_um", 1e6 * std::sqrt(h.before_ms / h.points)},
-        {"heldout_height_rms_um", 1e6 * std::sqrt(h.error_ms / h.points)},
-        {"cramer_rao_rms_um", 1e6 * std::sqrt(h.bound_ms / h.points)},
-        {"ratio_to_bound", std::sqrt(h.error_ms / h.bound_ms)}};
+    out["heights"] = {{"probe_points", 7},
+                      {"sigma_um", 10},
+                      {"identified_parameters", h.identified},
+                      {"heldout_points", h.points},
+                      {"heldout_height_rms_before_um", 1e6 * std::sqrt(h.before_ms / h.points)},
+                      {"heldout_height_rms_um", 1e6 * std::sqrt(h.error_ms / h.points)},
+                      {"cramer_rao_rms_um", 1e6 * std::sqrt(h.bound_ms / h.points)},
+                      {"ratio_to_bound", std::sqrt(h.error_ms / h.bound_ms)}};
     out["heights_and_distances"] = {
         {"distances", 12},
         {"draws_with_all_nine_identified", d.nine_identified},
