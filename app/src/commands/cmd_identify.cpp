@@ -418,21 +418,29 @@ CommandSpec identify_command() {
                          "SESSION: maximum likelihood from the measurements alone (default: the "
                          "robot file's tolerances as priors, base frame free)");
             cmd.add_option("--robust", o->robust, "Robust loss: none, huber or cauchy");
-            cmd.add_option("--robust-scale", o->robust_scale, "Robust loss scale in sigmas");
-            cmd.add_option("--multi-start", o->multi_start, "Extra perturbed starts");
+            cmd.add_option("--robust-scale", o->robust_scale, "Robust loss scale in sigmas")
+                ->check(CLI::Range(0.1, 100.0))
+                ->capture_default_str();
+            cmd.add_option("--multi-start", o->multi_start, "Extra perturbed starts")
+                ->check(CLI::Range(0, 1000));
             cmd.add_option("--holdout-every", o->holdout_every,
-                           "Hold every k-th pose out of the fit and validate on it");
-            cmd.add_option("--kfold", o->kfold, "k-fold cross-validation with k folds");
+                           "Hold every k-th pose out of the fit and validate on it (0 = none)")
+                ->check(CLI::Range(0, 1000000));
+            cmd.add_option("--kfold", o->kfold, "k-fold cross-validation with k folds (0 = none)")
+                ->check(CLI::Range(0, 1000));
             cmd.add_option("--seed", o->seed, "Random seed (multi-start, simulation)");
             cmd.add_option("--simulate", o->simulate,
                            "Write a synthetic measurements file from a randomly perturbed robot "
                            "instead of identifying");
-            cmd.add_option("--poses", o->poses, "Simulation: number of poses");
-            cmd.add_option("--point-sigma", o->point_sigma, "Simulation: noise sigma (m)");
+            cmd.add_option("--poses", o->poses, "Simulation: number of poses")
+                ->check(CLI::Range(1, 100000));
+            cmd.add_option("--point-sigma", o->point_sigma, "Simulation: noise sigma (m)")
+                ->check(CLI::Range(0.0, 1.0));
             cmd.add_option("--kind", o->kind,
                            "Simulation: point, pose, probe or pixel observations (pixel: two "
                            "simulated cameras)");
-            cmd.add_option("--pixel-sigma", o->pixel_sigma, "Simulation: pixel noise sigma (px)");
+            cmd.add_option("--pixel-sigma", o->pixel_sigma, "Simulation: pixel noise sigma (px)")
+                ->check(CLI::Range(0.0, 100.0));
             cmd.add_flag(
                 "--free-intrinsics", o->free_intrinsics,
                 "Pixel observations: estimate the cameras' intrinsics too (default: held)");

@@ -125,8 +125,11 @@ CommandSpec intrinsics_command() {
         cmd.add_option("--svg", a->svg_out, "Coverage / uncertainty SVG to write")
             ->capture_default_str();
         cmd.add_option("--decimate", a->decimate, "AprilTag quad decimation")
+            ->check(CLI::Range(1.0, 8.0))
             ->capture_default_str();
-        cmd.add_option("--threads", a->threads, "AprilTag detector threads")->capture_default_str();
+        cmd.add_option("--threads", a->threads, "AprilTag detector threads")
+            ->check(CLI::Range(1, 64))
+            ->capture_default_str();
         return [a]() {
           vision::TargetBoard board;
           try {

@@ -105,7 +105,8 @@ CommandSpec measure_command() {
         cmd.add_option("--poses", a->poses,
                        "Folder of pose sub-folders with NAME.png / NAME_<k>.png per camera");
         cmd.add_option("--sigma-px", a->sigma_px,
-                       "Corner noise sigma (default: the rig calibration's RMS)");
+                       "Corner noise sigma (default: the rig calibration's RMS)")
+            ->check(CLI::Range(1e-6, 100.0));
         cmd.add_flag("--no-raw", a->no_raw, "Leave the raw pixel observations out");
         cmd.add_option("--out", a->out, "JSON to write (- = stdout)");
         return [a]() {

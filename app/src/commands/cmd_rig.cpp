@@ -125,7 +125,8 @@ CommandSpec rig_command() {
         cmd.add_option("--reference", a->reference, "Reference camera (default: the first)");
         cmd.add_flag("--refine-intrinsics", a->refine_intrinsics,
                      "Refine every camera's intrinsics too");
-        cmd.add_option("--sigma-px", a->sigma_px, "Corner noise sigma for the covariance");
+        cmd.add_option("--sigma-px", a->sigma_px, "Corner noise sigma for the covariance")
+            ->check(CLI::Range(1e-6, 100.0));
         cmd.add_option("--threads", a->threads, "Detection threads")->check(CLI::Range(1, 64));
         cmd.add_option("--out", a->out, "Rig JSON to write (- = stdout)");
         return [a]() { return run_rig(*a); };

@@ -8,7 +8,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
 #include <fstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -73,6 +77,34 @@ TEST_F(IdentifyCli, BadMeasurementFilesAreRefusedWithTheReason) {
   EXPECT_NE(err2.find("1000"), std::string::npos) << err2;
   // Missing file.
   EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("none.yaml")}), 3);
+}
+
+}  // namespace
+
+namespace {
+
+// Options out of range are usage errors (exit 2) that name the option, before anything runs:
+// no runaway sampling, no NaN from a zero scale, no file written.
+TEST(CommandLineRanges, OutOfRangeOptionsAreUsageErrors) {
+  const std::string robot = std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"identify", "--robot", robot, "--simulate", "never.yaml", "--poses", "-1"}, "--poses"},
+      {{"identify", "--robot", robot, "--measurements", "m.yaml", "--robust-scale", "0"},
+       "--robust-scale"},
+      {{"identify", "--robot", robot, "--measurements", "m.yaml", "--kfold", "-3"}, "--kfold"},
+      {{"identify", "--robot", robot, "--simulate", "never.yaml", "--point-sigma", "-1e-5"},
+       "--point-sigma"},
+      {{"rig", "--sigma-px", "0"}, "--sigma-px"},
+      {{"measure", "--sigma-px", "-1"}, "--sigma-px"},
+      {{"intrinsics", "--threads", "0"}, "--threads"},
+  };
+  for (const auto& [args, option] : cases) {
+    testing::internal::CaptureStderr();
+    EXPECT_EQ(robocal::test::run_robocal(args), 2) << args[0] << " " << option;
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_NE(err.find(option), std::string::npos) << err;
+  }
+  EXPECT_FALSE(std::filesystem::exists("never.yaml"));
 }
 
 }  // namespace
