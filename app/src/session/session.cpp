@@ -202,6 +202,19 @@ std::vector<PoseRecord> load_pose_records(const Session& session) {
     } catch (const InputError& e) {
       r.problem = e.what();
     }
+    // A copied folder (pose_003_dup) is not a new measurement: the same readings at the same
+    // recorded time as an earlier pose. Without a timestamp, equal readings may be a deliberate
+    // repeat and are kept.
+    if (r.problem.empty() && r.timestamp != 0.0)
+      for (const PoseRecord& earlier : out)
+        if (earlier.problem.empty() && earlier.timestamp == r.timestamp &&
+            earlier.actuators == r.actuators) {
+          r.problem = fmt::format(
+              "{}: a copy of {} (same actuator readings, same time {:.3f} s); a copied folder is "
+              "not a new measurement, remove it",
+              (sub / "pose.yaml").string(), earlier.name, r.timestamp);
+          break;
+        }
     out.push_back(r);
   }
   return out;

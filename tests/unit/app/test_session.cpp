@@ -139,6 +139,30 @@ TEST(PoseRecords, BadReadingsGiveAProblemNotAnException) {
   EXPECT_EQ(again[6].actuators, r.actuators) << "readings round-trip exactly";
 }
 
+// A pose folder copied under another name (same readings, same time) is not used twice: it
+// carries a problem naming the original, so measure excludes it with that reason.
+TEST(PoseRecords, CopiedPoseFolderIsRefusedNamingTheOriginal) {
+  const auto dir = scratch("poses_dup");
+  Session s = example();
+  s.dir = dir;
+  const auto write = [&](const std::string& pose, const std::string& text) {
+    fs::create_directories(dir / "poses" / pose);
+    std::ofstream(dir / "poses" / pose / "pose.yaml") << text;
+  };
+  write("pose_003", "actuators: [0.1, 0.2, 0.3]\ntimestamp: 12.25\n");
+  write("pose_003_dup", "actuators: [0.1, 0.2, 0.3]\ntimestamp: 12.25\n");
+  write("pose_004", "actuators: [0.1, 0.2, 0.3]\ntimestamp: 13.5\n");  // a repeat: later
+  write("pose_005", "actuators: [0.4, 0.2, 0.3]\n");
+  write("pose_006", "actuators: [0.4, 0.2, 0.3]\n");  // no time: a deliberate repeat, kept
+  const auto records = load_pose_records(s);
+  ASSERT_EQ(records.size(), 5U);
+  EXPECT_TRUE(records[0].problem.empty()) << records[0].problem;
+  EXPECT_NE(records[1].problem.find("a copy of pose_003"), std::string::npos) << records[1].problem;
+  EXPECT_TRUE(records[2].problem.empty()) << records[2].problem;
+  EXPECT_TRUE(records[3].problem.empty()) << records[3].problem;
+  EXPECT_TRUE(records[4].problem.empty()) << records[4].problem;
+}
+
 TEST(AtomicWrite, RecordedFilesAreNeverOverwritten) {
   const auto dir = scratch("atomic");
   const auto f = dir / "sub" / "a.txt";
