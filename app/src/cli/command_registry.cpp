@@ -5,10 +5,51 @@
 
 #include <fmt/core.h>
 
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstring>
 #include <exception>
 #include <map>
+#include <string>
 
 namespace robocal::app {
+
+namespace {
+
+// Ctrl-C or a termination request: say what is on disk and how to go on, then stop at once
+// (128 + signal). Only async-signal-safe calls here; the text is made before the handler is
+// installed. A command that moves a robot installs its own handler (robotio's safety guard: the
+// first Ctrl-C stops the motion) in place of this one while it is armed.
+char interrupt_message[512];
+std::size_t interrupt_length = 0;
+
+extern "C" void on_interrupt(int sig) {
+  if (interrupt_length > 0) {
+    const ssize_t written = ::write(STDERR_FILENO, interrupt_message, interrupt_length);
+    (void)written;
+  }
+  ::_exit(128 + sig);
+}
+
+void install_interrupt_handler(const std::string& command) {
+  const std::string text = fmt::format(
+      "\nrobocal {}: interrupted. Every file already written is complete (files are written whole "
+      "or not at all) and recorded data is never overwritten: run the command again to redo what "
+      "was not finished (a session folder `simulate` did not finish is incomplete: remove it "
+      "first).\n",
+      command);
+  interrupt_length = std::min(text.size(), sizeof interrupt_message);
+  std::memcpy(interrupt_message, text.data(), interrupt_length);
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+}  // namespace
 
 // Each command file defines one of these.
 CommandSpec version_command();
@@ -70,6 +111,7 @@ int run_cli(int argc, const char* const* argv) {
   }
 
   for (const CLI::App* sub : cli.get_subcommands()) {
+    install_interrupt_handler(sub->get_name());
     try {
       return actions.at(sub)();
     } catch (const InputError& e) {

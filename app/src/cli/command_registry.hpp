@@ -15,6 +15,7 @@ enum ExitCode : int {
   kExitUsage = 2,     // bad command line
   kExitBadInput = 3,  // an input file is missing or malformed
   kExitInternal = 4,  // a bug: please report it
+  kExitInterrupted = 130,  // Ctrl-C (SIGINT); 143 for SIGTERM (128 + the signal)
 };
 
 // A sub-command adds itself to the parent app and stores the action to run when it is selected.
