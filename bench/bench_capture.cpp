@@ -4,8 +4,13 @@
 // ), checks every pose was recorded bit-exact, and reports robocal's overhead per pose: the
 // wall time of a pose minus the robot's move and the renderer's time. Prints JSON.
 // Options: --poses N (60), --size WxH (1600x1200 or 640x480; default 1600x1200), --shots K (2),
-// --out DIR (a fresh folder; default under /tmp), --resume (keep DIR: capture resumes).
-#include "camera_cell.hpp"
+// --out DIR (a fresh folder; default under /tmp), --resume (keep DIR: capture resumes),
+// --controller gantry|sim: the robot is an in-process gantry that moves instantly (default), or
+// `robocal sim-controller` as its own process (a perturbed linear delta, Marlin over TCP,
+// driven through the guarded G-code link; the cameras render from its true-pose channel). With
+// sim, the simulated motion time (the controller's own trapezoid durations, from its log) is
+// what is subtracted as "move"; the link's round trips count as robocal's overhead.
+#include "sim_camera_cell.hpp"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -35,6 +40,35 @@ vision::CameraModel camera_model(int width, int height) {
       "bench camera");
 }
 
+// Times each move (the start of a pose window) around any CaptureRobot.
+class TimedRobot final : public CaptureRobot {
+ public:
+  TimedRobot(CaptureRobot& inner, std::vector<std::chrono::steady_clock::time_point>& starts)
+      : inner_(&inner), starts_(&starts) {}
+  Eigen::VectorXd move_and_settle(const Eigen::VectorXd& target) override {
+    starts_->push_back(std::chrono::steady_clock::now());
+    return inner_->move_and_settle(target);
+  }
+  Eigen::VectorXd read_actuators() override { return inner_->read_actuators(); }
+  void stop(const std::string& reason) override { inner_->stop(reason); }
+
+ private:
+  CaptureRobot* inner_;
+  std::vector<std::chrono::steady_clock::time_point>* starts_;
+};
+
+// Durations of the simulator's non-homing motions, in order (its JSONL log).
+std::vector<double> simulated_motion_seconds(const std::string& log) {
+  std::vector<double> out;
+  for (const auto& motion :
+       robocal::test::events(robocal::test::read_sim_log(log), "motion_start")) {
+    if (!motion.value("homing", false)) {
+      out.push_back(motion.value("duration_s", 0.0));
+    }
+  }
+  return out;
+}
+
 double percentile(std::vector<double> values, double p) {
   std::sort(values.begin(), values.end());
   const auto index =
@@ -51,6 +85,7 @@ int main(int argc, char** argv) {
   int shots = 2;
   fs::path out = fs::temp_directory_path() / "robocal_bench_capture";
   bool resume = false;
+  bool sim_controller = false;
   for (int i = 1; i < argc; i += 2) {
     const std::string key = argv[i];
     if (key == "--resume") {  // keep the folder: capture skips the poses already recorded
@@ -72,6 +107,8 @@ int main(int argc, char** argv) {
       shots = std::stoi(value);
     } else if (key == "--out") {
       out = value;
+    } else if (key == "--controller" && (value == "sim" || value == "gantry")) {
+      sim_controller = value == "sim";
     } else {
       std::cerr << "bench_capture: unknown option " << key << "\n";
       return 2;
@@ -82,7 +119,19 @@ int main(int argc, char** argv) {
   }
   fs::create_directories(out);
 
-  testing::GantryCell cell;
+  testing::GantryCell gantry;
+  std::unique_ptr<testing::SimCell> sim;
+  std::unique_ptr<LinkCaptureRobot> link_robot;
+  TruePoseSource* truth = &gantry;
+  CaptureRobot* robot = &gantry;
+  if (sim_controller) {
+    const fs::path sim_dir = out.parent_path() / (out.filename().string() + "_sim");
+    fs::create_directories(sim_dir);
+    sim = std::make_unique<testing::SimCell>(sim_dir);
+    link_robot = std::make_unique<LinkCaptureRobot>(*sim->link, testing::kSimCellSpeed);
+    truth = sim->truth.get();
+    robot = link_robot.get();
+  }
   const vision::TargetBoard board =
       vision::load_target_file(testing::testdata("vision/apriltag_4x3.yaml"));
   std::vector<std::unique_ptr<SimulatedGigECamera>> simulated;
@@ -95,7 +144,7 @@ int main(int argc, char** argv) {
     // only thread, which also answers the control channel; on a busy machine a 1600x1200 render
     // of several seconds outlasts Aravis' 5 s heartbeat window and the camera is reported lost.
     spec.render.blur_subcells = 2;
-    simulated.push_back(std::make_unique<SimulatedGigECamera>(spec, board, cell));
+    simulated.push_back(std::make_unique<SimulatedGigECamera>(spec, board, *truth));
     simulated.back()->set_history(static_cast<std::size_t>(poses * shots * 4));
     auto client = std::make_unique<AravisCamera>(spec.serial, "cam" + std::to_string(c));
     client->set_region({0, 0, width, height});
@@ -104,17 +153,18 @@ int main(int argc, char** argv) {
     clients.push_back(std::move(client));
   }
 
-  const auto targets = testing::gantry_targets(poses);
+  const auto targets = sim_controller ? testing::sim_cell_targets(sim->model, poses)
+                                      : testing::gantry_targets(poses);
   using Clock = std::chrono::steady_clock;
   std::vector<Clock::time_point> pose_start;
+  TimedRobot timed(*robot, pose_start);
   CaptureOptions options;
   options.shots_per_pose = shots;
   options.session_start_ns = host_time_ns();
   // The simulated cameras render on this machine's CPU (seconds per 1600x1200 frame when the
   // machine is busy); a real camera answers in milliseconds.
   options.grab_timeout = std::chrono::milliseconds(20000);
-  cell.before_move = [&](int) { pose_start.push_back(Clock::now()); };
-  const CaptureResult result = capture_poses(out, targets, cell, cameras, board, options);
+  const CaptureResult result = capture_poses(out, targets, timed, cameras, board, options);
   pose_start.push_back(Clock::now());
 
   // Bit-exact: each camera's recorded frames, in pose order, are rendered frames in render
@@ -144,8 +194,8 @@ int main(int argc, char** argv) {
         const cv::Mat image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
         bool found = false;
         while (!found && next < rendered.size()) {
-          const cv::Mat& truth = rendered[next++].image;
-          found = image.size() == truth.size() && cv::norm(image, truth, cv::NORM_INF) == 0.0;
+          const cv::Mat& served = rendered[next++].image;
+          found = image.size() == served.size() && cv::norm(image, served, cv::NORM_INF) == 0.0;
         }
         mismatched += found ? 0 : 1;
       }
@@ -182,17 +232,30 @@ int main(int argc, char** argv) {
     sum_write += pose.write_s;
     sum_grab += pose.grab_s;
   }
+  // The robot's own time per window: the simulator's motion durations (sim), or move_and_settle
+  // (the gantry: instantaneous).
+  std::vector<double> motion_s(windows, 0.0);
+  if (sim_controller) {
+    const std::vector<double> motions = simulated_motion_seconds(sim->log);
+    for (std::size_t w = 0; w < windows && w < motions.size(); ++w) {
+      motion_s[w] = motions[w];
+    }
+  }
+  double sum_motion = 0.0;
   for (std::size_t w = 0; w < windows; ++w) {
     const double wall = std::chrono::duration<double>(pose_start[w + 1] - pose_start[w]).count();
     sum_render += render_s[w];
-    overhead.push_back(wall - render_s[w]);  // the gantry's move is instantaneous here
+    sum_motion += motion_s[w];
+    overhead.push_back(wall - render_s[w] - motion_s[w]);
   }
   const double n = static_cast<double>(windows);
   double mean_overhead = 0.0;
   for (double o : overhead) {
     mean_overhead += o / n;
   }
-  mean_overhead -= sum_move / n;
+  if (!sim_controller) {
+    mean_overhead -= sum_move / n;
+  }
   const double total_s =
       std::chrono::duration<double>(pose_start.back() - pose_start.front()).count();
   nlohmann::json report = {
@@ -204,6 +267,8 @@ int main(int argc, char** argv) {
        std::distance(fs::directory_iterator(out / "poses"), fs::directory_iterator{})},
       {"complete", result.complete},
       {"stop_reason", result.stop_reason},
+      {"controller", sim_controller ? "sim-controller over TCP (linear delta, Marlin)"
+                                    : "in-process gantry (instant moves)"},
       {"cameras", 2},
       {"image", std::to_string(width) + "x" + std::to_string(height)},
       {"shots_per_pose", shots},
@@ -218,12 +283,15 @@ int main(int argc, char** argv) {
       {"mean_per_pose_ms",
        {{"render", 1e3 * sum_render / n},
         {"move", 1e3 * sum_move / n},
+        {"simulated_motion", 1e3 * sum_motion / n},
         {"waiting_for_frames_incl_render", 1e3 * sum_grab / n},
         {"motion_check_background", 1e3 * sum_check / n},
         {"write_background", 1e3 * sum_write / n}}},
       {"definition",
-       "overhead = wall time per pose - move_and_settle - rendering (union of both cameras' "
-       "render intervals); the motion check and the writing of a pose run while the next pose "
+       "overhead = wall time per pose - the robot's motion (sim: the controller's simulated "
+       "motion durations, so link round trips count as overhead; gantry: move_and_settle) - "
+       "rendering (union of both cameras' render intervals); the motion check and the writing of a "
+       "pose run while the next pose "
        "is taken and count only when the robot waits for them"}};
   std::cout << report.dump(2) << "\n";
   return result.complete && mismatched == 0 ? 0 : 1;

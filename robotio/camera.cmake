@@ -10,5 +10,8 @@ robocal_library(robocal_robotio_camera
     src/camera/camera_recorded.cpp
     src/camera/capture.cpp
     src/camera/camera_checks.cpp
-  PUBLIC_DEPS robocal_vision ${OpenCV_LIBS}
-  PRIVATE_DEPS PkgConfig::ARAVIS PkgConfig::LIBV4L2 fmt::fmt yaml-cpp)
+    src/camera/capture_link.cpp
+    src/camera/sim_truth.cpp
+  PUBLIC_DEPS robocal_vision robocal_robotio ${OpenCV_LIBS}
+  PRIVATE_DEPS PkgConfig::ARAVIS PkgConfig::LIBV4L2 fmt::fmt yaml-cpp
+    nlohmann_json::nlohmann_json)

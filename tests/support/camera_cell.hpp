@@ -49,7 +49,7 @@ class GantryCell final : public CaptureRobot, public TruePoseSource {
     const std::lock_guard lock(mutex_);
     return q_;
   }
-  void stop() override {
+  void stop(const std::string& /*reason*/) override {
     const std::lock_guard lock(mutex_);
     ++stops_;
   }

@@ -328,7 +328,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
   const auto stop = [&](const std::string& reason, std::optional<CameraError::Kind> kind) {
     std::string stop_error;
     try {
-      robot.stop();
+      robot.stop(reason);
     } catch (const std::exception& failure) {
       stop_error = failure.what();
     }

@@ -25,9 +25,9 @@
 
 namespace robocal::robotio {
 
-// The robot side of capture. RobotLink (robot_link.hpp) provides it through a small adapter:
-// move_and_settle = move_actuators (which returns once the controller reports the move
-// finished), read_actuators, stop(kControlled).
+// The robot side of capture. LinkCaptureRobot (capture_link.hpp) provides it over a RobotLink:
+// move_and_settle = the guarded move_actuators (which returns once the controller reports the
+// move finished), read_actuators, stop = the guard's stop request + the controller's stop.
 class CaptureRobot {
  public:
   virtual ~CaptureRobot() = default;
@@ -41,8 +41,9 @@ class CaptureRobot {
   // once it reports the robot settled. Throws (any std::exception) when it cannot.
   virtual Eigen::VectorXd move_and_settle(const Eigen::VectorXd& target) = 0;
   virtual Eigen::VectorXd read_actuators() = 0;
-  // Stops any motion now (a camera was lost, the operator interrupted).
-  virtual void stop() = 0;
+  // Stops any motion now and keeps the robot stopped (a camera was lost, a pose failed);
+  // `reason` names the pose and the camera.
+  virtual void stop(const std::string& reason) = 0;
 };
 
 struct CaptureCamera {
