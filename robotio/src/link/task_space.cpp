@@ -24,11 +24,19 @@ TaskTargetVerdict actuators_for_task_target(const calib::Mechanism& model,
   calib::IkOptions options;
   options.respect_limits = true;
   v.ik = calib::solve_ik(model, params, target, seed, options);
-  // The single verdict point: when calib reports the assembly mode of an IK answer, the check
-  // that it matches the calibrated mode goes here.
+  // The single verdict point: a target is driven to only on the robot file's assembly mode. IK
+  // already refuses answers on another mode (kOtherMode); an answer next to a singularity where
+  // modes meet (kAmbiguous) is refused too, since a small error there can flip the branch.
   if (!v.ik.ok()) {
-    v.reason = std::string("inverse kinematics: ") + calib::to_string(v.ik.status) +
-               " (target unreachable, outside the joint limits, or singular)";
+    v.reason = std::string("inverse kinematics: ") + calib::to_string(v.ik.status);
+    v.reason += v.ik.status == calib::SolveStatus::kOtherMode
+                    ? " (" + v.ik.mode.describe() + ")"
+                    : " (target unreachable, outside the joint limits, or singular)";
+    return v;
+  }
+  if (v.ik.mode.verdict == calib::ModeVerdict::kAmbiguous) {
+    v.reason = "inverse kinematics: the answer is at a singularity where assembly modes meet (" +
+               v.ik.mode.describe() + ")";
     return v;
   }
   v.ok = true;
