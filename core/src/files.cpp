@@ -2,6 +2,8 @@
 
 #include "robocal/core/input_error.hpp"
 
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -11,7 +13,7 @@ namespace fs = std::filesystem;
 
 std::string read_text_file(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path.string() + ": cannot open file");
+  if (!in) throw InputError(path.string() + ": cannot open file (" + std::strerror(errno) + ")");
   std::ostringstream ss;
   ss << in.rdbuf();
   return ss.str();
@@ -26,9 +28,11 @@ void write_file_atomic(const fs::path& path, const std::string& bytes, Overwrite
   tmp += ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(tmp.string() + ": cannot write file");
+    // errno says why ("Permission denied", "No space left on device"): the operator can act on it.
+    if (!out) throw InputError(tmp.string() + ": cannot write file (" + std::strerror(errno) + ")");
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (!out.flush()) throw InputError(tmp.string() + ": write failed");
+    if (!out.flush())
+      throw InputError(tmp.string() + ": write failed (" + std::strerror(errno) + ")");
   }
   fs::rename(tmp, path, ec);
   if (ec) throw InputError(path.string() + ": cannot rename temporary file: " + ec.message());

@@ -5,6 +5,8 @@
 
 #include <fmt/core.h>
 
+#include <filesystem>
+
 #include <signal.h>
 #include <unistd.h>
 
@@ -115,6 +117,11 @@ int run_cli(int argc, const char* const* argv) {
     try {
       return actions.at(sub)();
     } catch (const InputError& e) {
+      fmt::print(stderr, "error: {}\n", e.what());
+      return kExitBadInput;
+    } catch (const std::filesystem::filesystem_error& e) {
+      // A folder that cannot be created or read (permissions, a full disk, a file where a folder
+      // should be): the operator's environment, not a robocal bug.
       fmt::print(stderr, "error: {}\n", e.what());
       return kExitBadInput;
     } catch (const std::exception& e) {

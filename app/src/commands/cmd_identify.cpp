@@ -55,9 +55,10 @@ struct IdentifyOptions {
   std::string kind = "point";
   double pixel_sigma = 0.1;
   bool free_intrinsics = false;
-  bool quiet = false;         // no terminal summary
-  bool stated_noise = false;  // keep the stated noise for the covariance (do not scale)
-  bool bed_tilt = false;      // estimate the bed's slopes with the geometry (probe heights)
+  bool quiet = false;               // no terminal summary
+  bool stated_noise = false;        // keep the stated noise for the covariance (do not scale)
+  bool bed_tilt = false;            // estimate the bed's slopes with the geometry (probe heights)
+  bool accept_implausible = false;  // session mode: keep a result that fails the fit gate
 };
 
 bool matches(const std::string& name, const std::vector<std::string>& patterns) {
@@ -140,7 +141,8 @@ int run_identify_session(const IdentifyOptions& o) {
     throw InputError(o.session + ": not a session folder (no session.yaml; see app/SESSION.md)");
   PipelineLog log;
   log.out = human_stream(o.json);
-  const auto report = identify_session(o.session, o.robot, log, o.route, !o.no_priors);
+  const auto report =
+      identify_session(o.session, o.robot, log, o.route, !o.no_priors, {o.accept_implausible});
   if (!o.json.empty()) write_json(report, o.json);
   if (report.value("status", "") != "ok")
     fmt::print(stderr, "identification failed: {}\n", report.value("message", ""));
@@ -441,6 +443,10 @@ CommandSpec identify_command() {
                            "simulated cameras)");
             cmd.add_option("--pixel-sigma", o->pixel_sigma, "Simulation: pixel noise sigma (px)")
                 ->check(CLI::Range(0.0, 100.0));
+            cmd.add_flag("--accept-implausible", o->accept_implausible,
+                         "Session mode: write the calibrated robot file even when the fit gate "
+                         "fails (not converged, residuals far beyond the measurement noise); "
+                         "recorded in identification.json");
             cmd.add_flag(
                 "--free-intrinsics", o->free_intrinsics,
                 "Pixel observations: estimate the cameras' intrinsics too (default: held)");

@@ -7,6 +7,7 @@
 #include "robocal/calib/frame_checks.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
 #include "robocal/calib/kinematics.hpp"
+#include "robocal/calib/plausibility.hpp"
 #include "robocal/calib/robot_file.hpp"
 
 #include <fmt/core.h>
@@ -151,11 +152,16 @@ int run_fk(const KinOptions& o, bool jacobian) {
   // An answer on another assembly mode is refused: no pose, exit 1, the reason. A serial chain's
   // forward answer is unique (no loop to re-seed): reported with its verdict.
   const bool serial = m.passive.empty();
-  const bool ok = closed && (fk.closure.mode.acceptable() || serial);
+  // Readings the robot cannot have (outside its joint limits) get no pose, whatever the closure
+  // solver finds for them.
+  const auto limits_problem = readings_problem(m, r.params, q);
+  if (limits_problem) doc["limits"] = *limits_problem;
+  const bool ok = closed && !limits_problem && (fk.closure.mode.acceptable() || serial);
   if (ok && !fk.closure.mode.acceptable())
     doc["note"] = "these joint values put the arm in " + fk.closure.mode.describe();
   if (!ok)
-    doc["reason"] = fk.closure.status == SolveStatus::kOtherMode || !fk.closure.mode.acceptable()
+    doc["reason"] = limits_problem ? *limits_problem
+                    : fk.closure.status == SolveStatus::kOtherMode || !fk.closure.mode.acceptable()
                         ? "the loops close only on " + fk.closure.mode.describe() +
                               " (every seed tried); the robot cannot be in its intended mode at "
                               "these readings"

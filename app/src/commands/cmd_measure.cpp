@@ -23,6 +23,7 @@ struct MeasureArgs {
   std::string rig, target, poses, out = "-";
   double sigma_px = 0.0;
   bool no_raw = false;
+  bool accept_implausible = false;
 };
 
 int run_measure(const MeasureArgs& a) {
@@ -72,7 +73,7 @@ int run_measure_session(const MeasureArgs& a) {
   PipelineLog log;
   log.out = human_stream(a.json);
   log.threads = a.threads;
-  const auto report = measure_session(a.session, a.robot, log);
+  const auto report = measure_session(a.session, a.robot, log, {a.accept_implausible});
   if (!a.json.empty()) write_json(report, a.json);
   return exit_code_of(report);
 }
@@ -108,6 +109,9 @@ CommandSpec measure_command() {
                        "Corner noise sigma (default: the rig calibration's RMS)")
             ->check(CLI::Range(1e-6, 100.0));
         cmd.add_flag("--no-raw", a->no_raw, "Leave the raw pixel observations out");
+        cmd.add_flag("--accept-implausible", a->accept_implausible,
+                     "Session mode: use poses whose board fits fail the plausibility gate "
+                     "(recorded in measure.json); only when you know why they fit badly");
         cmd.add_option("--out", a->out, "JSON to write (- = stdout)");
         return [a]() {
           if (!a->session.empty()) {

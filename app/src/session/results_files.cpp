@@ -374,4 +374,12 @@ TruthFile read_truth(const ResultsLayout& results, const calib::Mechanism& model
   return out;
 }
 
+std::string measurement_refusal(const ResultsLayout& results) {
+  std::error_code missing;
+  if (!std::filesystem::is_regular_file(results.report("measure"), missing)) return "";
+  const nlohmann::json report = read_json_file(results.report("measure"), "measure's report");
+  if (report.value("status", "") != "implausible") return "";
+  return report.value("message", std::string("the measurements failed the plausibility gate"));
+}
+
 }  // namespace robocal::app

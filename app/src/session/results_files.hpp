@@ -112,6 +112,9 @@ struct IdentificationFile {
   std::optional<Eigen::VectorXd> pixel_estimate;  // the camera-in-the-loop route's, when ok
 };
 void write_identification(const ResultsLayout& results, const nlohmann::json& report);
+// Why measure refused the session's measurements as implausible (results/measure.json's board
+// fit gate), or "" when it did not (or has not run).
+std::string measurement_refusal(const ResultsLayout& results);
 // Throws InputError when missing or malformed; start/estimate are read only when status is ok.
 IdentificationFile read_identification(const ResultsLayout& results, const calib::Mechanism& model,
                                        const std::string& hint);

@@ -13,6 +13,7 @@
 
 #include "robocal/calib/base_frame.hpp"
 #include "robocal/calib/calibrated_robot_file.hpp"
+#include "robocal/calib/fit_gate.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
@@ -35,6 +36,24 @@ std::string measure_first(const fs::path& dir) {
   return "run `robocal measure " + dir.string() + "` first";
 }
 
+// The fit gate (calib/fit_gate.hpp) on a route's result: "implausible" unless it passes or the
+// operator accepted it; recorded in the report either way.
+void apply_fit_gate(const calib::IdentificationResult& result, const GateOptions& gates,
+                    const std::string& route, nlohmann::json& report, const PipelineLog& log) {
+  const calib::FitVerdict verdict = calib::judge_identification(result);
+  report["fit_gate"] = {{"plausible", verdict.plausible},
+                        {"overridden", !verdict.plausible && gates.accept_implausible}};
+  if (verdict.plausible) return;
+  report["fit_gate"]["reason"] = verdict.reason;
+  say(log, "  {} RESULT NOT PLAUSIBLE: {}\n", route, verdict.reason);
+  if (gates.accept_implausible) {
+    say(log, "  accepted anyway (--accept-implausible)\n");
+    return;
+  }
+  report["status"] = "implausible";
+  report["message"] = verdict.reason;
+}
+
 // The camera-in-the-loop route on a session: the corner pixels of results/pixel_observations.json
 // (the poses the pose route used, first frame per camera) with the measured rig's cameras, camera
 // 0 as the world, camera 1.. poses estimated with the robot; started from the pose route's
@@ -42,7 +61,8 @@ std::string measure_first(const fs::path& dir) {
 nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& model,
                                     const calib::FramePredictor& predictor,
                                     const Eigen::VectorXd& start,
-                                    const calib::SolveOptions& options, const PipelineLog& log) {
+                                    const calib::SolveOptions& options, const PipelineLog& log,
+                                    const GateOptions& gates) {
   const ResultsLayout results{s.dir};
   const auto rig = read_rig_file(results.rig()).cameras;
   const auto target = board_points(load_board(s.path(s.ee_target)));
@@ -73,6 +93,7 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
                       r.status == calib::IdentificationStatus::kNotConverged;
   report["status"] = usable ? "ok" : "failed";
   if (!usable) report["message"] = r.message;
+  if (usable) apply_fit_gate(r, gates, "pixels", report, log);
   return report;
 }
 
@@ -88,7 +109,8 @@ std::vector<std::size_t> changed_from(const Eigen::VectorXd& values,
 }  // namespace
 
 nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
-                                const PipelineLog& log, const std::string& route, bool priors) {
+                                const PipelineLog& log, const std::string& route, bool priors,
+                                const GateOptions& gates) {
   if (route != "pose" && route != "pixel" && route != "both")
     throw InputError("identification route '" + route + "': expected pose, pixel or both");
   const Session s = load_session(dir);
@@ -105,7 +127,12 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   nlohmann::json report{{"stage", "identify"}, {"session", dir.string()}};
   if (measurements.poses.size() < 3) {
     report["status"] = "failed";
-    report["message"] = fmt::format("{} usable poses: too few", measurements.poses.size());
+    const std::string refused = measurement_refusal(results);
+    report["message"] =
+        refused.empty()
+            ? fmt::format("{} usable poses: too few", measurements.poses.size())
+            : "measure refused the measurements as implausible (" + refused +
+                  "). Fix the cause and measure again, or `robocal measure --accept-implausible`";
     write_identification(results, report);
     say(log, "identify failed: {}\n", report["message"].get<std::string>());
     return report;
@@ -163,10 +190,19 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     report["parameter_sigma"][p.name] = p.sigma;
   }
   report["software"] = std::string("robocal ") + kVersion;
-  const bool usable = result.status == calib::IdentificationStatus::kConverged ||
-                      result.status == calib::IdentificationStatus::kNotConverged;
+  bool usable = result.status == calib::IdentificationStatus::kConverged ||
+                result.status == calib::IdentificationStatus::kNotConverged;
   report["status"] = usable ? "ok" : "failed";
   if (!usable) report["message"] = result.message;
+  // A calibrated file from an earlier run must not stand beside this run's report.
+  std::error_code stale;
+  fs::remove(results.calibrated_robot(), stale);
+  fs::remove(results.calibrated_robot_pixels(), stale);
+  fs::remove(results.report("validation"), stale);  // it judged the previous identification
+  if (usable) {
+    apply_fit_gate(result, gates, "pose route", report, log);
+    usable = report["status"] == "ok";
+  }
   if (usable) {
     std::set<std::size_t> changed(result.estimated.begin(), result.estimated.end());
     for (std::size_t i : changed_from(start, file_values)) changed.insert(i);
@@ -184,8 +220,13 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     report["calibrated_robot"] = ResultsLayout::kCalibratedRobot;
   }
   if (usable && route != "pose") {
-    report["pixel_route"] = identify_pixel_route(s, model, predictor, start, solve_options, log);
+    report["pixel_route"] =
+        identify_pixel_route(s, model, predictor, start, solve_options, log, gates);
     const auto& pr = report["pixel_route"];
+    if (pr.value("status", "") == "implausible") {
+      report["status"] = "implausible";
+      report["message"] = "camera-in-the-loop route: " + pr.value("message", "");
+    }
     if (pr.value("status", "") == "ok") {
       const Eigen::VectorXd pixel_estimate =
           params_from_json(model, pr.at("estimate"), results.identification().string());

@@ -11,9 +11,11 @@
 #include "stages/stages.hpp"
 
 #include "robocal/calib/measurements_file.hpp"
+#include "robocal/calib/plausibility.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/intrinsics_pipeline.hpp"
+#include "robocal/vision/measurement_gate.hpp"
 
 #include <fmt/core.h>
 
@@ -37,7 +39,7 @@ std::vector<fs::path> calibration_images(const fs::path& folder) {
 }  // namespace
 
 nlohmann::json measure_session(const fs::path& dir, const std::string& robot_override,
-                               const PipelineLog& log) {
+                               const PipelineLog& log, const GateOptions& gates) {
   const Session s = load_session(dir);
   const ResultsLayout results{dir};
   const SessionRobot robot = session_robot(s, robot_override);
@@ -46,6 +48,13 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   const auto names = s.camera_names();
   const std::size_t n_cams = s.cameras.size();
   fs::create_directories(results.dir());
+  // Results computed from an earlier measurement would stand beside this one's (a re-measure
+  // killed midway would leave new cameras next to an old identification): they go first.
+  for (const fs::path& stale : {results.identification(), results.calibrated_robot(),
+                                results.calibrated_robot_pixels(), results.report("validation")}) {
+    std::error_code ignored;
+    fs::remove(stale, ignored);
+  }
   nlohmann::json report{{"stage", "measure"}, {"session", dir.string()}};
   const auto fail = [&](const std::string& message) {
     report["status"] = "failed";
@@ -137,6 +146,41 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   const auto measured_images =
       measure_board_poses(measured_rig, ee_board, sets, pose_options, step_log(log));
 
+  // Plausibility of the board fits (vision/measurement_gate.hpp): the whole session, then single
+  // poses whose cameras disagree.
+  std::vector<double> fit_chi2_dof;
+  std::vector<std::size_t> fit_pose;
+  for (std::size_t p = 0; p < measured_images.size(); ++p) {
+    const vision::PoseMeasurement& m = measured_images[p].measurement;
+    if (m.usable() && m.dof > 0) {
+      fit_chi2_dof.push_back(m.chi2 / m.dof);
+      fit_pose.push_back(p);
+    }
+  }
+  const vision::BoardFitVerdict fits = vision::judge_board_fits(fit_chi2_dof);
+  // Single poses against the session's median: every pose with a fit, ambiguous ones included
+  // (a pose whose cameras saw different board poses has no good fit, so its runner-up is as bad).
+  std::vector<std::string> fit_problem(records.size());
+  if (fits.plausible) {
+    const double pose_limit = vision::inconsistent_pose_limit(fits.median_chi2_dof);
+    for (std::size_t p = 0; p < measured_images.size(); ++p) {
+      const vision::PoseMeasurement& m = measured_images[p].measurement;
+      if (m.dof > 0 && !(m.chi2 / m.dof <= pose_limit))
+        fit_problem[p] = vision::inconsistent_pose_reason(m.chi2 / m.dof, fits.median_chi2_dof);
+    }
+  }
+  report["board_fit_gate"] = {
+      {"plausible", fits.plausible},
+      {"median_chi2_dof", fits.median_chi2_dof},
+      {"inconsistent_poses", std::count_if(fit_problem.begin(), fit_problem.end(),
+                                           [](const std::string& w) { return !w.empty(); })},
+      {"overridden", !fits.plausible && gates.accept_implausible}};
+  if (!fits.plausible) {
+    report["board_fit_gate"]["reason"] = fits.reason;
+    say(log, "  MEASUREMENTS NOT PLAUSIBLE: {}\n", fits.reason);
+  }
+  const bool refuse_all = !fits.plausible && !gates.accept_implausible;
+
   calib::MeasurementsFile mfile;
   mfile.robot = robot.model.name;
   mfile.frame = s.measured_frame;
@@ -152,13 +196,23 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
     if (rec.problem.empty()) out.actuators = rec.actuators;
     if (m.status == vision::PoseStatus::kOk || m.status == vision::PoseStatus::kMoving) ++measured;
     // Why a pose does not go to identification, in words.
+    const auto reading_problem =
+        rec.problem.empty() ? calib::readings_problem(robot.model, robot.nominal, rec.actuators)
+                            : std::nullopt;
     if (!rec.problem.empty())
       out.excluded = rec.problem;
+    else if (reading_problem)
+      out.excluded = fmt::format("{}/{}/pose.yaml: {}", s.poses, rec.name, *reading_problem);
+    else if (!fit_problem[p].empty() && !gates.accept_implausible)
+      out.excluded = fit_problem[p];
     else if (!m.usable())
       out.excluded = fmt::format("board pose {}{}", vision::pose_status_name(m.status),
                                  m.message.empty() ? "" : " (" + m.message + ")");
+    else if (refuse_all)
+      out.excluded = "measurements not plausible (see board_fit_gate in measure.json)";
     if (!out.excluded.empty()) {
-      say(log, "  {} not used: {}\n", rec.name, out.excluded);
+      if (!refuse_all || !m.usable() || !rec.problem.empty())
+        say(log, "  {} not used: {}\n", rec.name, out.excluded);
     } else {
       ++used;
       mfile.measurements.poses.push_back({rec.name, rec.actuators, {to_pose_observation(m)}});
@@ -174,8 +228,15 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   say(log, "  {} of {} poses measured, {} used for identification\n", measured, records.size(),
       used);
   report["poses"] = {{"total", records.size()}, {"measured", measured}, {"used", used}};
-  report["status"] = used > 0 ? "ok" : "failed";
-  if (used == 0) report["message"] = "no pose could be measured";
+  report["status"] = refuse_all ? "implausible" : used > 0 ? "ok" : "failed";
+  if (refuse_all) {
+    report["message"] = fits.reason;
+    say(log,
+        "  no pose goes to identification. If the data is right after all, `robocal measure "
+        "--accept-implausible` uses it anyway (recorded in measure.json)\n");
+  } else if (used == 0) {
+    report["message"] = "no pose could be measured";
+  }
   report["files"] = {ResultsLayout::kCamerasFolder, ResultsLayout::kRig,
                      ResultsLayout::kMeasuredPoses, ResultsLayout::kPixelObservations,
                      ResultsLayout::kMeasurements};

@@ -7,6 +7,7 @@
 // Each stage returns its report (also written to results/<stage>.json) with "status":
 //   "ok"        the stage produced its result
 //   "failed"    it ran but the result is not acceptable (e.g. a camera calibration refused)
+//   "implausible" a plausibility gate failed (GateOptions): the result must not be used
 //   "no_truth"  validate only: the session has no truth/ folder (a recorded session)
 // Bad input (missing or malformed files, a robot file that does not match) throws InputError.
 #include "cli/command_registry.hpp"
@@ -40,13 +41,20 @@ struct SimulateOptions {
   std::filesystem::path out;
 };
 
+// The plausibility gates (measure: board fits and readings; identify: convergence and fit
+// residuals). A failed gate makes the stage report "implausible" (exit 1) and keeps its result
+// from being used, unless the operator accepts it explicitly (recorded in the report).
+struct GateOptions {
+  bool accept_implausible = false;
+};
+
 // stages/simulate.cpp
 nlohmann::json simulate_session(const SimulateOptions& options, const PipelineLog& log);
 
 // stages/measure.cpp. robot_override: a robot file to use instead of the session's (checked
 // against the session).
 nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
-                               const PipelineLog& log);
+                               const PipelineLog& log, const GateOptions& gates = {});
 // stages/identify.cpp. route: "pose" (from the measured 6-D poses), "pixel" or "both" (also
 // camera-in-the-loop from the corner pixels, started from the pose route's base-frame alignment;
 // both reported). priors: the robot file's tolerances as priors (MAP) on every geometric
@@ -54,7 +62,7 @@ nlohmann::json measure_session(const std::filesystem::path& dir, const std::stri
 // measurements alone.
 nlohmann::json identify_session(const std::filesystem::path& dir, const std::string& robot_override,
                                 const PipelineLog& log, const std::string& route = "both",
-                                bool priors = true);
+                                bool priors = true, const GateOptions& gates = {});
 // stages/validate.cpp
 nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
                                 const PipelineLog& log);

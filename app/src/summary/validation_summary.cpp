@@ -46,6 +46,28 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
                "(line above: from measured 6-D poses)\n",
                v["calibrated_pixels"].at("rms_m").get<double>() * 1e6,
                v["calibrated_pixels"].at("max_m").get<double>() * 1e6);
+  // Configurations drawn from the truth where a model cannot answer: failures, never dropped
+  // silently.
+  if (v.contains("unanswered")) {
+    int total = 0;
+    std::string which;
+    for (const auto& [model, count] : v["unanswered"].items()) {
+      const int n = count.get<int>();
+      if (n == 0) continue;
+      total += n;
+      which += fmt::format("{}{} {}", which.empty() ? "" : ", ", model, n);
+    }
+    const int drawn = v.value("held_out_drawn", v.at("held_out_poses").get<int>());
+    if (total > 0)
+      fmt::print(out,
+                 "  FAILURES: of {} configurations drawn from the truth, a model could not answer "
+                 "(its loops do not close on the intended assembly mode) at: {}. The figures "
+                 "above are over the {} every model answers.\n",
+                 drawn, which, v.at("held_out_poses").get<int>());
+    if (drawn < v.value("held_out_requested", drawn))
+      fmt::print(out, "  only {} of the {} requested held-out configurations could be drawn\n",
+                 drawn, v.value("held_out_requested", drawn));
+  }
   if (v.contains("held_out_by_region") && v.contains("measured_region")) {
     const auto& by_region = v["held_out_by_region"];
     fmt::print(out,
