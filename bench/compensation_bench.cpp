@@ -1,0 +1,218 @@
+// Compensation figures for issue 20 on a simulated session (e.g. `robocal demo --out DIR`),
+// printed as JSON:
+//
+//   build/release/bench/robocal_compensation_bench SESSION [held_out]
+//
+// - held-out targets: the configurations `robocal validate` samples (same seed, same count, same
+//   models that must assemble), their TRUE tool positions taken as targets (camera 0's frame, as
+//   validate reports);
+// - each target compensated with the session's calibrated model (calib::compensate_target:
+//   calibrated IK, then the nominal model's FK = the command for a nominal controller; the
+//   nominal controller is the nominal model with its base frame fitted, identification.json
+//   `start`), the command executed by the nominal controller (its IK) on the TRUE robot;
+// - tool error against the target, RMS / max, next to the calibrated model's own held-out error
+//   at the same configurations (what validate reports) and the uncompensated nominal controller;
+// - time per target of the calibrated IK (cold: closed-form seed; warm: the previous target's
+//   answer as seed) and of the whole compensate_target, on one core.
+#include "session/results_files.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/compensation.hpp"
+#include "robocal/calib/held_out_errors.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <string>
+
+using namespace robocal;
+
+namespace {
+
+nlohmann::json stats_json(const calib::PositionErrorStats& s) {
+  return {{"rms_um", s.rms * 1e6}, {"max_um", s.max * 1e6}, {"poses", s.n}};
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::cerr << "usage: robocal_compensation_bench SESSION [held_out]\n";
+    return 2;
+  }
+  const std::filesystem::path dir = argv[1];
+  const int held_out = argc > 2 ? std::stoi(argv[2]) : 500;
+  const app::Session s = app::load_session(dir);
+  const app::SessionRobot robot = app::session_robot(s, "");
+  // Targets are positions of the measured frame (the board's origin), as validate reports.
+  calib::Mechanism model = robot.model;
+  model.task.type = calib::TaskType::kPosition;
+  model.task.frame = robot.frame;
+  const app::ResultsLayout results{dir};
+  const app::IdentificationFile ident = app::read_identification(results, model, "");
+  const app::TruthFile truth_file = app::read_truth(results, model);
+  const Eigen::VectorXd& truth = truth_file.truth;
+  const Eigen::Isometry3d cam0_T_world = truth_file.cameras.at(0).camera_T_world;
+
+  // validate's held-out configurations (stages/validate.cpp).
+  calib::MechanismPredictor true_predictor(model, robot.frame);
+  std::mt19937 rng(s.seed + 7919);
+  std::vector<Eigen::VectorXd> must_solve = {truth, ident.start, ident.estimate};
+  if (ident.pixel_estimate) must_solve.push_back(*ident.pixel_estimate);
+  const auto configurations =
+      calib::sample_actuators(true_predictor, must_solve, static_cast<std::size_t>(held_out), rng);
+
+  const calib::CompensationModels models{&model, ident.start, ident.estimate};
+  const auto true_position = [&](const Eigen::VectorXd& readings, const Eigen::VectorXd& seed,
+                                 Eigen::Vector3d& out) {
+    const auto fk = calib::forward_kinematics(model, truth, readings, robot.frame, seed);
+    if (!fk.closure.ok()) return false;
+    out = cam0_T_world * fk.pose.translation();
+    return true;
+  };
+  std::vector<Eigen::Vector3d> targets, calibrated, compensated, direct, nominal_targets,
+      uncompensated;
+  std::vector<calib::TaskTarget> task_targets;
+  int refused = 0, failed_execution = 0;
+  for (const auto& q : configurations) {
+    Eigen::Vector3d target;
+    if (!true_position(q, {}, target)) continue;
+    const auto cal_fk = calib::forward_kinematics(model, ident.estimate, q, robot.frame);
+    if (!cal_fk.closure.ok()) continue;
+    calib::TaskTarget t;
+    t.pose.translation() = target;
+    task_targets.push_back(t);
+    const calib::CompensatedTarget c = calib::compensate_target(models, t);
+    if (!c.usable()) {
+      ++refused;
+      continue;
+    }
+    // The nominal controller commanded to c.commanded: its IK, then the true robot.
+    calib::TaskTarget command;
+    command.pose.translation() = c.commanded.translation();
+    const calib::IkResult controller = calib::solve_ik(model, ident.start, command);
+    Eigen::Vector3d executed, by_readings;
+    if (!controller.ok() || !true_position(controller.actuator_readings, {}, executed) ||
+        !true_position(c.ik.actuator_readings, {}, by_readings)) {
+      ++failed_execution;
+      continue;
+    }
+    targets.push_back(target);
+    calibrated.emplace_back(cal_fk.pose.translation());
+    compensated.push_back(executed);
+    direct.push_back(by_readings);
+    // Without compensation: the nominal controller commanded to the target itself.
+    const calib::IkResult plain = calib::solve_ik(model, ident.start, t);
+    Eigen::Vector3d reached;
+    if (plain.ok() && true_position(plain.actuator_readings, {}, reached)) {
+      nominal_targets.push_back(target);
+      uncompensated.push_back(reached);
+    }
+  }
+  const auto cal_stats = calib::position_error_stats(calibrated, targets);
+  const auto comp_stats = calib::position_error_stats(compensated, targets);
+
+  // Timing (one core): calibrated IK cold and warm, and the whole compensate_target.
+  calib::IkOptions ik_options;
+  ik_options.respect_limits = true;
+  auto t0 = std::chrono::steady_clock::now();
+  int ok_cold = 0;
+  for (const auto& t : task_targets)
+    ok_cold += calib::solve_ik(model, ident.estimate, t, {}, ik_options).ok() ? 1 : 0;
+  const double cold_s = seconds_since(t0);
+  calib::IkSeed seed;
+  t0 = std::chrono::steady_clock::now();
+  int ok_warm = 0;
+  for (const auto& t : task_targets) {
+    const calib::IkResult r = calib::solve_ik(model, ident.estimate, t, seed, ik_options);
+    if (r.ok()) {
+      ++ok_warm;
+      seed = {r.actuator_q, r.passive};
+    }
+  }
+  const double warm_s = seconds_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  for (const auto& t : task_targets) (void)calib::compensate_target(models, t);
+  const double full_s = seconds_since(t0);
+  const double n = static_cast<double>(std::max<std::size_t>(task_targets.size(), 1));
+
+  // What `robocal compensate` solves: the calibrated model in the robot file's frame, targets of
+  // the tool (the task frame), here the tool positions of the held-out configurations.
+  const calib::Mechanism& file_model = robot.model;
+  const Eigen::VectorXd file_nominal = file_model.nominal_parameters();
+  const Eigen::VectorXd local =
+      calib::calibrated_in_robot_frame(file_model, ident.estimate, robot.nominal, file_nominal);
+  std::vector<calib::TaskTarget> tool_targets;
+  for (const auto& q : configurations) {
+    const auto fk = calib::forward_kinematics(file_model, local, q, file_model.task.frame);
+    if (!fk.closure.ok()) continue;
+    calib::TaskTarget t;
+    t.pose.translation() = fk.pose.translation();
+    tool_targets.push_back(t);
+  }
+  const auto time_ik = [&](bool warm, int& converged, double& iterations) {
+    calib::IkSeed previous;
+    converged = 0;
+    iterations = 0.0;
+    const auto start = std::chrono::steady_clock::now();
+    for (const auto& t : tool_targets) {
+      const calib::IkResult r =
+          calib::solve_ik(file_model, local, t, warm ? previous : calib::IkSeed{}, ik_options);
+      iterations += r.iterations / static_cast<double>(tool_targets.size());
+      if (r.ok()) {
+        ++converged;
+        previous = {r.actuator_q, r.passive};
+      }
+    }
+    return seconds_since(start) /
+           static_cast<double>(std::max<std::size_t>(tool_targets.size(), 1)) * 1e6;
+  };
+  int tool_cold_ok = 0, tool_warm_ok = 0;
+  double tool_cold_iterations = 0.0, tool_warm_iterations = 0.0;
+  const double tool_cold_us = time_ik(false, tool_cold_ok, tool_cold_iterations);
+  const double tool_warm_us = time_ik(true, tool_warm_ok, tool_warm_iterations);
+  const calib::CompensationModels tool_models{&file_model, file_nominal, local};
+  t0 = std::chrono::steady_clock::now();
+  for (const auto& t : tool_targets) (void)calib::compensate_target(tool_models, t);
+  const double tool_full_us =
+      seconds_since(t0) / static_cast<double>(std::max<std::size_t>(tool_targets.size(), 1)) * 1e6;
+
+  const nlohmann::json out = {
+      {"session", dir.string()},
+      {"robot", model.name},
+      {"held_out_requested", held_out},
+      {"targets", task_targets.size()},
+      {"refused", refused},
+      {"failed_execution", failed_execution},
+      {"calibrated_model_held_out", stats_json(cal_stats)},
+      {"compensated_through_nominal_controller", stats_json(comp_stats)},
+      {"compensated_by_readings", stats_json(calib::position_error_stats(direct, targets))},
+      {"uncompensated_nominal_controller",
+       stats_json(calib::position_error_stats(uncompensated, nominal_targets))},
+      {"ratio_compensated_to_calibrated_rms", comp_stats.rms / cal_stats.rms},
+      {"calibrated_ik_cold_us_per_target", cold_s / n * 1e6},
+      {"calibrated_ik_warm_us_per_target", warm_s / n * 1e6},
+      {"calibrated_ik_cold_converged", ok_cold},
+      {"calibrated_ik_warm_converged", ok_warm},
+      {"compensate_target_us_per_target", full_s / n * 1e6},
+      {"robot_frame_tool_targets", tool_targets.size()},
+      {"robot_frame_calibrated_ik_cold_us_per_target", tool_cold_us},
+      {"robot_frame_calibrated_ik_warm_us_per_target", tool_warm_us},
+      {"robot_frame_calibrated_ik_cold_converged", tool_cold_ok},
+      {"robot_frame_calibrated_ik_cold_iterations", tool_cold_iterations},
+      {"robot_frame_calibrated_ik_warm_iterations", tool_warm_iterations},
+      {"robot_frame_calibrated_ik_warm_converged", tool_warm_ok},
+      {"robot_frame_compensate_target_us_per_target", tool_full_us}};
+  std::cout << out.dump(2) << "\n";
+  return comp_stats.rms <= 1.1 * cal_stats.rms ? 0 : 1;
+}
