@@ -231,8 +231,10 @@ nlohmann::json compensate_targets(const CompensateOptions& o, Models& m, const P
     } else {
       ++refused;
       out += std::string(model.actuated.size() + n_commanded, ',');
-      say(log, "{}:{}: {}: {}\n", o.targets.string(), t.line, calib::to_string(c.verdict),
-          c.problem);
+      // Always on stderr: the commands may take stdout, and a refusal must not pass unseen.
+      if (log.out != nullptr)
+        fmt::print(stderr, "{}:{}: {}: {}\n", o.targets.string(), t.line,
+                   calib::to_string(c.verdict), c.problem);
     }
     if (!c.problem.empty()) row["problem"] = c.problem;
     out += "," + (c.problem.empty() ? std::string() : csv_text(c.problem)) + "\n";
@@ -263,7 +265,8 @@ nlohmann::json compensate_gcode(const CompensateOptions& o, Models& m, const Pip
       o.tolerance * 1e6);
   core::write_file_atomic(o.out, header + rewrite.text);
   say(log,
-      "{}: {} moves written as {} (largest correction {:.1f} um, predicted path error {:.2f} um)\n",
+      "{}: {} moves written as {} (largest correction {:.1f} um; predicted tool error along the "
+      "straight pieces {:.2f} um, arcs add their chords' sagitta, at most half the tolerance)\n",
       o.out.string(), rewrite.stats.moves, rewrite.stats.emitted_moves,
       rewrite.stats.max_correction * 1e6, rewrite.stats.max_deviation * 1e6);
   return {{"stage", "compensate"},
