@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 #include <stdexcept>
 
 namespace robocal::calib {
@@ -87,6 +88,39 @@ CompensatedTarget compensate_target(const CompensationModels& models, const Task
     out.problem = "near a configuration where assembly modes meet: " + out.ik.mode.describe();
   } else {
     out.verdict = TargetVerdict::kOk;
+  }
+  return out;
+}
+
+std::vector<CompensatedTarget> compensate_targets(const CompensationModels& models,
+                                                  const std::vector<TaskTarget>& targets) {
+  std::vector<CompensatedTarget> out;
+  out.reserve(targets.size());
+  std::vector<std::size_t> solved;  // indices of usable answers (seed candidates)
+  // Distance between two targets: position, plus the joint value for joint tasks and the
+  // rotation (weighted as 0.1 m per rad) for pose tasks.
+  const auto distance = [&](const TaskTarget& a, const TaskTarget& b) {
+    double d = (a.pose.translation() - b.pose.translation()).squaredNorm() +
+               (a.joint_value - b.joint_value) * (a.joint_value - b.joint_value);
+    if (models.model != nullptr && models.model->task.type == TaskType::kPose)
+      d += 0.01 * (a.pose.linear().transpose() * b.pose.linear() - Eigen::Matrix3d::Identity())
+                      .squaredNorm();
+    return d;
+  };
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    IkSeed seed;
+    double best = std::numeric_limits<double>::infinity();
+    for (const std::size_t j : solved) {
+      const double d = distance(targets[k], targets[j]);
+      if (d < best) {
+        best = d;
+        seed = {out[j].ik.actuator_q, out[j].ik.passive};
+      }
+    }
+    out.push_back(compensate_target(models, targets[k], seed));
+    // A warm start may land on another mode or fail where a cold start would not: retry cold.
+    if (!out.back().usable() && !solved.empty()) out.back() = compensate_target(models, targets[k]);
+    if (out.back().usable()) solved.push_back(k);
   }
   return out;
 }

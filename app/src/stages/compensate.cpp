@@ -209,10 +209,13 @@ nlohmann::json compensate_targets(const CompensateOptions& o, Models& m, const P
   out += ",problem\n";
   nlohmann::json rows = nlohmann::json::array();
   int refused = 0;
-  calib::IkSeed seed;
-  for (const Target& t : targets) {
-    const calib::CompensatedTarget c =
-        calib::compensate_target(m.compensation, task_target(model, t.values), seed);
+  std::vector<calib::TaskTarget> task_targets;
+  for (const Target& t : targets) task_targets.push_back(task_target(model, t.values));
+  const std::vector<calib::CompensatedTarget> answers =
+      calib::compensate_targets(m.compensation, task_targets);
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    const Target& t = targets[k];
+    const calib::CompensatedTarget& c = answers[k];
     out += fmt::format("{},{}", t.line, calib::to_string(c.verdict));
     nlohmann::json row = {{"line", t.line}, {"verdict", calib::to_string(c.verdict)}};
     if (c.usable()) {
@@ -225,9 +228,6 @@ nlohmann::json compensate_targets(const CompensateOptions& o, Models& m, const P
                               c.ik.actuator_readings.data() + c.ik.actuator_readings.size());
       row["commanded"] = commanded;
       row["mode_distance"] = c.ik.mode.distance;
-      // Neighbouring targets are usually close: the answer seeds the next one.
-      seed.actuator_q = c.ik.actuator_q;
-      seed.passive = c.ik.passive;
     } else {
       ++refused;
       out += std::string(model.actuated.size() + n_commanded, ',');

@@ -57,6 +57,12 @@ struct CompensatedTarget {
 CompensatedTarget compensate_target(const CompensationModels& models, const TaskTarget& target,
                                     const IkSeed& seed = {});
 
+// Every target of a list. Each IK starts from the answer of the nearest target already solved
+// (task-space distance): a list of nearby targets (a path, a grid) then costs a few Newton
+// iterations each instead of a cold start (closed-form seed plus a closure solve).
+std::vector<CompensatedTarget> compensate_targets(const CompensationModels& models,
+                                                  const std::vector<TaskTarget>& targets);
+
 // Tool position the robot reaches (model `params`) when a nominal controller is commanded to
 // `commanded` (task position): nominal IK, then FK through `params`. false with `why` when the
 // nominal controller or the robot cannot reach it.
