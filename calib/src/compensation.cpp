@@ -126,11 +126,11 @@ std::vector<CompensatedTarget> compensate_targets(const CompensationModels& mode
 }
 
 bool executed_position(const CompensationModels& models, const Eigen::VectorXd& params,
-                       const Eigen::Vector3d& commanded, Eigen::Vector3d& reached,
-                       std::string& why) {
+                       const Eigen::Vector3d& commanded, Eigen::Vector3d& reached, std::string& why,
+                       const IkSeed& seed) {
   check_models(models);
   const Mechanism& model = *models.model;
-  const IkResult ik = solve_ik(model, models.nominal, position_target(commanded));
+  const IkResult ik = solve_ik(model, models.nominal, position_target(commanded), seed);
   if (!ik.ok()) {
     why = fmt::format("the nominal controller cannot reach ({:.6f}, {:.6f}, {:.6f}) m: {}",
                       commanded.x(), commanded.y(), commanded.z(), to_string(ik.status));
@@ -163,12 +163,12 @@ struct SegmentRefiner {
   // Largest distance between where the calibrated robot goes while the nominal controller runs
   // straight from c0 to c1, and where the meant line is at the same fraction.
   bool deviation(double s0, const Eigen::Vector3d& c0, double s1, const Eigen::Vector3d& c1,
-                 double& worst) const {
+                 const IkSeed& seed, double& worst) const {
     worst = 0.0;
     for (const double t : std::array<double, 3>{0.25, 0.5, 0.75}) {
       Eigen::Vector3d reached;
       std::string why;
-      if (!executed_position(models, models.calibrated, c0 + t * (c1 - c0), reached, why)) {
+      if (!executed_position(models, models.calibrated, c0 + t * (c1 - c0), reached, why, seed)) {
         out.problem = why;
         return false;
       }
@@ -177,11 +177,12 @@ struct SegmentRefiner {
     return true;
   }
 
-  // Appends the pieces of [s0, s1] (c0, c1: their commanded ends) after s0.
+  // Appends the pieces of [s0, s1] (c0, c1: their commanded ends; seed: the calibrated IK
+  // answer at s0) after s0.
   bool refine(double s0, const Eigen::Vector3d& c0, double s1, const Eigen::Vector3d& c1,
-              int depth) {
+              const IkSeed& seed, int depth) {
     double worst = 0.0;
-    if (!deviation(s0, c0, s1, c1, worst)) return false;
+    if (!deviation(s0, c0, s1, c1, seed, worst)) return false;
     if (worst <= options.tolerance) {
       out.fractions.push_back(s1);
       out.commanded.push_back(c1);
@@ -196,7 +197,7 @@ struct SegmentRefiner {
       return false;
     }
     const double sm = 0.5 * (s0 + s1);
-    const CompensatedTarget mid = compensate_target(models, position_target(meant(sm)));
+    const CompensatedTarget mid = compensate_target(models, position_target(meant(sm)), seed);
     if (!mid.usable()) {
       const Eigen::Vector3d p = meant(sm);
       out.problem = fmt::format("the point ({:.6f}, {:.6f}, {:.6f}) m on the move: {}", p.x(),
@@ -204,7 +205,8 @@ struct SegmentRefiner {
       return false;
     }
     const Eigen::Vector3d cm = mid.commanded.translation();
-    return refine(s0, c0, sm, cm, depth + 1) && refine(sm, cm, s1, c1, depth + 1);
+    const IkSeed mid_seed{mid.ik.actuator_q, mid.ik.passive};
+    return refine(s0, c0, sm, cm, seed, depth + 1) && refine(sm, cm, s1, c1, mid_seed, depth + 1);
   }
 };
 
@@ -212,19 +214,24 @@ struct SegmentRefiner {
 
 CompensatedSegment compensate_segment(const CompensationModels& models, const Eigen::Vector3d& from,
                                       const Eigen::Vector3d& from_commanded,
-                                      const Eigen::Vector3d& to, const SegmentOptions& options) {
+                                      const Eigen::Vector3d& to, const SegmentOptions& options,
+                                      const IkSeed& from_seed) {
   check_models(models);
   if (models.model->task.type != TaskType::kPosition)
     throw std::invalid_argument("compensate_segment: the robot's task is not a position");
   CompensatedSegment out;
-  const CompensatedTarget end = compensate_target(models, position_target(to));
+  CompensatedTarget end = compensate_target(models, position_target(to), from_seed);
+  // A warm start may fail where a cold one would not (a long move): retry cold.
+  if (!end.usable() && from_seed.actuator_q.size() > 0)
+    end = compensate_target(models, position_target(to));
   if (!end.usable()) {
     out.problem = fmt::format("the end point ({:.6f}, {:.6f}, {:.6f}) m: {}", to.x(), to.y(),
                               to.z(), end.problem);
     return out;
   }
   SegmentRefiner refiner{models, from, to, options, out};
-  out.ok = refiner.refine(0.0, from_commanded, 1.0, end.commanded.translation(), 0);
+  out.end_seed = {end.ik.actuator_q, end.ik.passive};
+  out.ok = refiner.refine(0.0, from_commanded, 1.0, end.commanded.translation(), from_seed, 0);
   return out;
 }
 

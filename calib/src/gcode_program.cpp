@@ -311,7 +311,8 @@ struct Writer {
   GcodeRewriteStats stats;
   bool absolute = true;
   bool e_absolute = true;
-  std::array<double, 3> out_offset{};        // controller's logical = commanded - out_offset (m)
+  std::array<double, 3> out_offset{};  // controller's logical = commanded - out_offset (m)
+  IkSeed seed;  // the calibrated IK answer at `commanded` (warm start of the next move)
   std::optional<Eigen::Vector3d> commanded;  // last commanded machine position (m)
   std::array<double, 3> last_emitted{};      // last emitted logical values (mm, rounded)
   double e = 0.0;                            // the program's absolute E
@@ -356,6 +357,7 @@ struct Writer {
       // The first known position: nothing to interpolate from, one compensated point.
       const CompensatedTarget t = target(line, meant.to, source);
       commanded = t.commanded.translation();
+      seed = {t.ik.actuator_q, t.ik.passive};
       emit(line, command, *commanded, true, e_at(0.0, 1.0));
       e = e_end;
       return;
@@ -371,7 +373,7 @@ struct Writer {
       const double f_chord0 = static_cast<double>(k - 1) / chords;
       const double f_chord1 = static_cast<double>(k) / chords;
       const Eigen::Vector3d to = k == chords ? meant.to : meant.at(f_chord1);
-      const CompensatedSegment piece = compensate_segment(models, from, *commanded, to, seg);
+      const CompensatedSegment piece = compensate_segment(models, from, *commanded, to, seg, seed);
       if (!piece.ok) fail(source, line.number, "cannot be compensated: " + piece.problem);
       stats.max_deviation = std::max(stats.max_deviation, piece.max_deviation);
       for (std::size_t p = 0; p < piece.commanded.size(); ++p) {
@@ -382,6 +384,7 @@ struct Writer {
       }
       stats.max_correction = std::max(stats.max_correction, (piece.commanded.back() - to).norm());
       commanded = piece.commanded.back();
+      seed = piece.end_seed;
       from = to;
     }
     e = e_end;
@@ -407,7 +410,10 @@ struct Writer {
       absolute = state.absolute;
       e_absolute = state.e_absolute;
     }
-    if (c == "G28") commanded.reset();
+    if (c == "G28") {
+      commanded.reset();
+      seed = {};
+    }
     if (c == "G92") {
       static constexpr std::array<char, 3> kAxes = {'X', 'Y', 'Z'};
       const bool all = line.words.empty();

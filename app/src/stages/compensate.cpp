@@ -118,9 +118,9 @@ std::vector<Target> read_targets_yaml(const std::string& text, const std::string
 std::vector<Target> read_targets(const fs::path& path, const calib::Mechanism& model) {
   const std::string text = core::read_text_file(path);
   const std::string ext = path.extension().string();
-  const std::vector<Target> targets = ext == ".yaml" || ext == ".yml"
-                                          ? read_targets_yaml(text, path.string())
-                                          : read_targets_csv(text, path.string());
+  std::vector<Target> targets = ext == ".yaml" || ext == ".yml"
+                                    ? read_targets_yaml(text, path.string())
+                                    : read_targets_csv(text, path.string());
   if (targets.empty()) throw InputError(path.string() + ": no targets in the file");
   for (const Target& t : targets)
     if (t.values.size() != task_values(model))
@@ -210,6 +210,7 @@ nlohmann::json compensate_targets(const CompensateOptions& o, Models& m, const P
   nlohmann::json rows = nlohmann::json::array();
   int refused = 0;
   std::vector<calib::TaskTarget> task_targets;
+  task_targets.reserve(targets.size());
   for (const Target& t : targets) task_targets.push_back(task_target(model, t.values));
   const std::vector<calib::CompensatedTarget> answers =
       calib::compensate_targets(m.compensation, task_targets);

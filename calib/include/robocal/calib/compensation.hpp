@@ -66,9 +66,10 @@ std::vector<CompensatedTarget> compensate_targets(const CompensationModels& mode
 // Tool position the robot reaches (model `params`) when a nominal controller is commanded to
 // `commanded` (task position): nominal IK, then FK through `params`. false with `why` when the
 // nominal controller or the robot cannot reach it.
+// `seed`: readings near the answer (the calibrated IK of a nearby meant point), to start warm.
 bool executed_position(const CompensationModels& models, const Eigen::VectorXd& params,
-                       const Eigen::Vector3d& commanded, Eigen::Vector3d& reached,
-                       std::string& why);
+                       const Eigen::Vector3d& commanded, Eigen::Vector3d& reached, std::string& why,
+                       const IkSeed& seed = {});
 
 // One straight move meant from `from` to `to` (task positions, position-task robots), for a
 // nominal controller that interpolates straight lines between the commanded points.
@@ -76,6 +77,7 @@ struct CompensatedSegment {
   std::vector<double> fractions;           // of the meant move, increasing, last = 1
   std::vector<Eigen::Vector3d> commanded;  // x' per fraction (what to send)
   double max_deviation = 0.0;              // largest predicted tool error at the checked points (m)
+  IkSeed end_seed;  // the calibrated IK answer at the end (seed for the next move)
   bool ok = false;
   std::string problem;
 };
@@ -88,11 +90,11 @@ struct SegmentOptions {
 // Bisects the move until, between consecutive commanded points, the calibrated robot driven by
 // the nominal controller stays within `tolerance` of the meant point at 1/4, 1/2 and 3/4 of each
 // piece (the error of a chord of a smooth curve peaks near its middle). `from_commanded` is the
-// already compensated start (x' of `from`).
+// already compensated start (x' of `from`); `from_seed` its calibrated IK answer (warm starts).
 CompensatedSegment compensate_segment(const CompensationModels& models, const Eigen::Vector3d& from,
                                       const Eigen::Vector3d& from_commanded,
-                                      const Eigen::Vector3d& to,
-                                      const SegmentOptions& options = {});
+                                      const Eigen::Vector3d& to, const SegmentOptions& options = {},
+                                      const IkSeed& from_seed = {});
 
 // An identified parameter vector expressed in the robot file's own coordinates, so targets are
 // given relative to the robot rather than to the measurement world:
