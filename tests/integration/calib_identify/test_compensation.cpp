@@ -152,6 +152,24 @@ TEST(Compensation, UnreachablePointIsNamedByItsLine) {
   EXPECT_FALSE(c.problem.empty());
 }
 
+// A Delta target above the base: the loops close there only with the plate above the base (another
+// assembly mode than the robot file declares), so no command is given, and the verdict says why.
+TEST(Compensation, TargetOnlyOnAnotherAssemblyModeIsRefused) {
+  const Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
+  const CompensationModels models{&model, model.nominal_parameters(), model.nominal_parameters()};
+  TaskTarget above;
+  above.pose.translation() = Eigen::Vector3d(0.0, 0.0, 0.5);
+  const CompensatedTarget c = compensate_target(models, above);
+  EXPECT_EQ(c.verdict, TargetVerdict::kOtherMode);
+  EXPECT_FALSE(c.usable());
+  EXPECT_NE(c.problem.find("plate_below_base"), std::string::npos) << c.problem;
+  // The same robot's nominal working position is fine.
+  TaskTarget below;
+  below.pose.translation() = Eigen::Vector3d(0.0, 0.0, -0.8);
+  EXPECT_EQ(compensate_target(models, below).verdict, TargetVerdict::kOk);
+}
+
 // Held-out targets: identify the perturbed printer from simulated 3-D point measurements, then
 // command each held-out target through the nominal controller with compensation and measure where
 // the true robot puts the tool.
