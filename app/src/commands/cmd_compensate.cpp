@@ -79,6 +79,10 @@ CommandSpec compensate_command() {
                        "compensate --help)\n");
             return int{kExitUsage};
           }
+          if (*json == "-" && o->out.empty()) {
+            fmt::print(stderr, "error: --json - takes stdout: give --out FILE for the output\n");
+            return int{kExitUsage};
+          }
           o->tolerance = *tolerance_um * 1e-6;
           PipelineLog log;
           // The command output may take stdout (targets without --out, or --json -).
