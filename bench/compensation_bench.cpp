@@ -2,6 +2,7 @@
 // printed as JSON:
 //
 //   build/release/bench/robocal_compensation_bench SESSION [held_out]
+//   build/release/bench/robocal_compensation_bench --printer
 //
 // - held-out targets: the configurations `robocal validate` samples (same seed, same count, same
 //   models that must assemble), their TRUE tool positions taken as targets (camera 0's frame, as
@@ -17,15 +18,21 @@
 //   cold, warm from the previous held-out target, seeded from the nearest target already solved
 //   (compensate_targets), along a path of targets 0.5 mm apart, and the whole compensate_targets
 //   (IK + the nominal model's FK) per target.
+// --printer: the library linear delta with its printer parameters perturbed (σ 0.3 mm, as the
+// printer tests), a 2006-move spiral program (5 layers, 2 mm moves) rewritten at 10 µm: time per
+// move, and the calibrated IK per point along it.
 #include "session/results_files.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
 
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/compensation.hpp"
+#include "robocal/calib/gcode_program.hpp"
 #include "robocal/calib/held_out_errors.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
 
+#include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
 #include <chrono>
@@ -47,13 +54,77 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+int printer_bench() {
+  const calib::Mechanism m =
+      calib::load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
+  Eigen::VectorXd calibrated = m.nominal_parameters();
+  std::mt19937 rng(4);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (const char* name :
+       {"carriage_a.encoder_offset", "carriage_b.encoder_offset", "carriage_c.encoder_offset",
+        "rod_a.length", "rod_b.length", "rod_c.length", "tower_a.x", "tower_b.x", "tower_c.y"})
+    calibrated[m.parameter_index(name)] += 0.3e-3 * n01(rng);
+  std::string program = "G21\nG90\nM83\nG1 X0 Y0 Z1 F3000\n";
+  std::vector<calib::TaskTarget> points;
+  for (int layer = 0; layer < 5; ++layer) {
+    for (int k = 0; k < 400; ++k) {
+      const double a = k * 2.0 * M_PI / 100.0;
+      const double r = 5.0 + 50.0 * k / 400.0;
+      const Eigen::Vector3d p(r * std::cos(a), r * std::sin(a), 1.0 + 0.2 * layer);
+      program += fmt::format("G1 X{:.3f} Y{:.3f} Z{:.3f} E0.05\n", p.x(), p.y(), p.z());
+      calib::TaskTarget t;
+      t.pose.translation() = p * 1e-3;
+      points.push_back(t);
+    }
+    program += fmt::format("G0 X0 Y0 Z{:.3f}\n", 1.2 + 0.2 * layer);
+  }
+  const calib::CompensationModels models{&m, m.nominal_parameters(), calibrated};
+  auto t0 = std::chrono::steady_clock::now();
+  const auto rewrite = calib::rewrite_gcode(calib::parse_gcode(program, "spiral.gcode"), models);
+  const double rewrite_s = seconds_since(t0);
+  calib::IkOptions options;
+  options.respect_limits = true;
+  calib::IkSeed previous;
+  int converged = 0;
+  t0 = std::chrono::steady_clock::now();
+  for (const auto& t : points) {
+    const calib::IkResult r = calib::solve_ik(m, calibrated, t, previous, options);
+    if (r.ok()) {
+      ++converged;
+      previous = {r.actuator_q, r.passive};
+    }
+  }
+  const double path_s = seconds_since(t0);
+  int cold_converged = 0;
+  t0 = std::chrono::steady_clock::now();
+  for (const auto& t : points)
+    cold_converged += calib::solve_ik(m, calibrated, t, {}, options).ok() ? 1 : 0;
+  const double cold_s = seconds_since(t0);
+  const double np = static_cast<double>(points.size());
+  const nlohmann::json out = {{"robot", m.name},
+                              {"moves", rewrite.stats.moves},
+                              {"emitted_moves", rewrite.stats.emitted_moves},
+                              {"rewrite_s", rewrite_s},
+                              {"rewrite_us_per_move", rewrite_s / rewrite.stats.moves * 1e6},
+                              {"max_correction_um", rewrite.stats.max_correction * 1e6},
+                              {"max_predicted_deviation_um", rewrite.stats.max_deviation * 1e6},
+                              {"calibrated_ik_path_us_per_point", path_s / np * 1e6},
+                              {"calibrated_ik_path_converged", converged},
+                              {"calibrated_ik_cold_us_per_point", cold_s / np * 1e6},
+                              {"calibrated_ik_cold_converged", cold_converged},
+                              {"points", points.size()}};
+  std::cout << out.dump(2) << "\n";
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::cerr << "usage: robocal_compensation_bench SESSION [held_out]\n";
+    std::cerr << "usage: robocal_compensation_bench SESSION [held_out] | --printer\n";
     return 2;
   }
+  if (std::string(argv[1]) == "--printer") return printer_bench();
   const std::filesystem::path dir = argv[1];
   const int held_out = argc > 2 ? std::stoi(argv[2]) : 500;
   const app::Session s = app::load_session(dir);
