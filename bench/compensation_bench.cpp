@@ -17,7 +17,7 @@
 //   answer as seed), on one core; in the robot file's frame as `robocal compensate` solves it:
 //   cold, warm from the previous held-out target, seeded from the nearest target already solved
 //   (compensate_targets), along a path of targets 0.5 mm apart, and the whole compensate_targets
-//   (IK + the nominal model's FK) per target.
+//   (IK + the nominal model's FK) per target. Times are this thread's CPU time.
 // --printer: the library linear delta with its printer parameters perturbed (σ 0.3 mm, as the
 // printer tests), a 2006-move spiral program (5 layers, 2 mm moves) rewritten at 10 µm: time per
 // move, and the calibrated IK per point along it.
@@ -35,8 +35,8 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
-#include <chrono>
 #include <cmath>
+#include <ctime>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -50,8 +50,16 @@ nlohmann::json stats_json(const calib::PositionErrorStats& s) {
   return {{"rms_um", s.rms * 1e6}, {"max_um", s.max * 1e6}, {"poses", s.n}};
 }
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+// CPU time of this thread (s): the machine is shared, and wall time would count other processes
+// (Google Benchmark's "CPU" column, as bench_kinematics reports).
+double thread_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+double seconds_since(double t0) {
+  return thread_cpu_seconds() - t0;
 }
 
 int printer_bench() {
@@ -79,14 +87,14 @@ int printer_bench() {
     program += fmt::format("G0 X0 Y0 Z{:.3f}\n", 1.2 + 0.2 * layer);
   }
   const calib::CompensationModels models{&m, m.nominal_parameters(), calibrated};
-  auto t0 = std::chrono::steady_clock::now();
+  double t0 = thread_cpu_seconds();
   const auto rewrite = calib::rewrite_gcode(calib::parse_gcode(program, "spiral.gcode"), models);
   const double rewrite_s = seconds_since(t0);
   calib::IkOptions options;
   options.respect_limits = true;
   calib::IkSeed previous;
   int converged = 0;
-  t0 = std::chrono::steady_clock::now();
+  t0 = thread_cpu_seconds();
   for (const auto& t : points) {
     const calib::IkResult r = calib::solve_ik(m, calibrated, t, previous, options);
     if (r.ok()) {
@@ -96,7 +104,7 @@ int printer_bench() {
   }
   const double path_s = seconds_since(t0);
   int cold_converged = 0;
-  t0 = std::chrono::steady_clock::now();
+  t0 = thread_cpu_seconds();
   for (const auto& t : points)
     cold_converged += calib::solve_ik(m, calibrated, t, {}, options).ok() ? 1 : 0;
   const double cold_s = seconds_since(t0);
@@ -200,13 +208,13 @@ int main(int argc, char** argv) {
   // Timing (one core): calibrated IK cold and warm, and the whole compensate_target.
   calib::IkOptions ik_options;
   ik_options.respect_limits = true;
-  auto t0 = std::chrono::steady_clock::now();
+  double t0 = thread_cpu_seconds();
   int ok_cold = 0;
   for (const auto& t : task_targets)
     ok_cold += calib::solve_ik(model, ident.estimate, t, {}, ik_options).ok() ? 1 : 0;
   const double cold_s = seconds_since(t0);
   calib::IkSeed seed;
-  t0 = std::chrono::steady_clock::now();
+  t0 = thread_cpu_seconds();
   int ok_warm = 0;
   for (const auto& t : task_targets) {
     const calib::IkResult r = calib::solve_ik(model, ident.estimate, t, seed, ik_options);
@@ -216,7 +224,7 @@ int main(int argc, char** argv) {
     }
   }
   const double warm_s = seconds_since(t0);
-  t0 = std::chrono::steady_clock::now();
+  t0 = thread_cpu_seconds();
   for (const auto& t : task_targets) (void)calib::compensate_target(models, t);
   const double full_s = seconds_since(t0);
   const double n = static_cast<double>(std::max<std::size_t>(task_targets.size(), 1));
@@ -239,7 +247,7 @@ int main(int argc, char** argv) {
     calib::IkSeed previous;
     converged = 0;
     iterations = 0.0;
-    const auto start = std::chrono::steady_clock::now();
+    const double start = thread_cpu_seconds();
     for (const auto& t : tool_targets) {
       const calib::IkResult r =
           calib::solve_ik(file_model, local, t, warm ? previous : calib::IkSeed{}, ik_options);
@@ -257,7 +265,7 @@ int main(int argc, char** argv) {
     converged = 0;
     iterations = 0.0;
     std::vector<std::pair<Eigen::Vector3d, calib::IkSeed>> solved;
-    const auto start = std::chrono::steady_clock::now();
+    const double start = thread_cpu_seconds();
     for (const auto& t : tool_targets) {
       calib::IkSeed nearest;
       double best = std::numeric_limits<double>::infinity();
@@ -293,7 +301,7 @@ int main(int argc, char** argv) {
   }
   int path_ok = 0;
   double path_iterations = 0.0;
-  t0 = std::chrono::steady_clock::now();
+  t0 = thread_cpu_seconds();
   {
     calib::IkSeed previous;
     for (const auto& t : path) {
@@ -312,7 +320,7 @@ int main(int argc, char** argv) {
   const double tool_cold_us = time_ik(false, tool_cold_ok, tool_cold_iterations);
   const double tool_warm_us = time_ik(true, tool_warm_ok, tool_warm_iterations);
   const calib::CompensationModels tool_models{&file_model, file_nominal, local};
-  t0 = std::chrono::steady_clock::now();
+  t0 = thread_cpu_seconds();
   (void)calib::compensate_targets(tool_models, tool_targets);
   const double tool_full_us =
       seconds_since(t0) / static_cast<double>(std::max<std::size_t>(tool_targets.size(), 1)) * 1e6;
