@@ -191,10 +191,8 @@ struct Interpreter {
         target[a] = *machine[a] + w->value * kMm;
       }
     }
-    if (!any) {
-      if (arc) fail(source, line.number, fmt::format("{} without an end point (X/Y)", c));
-      return move;
-    }
+    // An arc without an end point ends where it starts: a full circle (Marlin, RepRapFirmware).
+    if (!any && !arc) return move;
     const bool was_known = known();
     const Eigen::Vector3d from = was_known ? position() : Eigen::Vector3d::Zero();
     for (std::size_t a = 0; a < 3; ++a)

@@ -57,6 +57,16 @@ TEST(GcodeProgram, MeantPathFollowsModesOffsetsAndArcs) {
   }
   EXPECT_LT(best, 0.3e-3);
   EXPECT_LT((path.back().position - Eigen::Vector3d(-4e-3, 5e-3, 5e-3)).norm(), 1e-12);
+
+  // An arc with only a centre is a full circle back to its start.
+  const auto circle = gcode_path(parse_gcode("G90\nG1 X10 Y0 Z5\nG3 I-10 J0\n", "c.gcode"), 0.5e-3);
+  double far = 0.0;
+  for (const auto& p : circle) {
+    EXPECT_NEAR(p.position.head<2>().norm(), 10e-3, 1e-12);
+    far = std::max(far, (p.position - Eigen::Vector3d(10e-3, 0, 5e-3)).norm());
+  }
+  EXPECT_NEAR(far, 20e-3, 1e-5);  // it goes round to the opposite side
+  EXPECT_GT(circle.size(), 100U);
 }
 
 TEST(GcodeProgram, MalformedLinesAreNamed) {
