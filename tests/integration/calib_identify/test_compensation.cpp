@@ -63,6 +63,7 @@ std::vector<Eigen::Vector3d> run_on_robot(const GcodeProgram& program,
 
 std::vector<Eigen::Vector3d> positions(const std::vector<GcodePathPoint>& path) {
   std::vector<Eigen::Vector3d> out;
+  out.reserve(path.size());
   for (const auto& p : path) out.push_back(p.position);
   return out;
 }
