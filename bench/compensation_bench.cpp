@@ -233,8 +233,8 @@ int main(int argc, char** argv) {
   // the tool (the task frame), here the tool positions of the held-out configurations.
   const calib::Mechanism& file_model = robot.model;
   const Eigen::VectorXd file_nominal = file_model.nominal_parameters();
-  const Eigen::VectorXd local =
-      calib::calibrated_in_robot_frame(file_model, ident.estimate, robot.nominal, file_nominal);
+  const Eigen::VectorXd local = calib::calibrated_in_robot_frame(
+      file_model, ident.estimate, file_nominal, s.target_mount.empty() ? -1 : robot.frame);
   std::vector<calib::TaskTarget> tool_targets;
   for (const auto& q : configurations) {
     const auto fk = calib::forward_kinematics(file_model, local, q, file_model.task.frame);

@@ -236,19 +236,15 @@ CompensatedSegment compensate_segment(const CompensationModels& models, const Ei
 }
 
 Eigen::VectorXd calibrated_in_robot_frame(const Mechanism& model, const Eigen::VectorXd& estimate,
-                                          const Eigen::VectorXd& measured_nominal,
-                                          const Eigen::VectorXd& file_nominal) {
+                                          const Eigen::VectorXd& file_nominal, int mount_body) {
   const auto n = static_cast<Eigen::Index>(model.parameters.size());
-  if (estimate.size() != n || measured_nominal.size() != n || file_nominal.size() != n)
+  if (estimate.size() != n || file_nominal.size() != n)
     throw std::invalid_argument("calibrated_in_robot_frame: parameter vectors do not match");
   Eigen::VectorXd out = estimate;
   for (Eigen::Index i = 0; i < n; ++i) {
     const int body = model.parameters[static_cast<std::size_t>(i)].body;
     const bool base_frame = body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0;
-    if (base_frame)
-      out[i] = file_nominal[i];
-    else if (measured_nominal[i] != file_nominal[i])
-      out[i] = file_nominal[i] + (estimate[i] - measured_nominal[i]);
+    if (base_frame || (mount_body >= 0 && body == mount_body)) out[i] = file_nominal[i];
   }
   return out;
 }

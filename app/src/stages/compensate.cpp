@@ -187,8 +187,8 @@ Models session_models(const CompensateOptions& o) {
   }
   const Eigen::VectorXd file_nominal = m.robot.model.nominal_parameters();
   m.compensation.nominal = file_nominal;
-  m.compensation.calibrated =
-      calib::calibrated_in_robot_frame(m.robot.model, estimate, m.robot.nominal, file_nominal);
+  m.compensation.calibrated = calib::calibrated_in_robot_frame(
+      m.robot.model, estimate, file_nominal, s.target_mount.empty() ? -1 : m.robot.frame);
   return m;
 }
 

@@ -10,6 +10,7 @@
 #include "robocal/calib/compensation.hpp"
 #include "robocal/calib/gcode_program.hpp"
 #include "robocal/calib/identification.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/core/input_error.hpp"
@@ -169,6 +170,42 @@ TEST(Compensation, TargetOnlyOnAnotherAssemblyModeIsRefused) {
   TaskTarget below;
   below.pose.translation() = Eigen::Vector3d(0.0, 0.0, -0.8);
   EXPECT_EQ(compensate_target(models, below).verdict, TargetVerdict::kOk);
+}
+
+// A model identified in the cameras' world with a board mounted on the tool frame, brought back
+// into the robot file's frame: the same robot moved rigidly (the base placement undone), with the
+// robot file's tool instead of the board.
+TEST(Compensation, CalibratedModelInTheRobotFrameIsTheSameRobotMovedRigidly) {
+  const Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
+  const Eigen::VectorXd file = model.nominal_parameters();
+  std::mt19937 rng(11);
+  Eigen::VectorXd estimate =
+      perturb_parameters(file, tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
+  const int base = model.body_index("body1");
+  const int tool = model.tool;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+    const auto k = static_cast<Eigen::Index>(i);
+    if (model.parameters[i].body == base) estimate[k] += 0.3 + 0.01 * static_cast<double>(i);
+    if (model.parameters[i].body == tool) estimate[k] += 0.05;  // the board, not the tool
+  }
+  const Eigen::VectorXd local = calibrated_in_robot_frame(model, estimate, file, tool);
+  // What the estimate says of the tool: its own geometry with the file's tool offset.
+  Eigen::VectorXd estimate_tool = estimate;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i)
+    if (model.parameters[i].body == tool)
+      estimate_tool[static_cast<Eigen::Index>(i)] = file[static_cast<Eigen::Index>(i)];
+  const Eigen::VectorXd q = Eigen::Vector3d(0.2, 0.35, 0.1);
+  const auto world = forward_kinematics(model, estimate_tool, q, tool);
+  const auto own = forward_kinematics(model, local, q, tool);
+  ASSERT_TRUE(world.closure.ok() && own.closure.ok());
+  const Eigen::Isometry3d world_T_base = frame_pose(model, estimate_tool, world.state, base);
+  const Eigen::Isometry3d file_T_base = frame_pose(model, local, own.state, base);
+  EXPECT_LT(
+      (world_T_base * file_T_base.inverse() * own.pose.translation() - world.pose.translation())
+          .norm(),
+      1e-9);
+  EXPECT_GT((world.pose.translation() - own.pose.translation()).norm(), 0.1);  // it did move
 }
 
 // Held-out targets: identify the perturbed printer from simulated 3-D point measurements, then

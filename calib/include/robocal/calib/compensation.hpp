@@ -100,13 +100,12 @@ CompensatedSegment compensate_segment(const CompensationModels& models, const Ei
 // given relative to the robot rather than to the measurement world:
 //  - the base frame (parameters of the bodies hanging from the world) takes `file_nominal`'s
 //    values (identification placed it in the measurement world, e.g. the first camera's frame);
-//  - parameters where `measured_nominal` differs from `file_nominal` (the measured frame moved to
-//    where the end-effector board was mounted) get the file's value plus the identified change
-//    (estimate - measured_nominal): the tool keeps the correction identified for the frame it
-//    shares with the board;
+//  - the parameters of `mount_body` (the measured frame whose values a session's target mount
+//    replaced, -1 = none) take `file_nominal`'s values: they were the pose of the end-effector
+//    BOARD on that frame, and what identification changed in them is the board's mounting, not
+//    the tool's (the tool keeps the robot file's offset from the identified bodies before it);
 //  - every other parameter keeps its identified value.
 Eigen::VectorXd calibrated_in_robot_frame(const Mechanism& model, const Eigen::VectorXd& estimate,
-                                          const Eigen::VectorXd& measured_nominal,
-                                          const Eigen::VectorXd& file_nominal);
+                                          const Eigen::VectorXd& file_nominal, int mount_body);
 
 }  // namespace robocal::calib
