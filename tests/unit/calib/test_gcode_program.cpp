@@ -102,6 +102,22 @@ TEST(GcodeProgram, RewriteWithExactModelKeepsCoordinates) {
             "G90\nG1 X10.0000 Y-5.0000 Z40.0000 F600 ; go\nG91\nG1 X1.0000 Y0.0000 Z0.0000 "
             "E0.50000\n");
   EXPECT_LT(r.stats.max_correction, 1e-9);
+
+  // Absolute extrusion over an arc cut into chords: rising to the line's E, ending exactly on it.
+  const GcodeRewrite arc = rewrite_gcode(
+      parse_gcode("G90\nM82\nG1 X10 Y0 Z40 E1\nG3 X-10 Y0 I-10 J0 E3\n", "a.gcode"), models);
+  const GcodeProgram out = parse_gcode(arc.text, "out.gcode");
+  double last_e = 0.0;
+  int pieces = 0;
+  for (const auto& line : out.lines) {
+    const GcodeWord* e = line.word('E');
+    if (e == nullptr) continue;
+    EXPECT_GT(e->value, last_e);
+    last_e = e->value;
+    ++pieces;
+  }
+  EXPECT_GT(pieces, 10);
+  EXPECT_DOUBLE_EQ(last_e, 3.0);
 }
 
 TEST(GcodeProgram, RefusesRobotsWithoutAPositionTask) {
