@@ -67,6 +67,23 @@ nlohmann::json identify_session(const std::filesystem::path& dir, const std::str
 nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
                                 const PipelineLog& log);
 
+// stages/compensate.cpp: the session's calibrated robot as commands for a controller that knows
+// only the nominal model (calib/compensation.hpp). `targets`: a CSV or YAML list of task-space
+// targets -> actuator readings and nominal-controller commands per target, with the verdict
+// (written to `out`, stdout when empty; status "failed" when a target is refused). `gcode`: a
+// program for the nominal model -> its rewrite (to `out`, atomically, only when every line could
+// be compensated; otherwise InputError naming the line).
+struct CompensateOptions {
+  std::filesystem::path session;
+  std::string robot_override;
+  std::filesystem::path targets;
+  std::filesystem::path gcode;
+  std::filesystem::path out;
+  double tolerance = 10e-6;    // m
+  std::string route = "pose";  // identification route whose estimate is used: pose | pixel
+};
+nlohmann::json compensate_session(const CompensateOptions& options, const PipelineLog& log);
+
 // Exit code of a stage report: ok 0, failed 1, no_truth 3 (a missing input).
 inline int exit_code_of(const nlohmann::json& report) {
   const std::string status = report.value("status", "failed");

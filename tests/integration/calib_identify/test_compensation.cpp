@@ -1,0 +1,274 @@
+// Compensation (issue 20) checked on a simulated true robot with a known perturbation:
+//  - a G-code program with arcs, relative moves and G92, rewritten for the nominal controller,
+//    then executed as that controller does (straight lines in its model, its inverse kinematics)
+//    on the true geometry: the tool follows the program's meant path within the tolerance, where
+//    the original program misses it by the perturbation's size;
+//  - held-out targets: a model identified from simulated measurements, its compensated commands
+//    executed through the nominal controller on the truth, against the model's own held-out error.
+#include "printer_scenario.hpp"
+
+#include "robocal/calib/compensation.hpp"
+#include "robocal/calib/gcode_program.hpp"
+#include "robocal/calib/identification.hpp"
+#include "robocal/calib/kinematics.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal/core/input_error.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace robocal::calib {
+namespace {
+
+Mechanism linear_delta() {
+  return load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
+}
+
+double distance_to_polyline(const Eigen::Vector3d& p, const std::vector<Eigen::Vector3d>& line) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k + 1 < line.size(); ++k) {
+    const Eigen::Vector3d d = line[k + 1] - line[k];
+    const double len2 = d.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p - line[k]).dot(d) / len2, 0.0, 1.0) : 0.0;
+    best = std::min(best, (line[k] + t * d - p).norm());
+  }
+  if (line.size() == 1) best = (p - line[0]).norm();
+  return best;
+}
+
+// The tool positions a controller that knows only `models.nominal` produces on the robot `truth`
+// when it runs `program`: it interpolates straight lines in its model (sampled every 0.2 mm) and
+// drives the actuators by its inverse kinematics.
+std::vector<Eigen::Vector3d> run_on_robot(const GcodeProgram& program,
+                                          const CompensationModels& models,
+                                          const Eigen::VectorXd& truth) {
+  std::vector<Eigen::Vector3d> tool;
+  for (const auto& p : gcode_path(program, 0.2e-3)) {
+    Eigen::Vector3d reached;
+    std::string why;
+    if (!executed_position(models, truth, p.position, reached, why)) {
+      ADD_FAILURE() << "line " << p.line << ": " << why;
+      return tool;
+    }
+    tool.push_back(reached);
+  }
+  return tool;
+}
+
+std::vector<Eigen::Vector3d> positions(const std::vector<GcodePathPoint>& path) {
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(path.size());
+  for (const auto& p : path) out.push_back(p.position);
+  return out;
+}
+
+// Largest distance from the executed tool positions to the meant path, and from the meant path
+// to the executed one (a skipped move shows in the second).
+double path_error(const std::vector<Eigen::Vector3d>& tool,
+                  const std::vector<Eigen::Vector3d>& meant) {
+  double worst = 0.0;
+  for (const auto& p : tool) worst = std::max(worst, distance_to_polyline(p, meant));
+  for (const auto& p : meant) worst = std::max(worst, distance_to_polyline(p, tool));
+  return worst;
+}
+
+const char* const kProgram = R"(; a small part: straight, arcs (I/J and R), relative moves, G92
+G21
+G90
+M83 ; relative extrusion
+G28 ; home
+G1 X0 Y0 Z50 F3000
+G1 X60 Y0 Z50 E2.5 ; a long straight move
+G3 X0 Y60 I-60 J0 E3.1 (quarter circle, counter-clockwise)
+G91
+G1 X-30 Y-30 Z5 F1200
+G2 X20 Y0 R15 E0.8
+G90
+M83 ; G90 also made extrusion absolute (Marlin)
+G92 X0 Y0
+G1 X10 Y-90 F3000
+G3 X10 Y-90 I0 J60 E9.4 ; full circle about the machine origin
+G0 Z80
+)";
+
+TEST(Compensation, RewrittenProgramFollowsTheMeantPathOnTheTrueRobot) {
+  const Mechanism model = linear_delta();
+  std::mt19937 rng(20);
+  const Eigen::VectorXd truth = test::printer_truth(model, rng);
+  // The calibrated model here is the truth itself: the rewrite alone is under test.
+  const CompensationModels models{&model, model.nominal_parameters(), truth};
+  const GcodeProgram program = parse_gcode(kProgram, "part.gcode");
+  GcodeRewriteOptions options;
+  options.tolerance = 10e-6;
+  const GcodeRewrite rewrite = rewrite_gcode(program, models, options);
+  const GcodeProgram rewritten = parse_gcode(rewrite.text, "rewritten.gcode");
+
+  const auto meant = positions(gcode_path(program, 0.2e-3));
+  const double compensated = path_error(run_on_robot(rewritten, models, truth), meant);
+  const double original = path_error(run_on_robot(program, models, truth), meant);
+  RecordProperty("compensated_path_error_um", std::to_string(compensated * 1e6));
+  RecordProperty("original_path_error_um", std::to_string(original * 1e6));
+  EXPECT_LE(compensated, options.tolerance) << rewrite.text;
+  EXPECT_GT(original, 20.0 * options.tolerance);  // the perturbation is visible without it
+  EXPECT_GT(rewrite.stats.max_correction, 0.2e-3);
+  EXPECT_EQ(rewrite.stats.moves, 8);
+  EXPECT_GT(rewrite.stats.emitted_moves, rewrite.stats.moves);
+
+  // Feeds, comments and modal lines are kept; arcs became straight pieces.
+  EXPECT_NE(rewrite.text.find("F3000\n"), std::string::npos);
+  EXPECT_NE(rewrite.text.find("; a long straight move"), std::string::npos);
+  EXPECT_NE(rewrite.text.find("(quarter circle, counter-clockwise)"), std::string::npos);
+  EXPECT_NE(rewrite.text.find("\nG91\n"), std::string::npos);
+  EXPECT_NE(rewrite.text.find("\nG92 X0 Y0\n"), std::string::npos);
+  EXPECT_EQ(rewrite.text.find("G2 "), std::string::npos);
+  EXPECT_EQ(rewrite.text.find("G3 "), std::string::npos);
+  // Extrusion is only redistributed: its sum (relative mode) is the program's.
+  double e_total = 0.0;
+  for (const auto& line : rewritten.lines)
+    if (const GcodeWord* e = line.word('E')) e_total += e->value;
+  EXPECT_NEAR(e_total, 2.5 + 3.1 + 0.8 + 9.4, 1e-4);
+}
+
+TEST(Compensation, UnreachablePointIsNamedByItsLine) {
+  const Mechanism model = linear_delta();
+  const CompensationModels models{&model, model.nominal_parameters(), model.nominal_parameters()};
+  const std::string text = "G90\nG1 X0 Y0 Z50\nG1 X400 Y0 Z50\n";
+  try {
+    (void)rewrite_gcode(parse_gcode(text, "far.gcode"), models);
+    FAIL() << "no error";
+  } catch (const core::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("far.gcode:3:"), std::string::npos) << e.what();
+  }
+  TaskTarget t;
+  t.pose.translation() = Eigen::Vector3d(0.4, 0.0, 0.05);
+  const CompensatedTarget c = compensate_target(models, t);
+  EXPECT_EQ(c.verdict, TargetVerdict::kUnreachable);
+  EXPECT_FALSE(c.usable());
+  EXPECT_FALSE(c.problem.empty());
+}
+
+// A Delta target above the base: the loops close there only with the plate above the base (another
+// assembly mode than the robot file declares), so no command is given, and the verdict says why.
+TEST(Compensation, TargetOnlyOnAnotherAssemblyModeIsRefused) {
+  const Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
+  const CompensationModels models{&model, model.nominal_parameters(), model.nominal_parameters()};
+  TaskTarget above;
+  above.pose.translation() = Eigen::Vector3d(0.0, 0.0, 0.5);
+  const CompensatedTarget c = compensate_target(models, above);
+  EXPECT_EQ(c.verdict, TargetVerdict::kOtherMode);
+  EXPECT_FALSE(c.usable());
+  EXPECT_NE(c.problem.find("plate_below_base"), std::string::npos) << c.problem;
+  // The same robot's nominal working position is fine.
+  TaskTarget below;
+  below.pose.translation() = Eigen::Vector3d(0.0, 0.0, -0.8);
+  EXPECT_EQ(compensate_target(models, below).verdict, TargetVerdict::kOk);
+}
+
+// A model identified in the cameras' world with a board mounted on the tool frame, brought back
+// into the robot file's frame: the same robot moved rigidly (the base placement undone), with the
+// robot file's tool instead of the board.
+TEST(Compensation, CalibratedModelInTheRobotFrameIsTheSameRobotMovedRigidly) {
+  const Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
+  const Eigen::VectorXd file = model.nominal_parameters();
+  std::mt19937 rng(11);
+  Eigen::VectorXd estimate =
+      perturb_parameters(file, tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
+  const int base = model.body_index("body1");
+  const int tool = model.tool;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i) {
+    const auto k = static_cast<Eigen::Index>(i);
+    if (model.parameters[i].body == base) estimate[k] += 0.3 + 0.01 * static_cast<double>(i);
+    if (model.parameters[i].body == tool) estimate[k] += 0.05;  // the board, not the tool
+  }
+  const Eigen::VectorXd local = calibrated_in_robot_frame(model, estimate, file, tool);
+  // What the estimate says of the tool: its own geometry with the file's tool offset.
+  Eigen::VectorXd estimate_tool = estimate;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i)
+    if (model.parameters[i].body == tool)
+      estimate_tool[static_cast<Eigen::Index>(i)] = file[static_cast<Eigen::Index>(i)];
+  const Eigen::VectorXd q = Eigen::Vector3d(0.2, 0.35, 0.1);
+  const auto world = forward_kinematics(model, estimate_tool, q, tool);
+  const auto own = forward_kinematics(model, local, q, tool);
+  ASSERT_TRUE(world.closure.ok() && own.closure.ok());
+  const Eigen::Isometry3d world_T_base = frame_pose(model, estimate_tool, world.state, base);
+  const Eigen::Isometry3d file_T_base = frame_pose(model, local, own.state, base);
+  EXPECT_LT(
+      (world_T_base * file_T_base.inverse() * own.pose.translation() - world.pose.translation())
+          .norm(),
+      1e-9);
+  EXPECT_GT((world.pose.translation() - own.pose.translation()).norm(), 0.1);  // it did move
+}
+
+// Held-out targets: identify the perturbed printer from simulated 3-D point measurements, then
+// command each held-out target through the nominal controller with compensation and measure where
+// the true robot puts the tool.
+TEST(Compensation, HeldOutTargetsThroughTheNominalControllerMatchTheCalibratedModel) {
+  const Mechanism model = linear_delta();
+  const MechanismPredictor predictor(model);
+  std::mt19937 rng(7);
+  const Eigen::VectorXd nominal = model.nominal_parameters();
+  const Eigen::VectorXd truth =
+      perturb_parameters(nominal, tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
+  const auto design = sample_actuators(predictor, {nominal, truth}, 60, rng);
+  SimulationOptions sim;
+  sim.position_sigma = 20e-6;
+  const Measurements meas = simulate_measurements(predictor, truth, design, sim, rng);
+  const IdentificationResult id =
+      identify(predictor, nominal, meas, solve_options_from_model(model, false));
+  ASSERT_TRUE(id.status == IdentificationStatus::kConverged) << id.message;
+
+  const CompensationModels models{&model, nominal, id.estimate};
+  const auto held_out = sample_actuators(predictor, {nominal, truth, id.estimate}, 100, rng);
+  double calibrated_sq = 0.0, compensated_sq = 0.0, nominal_sq = 0.0;
+  int n = 0;
+  int n_nominal = 0;
+  int refused = 0;  // targets whose calibrated readings leave the joint limits (sampled at edges)
+  for (const auto& q : held_out) {
+    const Eigen::Vector3d target =
+        forward_kinematics(model, truth, q, model.task.frame).pose.translation();
+    const Eigen::Vector3d calibrated =
+        forward_kinematics(model, id.estimate, q, model.task.frame).pose.translation();
+    TaskTarget t;
+    t.pose.translation() = target;
+    const CompensatedTarget c = compensate_target(models, t);
+    if (!c.usable()) {
+      EXPECT_EQ(c.verdict, TargetVerdict::kUnreachable) << c.problem;
+      ++refused;
+      continue;
+    }
+    Eigen::Vector3d executed, uncompensated;
+    std::string why;
+    ASSERT_TRUE(executed_position(models, truth, c.commanded.translation(), executed, why)) << why;
+    calibrated_sq += (calibrated - target).squaredNorm();
+    compensated_sq += (executed - target).squaredNorm();
+    ++n;
+    // Without compensation (where the nominal controller reaches the target at all).
+    if (executed_position(models, truth, target, uncompensated, why)) {
+      nominal_sq += (uncompensated - target).squaredNorm();
+      ++n_nominal;
+    }
+  }
+  ASSERT_GE(n, 80);
+  EXPECT_LE(refused, 5);
+  const double calibrated_rms = std::sqrt(calibrated_sq / n);
+  const double compensated_rms = std::sqrt(compensated_sq / n);
+  ASSERT_GT(n_nominal, 0);
+  const double nominal_rms = std::sqrt(nominal_sq / n_nominal);
+  RecordProperty("calibrated_rms_um", std::to_string(calibrated_rms * 1e6));
+  RecordProperty("compensated_rms_um", std::to_string(compensated_rms * 1e6));
+  RecordProperty("nominal_rms_um", std::to_string(nominal_rms * 1e6));
+  EXPECT_LE(compensated_rms, 1.1 * calibrated_rms);
+  EXPECT_LT(compensated_rms, 0.2 * nominal_rms);
+}
+
+}  // namespace
+}  // namespace robocal::calib
