@@ -1,8 +1,9 @@
-// End to end: `robocal demo --quick` on rendered images must calibrate the simulated Delta far
-// better than the nominal model, against the hidden truth. The bound below is about twice what the
-// pipeline reaches on this small configuration (0.18 mm: 12 calibration views per camera leave
-// camera 0's frame uncertain, and 24 poses); the default demo (48 views, 60 poses) reaches
-// 21-44 µm on seeds 1-3, the product target (issue 7) being 50 µm.
+// End to end: `robocal demo` on rendered images must calibrate the simulated Delta far better
+// than the nominal model, against the hidden truth (by default with unmodelled error: the
+// parameters the model holds fixed are off too). The bounds are 1.5x what the pipeline reaches
+// on the small configuration (96 µm: 12 calibration views per camera leave camera 0's frame
+// uncertain, and 24 poses) and 1.25x the documented figure of the default demo (seed 1:
+// 43.1 µm from measured poses, 44.4 µm from pixels; README), the product target being 50 µm.
 #include "cli/command_registry.hpp"
 #include "run_robocal.hpp"
 
@@ -32,7 +33,7 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   const double calibrated = report["validate"]["calibrated"]["rms_m"];
   EXPECT_GE(report["validate"]["held_out_poses"].get<int>(), 150);
   EXPECT_GT(nominal, 5e-4) << "the perturbed robot should be millimetres off nominally";
-  EXPECT_LT(calibrated, 0.4e-3) << "calibrated error against truth";
+  EXPECT_LT(calibrated, 1.5 * 96.0e-6) << "calibrated error against truth";
   EXPECT_LT(calibrated, nominal / 10.0);
   // The worst held-out configurations, worst first; the first is the pose route's max unless the
   // pixel route is worse there.
@@ -100,6 +101,24 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   // The cameras were calibrated from rendered views, never given the truth.
   for (const auto& cam : report["validate"]["cameras"])
     EXPECT_LT(cam["projection_vs_truth_px"].get<double>(), 0.2);
+}
+
+// The headline: the default demo (seed 1) reaches its documented figure, on every held-out
+// configuration drawn from the truth.
+TEST(DemoEndToEnd, DefaultDeltaSeed1ReachesItsDocumentedFigure) {
+  const auto dir = std::filesystem::temp_directory_path() / "robocal_e2e_demo_default";
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(run({"demo", "--seed", "1", "--out", dir.string()}), 0);
+  std::ifstream in(dir / "results" / "demo.json");
+  ASSERT_TRUE(in) << "no demo.json";
+  const auto report = nlohmann::json::parse(in);
+  const auto& v = report["validate"];
+  EXPECT_EQ(v["held_out_drawn"].get<int>(), 500) << "every requested configuration drawn";
+  EXPECT_EQ(v["unanswered"]["calibrated"].get<int>(), 0);
+  EXPECT_EQ(v["unanswered"]["calibrated_pixels"].get<int>(), 0);
+  EXPECT_LT(v["calibrated"]["rms_m"].get<double>(), 1.25 * 43.1e-6);
+  EXPECT_LT(v["calibrated_pixels"]["rms_m"].get<double>(), 1.25 * 44.4e-6);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

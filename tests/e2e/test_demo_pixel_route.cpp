@@ -28,12 +28,13 @@ TEST(DemoEndToEnd, PixelRouteCalibratesFromTheSameDetections) {
   const auto& pixel_route = report["identify"]["pixel_route"];
   EXPECT_EQ(pixel_route["result"]["status"], "converged");
   // Corner noise of rendered images: the fit reproduces the pixels to a fraction of a pixel.
-  EXPECT_LT(pixel_route["reprojection_rms_px"].get<double>(), 0.3);
+  EXPECT_LT(pixel_route["reprojection_rms_px"].get<double>(), 1.5 * 0.026);
   EXPECT_TRUE(std::filesystem::exists(dir / "results" / "calibrated_robot_pixels.yaml"));
   const double nominal = report["validate"]["nominal"]["rms_m"];
   const double pixels = report["validate"]["calibrated_pixels"]["rms_m"];
   EXPECT_LT(pixels, nominal / 5.0);
-  EXPECT_LT(pixels, 0.6e-3) << "pixel-route calibrated error against truth";
+  // 1.5x what this configuration reaches (106 µm, the truth with unmodelled error).
+  EXPECT_LT(pixels, 1.5 * 106.0e-6) << "pixel-route calibrated error against truth";
   std::filesystem::remove_all(dir);
 }
 

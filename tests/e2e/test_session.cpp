@@ -108,6 +108,13 @@ TEST(SessionEndToEnd, PipelineWithoutTruthThenValidateThenBatchEqualsSingleRuns)
   ASSERT_EQ(s["sessions"].size(), 2U);
   EXPECT_EQ(s["failed"].get<int>(), 0);
   EXPECT_EQ(s["sessions"][0]["calibrated_rms_m"].get<double>(), calibrated);
+  // The batch summary counts the estimated parameters as identify does.
+  int estimated = 0;
+  const auto ident = load_json(a / "results" / "identification.json");
+  for (const auto& p : ident["result"]["parameters"])
+    estimated += p["estimated"].get<bool>() ? 1 : 0;
+  EXPECT_GT(estimated, 10);
+  EXPECT_EQ(s["sessions"][0]["estimated_parameters"].get<int>(), estimated);
   EXPECT_EQ(recorded_fingerprint(a2), before_a2) << "batch changed recorded data";
 }
 

@@ -35,13 +35,19 @@ nlohmann::json process(const std::string& dir, const BatchOptions& o, const Pipe
     row["measure"] = measure.value("status", "failed");
     row["poses_used"] = measure.contains("poses") ? measure["poses"].value("used", 0) : 0;
     row["poses_total"] = measure.contains("poses") ? measure["poses"].value("total", 0) : 0;
+    if (measure.value("status", "") != "ok") row["reason"] = measure.value("message", "");
     if (measure.value("status", "") == "ok") {
       const auto ident = identify_session(dir, "", log);
       row["identify"] = ident.value("status", "failed");
       if (ident.contains("result")) {
         row["fit_residual_rms_m"] = ident["result"]["residuals"]["position_rms_m"];
-        row["estimated_parameters"] = ident["result"]["estimated"].size();
+        // As identify counts them: the parameters the solve estimated.
+        int estimated = 0;
+        for (const auto& p : ident["result"].value("parameters", nlohmann::json::array()))
+          estimated += p.value("estimated", false) ? 1 : 0;
+        row["estimated_parameters"] = estimated;
       }
+      if (ident.value("status", "") != "ok") row["reason"] = ident.value("message", "");
       if (ident.value("status", "") == "ok") {
         const auto v = validate_session(dir, o.held_out, log);
         row["validate"] = v.value("status", "failed");
@@ -55,6 +61,9 @@ nlohmann::json process(const std::string& dir, const BatchOptions& o, const Pipe
     }
   } catch (const InputError& e) {
     row["error"] = e.what();
+  } catch (const std::exception& e) {
+    // Anything else stays with its session too: the other sessions of the batch go on.
+    row["error"] = std::string("internal error (please report it): ") + e.what();
   }
   const bool ok = !row.contains("error") && row.value("measure", "") == "ok" &&
                   row.value("identify", "") == "ok" &&
@@ -84,8 +93,11 @@ int run_batch(const BatchOptions& o) {
     rows[k] = process(o.sessions[k], o, log);
     const std::lock_guard<std::mutex> lock(print_mutex);
     const auto& r = rows[k];
+    const std::string why = r.contains("error")    ? r["error"].get<std::string>()
+                            : r.contains("reason") ? r["reason"].get<std::string>()
+                                                   : "";
     fmt::print(out, "{}: {}{}\n", o.sessions[k], r["status"].get<std::string>(),
-               r.contains("error") ? " (" + r["error"].get<std::string>() + ")" : "");
+               why.empty() ? "" : " (" + why + ")");
     std::fflush(out);
   });
 

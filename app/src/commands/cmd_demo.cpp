@@ -113,6 +113,9 @@ CommandSpec demo_command() {
             cmd.add_option("--threads", o->threads, "Worker threads for rendering and detection")
                 ->check(CLI::Range(1, 64))
                 ->capture_default_str();
+            cmd.add_flag("--idealised-truth", o->simulate.idealised_truth,
+                         "The true robot differs from its drawing only where the model can follow "
+                         "(default: also where it cannot, as a real robot does)");
             cmd.add_flag("--quick", o->simulate.quick,
                          "Smaller images and fewer views (for CI); pair with --poses 20");
             cmd.add_option("--out", o->out,

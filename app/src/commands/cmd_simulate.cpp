@@ -39,6 +39,9 @@ CommandSpec simulate_command() {
                            "Calibration-board views per camera (default 48, 12 with --quick)");
             cmd.add_option("--rig-views", o->rig_views,
                            "Board views both cameras see (default 12, 6 with --quick)");
+            cmd.add_flag("--idealised-truth", o->idealised_truth,
+                         "The true robot differs from its drawing only where the model can follow "
+                         "(default: also where it cannot, as a real robot does)");
             cmd.add_flag("--quick", o->quick, "Smaller images and fewer views (for CI)");
             cmd.add_option("--threads", *threads, "Rendering threads")
                 ->check(CLI::Range(1, 64))

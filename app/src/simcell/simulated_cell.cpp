@@ -169,6 +169,13 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   const Eigen::VectorXd sigma =
       calib::tolerance_sigmas(cell.model, options.length_sigma, options.angle_sigma);
   cell.truth = calib::perturb_parameters(cell.nominal, sigma, rng);
+  if (options.unmodelled_seed != 0) {
+    std::mt19937 unmodelled_rng(options.unmodelled_seed);
+    const Eigen::VectorXd all =
+        calib::tolerance_sigmas(cell.model, options.length_sigma, options.angle_sigma, 0.0, true);
+    const Eigen::VectorXd held = (sigma.array() == 0.0).select(all, 0.0);
+    cell.truth = calib::perturb_parameters(cell.truth, held, unmodelled_rng);
+  }
 
   // Two cameras below the volume, looking up at its centre, toed in.
   for (int i = 0; i < 2; ++i) {

@@ -38,6 +38,11 @@ struct CellOptions {
   // Realistic perturbations of the true robot (1-sigma): lengths, angles (incl. encoder zeros).
   double length_sigma = 0.5e-3;
   double angle_sigma = 0.2 * 3.14159265358979323846 / 180.0;
+  // Unmodelled error: when non-zero, the parameters the robot file holds fixed (which
+  // identification never estimates) are perturbed too, by the same tolerances, from this seed
+  // (its own stream, so the rest of the cell is the same as without). 0: the idealised truth,
+  // which differs from the drawing only where the model can follow.
+  unsigned unmodelled_seed = 0;
   // Actuator readings: Gaussian noise and quantisation step, joint units (rad or m).
   double actuator_noise = 2e-6;
   double actuator_step = 1e-6;

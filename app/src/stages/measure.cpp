@@ -216,6 +216,11 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
     } else {
       ++used;
       mfile.measurements.poses.push_back({rec.name, rec.actuators, {to_pose_observation(m)}});
+      // An image problem that did not stop the pose (measured from the other cameras) is still
+      // the operator's to know.
+      for (const auto& problem : images.problems)
+        if (!problem.empty())
+          say(log, "  {}: {} (measured from the other cameras)\n", rec.name, problem);
     }
     // Raw pixel observations (camera-in-the-loop identification), for every pose with readings.
     pixel_poses.push_back({rec.name, out.excluded.empty(), out.actuators, rec.problem,

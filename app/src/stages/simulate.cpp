@@ -71,8 +71,14 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
     cell_options.image_height = 960;
     cell_options.focal_px = 1300;
   }
+  // Unmodelled error from its own stream: the idealised and the realistic truth share every
+  // other draw (cameras, views, poses).
+  cell_options.unmodelled_seed = o.idealised_truth ? 0U : 7919U * o.seed + 17U;
   stage(log, "simulate: cell");
   const SimulatedCell cell = make_simulated_cell(robot_file, cell_options, rng);
+  say(log, "true robot: {}\n",
+      o.idealised_truth ? "idealised (differs from the drawing only in what the model estimates)"
+                        : "with unmodelled error (parameters the model holds fixed are off too)");
   say(log, "cell: {} ({} parameters), 2 cameras {}x{}, end-effector board {} corners\n",
       cell.model.name, cell.model.parameters.size(), cell_options.image_width,
       cell_options.image_height, cell.ee_board.corners.size());
@@ -184,6 +190,7 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
           {"session", o.out.string()},
           {"robot", cell.model.name},
           {"seed", o.seed},
+          {"truth", o.idealised_truth ? "idealised" : "with unmodelled error"},
           {"poses", true_readings.size()},
           {"images", 2 * true_readings.size() + 2 * rig_poses.size() +
                          static_cast<std::size_t>(o.intrinsic_views) * cell.cameras.size()}};

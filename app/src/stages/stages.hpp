@@ -38,6 +38,9 @@ struct SimulateOptions {
   int intrinsic_views = 48;  // per camera
   int rig_views = 12;
   bool quick = false;  // 1280x960 images (CI)
+  // The true robot also differs where the model cannot follow (parameters the robot file holds
+  // fixed are perturbed too), as every real robot does; true: the idealised truth instead.
+  bool idealised_truth = false;
   std::filesystem::path out;
 };
 
