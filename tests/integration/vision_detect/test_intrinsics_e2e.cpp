@@ -1,5 +1,7 @@
 // End to end: rendered image folders (the project's renderer, distorted camera) and the real
 // rct_charuco set through calibrate_from_folder. Heavy: label e2e.
+#include "real_data.hpp"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -113,7 +115,7 @@ TEST(IntrinsicsEndToEnd, EmptyAndMissingFolders) {
 TEST(IntrinsicsEndToEnd, RealRctCharucoSet) {
   const std::filesystem::path dir =
       std::filesystem::path(ROBOCAL_SHARED_DATA_DIR) / "real" / "rct_charuco" / "images";
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir;
+  SKIP_OR_FAIL_WITHOUT_REAL_DATA(dir);
   const auto run = rv::calibrate_from_folder(dir, rt::rct_charuco_board(), {});
   const auto& c = run.calibration;
   ASSERT_EQ(c.status, rv::CalibrationStatus::kOk) << c.reason;

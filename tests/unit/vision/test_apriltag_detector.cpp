@@ -1,4 +1,6 @@
 // AprilTag detection against rendered ground truth and the upstream AprilTag test photographs.
+#include "real_data.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -320,7 +322,7 @@ TEST(AprilTagDetector, RejectsWrongImageTypeAndBadOptions) {
 TEST(AprilTagDetector, UpstreamNasaPhotographs) {
   const std::filesystem::path dir =
       std::filesystem::path(ROBOCAL_SHARED_DATA_DIR) / "real" / "apriltag_nasa";
-  if (!std::filesystem::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir;
+  SKIP_OR_FAIL_WITHOUT_REAL_DATA(dir);
   rv::AprilTagDetectorOptions opt;
   opt.quad_decimate = 1.0f;
   opt.refine_edges = false;
