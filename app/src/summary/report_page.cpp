@@ -419,9 +419,10 @@ std::string parameter_section(const ReportData& d) {
       notes += ": its change is their combination";
     }
     if (p.strongly_correlated) notes += (notes.empty() ? "" : "; ") + std::string("strongly correlated (below)");
-    s += fmt::format("<tr><td class=\"l\">{}</td><td>{:.4f} {}</td><td>{:.4f} {}</td><td>{:+.4f}</td>"
-                     "<td>{:.4f}</td><td class=\"l\">{}</td></tr>\n",
-                     escape(p.name), p.nominal, p.unit, p.value, p.unit, p.change, p.ci95, notes);
+    s += fmt::format("<tr><td class=\"l\">{}</td><td>{:.4f} {}</td><td>{:.4f} {}</td><td>{:+.4f} {}</td>"
+                     "<td>{:.4f} {}</td><td class=\"l\">{}</td></tr>\n",
+                     escape(p.name), p.nominal, p.unit, p.value, p.unit, p.change, p.unit, p.ci95,
+                     p.unit, notes);
   }
   s += "</table>\n";
   s += "<h3>Strongly correlated pairs</h3>\n<table id=\"fig-correlations\" class=\"num\"><tr>"
@@ -444,8 +445,19 @@ std::string not_identified_section(const ReportData& d) {
       "only their sum can be known (the other parameter then stands in for them). Reasons, in "
       "the words of the identification:</p><ul>\n",
       d.held_at_nominal);
-  for (const auto& line : d.not_identified) s += "<li>" + escape(line) + "</li>\n";
-  return s + "</ul></div>\n";
+  // The first reasons in view; the rest folded (a <details> element: no script needed).
+  constexpr std::size_t kShown = 6;
+  for (std::size_t i = 0; i < d.not_identified.size() && i < kShown; ++i)
+    s += "<li>" + escape(d.not_identified[i]) + "</li>\n";
+  s += "</ul>\n";
+  if (d.not_identified.size() > kShown) {
+    s += fmt::format("<details><summary>{} more reasons</summary><ul>\n",
+                     d.not_identified.size() - kShown);
+    for (std::size_t i = kShown; i < d.not_identified.size(); ++i)
+      s += "<li>" + escape(d.not_identified[i]) + "</li>\n";
+    s += "</ul></details>\n";
+  }
+  return s + "</div>\n";
 }
 
 std::string camera_section(const ReportData& d) {
@@ -503,15 +515,21 @@ std::string diagnostics_section(const ReportData& d) {
        "something the model lacks (for example a tilted tool absorbed into arm lengths, a "
        "sagging arm, or a loose joint). Below, each error direction is compared with each "
        "position coordinate (camera 0's frame); a trend is flagged when it is statistically "
-       "significant (family-wise 1 % level over the nine pairs). This session records no load, "
-       "so errors correlated with load cannot be checked.</p>\n";
+       "significant (family-wise 1 % level over the nine pairs). The unmodelled effect may be in "
+       "the robot or in the measurement (for example a camera calibration that scales depth). "
+       "This session records no load, so errors correlated with load cannot be checked.</p>\n";
   if (d.diagnostics.empty()) s += "<p class=\"missing\">No residuals to test.</p>";
   for (const auto& diag : d.diagnostics) {
     const auto& t = diag.trends;
     s += fmt::format("<h3>{} ({} poses)</h3>\n", escape(diag.source), t.n);
+    double largest = 0.0;
+    for (const auto& tr : t.trends)
+      if (tr.significant) largest = std::max(largest, tr.amplitude);
     s += t.unmodelled_error_suspected()
-             ? "<p class=\"warn\">Unmodelled error suspected: the error below changes "
-               "systematically with position.</p>"
+             ? fmt::format("<p class=\"warn\">Unmodelled error suspected: the remaining error "
+                           "changes systematically with position, by up to {} across the "
+                           "measured poses (red rows).</p>",
+                           escape(length(largest)))
              : "<p class=\"ok\">No trend: the remaining error looks like noise.</p>";
     s += "<table class=\"num\"><tr><th>error along</th><th>vs position</th><th>correlation</th>"
          "<th>p-value</th><th>change over the workspace</th><th>verdict</th></tr>\n";
@@ -538,7 +556,7 @@ constexpr const char* kStyle = R"(
 body{font-family:sans-serif;max-width:1000px;margin:1em auto;padding:0 1em;color:#222}
 h1{font-size:1.5em}h2{margin-top:1.6em;border-bottom:1px solid #ccc}h3{font-size:1.05em}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:2px 6px}
-table.num td{text-align:right}td.l{text-align:left}th{background:#eee}
+table.num td{text-align:right;white-space:nowrap}table.num td.l{text-align:left;white-space:normal}th{background:#eee}
 figure{margin:1em 0}figcaption,.cap{font-size:.9em;color:#444;max-width:820px}
 .row{display:flex;flex-wrap:wrap;gap:8px}.tick{font-size:10px;fill:#333}.axis{font-size:11px;fill:#111}
 .verdict{font-size:1.15em;padding:.5em;background:#eef5fb;border-left:4px solid #1f6fb2}

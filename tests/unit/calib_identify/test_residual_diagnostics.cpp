@@ -80,8 +80,11 @@ TEST(ReportResidualTrends, AToolTiltLeftInTheResidualsIsFlaggedWithItsSlope) {
   EXPECT_NEAR(xz.slope, tilt, 4.0 * slope_sigma);
   EXPECT_NEAR(xz.amplitude, tilt * 0.4, 0.4 * 4.0 * slope_sigma + 1e-5);
   // Only that pair is flagged.
-  for (std::size_t i = 0; i < d.trends.size(); ++i)
-    if (i != 2) EXPECT_FALSE(d.trends[i].significant) << "pair " << i;
+  for (std::size_t i = 0; i < d.trends.size(); ++i) {
+    if (i != 2) {
+      EXPECT_FALSE(d.trends[i].significant) << "pair " << i;
+    }
+  }
 }
 
 TEST(ReportErrorGrid, RmsPerCellOverTheBoundingBox) {
