@@ -53,8 +53,8 @@ bool PositionTrends::unmodelled_error_suspected() const {
 }
 
 PositionTrends residual_position_trends(const std::vector<Eigen::Vector3d>& positions,
-                                             const std::vector<Eigen::Vector3d>& residuals,
-                                             double alpha) {
+                                        const std::vector<Eigen::Vector3d>& residuals,
+                                        double alpha) {
   PositionTrends d;
   d.n = std::min(positions.size(), residuals.size());
   d.alpha = alpha;
@@ -124,8 +124,8 @@ ErrorGrid error_grid(const std::vector<Eigen::Vector2d>& points, const std::vect
     const Eigen::Vector2d f = (points[k] - lo).cwiseQuotient(g.cell);
     const int ix = std::clamp(static_cast<int>(std::floor(f.x())), 0, nx - 1);
     const int iy = std::clamp(static_cast<int>(std::floor(f.y())), 0, ny - 1);
-    const std::size_t i = static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx) +
-                          static_cast<std::size_t>(ix);
+    const std::size_t i =
+        static_cast<std::size_t>(iy) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(ix);
     sum_sq[i] += values[k] * values[k];
     g.count[i] += 1;
   }

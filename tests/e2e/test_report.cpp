@@ -29,16 +29,19 @@ const fs::path& demo_session() {
   static const fs::path dir = [] {
     const auto d = fs::temp_directory_path() / "robocal_e2e_report_demo";
     fs::remove_all(d);
-    const int code = run_cli({"demo", "--quick", "--poses", "20", "--held-out", "120", "--route",
-                              "pose", "--seed", "2", "--out", d.string(), "--json",
-                              (fs::temp_directory_path() / "robocal_e2e_report_demo.json").string()});
+    const int code =
+        run_cli({"demo", "--quick", "--poses", "20", "--held-out", "120", "--route", "pose",
+                 "--seed", "2", "--out", d.string(), "--json",
+                 (fs::temp_directory_path() / "robocal_e2e_report_demo.json").string()});
     EXPECT_EQ(code, 0);
     return d;
   }();
   return dir;
 }
 
-fs::path page_of(const fs::path& session) { return session / "results" / "report.html"; }
+fs::path page_of(const fs::path& session) {
+  return session / "results" / "report.html";
+}
 
 // The hosts of every http(s) URL in a text (Chromium's network log).
 std::set<std::string> hosts_in(const std::string& text) {
@@ -91,7 +94,8 @@ TEST(Report, RendersInHeadlessChromiumWithoutErrors) {
         "timeout 120 " + chromium +
         " --headless --no-sandbox --disable-gpu --no-first-run --disable-extensions"
         " --disable-background-networking --disable-component-update --disable-sync"
-        " '--host-resolver-rules=MAP * ~NOTFOUND' --user-data-dir=" + (out / ("profile-" + what)).string() +
+        " '--host-resolver-rules=MAP * ~NOTFOUND' --user-data-dir=" +
+        (out / ("profile-" + what)).string() +
         " --log-net-log=" + (out / (what + ".netlog.json")).string() +
         " --enable-logging=stderr --v=0 --window-size=1100,3000 " + args + " " + url + " >" +
         (out / (what + ".out")).string() + " 2>" + (out / (what + ".log")).string();
@@ -141,9 +145,7 @@ TEST(Report, RendersInHeadlessChromiumWithoutErrors) {
   std::string bad = read_file(page);
   bad.insert(bad.find("<body>") + 6,
              "<img src=\"https://example.com/x.png\"><script>console.error('x')</script>");
-  {
-    std::ofstream(out / "bad.html") << bad;
-  }
+  { std::ofstream(out / "bad.html") << bad; }
   ASSERT_EQ(run("bad", "file://" + (out / "bad.html").string(), "--dump-dom"), 0);
   const auto bad_hosts = hosts_in(read_file(out / "bad.netlog.json"));
   EXPECT_TRUE(bad_hosts.count("example.com") > 0 && blank_hosts.count("example.com") == 0);
@@ -155,9 +157,7 @@ TEST(Report, SessionWithoutIdentificationIsRefusedAndTheOldPageKept) {
   copy_recorded(demo_session(), bare);
   fs::create_directories(bare / "results");
   const std::string old_page = "<html>an earlier report</html>\n";
-  {
-    std::ofstream(page_of(bare)) << old_page;
-  }
+  { std::ofstream(page_of(bare)) << old_page; }
   testing::internal::CaptureStderr();
   const int code = run_cli({"report", bare.string()});
   const std::string err = testing::internal::GetCapturedStderr();

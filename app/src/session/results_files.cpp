@@ -348,12 +348,14 @@ ValidationFile read_validation(const ResultsLayout& results, const std::string& 
   const auto nominal = rows("nominal_error_m");
   const auto calibrated = rows("calibrated_error_m");
   if (nominal.size() != position.size() || calibrated.size() != position.size())
-    throw InputError(file + ": held_out_points: position_m, nominal_error_m and "
-                            "calibrated_error_m differ in length");
+    throw InputError(file +
+                     ": held_out_points: position_m, nominal_error_m and "
+                     "calibrated_error_m differ in length");
   const nlohmann::json inside = p.value("inside_measured_region", nlohmann::json::array());
   for (std::size_t k = 0; k < position.size(); ++k) {
     HeldOutPoint h{position[k], nominal[k], calibrated[k], std::nullopt};
-    if (k < inside.size() && inside[k].is_boolean()) h.inside_measured_region = inside[k].get<bool>();
+    if (k < inside.size() && inside[k].is_boolean())
+      h.inside_measured_region = inside[k].get<bool>();
     out.points.push_back(h);
   }
   return out;

@@ -128,8 +128,8 @@ struct HeldOutPoint {
   std::optional<bool> inside_measured_region;                  // none: region unknown
 };
 struct ValidationFile {
-  nlohmann::json report;              // as written (summary figures, held_out_by_region, ...)
-  std::string status;                 // "ok" | "failed"
+  nlohmann::json report;             // as written (summary figures, held_out_by_region, ...)
+  std::string status;                // "ok" | "failed"
   std::vector<HeldOutPoint> points;  // empty: written before validate recorded them
 };
 // Throws InputError when missing (`hint`) or malformed (naming the field).

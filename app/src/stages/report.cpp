@@ -30,7 +30,9 @@ namespace {
 
 // The name a person reads for a parameter. Today the identification's own name; when robot
 // files carry plain-word labels (calib's display-name function), this is the one place to switch.
-std::string parameter_display_name(const std::string& name) { return name; }
+std::string parameter_display_name(const std::string& name) {
+  return name;
+}
 
 constexpr std::size_t kHistogramBins = 30;
 constexpr int kMapCells = 14;
@@ -43,8 +45,12 @@ calib::Histogram error_histogram(const std::vector<double>& errors) {
 }
 
 // Top view: x across the image, z away from the camera; side view: z, y down the image.
-Eigen::Vector2d top(const Eigen::Vector3d& p) { return {p.x(), p.z()}; }
-Eigen::Vector2d side(const Eigen::Vector3d& p) { return {p.z(), p.y()}; }
+Eigen::Vector2d top(const Eigen::Vector3d& p) {
+  return {p.x(), p.z()};
+}
+Eigen::Vector2d side(const Eigen::Vector3d& p) {
+  return {p.z(), p.y()};
+}
 
 // Display units: mm for lengths, degrees for angles, the bare ratio for scales.
 std::pair<double, std::string> display_unit(const std::string& unit) {
@@ -69,7 +75,8 @@ ReportAccuracy accuracy_row(const std::string& label, const nlohmann::json& part
 void add_parameters(ReportData& d, const IdentificationFile& ident,
                     const nlohmann::json& analysis) {
   const nlohmann::json empty = nlohmann::json::array();
-  const nlohmann::json& identifiability = analysis.value("identifiability", nlohmann::json::object());
+  const nlohmann::json& identifiability =
+      analysis.value("identifiability", nlohmann::json::object());
   std::map<std::string, std::vector<std::string>> stands_for;
   for (const auto& red : identifiability.value("redundancies", empty))
     for (const auto& partner : red.value("partners", empty))
@@ -107,7 +114,8 @@ void add_parameters(ReportData& d, const IdentificationFile& ident,
   }
   // Most significant change first: what calibration corrected most surely.
   std::stable_sort(d.parameters.begin(), d.parameters.end(), [](const auto& a, const auto& b) {
-    return std::abs(a.change) / std::max(a.ci95, 1e-12) > std::abs(b.change) / std::max(b.ci95, 1e-12);
+    return std::abs(a.change) / std::max(a.ci95, 1e-12) >
+           std::abs(b.change) / std::max(b.ci95, 1e-12);
   });
   for (const auto& m : identifiability.value("messages", empty))
     if (m.is_string()) d.not_identified.push_back(m.get<std::string>());
@@ -259,7 +267,8 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   {
     std::vector<Eigen::Vector3d> positions, residuals;
     for (const auto& m : measured) {
-      const auto fk = calib::forward_kinematics(robot.model, ident.estimate, m.actuators, robot.frame);
+      const auto fk =
+          calib::forward_kinematics(robot.model, ident.estimate, m.actuators, robot.frame);
       if (!fk.closure.ok()) continue;
       positions.emplace_back(m.rig_T_target.translation());
       residuals.emplace_back(m.rig_T_target.translation() - fk.pose.translation());
@@ -274,31 +283,35 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   // Timings: the session's stages (when known) and the solver's own time.
   if (stage_seconds.empty()) stage_seconds = read_demo_seconds(results);
   d.timings = stage_seconds;
-  d.timings.emplace_back("identification solver (pose route)", analysis.value("solve_seconds", 0.0));
+  d.timings.emplace_back("identification solver (pose route)",
+                         analysis.value("solve_seconds", 0.0));
   if (ident.report.contains("pixel_route") && ident.report.at("pixel_route").contains("result"))
-    d.timings.emplace_back(
-        "identification solver (camera-in-the-loop route)",
-        ident.report.at("pixel_route").at("result").value("solve_seconds", 0.0));
+    d.timings.emplace_back("identification solver (camera-in-the-loop route)",
+                           ident.report.at("pixel_route").at("result").value("solve_seconds", 0.0));
 
   // The verdict a person reads first.
   const ReportAccuracy& all = d.accuracy.front();
   bool unmodelled = false;
   for (const auto& diag : d.diagnostics) unmodelled |= diag.trends.unmodelled_error_suspected();
-  d.verdict = validation
-                  ? fmt::format("Calibration brought the tool's position error on {} poses it "
-                                "never saw from {} to {} RMS (worst {}).",
-                                all.poses, all.nominal_rms ? fmt::format("{:.3f} mm", *all.nominal_rms * 1e3) : "?",
-                                fmt::format("{:.3f} mm", all.calibrated_rms * 1e3),
-                                fmt::format("{:.3f} mm", all.calibrated_max * 1e3))
-                  : fmt::format("The calibrated model fits the {} measured poses to {:.3f} mm RMS "
-                                "(no held-out validation in this session).",
-                                all.poses, all.calibrated_rms * 1e3);
+  d.verdict =
+      validation
+          ? fmt::format(
+                "Calibration brought the tool's position error on {} poses it "
+                "never saw from {} to {} RMS (worst {}).",
+                all.poses, all.nominal_rms ? fmt::format("{:.3f} mm", *all.nominal_rms * 1e3) : "?",
+                fmt::format("{:.3f} mm", all.calibrated_rms * 1e3),
+                fmt::format("{:.3f} mm", all.calibrated_max * 1e3))
+          : fmt::format(
+                "The calibrated model fits the {} measured poses to {:.3f} mm RMS "
+                "(no held-out validation in this session).",
+                all.poses, all.calibrated_rms * 1e3);
   d.verdict += unmodelled ? " Warning: the remaining error changes with position, so something "
                             "in the robot or the measurement is not modelled (section 8)."
                           : " The remaining error looks like noise (section 8).";
 
   d.timings.emplace_back(
-      "this report", std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count());
+      "this report",
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count());
   const std::string html = render_report_page(d);
   write_report_page(results, html);
 

@@ -20,11 +20,20 @@ std::string escape(const std::string& s) {
   out.reserve(s.size());
   for (const char c : s) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -88,9 +97,9 @@ std::string svg_open(const std::string& id, int width, int height, const std::st
 }
 
 // Axes with tick labels; y labels through `ylabel_of` (values in metres shown as µm/mm).
-std::string axes(const Frame& f, const std::vector<double>& xticks, const std::vector<double>& yticks,
-                 const std::string& xlabel, const std::string& ylabel,
-                 const std::function<std::string(double)>& xtext,
+std::string axes(const Frame& f, const std::vector<double>& xticks,
+                 const std::vector<double>& yticks, const std::string& xlabel,
+                 const std::string& ylabel, const std::function<std::string(double)>& xtext,
                  const std::function<std::string(double)>& ytext) {
   std::string s = fmt::format(
       "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\" fill=\"none\" "
@@ -110,8 +119,9 @@ std::string axes(const Frame& f, const std::vector<double>& xticks, const std::v
         "<text x=\"{3:.1f}\" y=\"{4:.1f}\" class=\"tick\" text-anchor=\"end\">{5}</text>\n",
         y, f.x0, f.x0 + f.w, f.x0 - 4, y + 4, escape(ytext(t)));
   }
-  s += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"axis\" text-anchor=\"middle\">{}</text>\n",
-                   f.x0 + f.w / 2, f.y0 + f.h + 32, escape(xlabel));
+  s += fmt::format(
+      "<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"axis\" text-anchor=\"middle\">{}</text>\n",
+      f.x0 + f.w / 2, f.y0 + f.h + 32, escape(xlabel));
   s += fmt::format(
       "<text x=\"14\" y=\"{0:.1f}\" class=\"axis\" text-anchor=\"middle\" "
       "transform=\"rotate(-90 14 {0:.1f})\">{1}</text>\n",
@@ -126,7 +136,8 @@ std::vector<double> log_ticks(double lo, double hi) {
   return out;
 }
 
-std::string legend(double x, double y, const std::vector<std::pair<std::string, std::string>>& items) {
+std::string legend(double x, double y,
+                   const std::vector<std::pair<std::string, std::string>>& items) {
   std::string s;
   for (const auto& [colour, text] : items) {
     s += fmt::format(
@@ -145,14 +156,16 @@ std::string figure(const std::string& svg, const std::string& caption) {
 // ---- the figures --------------------------------------------------------------------------------
 
 std::string accuracy_section(const ReportData& d) {
-  std::string s = "<table class=\"num\"><tr><th>poses</th><th>how many</th><th>before: RMS</th>"
-                  "<th>before: worst</th><th>after: RMS</th><th>after: worst</th></tr>\n";
+  std::string s =
+      "<table class=\"num\"><tr><th>poses</th><th>how many</th><th>before: RMS</th>"
+      "<th>before: worst</th><th>after: RMS</th><th>after: worst</th></tr>\n";
   for (const auto& a : d.accuracy)
-    s += fmt::format("<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
-                     "<td>{}</td></tr>\n",
-                     escape(a.label), a.poses, a.nominal_rms ? length(*a.nominal_rms) : "—",
-                     a.nominal_max ? length(*a.nominal_max) : "—", length(a.calibrated_rms),
-                     length(a.calibrated_max));
+    s += fmt::format(
+        "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>"
+        "<td>{}</td></tr>\n",
+        escape(a.label), a.poses, a.nominal_rms ? length(*a.nominal_rms) : "—",
+        a.nominal_max ? length(*a.nominal_max) : "—", length(a.calibrated_rms),
+        length(a.calibrated_max));
   s += "</table>\n";
   // Bars on a log scale: before and after differ by orders of magnitude.
   double lo = 1e300, hi = 0;
@@ -177,9 +190,10 @@ std::string accuracy_section(const ReportData& d) {
     const auto bx = [&](double v) {
       return f.x0 + (std::log10(v) - std::log10(llo)) / (std::log10(lhi) - std::log10(llo)) * f.w;
     };
-    svg += fmt::format("<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" "
-                       "stroke=\"#444\"/>\n",
-                       f.x0, f.y0, f.w, f.h);
+    svg += fmt::format(
+        "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" "
+        "stroke=\"#444\"/>\n",
+        f.x0, f.y0, f.w, f.h);
     for (const double t : log_ticks(llo, lhi))
       svg += fmt::format(
           "<line x1=\"{0:.1f}\" y1=\"{1}\" x2=\"{0:.1f}\" y2=\"{2}\" stroke=\"#ddd\"/>"
@@ -187,28 +201,33 @@ std::string accuracy_section(const ReportData& d) {
           bx(t), f.y0, f.y0 + f.h, f.y0 + f.h + 14, escape(length(t)));
     double y = f.y0 + 6;
     for (const auto& a : d.accuracy) {
-      svg += fmt::format("<text x=\"{}\" y=\"{:.1f}\" class=\"tick\" text-anchor=\"end\">{}</text>\n",
-                         f.x0 - 6, y + 20, escape(a.label));
+      svg +=
+          fmt::format("<text x=\"{}\" y=\"{:.1f}\" class=\"tick\" text-anchor=\"end\">{}</text>\n",
+                      f.x0 - 6, y + 20, escape(a.label));
       if (a.nominal_rms && *a.nominal_rms > 0)
-        svg += fmt::format("<rect x=\"{}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"15\" "
-                           "fill=\"{}\"><title>before: {}</title></rect>\n",
-                           f.x0, y, std::max(1.0, bx(*a.nominal_rms) - f.x0), kBefore,
-                           escape(length(*a.nominal_rms)));
+        svg += fmt::format(
+            "<rect x=\"{}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"15\" "
+            "fill=\"{}\"><title>before: {}</title></rect>\n",
+            f.x0, y, std::max(1.0, bx(*a.nominal_rms) - f.x0), kBefore,
+            escape(length(*a.nominal_rms)));
       if (a.calibrated_rms > 0)
-        svg += fmt::format("<rect x=\"{}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"15\" "
-                           "fill=\"{}\"><title>after: {}</title></rect>\n",
-                           f.x0, y + 17, std::max(1.0, bx(a.calibrated_rms) - f.x0), kAfter,
-                           escape(length(a.calibrated_rms)));
+        svg += fmt::format(
+            "<rect x=\"{}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"15\" "
+            "fill=\"{}\"><title>after: {}</title></rect>\n",
+            f.x0, y + 17, std::max(1.0, bx(a.calibrated_rms) - f.x0), kAfter,
+            escape(length(a.calibrated_rms)));
       y += 46;
     }
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"{}\" class=\"axis\" text-anchor=\"middle\">RMS "
-                       "position error (logarithmic scale)</text>\n",
-                       f.x0 + f.w / 2, height - 8);
+    svg += fmt::format(
+        "<text x=\"{:.1f}\" y=\"{}\" class=\"axis\" text-anchor=\"middle\">RMS "
+        "position error (logarithmic scale)</text>\n",
+        f.x0 + f.w / 2, height - 8);
   }
   svg += "</svg>";
-  return s + figure(svg, "RMS position error of the tool before calibration (grey: the robot's "
-                         "drawing, placed by a best fit) and after (blue: the calibrated model). " +
-                             escape(d.accuracy_note));
+  return s + figure(svg,
+                    "RMS position error of the tool before calibration (grey: the robot's "
+                    "drawing, placed by a best fit) and after (blue: the calibrated model). " +
+                        escape(d.accuracy_note));
 }
 
 std::string per_pose_section(const ReportData& d) {
@@ -219,7 +238,8 @@ std::string per_pose_section(const ReportData& d) {
   // Sorted by the error before calibration (or after, without a before): the curve reads as
   // "how many poses are worse than this".
   const auto& key = d.error_before.size() == n ? d.error_before : d.error_after;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return key[a] > key[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return key[a] > key[b]; });
   double lo = 1e300, hi = 0;
   for (const auto* v : {&d.error_before, &d.error_after})
     for (const double e : *v)
@@ -234,9 +254,10 @@ std::string per_pose_section(const ReportData& d) {
     f.xhi = static_cast<double>(std::max<std::size_t>(n, 2) - 1);
     f.ylo = std::pow(10.0, std::floor(std::log10(lo)));
     f.yhi = std::pow(10.0, std::ceil(std::log10(hi)));
-    svg += axes(f, ticks(0, f.xhi, 8), log_ticks(f.ylo, f.yhi), "poses, sorted by error before calibration",
-                "position error", [](double t) { return fmt::format("{:.0f}", t); },
-                [](double t) { return length(t); });
+    svg += axes(
+        f, ticks(0, f.xhi, 8), log_ticks(f.ylo, f.yhi), "poses, sorted by error before calibration",
+        "position error", [](double t) { return fmt::format("{:.0f}", t); },
+        [](double t) { return length(t); });
     for (const auto& [values, colour] :
          {std::pair{&d.error_before, kBefore}, std::pair{&d.error_after, kAfter}}) {
       if (values->size() != n) continue;
@@ -244,11 +265,13 @@ std::string per_pose_section(const ReportData& d) {
       for (std::size_t i = 0; i < n; ++i)
         dots += fmt::format("M{:.1f} {:.1f}h0", f.px(static_cast<double>(i)),
                             f.py(std::max((*values)[order[i]], f.ylo)));
-      svg += fmt::format("<path d=\"{}\" stroke=\"{}\" stroke-width=\"3\" stroke-linecap=\"round\" "
-                         "fill=\"none\"/>\n",
-                         dots, colour);
+      svg += fmt::format(
+          "<path d=\"{}\" stroke=\"{}\" stroke-width=\"3\" stroke-linecap=\"round\" "
+          "fill=\"none\"/>\n",
+          dots, colour);
     }
-    svg += legend(f.x0 + f.w - 130, f.y0 + 6, {{kBefore, "before calibration"}, {kAfter, "after calibration"}});
+    svg += legend(f.x0 + f.w - 130, f.y0 + 6,
+                  {{kBefore, "before calibration"}, {kAfter, "after calibration"}});
   }
   svg += "</svg>";
   return figure(svg, fmt::format("Error of each of the {} {} before (grey) and after (blue) "
@@ -270,16 +293,19 @@ std::string histogram_svg(const std::string& id, const calib::Histogram& h, cons
     f.xlo = h.lo;
     f.xhi = h.lo + h.width * static_cast<double>(h.counts.size());
     f.ylo = 0;
-    f.yhi = static_cast<double>(std::max<std::size_t>(1, *std::max_element(h.counts.begin(), h.counts.end())));
-    svg += axes(f, ticks(f.xlo, f.xhi, 4), ticks(0, f.yhi, 4), "position error", "poses",
-                [](double t) { return length(t); }, [](double t) { return fmt::format("{:.0f}", t); });
+    f.yhi = static_cast<double>(
+        std::max<std::size_t>(1, *std::max_element(h.counts.begin(), h.counts.end())));
+    svg += axes(
+        f, ticks(f.xlo, f.xhi, 4), ticks(0, f.yhi, 4), "position error", "poses",
+        [](double t) { return length(t); }, [](double t) { return fmt::format("{:.0f}", t); });
     for (std::size_t i = 0; i < h.counts.size(); ++i) {
       const double x = h.lo + h.width * static_cast<double>(i);
-      svg += fmt::format("<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\" "
-                         "fill=\"{}\"><title>{} poses</title></rect>\n",
-                         f.px(x) + 0.5, f.py(static_cast<double>(h.counts[i])),
-                         std::max(0.5, f.px(x + h.width) - f.px(x) - 1.0),
-                         f.py(0) - f.py(static_cast<double>(h.counts[i])), colour, h.counts[i]);
+      svg += fmt::format(
+          "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\" "
+          "fill=\"{}\"><title>{} poses</title></rect>\n",
+          f.px(x) + 0.5, f.py(static_cast<double>(h.counts[i])),
+          std::max(0.5, f.px(x + h.width) - f.px(x) - 1.0),
+          f.py(0) - f.py(static_cast<double>(h.counts[i])), colour, h.counts[i]);
     }
     svg += fmt::format("<text x=\"160\" y=\"14\" class=\"axis\" text-anchor=\"middle\">{}</text>",
                        escape(title));
@@ -320,36 +346,43 @@ std::string map_svg(const std::string& id, const calib::ErrorGrid& g, double sca
         const auto i = static_cast<std::size_t>(iy * g.nx + ix);
         if (g.count[i] == 0) continue;
         const double x = g.lo.x() + g.cell.x() * ix, y = g.lo.y() + g.cell.y() * iy;
-        svg += fmt::format("<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\" "
-                           "fill=\"{}\"><title>{} ({} poses)</title></rect>",
-                           f.px(x), py(y), f.px(x + g.cell.x()) - f.px(x) + 0.3,
-                           py(y + g.cell.y()) - py(y) + 0.3, scale_colour(g.rms[i] / scale_max),
-                           escape(length(g.rms[i])), g.count[i]);
+        svg += fmt::format(
+            "<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.1f}\" "
+            "fill=\"{}\"><title>{} ({} poses)</title></rect>",
+            f.px(x), py(y), f.px(x + g.cell.x()) - f.px(x) + 0.3, py(y + g.cell.y()) - py(y) + 0.3,
+            scale_colour(g.rms[i] / scale_max), escape(length(g.rms[i])), g.count[i]);
       }
     svg += "\n";
     for (const auto& m : measured)
-      svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2.5\" fill=\"#fff\" "
-                         "stroke=\"#000\" stroke-width=\"0.8\"/>",
-                         f.px(m.x()), py(m.y()));
-    svg += fmt::format("\n<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" "
-                       "stroke=\"#444\"/>\n",
-                       f.x0, f.y0, f.w, f.h);
+      svg += fmt::format(
+          "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"2.5\" fill=\"#fff\" "
+          "stroke=\"#000\" stroke-width=\"0.8\"/>",
+          f.px(m.x()), py(m.y()));
+    svg += fmt::format(
+        "\n<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" "
+        "stroke=\"#444\"/>\n",
+        f.x0, f.y0, f.w, f.h);
     for (const double t : ticks(f.xlo * 1e3, f.xhi * 1e3, 4))
-      svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"tick\" "
-                         "text-anchor=\"middle\">{:.0f}</text>",
-                         f.px(t * 1e-3), f.y0 + f.h + 14, t);
+      svg += fmt::format(
+          "<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"tick\" "
+          "text-anchor=\"middle\">{:.0f}</text>",
+          f.px(t * 1e-3), f.y0 + f.h + 14, t);
     for (const double t : ticks(f.ylo * 1e3, f.yhi * 1e3, 4))
-      svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"tick\" "
-                         "text-anchor=\"end\">{:.0f}</text>",
-                         f.x0 - 4, py(t * 1e-3) + 4, t);
-    svg += fmt::format("\n<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"axis\" "
-                       "text-anchor=\"middle\">{}</text>",
-                       f.x0 + f.w / 2, f.y0 + f.h + 30, escape(xlabel));
-    svg += fmt::format("<text x=\"12\" y=\"{0:.1f}\" class=\"axis\" text-anchor=\"middle\" "
-                       "transform=\"rotate(-90 12 {0:.1f})\">{1}</text>",
-                       f.y0 + f.h / 2, escape(ylabel));
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"14\" class=\"axis\" text-anchor=\"middle\">{}</text>\n",
-                       f.x0 + f.w / 2, escape(title));
+      svg += fmt::format(
+          "<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"tick\" "
+          "text-anchor=\"end\">{:.0f}</text>",
+          f.x0 - 4, py(t * 1e-3) + 4, t);
+    svg += fmt::format(
+        "\n<text x=\"{:.1f}\" y=\"{:.1f}\" class=\"axis\" "
+        "text-anchor=\"middle\">{}</text>",
+        f.x0 + f.w / 2, f.y0 + f.h + 30, escape(xlabel));
+    svg += fmt::format(
+        "<text x=\"12\" y=\"{0:.1f}\" class=\"axis\" text-anchor=\"middle\" "
+        "transform=\"rotate(-90 12 {0:.1f})\">{1}</text>",
+        f.y0 + f.h / 2, escape(ylabel));
+    svg +=
+        fmt::format("<text x=\"{:.1f}\" y=\"14\" class=\"axis\" text-anchor=\"middle\">{}</text>\n",
+                    f.x0 + f.w / 2, escape(title));
   }
   return svg + "</svg>";
 }
@@ -357,11 +390,12 @@ std::string map_svg(const std::string& id, const calib::ErrorGrid& g, double sca
 std::string colour_bar(double scale_max) {
   std::string svg = svg_open("fig-map-scale", 320, 50, "colour scale");
   for (int i = 0; i < 50; ++i)
-    svg += fmt::format("<rect x=\"{}\" y=\"6\" width=\"5.2\" height=\"14\" fill=\"{}\"/>", 30 + i * 5,
-                       scale_colour(i / 49.0));
-  svg += fmt::format("<text x=\"30\" y=\"34\" class=\"tick\">0</text><text x=\"280\" y=\"34\" "
-                     "class=\"tick\" text-anchor=\"end\">{} or more</text>",
-                     escape(length(scale_max)));
+    svg += fmt::format("<rect x=\"{}\" y=\"6\" width=\"5.2\" height=\"14\" fill=\"{}\"/>",
+                       30 + i * 5, scale_colour(i / 49.0));
+  svg += fmt::format(
+      "<text x=\"30\" y=\"34\" class=\"tick\">0</text><text x=\"280\" y=\"34\" "
+      "class=\"tick\" text-anchor=\"end\">{} or more</text>",
+      escape(length(scale_max)));
   return svg + "</svg>";
 }
 
@@ -376,8 +410,9 @@ std::string map_section(const ReportData& d) {
   std::string s = "<div class=\"row\">";
   s += map_svg("fig-map-top", d.top_after, after_max, d.measured_top, "after: seen from above",
                "x across the camera image (mm)", "z away from camera 0 (mm)");
-  s += map_svg("fig-map-side", d.side_after, after_max, d.measured_side, "after: seen from the side",
-               "z away from camera 0 (mm)", "y down the camera image (mm)");
+  s +=
+      map_svg("fig-map-side", d.side_after, after_max, d.measured_side, "after: seen from the side",
+              "z away from camera 0 (mm)", "y down the camera image (mm)");
   s += "</div>" + colour_bar(after_max);
   std::string before;
   if (d.top_before.nx > 0) {
@@ -390,15 +425,16 @@ std::string map_section(const ReportData& d) {
                       "y down the camera image (mm)");
     before += "</div>" + colour_bar(before_max);
   }
-  return figure(s, "Where in the workspace the calibrated robot is accurate: each square is the "
-                   "RMS position error of the held-out poses in it, after calibration (colour "
-                   "scale below). White dots are the poses that were measured for the "
-                   "calibration; the error usually grows away from them. Positions are in camera "
-                   "0's frame, in millimetres.") +
-         (before.empty()
-              ? std::string()
-              : figure(before, "The same maps before calibration (their own colour scale: the "
-                               "errors are much larger)."));
+  return figure(s,
+                "Where in the workspace the calibrated robot is accurate: each square is the "
+                "RMS position error of the held-out poses in it, after calibration (colour "
+                "scale below). White dots are the poses that were measured for the "
+                "calibration; the error usually grows away from them. Positions are in camera "
+                "0's frame, in millimetres.") +
+         (before.empty() ? std::string()
+                         : figure(before,
+                                  "The same maps before calibration (their own colour scale: the "
+                                  "errors are much larger)."));
 }
 
 std::string parameter_section(const ReportData& d) {
@@ -418,11 +454,13 @@ std::string parameter_section(const ReportData& d) {
       if (p.stands_for.size() > 3) notes += fmt::format(" and {} more", p.stands_for.size() - 3);
       notes += ": its change is their combination";
     }
-    if (p.strongly_correlated) notes += (notes.empty() ? "" : "; ") + std::string("strongly correlated (below)");
-    s += fmt::format("<tr><td class=\"l\">{}</td><td>{:.4f} {}</td><td>{:.4f} {}</td><td>{:+.4f} {}</td>"
-                     "<td>{:.4f} {}</td><td class=\"l\">{}</td></tr>\n",
-                     escape(p.name), p.nominal, p.unit, p.value, p.unit, p.change, p.unit, p.ci95,
-                     p.unit, notes);
+    if (p.strongly_correlated)
+      notes += (notes.empty() ? "" : "; ") + std::string("strongly correlated (below)");
+    s += fmt::format(
+        "<tr><td class=\"l\">{}</td><td>{:.4f} {}</td><td>{:.4f} {}</td><td>{:+.4f} {}</td>"
+        "<td>{:.4f} {}</td><td class=\"l\">{}</td></tr>\n",
+        escape(p.name), p.nominal, p.unit, p.value, p.unit, p.change, p.unit, p.ci95, p.unit,
+        notes);
   }
   s += "</table>\n";
   s += "<h3>Strongly correlated pairs</h3>\n<table id=\"fig-correlations\" class=\"num\"><tr>"
@@ -477,27 +515,30 @@ std::string camera_section(const ReportData& d) {
                                "camera " + c.name);
     svg += fmt::format("<text x=\"10\" y=\"14\" class=\"axis\">{} ({} × {} px)</text>",
                        escape(c.name), c.width, c.height);
-    svg += fmt::format("<rect x=\"10\" y=\"22\" width=\"{:.0f}\" height=\"{:.1f}\" fill=\"#f4f4f4\" "
-                       "stroke=\"#444\"/>\n<path d=\"",
-                       w, h);
+    svg += fmt::format(
+        "<rect x=\"10\" y=\"22\" width=\"{:.0f}\" height=\"{:.1f}\" fill=\"#f4f4f4\" "
+        "stroke=\"#444\"/>\n<path d=\"",
+        w, h);
     for (const auto& p : c.corners)
       svg += fmt::format("M{:.1f} {:.1f}h0", 10 + p.x() * scale, 22 + p.y() * scale);
     svg += "\" stroke=\"#b0b0b0\" stroke-width=\"1.5\" stroke-linecap=\"round\"/>\n";
     for (std::size_t k = 0; k < c.pose_centres.size() && k < c.pose_rms_px.size(); ++k)
-      svg += fmt::format("<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\" stroke=\"#000\" "
-                         "stroke-width=\"0.5\"><title>{:.3f} px</title></circle>",
-                         10 + c.pose_centres[k].x() * scale, 22 + c.pose_centres[k].y() * scale,
-                         scale_colour(c.pose_rms_px[k] / rms_max), c.pose_rms_px[k]);
+      svg += fmt::format(
+          "<circle cx=\"{:.1f}\" cy=\"{:.1f}\" r=\"4\" fill=\"{}\" stroke=\"#000\" "
+          "stroke-width=\"0.5\"><title>{:.3f} px</title></circle>",
+          10 + c.pose_centres[k].x() * scale, 22 + c.pose_centres[k].y() * scale,
+          scale_colour(c.pose_rms_px[k] / rms_max), c.pose_rms_px[k]);
     s += svg + "</svg>\n";
   }
   s += "</div>";
   std::string bar = svg_open("fig-reprojection-scale", 320, 50, "reprojection colour scale");
   for (int i = 0; i < 50; ++i)
-    bar += fmt::format("<rect x=\"{}\" y=\"6\" width=\"5.2\" height=\"14\" fill=\"{}\"/>", 30 + i * 5,
-                       scale_colour(i / 49.0));
-  bar += fmt::format("<text x=\"30\" y=\"34\" class=\"tick\">0 px</text><text x=\"280\" y=\"34\" "
-                     "class=\"tick\" text-anchor=\"end\">{:.3f} px</text></svg>",
-                     rms_max);
+    bar += fmt::format("<rect x=\"{}\" y=\"6\" width=\"5.2\" height=\"14\" fill=\"{}\"/>",
+                       30 + i * 5, scale_colour(i / 49.0));
+  bar += fmt::format(
+      "<text x=\"30\" y=\"34\" class=\"tick\">0 px</text><text x=\"280\" y=\"34\" "
+      "class=\"tick\" text-anchor=\"end\">{:.3f} px</text></svg>",
+      rms_max);
   return figure(s + bar,
                 "Camera coverage: every grey dot is a board corner a camera detected; the image "
                 "should be covered well, corners included. Reprojection: each circle is one "
@@ -506,7 +547,9 @@ std::string camera_section(const ReportData& d) {
                 "cameras of that pose). Bright circles are poses measured less well.");
 }
 
-std::string axis_name(int i) { return std::array<const char*, 3>{"x", "y", "z"}[static_cast<std::size_t>(i)]; }
+std::string axis_name(int i) {
+  return std::array<const char*, 3>{"x", "y", "z"}[static_cast<std::size_t>(i)];
+}
 
 std::string diagnostics_section(const ReportData& d) {
   std::string s = "<div id=\"fig-diagnostics\">";
@@ -526,27 +569,29 @@ std::string diagnostics_section(const ReportData& d) {
     for (const auto& tr : t.trends)
       if (tr.significant) largest = std::max(largest, tr.amplitude);
     s += t.unmodelled_error_suspected()
-             ? fmt::format("<p class=\"warn\">Unmodelled error suspected: the remaining error "
-                           "changes systematically with position, by up to {} across the "
-                           "measured poses (red rows).</p>",
-                           escape(length(largest)))
+             ? fmt::format(
+                   "<p class=\"warn\">Unmodelled error suspected: the remaining error "
+                   "changes systematically with position, by up to {} across the "
+                   "measured poses (red rows).</p>",
+                   escape(length(largest)))
              : "<p class=\"ok\">No trend: the remaining error looks like noise.</p>";
     s += "<table class=\"num\"><tr><th>error along</th><th>vs position</th><th>correlation</th>"
          "<th>p-value</th><th>change over the workspace</th><th>verdict</th></tr>\n";
     for (const auto& tr : t.trends)
-      s += fmt::format("<tr{}><td>{}</td><td>{}</td><td>{:+.2f}</td><td>{:.2g}</td><td>{}</td>"
-                       "<td class=\"l\">{}</td></tr>\n",
-                       tr.significant ? " class=\"flag\"" : "", axis_name(tr.component),
-                       axis_name(tr.coordinate), tr.correlation.r, tr.correlation.p_value,
-                       escape(length(tr.amplitude)),
-                       tr.significant ? "trend: unmodelled error" : "noise");
+      s += fmt::format(
+          "<tr{}><td>{}</td><td>{}</td><td>{:+.2f}</td><td>{:.2g}</td><td>{}</td>"
+          "<td class=\"l\">{}</td></tr>\n",
+          tr.significant ? " class=\"flag\"" : "", axis_name(tr.component),
+          axis_name(tr.coordinate), tr.correlation.r, tr.correlation.p_value,
+          escape(length(tr.amplitude)), tr.significant ? "trend: unmodelled error" : "noise");
     s += "</table>\n";
   }
   return s + "</div>\n";
 }
 
 std::string timings_section(const ReportData& d) {
-  std::string s = "<table id=\"fig-timings\" class=\"num\"><tr><th>step</th><th>seconds</th></tr>\n";
+  std::string s =
+      "<table id=\"fig-timings\" class=\"num\"><tr><th>step</th><th>seconds</th></tr>\n";
   for (const auto& [name, seconds] : d.timings)
     s += fmt::format("<tr><td class=\"l\">{}</td><td>{:.2f}</td></tr>\n", escape(name), seconds);
   return s + "</table>\n";
@@ -568,9 +613,9 @@ tr.flag td{background:#fde8e8}
 
 const std::vector<std::string>& report_figure_ids() {
   static const std::vector<std::string> ids = {
-      "fig-accuracy", "fig-per-pose",       "fig-histogram", "fig-map-top",
-      "fig-map-side", "fig-parameters",     "fig-correlations", "fig-not-identified",
-      "fig-cameras",  "fig-diagnostics",    "fig-timings"};
+      "fig-accuracy", "fig-per-pose",    "fig-histogram",    "fig-map-top",
+      "fig-map-side", "fig-parameters",  "fig-correlations", "fig-not-identified",
+      "fig-cameras",  "fig-diagnostics", "fig-timings"};
   return ids;
 }
 

@@ -55,8 +55,8 @@ struct PositionTrends {
 // residual[k] was observed; both in the same frame, metres). A pair is significant when its
 // p-value times 9 is below alpha.
 PositionTrends residual_position_trends(const std::vector<Eigen::Vector3d>& positions,
-                                             const std::vector<Eigen::Vector3d>& residuals,
-                                             double alpha = 0.01);
+                                        const std::vector<Eigen::Vector3d>& residuals,
+                                        double alpha = 0.01);
 
 // The RMS of values over a regular grid of a 2-D projection of the workspace (top view: x/y,
 // side view: x/z): the error map. Cells without a value have count 0 and rms 0.
@@ -64,8 +64,8 @@ struct ErrorGrid {
   Eigen::Vector2d lo = Eigen::Vector2d::Zero();
   Eigen::Vector2d cell = Eigen::Vector2d::Ones();  // cell size along each axis
   int nx = 0, ny = 0;
-  std::vector<double> rms;              // [iy * nx + ix]
-  std::vector<std::size_t> count;       // [iy * nx + ix]
+  std::vector<double> rms;         // [iy * nx + ix]
+  std::vector<std::size_t> count;  // [iy * nx + ix]
   [[nodiscard]] double max_rms() const;
 };
 // The grid spans the points' bounding box (a degenerate axis gets a unit-free width of 1e-3).
