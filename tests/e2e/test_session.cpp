@@ -108,6 +108,10 @@ TEST(SessionEndToEnd, PipelineWithoutTruthThenValidateThenBatchEqualsSingleRuns)
   ASSERT_EQ(s["sessions"].size(), 2U);
   EXPECT_EQ(s["failed"].get<int>(), 0);
   EXPECT_EQ(s["sessions"][0]["calibrated_rms_m"].get<double>(), calibrated);
+  // Each session gets its report page (issue 20), named in the summary.
+  for (const auto& dir : {a2, b2}) EXPECT_TRUE(fs::exists(dir / "results" / "report.html")) << dir;
+  EXPECT_EQ(s["sessions"][0]["report"].get<std::string>(),
+            (a2 / "results" / "report.html").string());
   EXPECT_EQ(recorded_fingerprint(a2), before_a2) << "batch changed recorded data";
 }
 

@@ -236,6 +236,20 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   if (!d.error_before.empty()) d.histogram_before = error_histogram(d.error_before);
   d.histogram_after = error_histogram(d.error_after);
 
+  // The calibrated model's residual at each measured pose (measured board position minus the
+  // model's, camera 0's frame): the residual diagnostics, and the error map without truth.
+  std::vector<Eigen::Vector3d> fit_positions, fit_residuals;
+  for (const auto& m : measured) {
+    const auto fk =
+        calib::forward_kinematics(robot.model, ident.estimate, m.actuators, robot.frame);
+    if (!fk.closure.ok()) continue;
+    fit_positions.emplace_back(m.rig_T_target.translation());
+    fit_residuals.emplace_back(m.rig_T_target.translation() - fk.pose.translation());
+  }
+  if (fit_positions.size() >= 4)
+    d.diagnostics.push_back({"measured poses: measured minus calibrated model",
+                             calib::residual_position_trends(fit_positions, fit_residuals)});
+
   // Error maps over the workspace (held-out positions, camera 0's frame).
   if (validation && !validation->points.empty()) {
     std::vector<Eigen::Vector2d> t, sd;
@@ -247,14 +261,28 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
       before.push_back(p.nominal_error.norm());
     }
     d.has_map = true;
+    d.map_source = "held-out poses";
     d.top_after = calib::error_grid(t, after, kMapCells, kMapCells);
     d.side_after = calib::error_grid(sd, after, kMapCells, kMapCells);
     d.top_before = calib::error_grid(t, before, kMapCells, kMapCells);
     d.side_before = calib::error_grid(sd, before, kMapCells, kMapCells);
-    for (const auto& m : measured) {
-      d.measured_top.push_back(top(m.rig_T_target.translation()));
-      d.measured_side.push_back(side(m.rig_T_target.translation()));
+  } else if (!fit_positions.empty()) {
+    // No truth: the fit's residuals at the measured poses are the only errors with a position.
+    std::vector<Eigen::Vector2d> t, sd;
+    std::vector<double> after;
+    for (std::size_t k = 0; k < fit_positions.size(); ++k) {
+      t.push_back(top(fit_positions[k]));
+      sd.push_back(side(fit_positions[k]));
+      after.push_back(fit_residuals[k].norm());
     }
+    d.has_map = true;
+    d.map_source = "measured poses (the fit's residual; no held-out poses in this session)";
+    d.top_after = calib::error_grid(t, after, kMapCells / 2, kMapCells / 2);
+    d.side_after = calib::error_grid(sd, after, kMapCells / 2, kMapCells / 2);
+  }
+  for (const auto& m : measured) {
+    d.measured_top.push_back(top(m.rig_T_target.translation()));
+    d.measured_side.push_back(side(m.rig_T_target.translation()));
   }
 
   add_parameters(d, ident, analysis);
@@ -262,21 +290,6 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   for (const auto& m : measured) rms_by_pose[m.pose] = m.rms_px;
   add_cameras(d, s, results, rms_by_pose);
 
-  // Residual diagnostics: the calibrated model's residual at each measured pose (measured board
-  // position minus the model's, camera 0's frame), and its error at each held-out pose.
-  {
-    std::vector<Eigen::Vector3d> positions, residuals;
-    for (const auto& m : measured) {
-      const auto fk =
-          calib::forward_kinematics(robot.model, ident.estimate, m.actuators, robot.frame);
-      if (!fk.closure.ok()) continue;
-      positions.emplace_back(m.rig_T_target.translation());
-      residuals.emplace_back(m.rig_T_target.translation() - fk.pose.translation());
-    }
-    if (positions.size() >= 4)
-      d.diagnostics.push_back({"measured poses: measured minus calibrated model",
-                               calib::residual_position_trends(positions, residuals)});
-  }
   // Held-out errors are not tested: a parameter's estimation error itself makes them vary
   // smoothly with position (extrapolation), so a trend there says nothing about the model.
 
@@ -341,7 +354,18 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   summary["verdict"] = d.verdict;
   summary["seconds"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  say(log, "  {}\n  page: {} ({:.0f} kB)\n", d.verdict, results.report_page().string(),
+  say(log, "  {}\n", d.verdict);
+  for (const auto& a : d.accuracy)
+    say(log, "    {:<30} {:>5} poses: {} -> {:.1f} µm RMS\n", a.label, a.poses,
+        a.nominal_rms ? fmt::format("{:.1f} µm", *a.nominal_rms * 1e6) : "?",
+        a.calibrated_rms * 1e6);
+  for (const auto& diag : d.diagnostics)
+    for (const auto& t : diag.trends.trends)
+      if (t.significant)
+        say(log, "    trend: {} error along {} changes with {} by {:.1f} µm (r {:+.2f})\n",
+            diag.source, "xyz"[t.component], "xyz"[t.coordinate], t.amplitude * 1e6,
+            t.correlation.r);
+  say(log, "  page: {} ({:.0f} kB)\n", results.report_page().string(),
       static_cast<double>(html.size()) / 1024.0);
   return summary;
 }

@@ -254,8 +254,11 @@ std::string per_pose_section(const ReportData& d) {
     f.xhi = static_cast<double>(std::max<std::size_t>(n, 2) - 1);
     f.ylo = std::pow(10.0, std::floor(std::log10(lo)));
     f.yhi = std::pow(10.0, std::ceil(std::log10(hi)));
+    const bool has_before = d.error_before.size() == n;
     svg += axes(
-        f, ticks(0, f.xhi, 8), log_ticks(f.ylo, f.yhi), "poses, sorted by error before calibration",
+        f, ticks(0, f.xhi, 8), log_ticks(f.ylo, f.yhi),
+        has_before ? "poses, sorted by error before calibration"
+                   : "poses, sorted by error after calibration",
         "position error", [](double t) { return fmt::format("{:.0f}", t); },
         [](double t) { return length(t); });
     for (const auto& [values, colour] :
@@ -270,15 +273,19 @@ std::string per_pose_section(const ReportData& d) {
           "fill=\"none\"/>\n",
           dots, colour);
     }
-    svg += legend(f.x0 + f.w - 130, f.y0 + 6,
-                  {{kBefore, "before calibration"}, {kAfter, "after calibration"}});
+    if (has_before)
+      svg += legend(f.x0 + f.w - 130, f.y0 + 6,
+                    {{kBefore, "before calibration"}, {kAfter, "after calibration"}});
   }
   svg += "</svg>";
-  return figure(svg, fmt::format("Error of each of the {} {} before (grey) and after (blue) "
-                                 "calibration, largest error before calibration on the left. "
-                                 "The scale is logarithmic: each grid line is ten times the one "
-                                 "below.",
-                                 n, escape(d.per_pose_source)));
+  const std::string what =
+      d.error_before.size() == n
+          ? "before (grey) and after (blue) calibration, largest error before calibration on the "
+            "left"
+          : "after calibration, largest on the left";
+  return figure(svg, fmt::format("Error of each of the {} {}, {}. The scale is logarithmic: each "
+                                 "grid line is ten times the one below.",
+                                 n, escape(d.per_pose_source), what));
 }
 
 std::string histogram_svg(const std::string& id, const calib::Histogram& h, const char* colour,
@@ -427,10 +434,11 @@ std::string map_section(const ReportData& d) {
   }
   return figure(s,
                 "Where in the workspace the calibrated robot is accurate: each square is the "
-                "RMS position error of the held-out poses in it, after calibration (colour "
-                "scale below). White dots are the poses that were measured for the "
-                "calibration; the error usually grows away from them. Positions are in camera "
-                "0's frame, in millimetres.") +
+                "RMS position error of the " +
+                    escape(d.map_source) +
+                    " in it, after calibration (colour scale below). White dots are the poses "
+                    "that were measured for the calibration; the error usually grows away from "
+                    "them. Positions are in camera 0's frame, in millimetres.") +
          (before.empty() ? std::string()
                          : figure(before,
                                   "The same maps before calibration (their own colour scale: the "

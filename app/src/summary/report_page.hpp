@@ -65,6 +65,7 @@ struct ReportData {
   // The error map: grids of the after (and before) error over two projections of the workspace
   // (camera 0's frame), with the measured positions drawn on top.
   bool has_map = false;
+  std::string map_source;  // which errors the map shows, e.g. "held-out poses"
   calib::ErrorGrid top_after, side_after, top_before, side_before;
   std::vector<Eigen::Vector2d> measured_top, measured_side;
 
