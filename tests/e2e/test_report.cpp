@@ -24,7 +24,8 @@ using robocal::test::copy_recorded;
 using robocal::test::read_file;
 using robocal::test::run_cli;
 
-// One demo session for all tests of this file (about 20 s).
+// One demo session for all checks of this file (about 20 s). ctest runs every TEST in its own
+// process, in parallel: the checks are one TEST so that the demo runs once.
 const fs::path& demo_session() {
   static const fs::path dir = [] {
     const auto d = fs::temp_directory_path() / "robocal_e2e_report_demo";
@@ -55,7 +56,7 @@ std::set<std::string> hosts_in(const std::string& text) {
   return hosts;
 }
 
-TEST(Report, DemoWritesASelfContainedPageWithEveryFigure) {
+void check_demo_page() {
   const fs::path page = page_of(demo_session());
   ASSERT_TRUE(fs::exists(page));
   const std::string html = read_file(page);
@@ -75,7 +76,7 @@ TEST(Report, DemoWritesASelfContainedPageWithEveryFigure) {
   EXPECT_EQ(demo["report"]["calibrated_rms_m"], demo["validate"]["calibrated"]["rms_m"]);
 }
 
-TEST(Report, RendersInHeadlessChromiumWithoutErrors) {
+void check_in_chromium() {
   const char* candidates[] = {"/usr/bin/chromium", "/usr/bin/chromium-browser"};
   std::string chromium;
   for (const char* c : candidates)
@@ -152,7 +153,7 @@ TEST(Report, RendersInHeadlessChromiumWithoutErrors) {
   EXPECT_NE(read_file(out / "bad.log").find("CONSOLE"), std::string::npos);
 }
 
-TEST(Report, SessionWithoutIdentificationIsRefusedAndTheOldPageKept) {
+void check_without_identification() {
   const fs::path bare = fs::temp_directory_path() / "robocal_e2e_report_bare";
   copy_recorded(demo_session(), bare);
   fs::create_directories(bare / "results");
@@ -167,7 +168,7 @@ TEST(Report, SessionWithoutIdentificationIsRefusedAndTheOldPageKept) {
   EXPECT_EQ(read_file(page_of(bare)), old_page);
 }
 
-TEST(Report, RecordedSessionWithoutTruthStillGetsItsPage) {
+void check_without_truth() {
   // The demo session's results without validation.json: the fit on the measured poses, said so.
   const fs::path recorded = fs::temp_directory_path() / "robocal_e2e_report_recorded";
   fs::remove_all(recorded);
@@ -179,6 +180,23 @@ TEST(Report, RecordedSessionWithoutTruthStillGetsItsPage) {
   EXPECT_NE(html.find("no held-out validation"), std::string::npos);
   for (const auto& id : robocal::app::report_figure_ids())
     EXPECT_NE(html.find("id=\"" + id + "\""), std::string::npos) << id;
+}
+
+TEST(Report, DemoPageBadInputAndHeadlessChromium) {
+  {
+    SCOPED_TRACE("the demo's page");
+    check_demo_page();
+  }
+  {
+    SCOPED_TRACE("a session without identification results");
+    check_without_identification();
+  }
+  {
+    SCOPED_TRACE("a session without truth");
+    check_without_truth();
+  }
+  SCOPED_TRACE("headless Chromium");
+  check_in_chromium();  // last: skips the test when chromium is absent
 }
 
 }  // namespace
