@@ -69,6 +69,7 @@ CommandSpec batch_command();
 CommandSpec sim_controller_command();
 CommandSpec plan_command();
 CommandSpec compensate_command();
+CommandSpec report_command();
 
 // In the order of a calibration: the demo first, then the steps a user runs on real data.
 const std::vector<CommandSpec>& all_commands() {
@@ -76,7 +77,7 @@ const std::vector<CommandSpec>& all_commands() {
       demo_command(),           kin_command(),      target_command(),     render_command(),
       intrinsics_command(),     rig_command(),      measure_command(),    identify_command(),
       simulate_command(),       validate_command(), batch_command(),      plan_command(),
-      sim_controller_command(), version_command(),  compensate_command(),
+      sim_controller_command(), version_command(),  compensate_command(), report_command(),
   };
   return commands;
 }

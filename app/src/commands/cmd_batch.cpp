@@ -58,6 +58,11 @@ nlohmann::json process(const std::string& dir, const BatchOptions& o, const Pipe
           row["held_out_poses"] = v["held_out_poses"];
         }
       }
+      // Each identified session gets its page (results/report.html), validated or not.
+      if (ident.value("status", "") == "ok") {
+        const auto page = report_session(dir, PipelineLog{nullptr});
+        row["report"] = page.value("page", "");
+      }
     }
   } catch (const InputError& e) {
     row["error"] = e.what();

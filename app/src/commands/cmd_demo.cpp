@@ -75,10 +75,15 @@ int run_demo(DemoOptions o) {
   report["seed"] = o.simulate.seed;
   report["robot"] = o.simulate.robot;
   report["session"] = dir.string();
+  // The page for people (results/report.html), with the stage times measured here.
+  std::vector<std::pair<std::string, double>> seconds;
+  for (const auto& s : clock.stages()) seconds.emplace_back(s.name, s.seconds);
+  report["report"] = report_session(dir, PipelineLog{nullptr}, seconds);
   const std::string json_path =
       !o.json.empty() ? o.json : ResultsLayout{dir}.report("demo").string();
   write_json(report, json_path);
-  fmt::print(out, "  session: {}\n  report: {}\n", dir.string(), json_path);
+  fmt::print(out, "  session: {}\n  report: {}\n  page: {}\n", dir.string(), json_path,
+             report["report"].value("page", ""));
   const bool improved = report["validate"].value("improved", false);
   if (!improved) fmt::print(stderr, "calibration did not improve the model\n");
   return improved ? kExitOk : kExitFailure;

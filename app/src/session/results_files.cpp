@@ -164,6 +164,7 @@ std::vector<MeasuredPose> read_used_measured_poses(const ResultsLayout& results,
       MeasuredPose pose;
       pose.pose = p.at("pose").get<std::string>();
       pose.actuators = to_vector(p.at("actuators").get<std::vector<double>>());
+      pose.rms_px = p.value("rms_px", 0.0);
       const auto rows = p.at("rig_T_target_matrix").get<std::vector<std::vector<double>>>();
       const auto cov_rows = p.at("covariance").get<std::vector<std::vector<double>>>();
       if (rows.size() != 3 || cov_rows.size() != 6)
@@ -324,6 +325,62 @@ IdentificationFile read_identification(const ResultsLayout& results, const calib
   if (out.report.contains("pixel_route") && out.report["pixel_route"].value("status", "") == "ok")
     out.pixel_estimate = params_from_json(model, out.report["pixel_route"].at("estimate"), file);
   return out;
+}
+
+// ---- validation.json ----------------------------------------------------------------------------
+
+ValidationFile read_validation(const ResultsLayout& results, const std::string& hint) {
+  const std::string file = results.report("validation").string();
+  ValidationFile out;
+  out.report = read_json_file(results.report("validation"), hint);
+  out.status = out.report.value("status", "");
+  if (!out.report.contains("held_out_points")) return out;
+  const nlohmann::json& p = out.report.at("held_out_points");
+  const auto rows = [&](const char* field) {
+    const std::string where = fmt::format("{}: held_out_points.{}", file, field);
+    if (!p.contains(field) || !p.at(field).is_array()) throw InputError(where + ": missing");
+    std::vector<Eigen::Vector3d> v;
+    for (std::size_t k = 0; k < p.at(field).size(); ++k)
+      v.emplace_back(to_vector(numbers(p.at(field)[k], 3, fmt::format("{}[{}]", where, k))));
+    return v;
+  };
+  const auto position = rows("position_m");
+  const auto nominal = rows("nominal_error_m");
+  const auto calibrated = rows("calibrated_error_m");
+  if (nominal.size() != position.size() || calibrated.size() != position.size())
+    throw InputError(file +
+                     ": held_out_points: position_m, nominal_error_m and "
+                     "calibrated_error_m differ in length");
+  const nlohmann::json inside = p.value("inside_measured_region", nlohmann::json::array());
+  for (std::size_t k = 0; k < position.size(); ++k) {
+    HeldOutPoint h{position[k], nominal[k], calibrated[k], std::nullopt};
+    if (k < inside.size() && inside[k].is_boolean())
+      h.inside_measured_region = inside[k].get<bool>();
+    out.points.push_back(h);
+  }
+  return out;
+}
+
+// ---- demo.json ----------------------------------------------------------------------------------
+
+std::vector<std::pair<std::string, double>> read_demo_seconds(const ResultsLayout& results) {
+  std::vector<std::pair<std::string, double>> out;
+  const fs::path path = results.report("demo");
+  if (!fs::exists(path)) return out;
+  const nlohmann::json doc = read_json_file(path, "");
+  if (!doc.contains("seconds")) return out;
+  for (const auto& [name, seconds] : doc.at("seconds").items()) {
+    if (!seconds.is_number())
+      throw InputError(fmt::format("{}: seconds.{}: expected a number", path.string(), name));
+    out.emplace_back(name, seconds.get<double>());
+  }
+  return out;
+}
+
+// ---- report.html --------------------------------------------------------------------------------
+
+void write_report_page(const ResultsLayout& results, const std::string& html) {
+  core::write_file_atomic(results.report_page(), html, core::Overwrite::kReplace);
 }
 
 // ---- truth/truth.json -------------------------------------------------------------------------

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace robocal::app {
@@ -64,6 +65,7 @@ struct MeasuredPose {
   Eigen::VectorXd actuators;
   Eigen::Isometry3d rig_T_target = Eigen::Isometry3d::Identity();  // full precision
   Eigen::Matrix<double, 6, 6> covariance;  // as measured: [d_theta; d_t] (vision's order)
+  double rms_px = 0.0;                     // the board pose fit's reprojection RMS
 };
 // The poses marked used, at full precision. Throws InputError (missing file: `hint`).
 std::vector<MeasuredPose> read_used_measured_poses(const ResultsLayout& results,
@@ -118,6 +120,33 @@ std::string measurement_refusal(const ResultsLayout& results);
 // Throws InputError when missing or malformed; start/estimate are read only when status is ok.
 IdentificationFile read_identification(const ResultsLayout& results, const calib::Mechanism& model,
                                        const std::string& hint);
+
+// ---- validation.json (validate; read by the report)
+
+// One held-out configuration: the true position (camera 0's frame) and each model's error there.
+struct HeldOutPoint {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d nominal_error = Eigen::Vector3d::Zero();     // nominal model - truth
+  Eigen::Vector3d calibrated_error = Eigen::Vector3d::Zero();  // calibrated model - truth
+  std::optional<bool> inside_measured_region;                  // none: region unknown
+};
+struct ValidationFile {
+  nlohmann::json report;             // as written (summary figures, held_out_by_region, ...)
+  std::string status;                // "ok" | "failed"
+  std::vector<HeldOutPoint> points;  // empty: written before validate recorded them
+};
+// Throws InputError when missing (`hint`) or malformed (naming the field).
+ValidationFile read_validation(const ResultsLayout& results, const std::string& hint);
+
+// ---- demo.json (demo; its stage times are read by the report)
+
+// The demo's time per stage ("seconds"), in the file's order; empty when the session has no
+// demo.json. Throws InputError when it is malformed.
+std::vector<std::pair<std::string, double>> read_demo_seconds(const ResultsLayout& results);
+
+// ---- report.html (report; a page for people, never read back)
+
+void write_report_page(const ResultsLayout& results, const std::string& html);
 
 // ---- truth/truth.json (simulate; read by validate only)
 

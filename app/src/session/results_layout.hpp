@@ -19,6 +19,7 @@ struct ResultsLayout {
   static constexpr const char* kCalibratedRobot = "results/calibrated_robot.yaml";
   static constexpr const char* kCalibratedRobotPixels = "results/calibrated_robot_pixels.yaml";
   static constexpr const char* kCamerasFolder = "results/cameras/";
+  static constexpr const char* kReportPage = "results/report.html";
 
   [[nodiscard]] std::filesystem::path dir() const { return session / "results"; }
   [[nodiscard]] std::filesystem::path camera(const std::string& name) const {
@@ -37,6 +38,8 @@ struct ResultsLayout {
   [[nodiscard]] std::filesystem::path calibrated_robot_pixels() const {
     return session / kCalibratedRobotPixels;
   }
+  // The calibration report a person opens in a browser (`robocal report`).
+  [[nodiscard]] std::filesystem::path report_page() const { return session / kReportPage; }
   // Stage reports: results/<stage>.json (measure, validation) and the demo's demo.json.
   [[nodiscard]] std::filesystem::path report(const std::string& stage) const {
     return dir() / (stage + ".json");

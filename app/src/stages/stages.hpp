@@ -18,6 +18,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace robocal::app {
 
@@ -86,6 +88,11 @@ struct CompensateOptions {
   std::string route = "pose";  // identification route whose estimate is used: pose | pixel
 };
 nlohmann::json compensate_session(const CompensateOptions& options, const PipelineLog& log);
+// stages/report.cpp: results/report.html from the session's results (needs a successful
+// identification; InputError naming what is missing otherwise). stage_seconds: the stages' times
+// when the caller has them (empty: read from demo.json when the session has one).
+nlohmann::json report_session(const std::filesystem::path& dir, const PipelineLog& log,
+                              std::vector<std::pair<std::string, double>> stage_seconds = {});
 
 // Exit code of a stage report: ok 0, failed 1, no_truth 3 (a missing input).
 inline int exit_code_of(const nlohmann::json& report) {

@@ -206,6 +206,22 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     report["calibrated_pixels_registered"] =
         stats_json(pixel_errors.registered, pixel_answers.failures);
   }
+  // Every held-out configuration's true position and each model's error vector there, for the
+  // report's per-pose figures, error maps and residual diagnostics (read by read_validation).
+  {
+    nlohmann::json position = nlohmann::json::array(), nominal = nlohmann::json::array(),
+                   calibrated = nlohmann::json::array();
+    const auto row = [](const Eigen::Vector3d& v) { return nlohmann::json{v.x(), v.y(), v.z()}; };
+    for (std::size_t k = 0; k < truth_points.size(); ++k) {
+      position.push_back(row(truth_points[k]));
+      nominal.push_back(row(nominal_points[k] - truth_points[k]));
+      calibrated.push_back(row(calibrated_points[k] - truth_points[k]));
+    }
+    report["held_out_points"] = {{"frame", "camera 0"},
+                                 {"position_m", position},
+                                 {"nominal_error_m", nominal},
+                                 {"calibrated_error_m", calibrated}};
+  }
   // Interpolation or extrapolation: where each held-out position lies relative to the measured
   // region (the convex hull of the measured board positions). Far outside it, the model is
   // extrapolated along directions the measured poses constrain weakly.
@@ -246,6 +262,7 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     if (pixel_estimate) add_registered("calibrated_pixels_registered", pixel_errors);
     report["held_out_by_region"] =
         split_errors_by_region(inside, outside_m, truth_points, predictions);
+    report["held_out_points"]["inside_measured_region"] = inside;
   }
   // The worst held-out configurations with the true robot's task conditioning there
   // (σ_min/σ_max of d(position)/d(actuators)): one pose near a singularity can carry most of the

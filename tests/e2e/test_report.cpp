@@ -1,0 +1,202 @@
+// `robocal report` end to end: a small demo session (which writes its report at the end), the
+// page checked as a file (size, every figure, no network reference) and rendered by headless
+// Chromium (not blank, every figure in the DOM, no console errors, any network request would
+// fail and show as one); and a session without identification results refused with exit code 3,
+// its existing page untouched.
+#include "session_test_support.hpp"
+#include "summary/report_page.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+using robocal::test::copy_recorded;
+using robocal::test::read_file;
+using robocal::test::run_cli;
+
+// One demo session for all checks of this file (about 20 s). ctest runs every TEST in its own
+// process, in parallel: the checks are one TEST so that the demo runs once.
+const fs::path& demo_session() {
+  static const fs::path dir = [] {
+    const auto d = fs::temp_directory_path() / "robocal_e2e_report_demo";
+    fs::remove_all(d);
+    const int code =
+        run_cli({"demo", "--quick", "--poses", "20", "--held-out", "120", "--route", "pose",
+                 "--seed", "2", "--out", d.string(), "--json",
+                 (fs::temp_directory_path() / "robocal_e2e_report_demo.json").string()});
+    EXPECT_EQ(code, 0);
+    return d;
+  }();
+  return dir;
+}
+
+fs::path page_of(const fs::path& session) {
+  return session / "results" / "report.html";
+}
+
+// The hosts of every http(s) URL in a text (Chromium's network log).
+std::set<std::string> hosts_in(const std::string& text) {
+  std::set<std::string> hosts;
+  for (const std::string scheme : {"http://", "https://"})
+    for (auto at = text.find(scheme); at != std::string::npos; at = text.find(scheme, at + 1)) {
+      const auto begin = at + scheme.size();
+      const auto end = text.find_first_of("/\\\" ;?:", begin);
+      hosts.insert(text.substr(begin, end == std::string::npos ? end : end - begin));
+    }
+  return hosts;
+}
+
+void check_demo_page() {
+  const fs::path page = page_of(demo_session());
+  ASSERT_TRUE(fs::exists(page));
+  const std::string html = read_file(page);
+  EXPECT_LE(html.size(), 2U * 1024U * 1024U);
+  for (const auto& id : robocal::app::report_figure_ids())
+    EXPECT_NE(html.find("id=\"" + id + "\""), std::string::npos) << id;
+  // Nothing the browser could fetch: no URLs, no src/href, no CSS url(), no scripts.
+  for (const char* banned : {"http:", "https:", "src=", "href=", "url(", "<script", "@import"})
+    EXPECT_EQ(html.find(banned), std::string::npos) << banned;
+  // The held-out figures are there (validated session), and the JSON summary agrees.
+  EXPECT_NE(html.find("inside the measured region"), std::string::npos);
+  EXPECT_NE(html.find("outside the measured region"), std::string::npos);
+  std::ifstream in(fs::temp_directory_path() / "robocal_e2e_report_demo.json");
+  const auto demo = nlohmann::json::parse(in);
+  EXPECT_EQ(demo["report"]["status"], "ok");
+  EXPECT_EQ(demo["report"]["held_out_poses"], demo["validate"]["held_out_poses"]);
+  EXPECT_EQ(demo["report"]["calibrated_rms_m"], demo["validate"]["calibrated"]["rms_m"]);
+}
+
+void check_in_chromium() {
+  const char* candidates[] = {"/usr/bin/chromium", "/usr/bin/chromium-browser"};
+  std::string chromium;
+  for (const char* c : candidates)
+    if (fs::exists(c)) chromium = c;
+  if (chromium.empty())
+    GTEST_SKIP() << "chromium is not installed (Debian package `chromium`, scripts/bootstrap.sh): "
+                    "the page is not rendered by a browser in this run";
+  const fs::path page = fs::absolute(page_of(demo_session()));
+  const fs::path out = fs::temp_directory_path() / "robocal_e2e_report_chromium";
+  fs::remove_all(out);
+  fs::create_directories(out);
+  // Every host resolves to nothing (nothing leaves the machine); the network log records every
+  // request the browser made all the same.
+  const auto run = [&](const std::string& what, const std::string& url, const std::string& args) {
+    const std::string command =
+        "timeout 120 " + chromium +
+        " --headless --no-sandbox --disable-gpu --no-first-run --disable-extensions"
+        " --disable-background-networking --disable-component-update --disable-sync"
+        " '--host-resolver-rules=MAP * ~NOTFOUND' --user-data-dir=" +
+        (out / ("profile-" + what)).string() +
+        " --log-net-log=" + (out / (what + ".netlog.json")).string() +
+        " --enable-logging=stderr --v=0 --window-size=1100,3000 " + args + " " + url + " >" +
+        (out / (what + ".out")).string() + " 2>" + (out / (what + ".log")).string();
+    return std::system(command.c_str());
+  };
+  const std::string shot = (out / "page.png").string();
+  ASSERT_EQ(run("shot", "file://" + page.string(), "--screenshot=" + shot), 0)
+      << read_file(out / "shot.log");
+  ASSERT_EQ(run("dom", "file://" + page.string(), "--dump-dom"), 0) << read_file(out / "dom.log");
+  // Chromium contacts its own services (update checks, accounts) whatever it shows: the same
+  // browser on an empty page is the baseline the report's requests are measured against.
+  ASSERT_EQ(run("blank", "about:blank", "--dump-dom"), 0) << read_file(out / "blank.log");
+
+  // Not blank: a good share of the screenshot is drawn, including the calibrated model's blue.
+  const cv::Mat image = cv::imread(shot, cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty()) << shot;
+  std::size_t drawn = 0, blue = 0;
+  for (int r = 0; r < image.rows; ++r)
+    for (int c = 0; c < image.cols; ++c) {
+      const auto& p = image.at<cv::Vec3b>(r, c);  // BGR
+      if (p[0] < 235 || p[1] < 235 || p[2] < 235) ++drawn;
+      if (std::abs(p[0] - 0xb2) < 12 && std::abs(p[1] - 0x6f) < 12 && std::abs(p[2] - 0x1f) < 12)
+        ++blue;
+    }
+  const double total = static_cast<double>(image.rows) * image.cols;
+  EXPECT_GT(static_cast<double>(drawn) / total, 0.03) << shot;
+  EXPECT_GT(blue, 200U) << shot;
+
+  // Every figure in the rendered DOM.
+  const std::string dom = read_file(out / "dom.out");
+  for (const auto& id : robocal::app::report_figure_ids())
+    EXPECT_NE(dom.find("id=\"" + id + "\""), std::string::npos) << id;
+  // No console message at all: the page has no scripts, so anything there is the browser
+  // reporting a problem with the page (Chromium logs console.error as INFO:CONSOLE too).
+  for (const auto* log : {"shot.log", "dom.log"}) {
+    std::istringstream lines(read_file(out / log));
+    for (std::string line; std::getline(lines, line);)
+      EXPECT_EQ(line.find("CONSOLE"), std::string::npos) << log << ": " << line;
+  }
+  // No request to any host the browser does not contact on an empty page.
+  const auto blank_hosts = hosts_in(read_file(out / "blank.netlog.json"));
+  for (const auto* netlog : {"shot.netlog.json", "dom.netlog.json"})
+    for (const auto& host : hosts_in(read_file(out / netlog)))
+      EXPECT_TRUE(blank_hosts.count(host) > 0) << netlog << ": the page requested " << host;
+
+  // The checks can fail: the same page with an external image and a console error is caught.
+  std::string bad = read_file(page);
+  bad.insert(bad.find("<body>") + 6,
+             "<img src=\"https://example.com/x.png\"><script>console.error('x')</script>");
+  { std::ofstream(out / "bad.html") << bad; }
+  ASSERT_EQ(run("bad", "file://" + (out / "bad.html").string(), "--dump-dom"), 0);
+  const auto bad_hosts = hosts_in(read_file(out / "bad.netlog.json"));
+  EXPECT_TRUE(bad_hosts.count("example.com") > 0 && blank_hosts.count("example.com") == 0);
+  EXPECT_NE(read_file(out / "bad.log").find("CONSOLE"), std::string::npos);
+}
+
+void check_without_identification() {
+  const fs::path bare = fs::temp_directory_path() / "robocal_e2e_report_bare";
+  copy_recorded(demo_session(), bare);
+  fs::create_directories(bare / "results");
+  const std::string old_page = "<html>an earlier report</html>\n";
+  { std::ofstream(page_of(bare)) << old_page; }
+  testing::internal::CaptureStderr();
+  const int code = run_cli({"report", bare.string()});
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(code, 3);
+  EXPECT_NE(err.find("identification.json"), std::string::npos) << err;
+  EXPECT_NE(err.find("robocal identify"), std::string::npos) << err;
+  EXPECT_EQ(read_file(page_of(bare)), old_page);
+}
+
+void check_without_truth() {
+  // The demo session's results without validation.json: the fit on the measured poses, said so.
+  const fs::path recorded = fs::temp_directory_path() / "robocal_e2e_report_recorded";
+  fs::remove_all(recorded);
+  fs::copy(demo_session(), recorded, fs::copy_options::recursive);
+  fs::remove(recorded / "results" / "validation.json");
+  fs::remove(recorded / "results" / "report.html");
+  ASSERT_EQ(run_cli({"report", recorded.string()}), 0);
+  const std::string html = read_file(page_of(recorded));
+  EXPECT_NE(html.find("no held-out validation"), std::string::npos);
+  for (const auto& id : robocal::app::report_figure_ids())
+    EXPECT_NE(html.find("id=\"" + id + "\""), std::string::npos) << id;
+}
+
+TEST(Report, DemoPageBadInputAndHeadlessChromium) {
+  {
+    SCOPED_TRACE("the demo's page");
+    check_demo_page();
+  }
+  {
+    SCOPED_TRACE("a session without identification results");
+    check_without_identification();
+  }
+  {
+    SCOPED_TRACE("a session without truth");
+    check_without_truth();
+  }
+  SCOPED_TRACE("headless Chromium");
+  check_in_chromium();  // last: skips the test when chromium is absent
+}
+
+}  // namespace

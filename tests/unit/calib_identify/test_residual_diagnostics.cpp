@@ -1,0 +1,106 @@
+// The report's statistics (calib/residual_diagnostics.hpp) against closed forms computed here and
+// against residuals with a known position dependence (an unmodelled effect) or none (noise).
+#include "robocal/calib/residual_diagnostics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace {
+
+using robocal::calib::error_grid;
+using robocal::calib::histogram;
+using robocal::calib::pearson_correlation;
+using robocal::calib::residual_position_trends;
+
+TEST(ReportHistogram, CountsEveryValueOnceEdgesIntoTheOuterBins) {
+  const auto h = histogram({-1.0, 0.0, 0.24, 0.25, 0.5, 0.99, 1.0, 7.0}, 4, 0.0, 1.0);
+  ASSERT_EQ(h.counts.size(), 4U);
+  EXPECT_DOUBLE_EQ(h.width, 0.25);
+  // [0, .25): -1 (clamped), 0, 0.24; [.25, .5): 0.25; [.5, .75): 0.5; [.75, 1]: 0.99, 1, 7.
+  EXPECT_EQ(h.counts[0], 3U);
+  EXPECT_EQ(h.counts[1], 1U);
+  EXPECT_EQ(h.counts[2], 1U);
+  EXPECT_EQ(h.counts[3], 3U);
+  EXPECT_THROW(histogram({1.0}, 0, 0.0, 1.0), std::invalid_argument);
+}
+
+TEST(ReportCorrelation, MatchesTheClosedFormAndFishersPValue) {
+  // a = 1..5, b = 2 1 4 3 5: sum(da db) = 8, sum(da^2) = sum(db^2) = 10 -> r = 0.8.
+  const auto c = pearson_correlation({1, 2, 3, 4, 5}, {2, 1, 4, 3, 5});
+  EXPECT_NEAR(c.r, 0.8, 1e-12);
+  const double z = std::atanh(0.8) * std::sqrt(2.0);
+  EXPECT_NEAR(c.p_value, std::erfc(z / std::sqrt(2.0)), 1e-12);
+  EXPECT_NEAR(pearson_correlation({1, 2, 3, 4}, {-3, -5, -7, -9}).r, -1.0, 1e-12);
+  // Constant or too short: no evidence of anything.
+  EXPECT_EQ(pearson_correlation({1, 1, 1, 1, 1}, {1, 2, 3, 4, 5}).p_value, 1.0);
+  EXPECT_EQ(pearson_correlation({1, 2, 3}, {1, 2, 3}).r, 0.0);
+}
+
+// Positions spread over a 400 mm cube; residuals of 5 µm noise.
+struct Cloud {
+  std::vector<Eigen::Vector3d> positions, residuals;
+};
+Cloud noise_cloud(unsigned seed, std::size_t n) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> where(-0.2, 0.2);
+  std::normal_distribution<double> noise(0.0, 5e-6);
+  Cloud c;
+  for (std::size_t k = 0; k < n; ++k) {
+    c.positions.emplace_back(where(rng), where(rng), 0.8 + where(rng));
+    c.residuals.emplace_back(noise(rng), noise(rng), noise(rng));
+  }
+  return c;
+}
+
+TEST(ReportResidualTrends, NoiseIsNotFlagged) {
+  const Cloud c = noise_cloud(11, 300);
+  const auto d = residual_position_trends(c.positions, c.residuals);
+  EXPECT_EQ(d.n, 300U);
+  EXPECT_FALSE(d.unmodelled_error_suspected());
+  for (const auto& t : d.trends) EXPECT_LT(std::abs(t.correlation.r), 0.25);
+}
+
+TEST(ReportResidualTrends, AToolTiltLeftInTheResidualsIsFlaggedWithItsSlope) {
+  // An unmodelled tilt of 0.1 mrad about y: the x residual grows with height z (1e-4 m per m,
+  // 40 µm over the 400 mm range), far above the 5 µm noise.
+  Cloud c = noise_cloud(12, 300);
+  const double tilt = 1e-4;
+  for (std::size_t k = 0; k < c.positions.size(); ++k)
+    c.residuals[k].x() += tilt * (c.positions[k].z() - 0.8);
+  const auto d = residual_position_trends(c.positions, c.residuals);
+  ASSERT_TRUE(d.unmodelled_error_suspected());
+  const auto& xz = d.trends[0 * 3 + 2];
+  EXPECT_TRUE(xz.significant);
+  EXPECT_EQ(xz.component, 0);
+  EXPECT_EQ(xz.coordinate, 2);
+  // Least-squares slope: its standard error is noise / (sd(z) sqrt(n)) = 5e-6 / (0.115 * 17.3).
+  const double slope_sigma = 5e-6 / (0.4 / std::sqrt(12.0) * std::sqrt(300.0));
+  EXPECT_NEAR(xz.slope, tilt, 4.0 * slope_sigma);
+  EXPECT_NEAR(xz.amplitude, tilt * 0.4, 0.4 * 4.0 * slope_sigma + 1e-5);
+  // Only that pair is flagged.
+  for (std::size_t i = 0; i < d.trends.size(); ++i) {
+    if (i != 2) {
+      EXPECT_FALSE(d.trends[i].significant) << "pair " << i;
+    }
+  }
+}
+
+TEST(ReportErrorGrid, RmsPerCellOverTheBoundingBox) {
+  // Four points in the corners of a 2 x 1 box, two in the lower-left cell.
+  const std::vector<Eigen::Vector2d> p = {{0, 0}, {0.1, 0.1}, {2, 0}, {0, 1}, {2, 1}};
+  const std::vector<double> v = {3, 4, 1, 2, 5};
+  const auto g = error_grid(p, v, 2, 2);
+  EXPECT_DOUBLE_EQ(g.cell.x(), 1.0);
+  EXPECT_DOUBLE_EQ(g.cell.y(), 0.5);
+  EXPECT_EQ(g.count[0], 2U);
+  EXPECT_NEAR(g.rms[0], std::sqrt((9.0 + 16.0) / 2.0), 1e-12);
+  EXPECT_EQ(g.count[1], 1U);  // (2, 0): the upper edge belongs to the last cell
+  EXPECT_DOUBLE_EQ(g.rms[1], 1.0);
+  EXPECT_DOUBLE_EQ(g.rms[2], 2.0);
+  EXPECT_DOUBLE_EQ(g.rms[3], 5.0);
+  EXPECT_DOUBLE_EQ(g.max_rms(), 5.0);
+}
+
+}  // namespace
