@@ -16,8 +16,8 @@ packages=(
   libfcl-dev
   # file formats, command line, logging
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests and benchmarks; chromium renders the HTML report headless in its test
+  libgtest-dev libgmock-dev libbenchmark-dev chromium
 )
 
 missing=()
