@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -168,6 +169,37 @@ TEST_F(Gates, AResultsFolderThatCannotBeWrittenIsNamedWithExit3) {
   EXPECT_NE(err.find("results"), std::string::npos) << err;
   EXPECT_EQ(err.find("internal error"), std::string::npos) << err;
   EXPECT_EQ(robocal::test::recorded_fingerprint(s), before);
+}
+
+}  // namespace
+
+namespace {
+
+// Validation cannot flatter by drawing fewer configurations: for several sessions seeds (the
+// seed of validation's draws), the configurations drawn equal the count requested, and the
+// figures cover all of them except the ones a model could not answer (counted).
+TEST_F(Gates, HeldOutCountEqualsTheRequestedCountForEverySeed) {
+  const fs::path s = scratch("held_out");
+  copy_recorded(recorded_, s);
+  ASSERT_EQ(run_cli({"measure", s.string()}), 0);
+  ASSERT_EQ(run_cli({"identify", s.string(), "--route", "pose"}), 0);
+  for (const int seed : {11, 23, 57, 101}) {
+    std::string text = read_file(s / "session.yaml");
+    const auto at = text.find("\nseed: ");
+    ASSERT_NE(at, std::string::npos);
+    const auto end = text.find('\n', at + 1);
+    text.replace(at + 1, end - at - 1, "seed: " + std::to_string(seed));
+    std::ofstream(s / "session.yaml", std::ios::trunc) << text;
+    const int requested = 60 + seed;
+    ASSERT_EQ(run_cli({"validate", s.string(), "--held-out", std::to_string(requested)}), 0);
+    const auto v = load_json(s / "results" / "validation.json");
+    EXPECT_EQ(v["held_out_drawn"].get<int>(), requested) << "seed " << seed;
+    // Every drawn configuration is in the figures or is a counted failure of some model.
+    int unanswered = 0;
+    for (const auto& [model, n] : v["unanswered"].items()) unanswered += n.get<int>();
+    EXPECT_GE(v["held_out_poses"].get<int>(), requested - unanswered) << "seed " << seed;
+    EXPECT_LE(v["held_out_poses"].get<int>(), requested);
+  }
 }
 
 }  // namespace
