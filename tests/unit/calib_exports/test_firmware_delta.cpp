@@ -216,9 +216,11 @@ TEST(FirmwareDelta, TheReportedResidualIsTheFirmwaresOwnErrorOutsideItsModel) {
     const auto s = settings_map(fit);
     const Residual r = firmware_residual(m, p, fit, towers_of(fw, s));
     SCOPED_TRACE(to_string(fw));
-    if (fw == DeltaFirmware::kMarlin)
-      for (const char* axis : {"M666_X", "M666_Y", "M666_Z"})
+    if (fw == DeltaFirmware::kMarlin) {
+      for (const char* axis : {"M666_X", "M666_Y", "M666_Z"}) {
         EXPECT_LE(s.at(axis), 0.0) << "Marlin's endstop adjustments are <= 0";
+      }
+    }
     EXPECT_GT(fit.residual_rms, 5e-6);  // a tilt is not representable: a real residual
     EXPECT_NEAR(r.rms, fit.residual_rms * 1e3, 1e-6);
     EXPECT_NEAR(r.max, fit.residual_max * 1e3, 1e-6);
