@@ -1,0 +1,299 @@
+// URDF out and in, DH tables (serial_exports.hpp).
+#include "robocal/calib/serial_exports.hpp"
+
+#include "robocal/calib/kinematics.hpp"
+#include "robocal/core/input_error.hpp"
+
+#include <Eigen/Geometry>
+#include <fmt/core.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+#include <numbers>
+#include <stdexcept>
+
+namespace robocal::calib {
+namespace {
+
+bool is_rotation(OpKind k) { return static_cast<int>(k) < 3; }
+Eigen::Vector3d unit_axis(OpKind k) { return Eigen::Vector3d::Unit(static_cast<int>(k) % 3); }
+
+Eigen::Isometry3d elementary(OpKind kind, double value) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  if (is_rotation(kind))
+    T.linear() = Eigen::AngleAxisd(value, unit_axis(kind)).toRotationMatrix();
+  else
+    T.translation() = value * unit_axis(kind);
+  return T;
+}
+
+double param_value(const Eigen::VectorXd& params, int index) {
+  return index >= 0 ? params[index] : 0.0;
+}
+
+// A body's transform split at its joint: parent -> A -> joint motion (about/along `axis`) -> B.
+struct JointSplit {
+  Eigen::Isometry3d before = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d after = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();  // in the joint frame, with the joint's sign
+  bool rotation = true;
+  double scale = 1.0;  // encoder scale (1 for joints without an encoder model)
+};
+
+JointSplit split(const Body& b, const Eigen::VectorXd& params) {
+  JointSplit s;
+  bool after = false;
+  for (std::size_t k = 0; k < b.ops.size(); ++k) {
+    const ElementaryOp& op = b.ops[k];
+    Eigen::Isometry3d& side = after ? s.after : s.before;
+    side = side * elementary(op.kind, param_value(params, op.param));
+    if (static_cast<int>(k) == b.joint_op) {
+      // q = scale · reading + offset: the offset is a constant motion, folded in before.
+      s.before = s.before * elementary(op.kind, op.sign * param_value(params, b.encoder_offset_param));
+      if (b.encoder_scale_param >= 0) s.scale = params[b.encoder_scale_param];
+      s.axis = op.sign * unit_axis(op.kind);
+      s.rotation = is_rotation(op.kind);
+      after = true;
+    }
+  }
+  return s;
+}
+
+// URDF rpy (fixed axes x, y, z: R = Rz(yaw) Ry(pitch) Rx(roll)).
+Eigen::Vector3d rpy_of(const Eigen::Matrix3d& R) {
+  const double pitch = std::atan2(-R(2, 0), std::hypot(R(2, 1), R(2, 2)));
+  if (std::abs(std::cos(pitch)) < 1e-9) {  // gimbal lock: put the whole turn in yaw
+    const double yaw = std::atan2(-R(0, 1), R(1, 1));
+    return {0.0, pitch, yaw};
+  }
+  return {std::atan2(R(2, 1), R(2, 2)), pitch, std::atan2(R(1, 0), R(0, 0))};
+}
+
+std::string origin_xml(const Eigen::Isometry3d& T) {
+  const Eigen::Vector3d p = T.translation(), r = rpy_of(T.linear());
+  return fmt::format(R"(<origin xyz="{:.17g} {:.17g} {:.17g}" rpy="{:.17g} {:.17g} {:.17g}"/>)",
+                     p.x(), p.y(), p.z(), r.x(), r.y(), r.z());
+}
+
+bool is_identity(const Eigen::Isometry3d& T) {
+  return T.matrix().isApprox(Eigen::Matrix4d::Identity(), 1e-15);
+}
+
+double deg(double rad) { return rad * 180.0 / std::numbers::pi; }
+
+}  // namespace
+
+std::string urdf_mismatch(const Mechanism& model) {
+  if (!model.closures.empty())
+    return fmt::format("'{}' has closed loops ({} closures: a parallel robot); URDF describes a "
+                       "tree of links without loops (a serial arm)",
+                       model.name, model.closures.size());
+  for (const Body& b : model.bodies)
+    if (b.role == JointRole::kCut || (b.joint != JointType::kFixed && b.actuator < 0))
+      return fmt::format("'{}': body '{}' has a joint no controller drives (passive or ball "
+                         "joint); URDF's joints here are the controller's axes",
+                         model.name, b.name);
+  return "";
+}
+
+std::string urdf_text(const Mechanism& model, const Eigen::VectorXd& params) {
+  if (const std::string why = urdf_mismatch(model); !why.empty())
+    throw std::invalid_argument(why);
+  std::string links = "  <link name=\"world\"/>\n", joints;
+  std::string notes;
+  for (std::size_t i = 0; i < model.bodies.size(); ++i) {
+    const Body& b = model.bodies[i];
+    const std::string parent =
+        b.parent < 0 ? "world" : model.bodies[static_cast<std::size_t>(b.parent)].name;
+    links += fmt::format("  <link name=\"{}\"/>\n", b.name);
+    if (b.joint == JointType::kFixed) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      for (const ElementaryOp& op : b.ops) T = T * elementary(op.kind, param_value(params, op.param));
+      joints += fmt::format(
+          "  <joint name=\"{0}\" type=\"fixed\">\n    <parent link=\"{1}\"/>\n    <child "
+          "link=\"{0}\"/>\n    {2}\n  </joint>\n",
+          b.name, parent, origin_xml(T));
+      continue;
+    }
+    const JointSplit s = split(b, params);
+    if (std::abs(s.scale - 1.0) > 1e-12)
+      notes += fmt::format("  <!-- joint {}: encoder scale {:.12g} cannot be written in URDF: its "
+                           "joint value is the joint's own angle/position, reading x scale -->\n",
+                           b.name, s.scale);
+    const bool offset = !is_identity(s.after);
+    const std::string moving = offset ? b.name + "_moving" : b.name;
+    if (offset) links += fmt::format("  <link name=\"{}\"/>\n", moving);
+    std::string limit;
+    if (b.limits.lower > -1e299 && b.limits.upper < 1e299) {
+      // robocal's limits bound q; URDF's the joint value = the reading (q - offset) / scale.
+      const double offset_q = param_value(params, b.encoder_offset_param);
+      double lower = (b.limits.lower - offset_q) / s.scale;
+      double upper = (b.limits.upper - offset_q) / s.scale;
+      if (lower > upper) std::swap(lower, upper);
+      limit = fmt::format(
+          "\n    <limit lower=\"{:.17g}\" upper=\"{:.17g}\" effort=\"0\" velocity=\"0\"/>", lower,
+          upper);
+    }
+    joints += fmt::format(
+        "  <joint name=\"{0}\" type=\"{1}\">\n    <parent link=\"{2}\"/>\n    <child "
+        "link=\"{3}\"/>\n    {4}\n    <axis xyz=\"{5:g} {6:g} {7:g}\"/>{8}\n  </joint>\n",
+        b.name, s.rotation ? (limit.empty() ? "continuous" : "revolute") : "prismatic", parent,
+        moving, origin_xml(s.before), s.axis.x(), s.axis.y(), s.axis.z(),
+        limit.empty() && !s.rotation ? "\n    <limit lower=\"-1e9\" upper=\"1e9\" effort=\"0\" "
+                                       "velocity=\"0\"/>"
+                                     : limit);
+    if (offset)
+      joints += fmt::format(
+          "  <joint name=\"{0}_offset\" type=\"fixed\">\n    <parent link=\"{1}\"/>\n    <child "
+          "link=\"{0}\"/>\n    {2}\n  </joint>\n",
+          b.name, moving, origin_xml(s.after));
+  }
+  return fmt::format(
+      "<?xml version=\"1.0\"?>\n<!-- robocal: '{0}' (links = robocal's bodies, same frames; "
+      "joint values = the controller's readings) -->\n{1}<robot name=\"{0}\">\n{2}{3}</robot>\n",
+      model.name, notes, links, joints);
+}
+
+std::string robot_yaml_from_urdf(const std::string& urdf, const std::string& source) {
+  const urdf::ModelInterfaceSharedPtr m = urdf::parseURDF(urdf);
+  if (!m) throw core::InputError(source + ": not a valid URDF (urdfdom could not parse it)");
+  std::string out = fmt::format(
+      "# Imported from {} by robocal (URDF joint origins as xyz_rpy; rpy = URDF's fixed-axis "
+      "roll, pitch, yaw)\nrobot: {}\nrotation_order: zyx\nbodies:\n",
+      source, m->getName());
+  // Depth-first from the root link so parents come before children. The root link is the world
+  // frame: the joints hanging from it make robocal's root bodies.
+  std::vector<urdf::LinkConstSharedPtr> stack = {m->getRoot()};
+  std::string tool;
+  while (!stack.empty()) {
+    const urdf::LinkConstSharedPtr link = stack.back();
+    stack.pop_back();
+    for (auto it = link->child_joints.rbegin(); it != link->child_joints.rend(); ++it) {
+      const urdf::JointSharedPtr& j = *it;
+      std::string type;
+      switch (j->type) {
+        case urdf::Joint::REVOLUTE:
+        case urdf::Joint::CONTINUOUS:
+          type = "revolute";
+          break;
+        case urdf::Joint::PRISMATIC:
+          type = "prismatic";
+          break;
+        case urdf::Joint::FIXED:
+          type = "fixed";
+          break;
+        default:
+          throw core::InputError(fmt::format(
+              "{}: joint '{}' is planar or floating: robocal's robot model takes revolute, "
+              "continuous, prismatic and fixed joints",
+              source, j->name));
+      }
+      const urdf::Pose& o = j->parent_to_joint_origin_transform;
+      double roll = 0, pitch = 0, yaw = 0;
+      o.rotation.getRPY(roll, pitch, yaw);
+      std::string axis;
+      if (type != "fixed") {
+        const Eigen::Vector3d a(j->axis.x, j->axis.y, j->axis.z);
+        for (int k = 0; k < 3 && axis.empty(); ++k)
+          for (const double sign : {1.0, -1.0})
+            if ((a - sign * Eigen::Vector3d::Unit(k)).norm() < 1e-12)
+              axis = std::string(sign < 0 ? "-" : "") + "xyz"[k];
+        if (axis.empty())
+          throw core::InputError(fmt::format(
+              "{}: joint '{}' turns about ({:g}, {:g}, {:g}); robocal's joints move about or "
+              "along an axis of their frame (x, y or z): rotate the joint's origin so its axis "
+              "is one of them",
+              source, j->name, a.x(), a.y(), a.z()));
+      }
+      // The URDF joint's child link is the robocal body (named after the link).
+      out += fmt::format(
+          "  - {{name: {}{}, convention: xyz_rpy, joint: {}{}{}, params: {{x: {:.17g}, "
+          "y: {:.17g}, z: {:.17g}, roll: {:.17g}, pitch: {:.17g}, yaw: {:.17g}}}{}}}\n",
+          j->child_link_name, link == m->getRoot() ? "" : ", parent: " + link->name, type, axis.empty() ? "" : ", role: actuated, axis: ",
+          axis, o.position.x, o.position.y, o.position.z, roll, pitch, yaw,
+          j->limits && j->type != urdf::Joint::CONTINUOUS
+              ? fmt::format(", limits: [{:.17g}, {:.17g}]", j->limits->lower, j->limits->upper)
+              : std::string());
+      tool = j->child_link_name;
+    }
+    for (auto it = link->child_links.rbegin(); it != link->child_links.rend(); ++it)
+      stack.push_back(*it);
+  }
+  if (!tool.empty()) out += fmt::format("tool: {}\n", tool);
+  return out;
+}
+
+std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params) {
+  if (const std::string why = urdf_mismatch(model); !why.empty())
+    throw std::invalid_argument(why);
+  std::string convention;
+  std::vector<int> joints;
+  for (std::size_t i = 0; i < model.bodies.size(); ++i) {
+    const Body& b = model.bodies[i];
+    if (b.joint == JointType::kFixed) continue;
+    if (b.convention != "dh" && b.convention != "mdh")
+      throw std::invalid_argument(fmt::format(
+          "'{}': joint '{}' is given as {} ({} numbers per joint); a DH table has 4 per joint and "
+          "would not be this model: give the robot file's joints in dh or mdh to get one (the "
+          "URDF export carries the full geometry)",
+          model.name, b.name, b.convention, b.ops.size()));
+    if (!convention.empty() && b.convention != convention)
+      throw std::invalid_argument(fmt::format(
+          "'{}' mixes dh and mdh joints ('{}' is {}): one table cannot show both", model.name,
+          b.name, b.convention));
+    convention = b.convention;
+    if (!joints.empty() && b.parent != joints.back())
+      throw std::invalid_argument(fmt::format(
+          "'{}': joint '{}' does not follow joint '{}' directly (fixed frames between joints or "
+          "a branch): a DH table is one chain of joints",
+          model.name, b.name, model.bodies[static_cast<std::size_t>(joints.back())].name));
+    joints.push_back(static_cast<int>(i));
+  }
+  if (joints.empty()) throw std::invalid_argument("'" + model.name + "' has no moving joints");
+  const auto value = [&](const Body& b, const char* key) {
+    const int k = model.parameter_index(b.name + "." + key);
+    return k >= 0 ? params[k] : 0.0;
+  };
+  std::string t = fmt::format(
+      "{} table of '{}' ({}); theta includes the encoder zero\n", convention == "dh"
+                                                                      ? "Denavit-Hartenberg"
+                                                                      : "Modified DH (Craig)",
+      model.name,
+      convention == "dh" ? "A_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)"
+                         : "A_i = Rx(alpha_i) Tx(a_i) Rz(theta_i + q_i) Tz(d_i)");
+  t += fmt::format("  {:<16} {:>9} {:>14} {:>12} {:>12} {:>12}\n", "joint", "type", "theta [deg]",
+                   "d [mm]", "a [mm]", "alpha [deg]");
+  for (const int j : joints) {
+    const Body& b = model.bodies[static_cast<std::size_t>(j)];
+    const double offset = param_value(params, b.encoder_offset_param);
+    const bool revolute = b.joint == JointType::kRevolute;
+    t += fmt::format("  {:<16} {:>9} {:>14.6f} {:>12.4f} {:>12.4f} {:>12.6f}{}\n", b.name,
+                     revolute ? "revolute" : "prismatic",
+                     deg(value(b, "theta") + (revolute ? offset : 0.0)),
+                     (value(b, "d") + (revolute ? 0.0 : offset)) * 1e3, value(b, "a") * 1e3,
+                     deg(value(b, "alpha")),
+                     b.encoder_scale_param >= 0 && std::abs(params[b.encoder_scale_param] - 1) > 1e-12
+                         ? fmt::format("  (encoder scale {:.9g})", params[b.encoder_scale_param])
+                         : std::string());
+  }
+  // Base: world -> the first joint's parent frame; tool: last joint frame -> tool.
+  JointState zero{Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.bodies.size()))};
+  const Body& first = model.bodies[static_cast<std::size_t>(joints.front())];
+  const Eigen::Isometry3d base =
+      first.parent >= 0 ? frame_pose(model, params, zero, first.parent) : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d tool = frame_pose(model, params, zero, joints.back()).inverse() *
+                                 frame_pose(model, params, zero, model.tool);
+  const auto frame = [](const Eigen::Isometry3d& T) {
+    const Eigen::Vector3d p = T.translation() * 1e3, r = rpy_of(T.linear());
+    return fmt::format("xyz [{:.4f}, {:.4f}, {:.4f}] mm, rpy [{:.6f}, {:.6f}, {:.6f}] deg", p.x(),
+                       p.y(), p.z(), deg(r.x()), deg(r.y()), deg(r.z()));
+  };
+  t += "  base (world -> joint 1's frame): " + frame(base) + "\n";
+  t += "  tool (last joint's frame -> tool): " + frame(tool) + "\n";
+  return t;
+}
+
+}  // namespace robocal::calib
