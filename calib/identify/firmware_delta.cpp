@@ -19,6 +19,9 @@ constexpr std::array<double, 3> kNominalAngleDeg = {210.0, 330.0, 90.0};  // tow
 
 double deg(double rad) { return rad * 180.0 / std::numbers::pi; }
 
+// A printed value without the sign of rounding noise ("-0.0000" reads like a correction).
+double clean(double v) { return std::abs(v) < 5e-7 ? 0.0 : v; }
+
 // Degrees in (-180, 180].
 double wrap_deg(double d) {
   d = std::fmod(d, 360.0);
@@ -346,6 +349,7 @@ std::vector<std::pair<std::string, double>> firmware_delta_settings(const Firmwa
       break;
     }
   }
+  for (auto& [name, value] : out) value = clean(value);
   return out;
 }
 
@@ -372,8 +376,8 @@ std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& 
                    fit.model.endstop_reading[2] * 1e3);
   t += fmt::format("{} the robot's base origin in the firmware frame: x {:+.3f} mm, y {:+.3f} mm; "
                    "base tilted {:+.3f} / {:+.3f} mrad about x / y\n",
-                   c, fit.frame.x * 1e3, fit.frame.y * 1e3, fit.frame.roll * 1e3,
-                   fit.frame.pitch * 1e3);
+                   c, clean(fit.frame.x * 1e3), clean(fit.frame.y * 1e3),
+                   clean(fit.frame.roll * 1e3), clean(fit.frame.pitch * 1e3));
   switch (fit.firmware) {
     case DeltaFirmware::kKlipper:
       t += fmt::format("[printer]\nkinematics: delta\ndelta_radius: {:.6f}\n",

@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 #include <urdf_parser/urdf_parser.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -239,7 +240,9 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
           "'{}': joint '{}' is given as {} ({} numbers per joint); a DH table has 4 per joint and "
           "would not be this model: give the robot file's joints in dh or mdh to get one (the "
           "URDF export carries the full geometry)",
-          model.name, b.name, b.convention, b.ops.size()));
+          model.name, b.name, b.convention,
+          std::count_if(b.ops.begin(), b.ops.end(),
+                        [](const ElementaryOp& op) { return op.param >= 0; })));
     if (!convention.empty() && b.convention != convention)
       throw std::invalid_argument(fmt::format(
           "'{}' mixes dh and mdh joints ('{}' is {}): one table cannot show both", model.name,
