@@ -4,8 +4,8 @@
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 
-#include <Eigen/Dense>
 #include <fmt/core.h>
+#include <Eigen/Dense>
 
 #include <cmath>
 #include <numbers>
@@ -17,10 +17,14 @@ namespace {
 
 constexpr std::array<double, 3> kNominalAngleDeg = {210.0, 330.0, 90.0};  // towers A, B, C
 
-double deg(double rad) { return rad * 180.0 / std::numbers::pi; }
+double deg(double rad) {
+  return rad * 180.0 / std::numbers::pi;
+}
 
 // A printed value without the sign of rounding noise ("-0.0000" reads like a correction).
-double clean(double v) { return std::abs(v) < 5e-7 ? 0.0 : v; }
+double clean(double v) {
+  return std::abs(v) < 5e-7 ? 0.0 : v;
+}
 
 // Degrees in (-180, 180].
 double wrap_deg(double d) {
@@ -109,8 +113,9 @@ Eigen::VectorXd initial_guess(const Layout& l, const Mechanism& model) {
 int least_squares(const Layout& l, const FirmwareDeltaFit& data, Eigen::VectorXd& x) {
   Eigen::VectorXd r;
   if (!residuals(l, x, data, r))
-    throw std::runtime_error("the firmware's delta model cannot reach the workspace samples from "
-                             "the robot file's nominal geometry");
+    throw std::runtime_error(
+        "the firmware's delta model cannot reach the workspace samples from "
+        "the robot file's nominal geometry");
   double cost = r.squaredNorm();
   double lambda = 1e-3;
   int iteration = 0;
@@ -205,9 +210,10 @@ std::string firmware_delta_mismatch(const Mechanism& model, DeltaFirmware firmwa
     case ClosedFormKind::kNone:
       return model.closures.empty()
                  ? fmt::format("{} is a serial arm (no closed loops); {}", who, needs)
-                 : fmt::format("{} is not a linear delta (its robot file declares no rails "
-                               "closed form); {}",
-                               who, needs);
+                 : fmt::format(
+                       "{} is not a linear delta (its robot file declares no rails "
+                       "closed form); {}",
+                       who, needs);
     case ClosedFormKind::kLinearDelta:
       break;
   }
@@ -217,9 +223,10 @@ std::string firmware_delta_mismatch(const Mechanism& model, DeltaFirmware firmwa
   for (std::size_t i = 0; i < 3; ++i) {
     const Eigen::Vector3d v = s.rail_direction[i].normalized();
     if (v.z() < std::cos(5.0 * std::numbers::pi / 180.0))
-      return fmt::format("{}'s carriage {} runs along ({:.3g}, {:.3g}, {:.3g}), not a vertical "
-                         "tower (its rails are guideways); {}",
-                         who, i + 1, v.x(), v.y(), v.z(), needs);
+      return fmt::format(
+          "{}'s carriage {} runs along ({:.3g}, {:.3g}, {:.3g}), not a vertical "
+          "tower (its rails are guideways); {}",
+          who, i + 1, v.x(), v.y(), v.z(), needs);
     if (model.bodies[static_cast<std::size_t>(model.actuated[i])].joint != JointType::kPrismatic)
       return fmt::format("{}'s actuated joint {} is not a carriage (prismatic); {}", who, i + 1,
                          needs);
@@ -236,16 +243,14 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
   for (std::size_t i = 0; i < 3; ++i) {
     const Body& carriage = model.bodies[static_cast<std::size_t>(model.actuated[i])];
     // Nominal encoder model: the controller's reading where the endstop sits.
-    const double scale = carriage.encoder_scale_param >= 0
-                             ? model.parameters[static_cast<std::size_t>(
-                                                    carriage.encoder_scale_param)]
-                                   .value
-                             : 1.0;
-    const double offset = carriage.encoder_offset_param >= 0
-                              ? model.parameters[static_cast<std::size_t>(
-                                                     carriage.encoder_offset_param)]
-                                    .value
-                              : 0.0;
+    const double scale =
+        carriage.encoder_scale_param >= 0
+            ? model.parameters[static_cast<std::size_t>(carriage.encoder_scale_param)].value
+            : 1.0;
+    const double offset =
+        carriage.encoder_offset_param >= 0
+            ? model.parameters[static_cast<std::size_t>(carriage.encoder_offset_param)].value
+            : 0.0;
     fit.model.endstop_reading[i] = std::isnan(options.endstop_reading)
                                        ? (carriage.limits.upper - offset) / scale
                                        : options.endstop_reading;
@@ -258,8 +263,7 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
   const int base = root_of(model, model.tool);
   // The base frame hangs from the world by fixed joints: its pose needs no closure.
   const Eigen::Isometry3d base_pose = frame_pose(
-      model, params,
-      make_joint_state(model, params, samples.front(), model.home_passive()), base);
+      model, params, make_joint_state(model, params, samples.front(), model.home_passive()), base);
   const Layout layout{firmware == DeltaFirmware::kMarlin};
   Eigen::VectorXd x = initial_guess(layout, model);
   for (std::size_t k = 0; k < samples.size() && fit.readings.size() < options.samples; ++k) {
@@ -273,8 +277,9 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
     // steep, by the nominal geometry.
     bool printer_pose = true;
     for (int i = 0; i < 3; ++i)
-      printer_pose = printer_pose && r[i] + x[layout.offset() + i] - p.z() >=
-                                         0.1 * model.closed_form.link_length[static_cast<std::size_t>(i)];
+      printer_pose =
+          printer_pose && r[i] + x[layout.offset() + i] - p.z() >=
+                              0.1 * model.closed_form.link_length[static_cast<std::size_t>(i)];
     if (!printer_pose) continue;
     fit.readings.emplace_back(r[0], r[1], r[2]);
     fit.tool_in_base.push_back(p);
@@ -362,40 +367,48 @@ std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& 
   };
   const char c = fit.firmware == DeltaFirmware::kKlipper ? '#' : ';';
   std::string t;
-  t += fmt::format("{} robocal: {} delta settings for '{}', fitted to the calibrated model over {} "
-                   "workspace positions\n",
-                   c, to_string(fit.firmware), robot_name, fit.readings.size());
-  t += fmt::format("{} residual of {}'s delta model against the calibrated model: RMS {:.1f} um, "
-                   "max {:.1f} um\n",
-                   c, to_string(fit.firmware), fit.residual_rms * 1e6, fit.residual_max * 1e6);
-  t += fmt::format("{} (what the firmware cannot represent: tower tilt, towers off one circle, "
-                   "per-tower effector offsets{})\n",
-                   c, fit.firmware == DeltaFirmware::kMarlin ? ", rod lengths that differ" : "");
-  t += fmt::format("{} assumes the endstops trigger at carriage readings {:.3f}, {:.3f}, {:.3f} mm\n",
-                   c, fit.model.endstop_reading[0] * 1e3, fit.model.endstop_reading[1] * 1e3,
-                   fit.model.endstop_reading[2] * 1e3);
-  t += fmt::format("{} the robot's base origin in the firmware frame: x {:+.3f} mm, y {:+.3f} mm; "
-                   "base tilted {:+.3f} / {:+.3f} mrad about x / y\n",
-                   c, clean(fit.frame.x * 1e3), clean(fit.frame.y * 1e3),
-                   clean(fit.frame.roll * 1e3), clean(fit.frame.pitch * 1e3));
+  t += fmt::format(
+      "{} robocal: {} delta settings for '{}', fitted to the calibrated model over {} "
+      "workspace positions\n",
+      c, to_string(fit.firmware), robot_name, fit.readings.size());
+  t += fmt::format(
+      "{} residual of {}'s delta model against the calibrated model: RMS {:.1f} um, "
+      "max {:.1f} um\n",
+      c, to_string(fit.firmware), fit.residual_rms * 1e6, fit.residual_max * 1e6);
+  t += fmt::format(
+      "{} (what the firmware cannot represent: tower tilt, towers off one circle, "
+      "per-tower effector offsets{})\n",
+      c, fit.firmware == DeltaFirmware::kMarlin ? ", rod lengths that differ" : "");
+  t += fmt::format(
+      "{} assumes the endstops trigger at carriage readings {:.3f}, {:.3f}, {:.3f} mm\n", c,
+      fit.model.endstop_reading[0] * 1e3, fit.model.endstop_reading[1] * 1e3,
+      fit.model.endstop_reading[2] * 1e3);
+  t += fmt::format(
+      "{} heights are from the robot file's base plane: set the nozzle-to-bed height "
+      "(Z offset) as usual after loading these\n",
+      c);
+  t += fmt::format(
+      "{} the robot's base origin in the firmware frame: x {:+.3f} mm, y {:+.3f} mm; "
+      "base tilted {:+.3f} / {:+.3f} mrad about x / y\n",
+      c, clean(fit.frame.x * 1e3), clean(fit.frame.y * 1e3), clean(fit.frame.roll * 1e3),
+      clean(fit.frame.pitch * 1e3));
   switch (fit.firmware) {
     case DeltaFirmware::kKlipper:
-      t += fmt::format("[printer]\nkinematics: delta\ndelta_radius: {:.6f}\n",
-                       get("delta_radius"));
+      t += fmt::format("[printer]\nkinematics: delta\ndelta_radius: {:.6f}\n", get("delta_radius"));
       for (const char* tower : {"a", "b", "c"})
-        t += fmt::format("\n[stepper_{0}]\nangle: {1:.6f}\narm_length: {2:.6f}\nposition_endstop: "
-                         "{3:.6f}\n",
-                         tower, get(std::string("angle_") + tower),
-                         get(std::string("arm_length_") + tower),
-                         get(std::string("position_endstop_") + tower));
+        t += fmt::format(
+            "\n[stepper_{0}]\nangle: {1:.6f}\narm_length: {2:.6f}\nposition_endstop: "
+            "{3:.6f}\n",
+            tower, get(std::string("angle_") + tower), get(std::string("arm_length_") + tower),
+            get(std::string("position_endstop_") + tower));
       break;
     case DeltaFirmware::kMarlin:
       t += "; S (segments per second) is not geometry: keep yours; one diagonal rod L for all "
            "towers\n";
       t += fmt::format("M665 L{:.4f} R{:.4f} H{:.4f} X{:.4f} Y{:.4f} Z{:.4f}\n", get("L"), get("R"),
                        get("H"), get("X"), get("Y"), get("Z"));
-      t += fmt::format("M666 X{:.4f} Y{:.4f} Z{:.4f}\nM500 ; store\n", get("M666_X"),
-                       get("M666_Y"), get("M666_Z"));
+      t += fmt::format("M666 X{:.4f} Y{:.4f} Z{:.4f}\nM500 ; store\n", get("M666_X"), get("M666_Y"),
+                       get("M666_Z"));
       break;
     case DeltaFirmware::kReprapFirmware:
       t += "; B (printable radius) is not geometry: keep yours; endstop adjustments have mean 0\n";

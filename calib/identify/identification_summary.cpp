@@ -42,9 +42,8 @@ std::string in_plain_words(const std::string& text, const IdentificationResult& 
   std::vector<std::size_t> order;
   for (std::size_t i = 0; i < r.names.size() && i < r.labels.size(); ++i)
     if (!r.labels[i].empty() && r.labels[i] != r.names[i]) order.push_back(i);
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return r.names[a].size() > r.names[b].size();
-  });
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return r.names[a].size() > r.names[b].size(); });
   const auto name_char = [](char c) {
     return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '.';
   };

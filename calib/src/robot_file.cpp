@@ -348,15 +348,16 @@ std::string key_words(const std::string& convention, const std::string& key) {
   static const std::map<std::string, std::string> kCommon = {
       {"encoder_offset", "encoder zero"}, {"encoder_scale", "encoder scale"}, {"length", "length"}};
   static const std::map<std::string, std::string> kXyzRpy = {
-      {"x", "x offset"},        {"y", "y offset"},          {"z", "z offset"},
+      {"x", "x offset"},        {"y", "y offset"},         {"z", "z offset"},
       {"roll", "tilt about x"}, {"pitch", "tilt about y"}, {"yaw", "turn about z"}};
   static const std::map<std::string, std::string> kMcpc = {
       {"a1", "tilt about x"}, {"a2", "tilt about y"}, {"a3", "turn about z"},
       {"d1", "x offset"},     {"d2", "y offset"},     {"d3", "z offset"}};
-  static const std::map<std::string, std::string> kDh = {
-      {"theta", "joint angle zero"},   {"d", "offset along the joint axis"},
-      {"a", "link length"},            {"alpha", "link twist"},
-      {"beta", "twist about y"}};
+  static const std::map<std::string, std::string> kDh = {{"theta", "joint angle zero"},
+                                                         {"d", "offset along the joint axis"},
+                                                         {"a", "link length"},
+                                                         {"alpha", "link twist"},
+                                                         {"beta", "twist about y"}};
   if (const auto it = kCommon.find(key); it != kCommon.end()) return it->second;
   const auto& table = convention == "mcpc" ? kMcpc : (convention == "xyz_rpy" ? kXyzRpy : kDh);
   if (const auto it = table.find(key); it != table.end()) return it->second;
@@ -378,10 +379,10 @@ void parse_labels(const YAML::Node& node, const std::string& source, Mechanism& 
     if (words.find_first_not_of(" \t") == std::string::npos)
       fail(source, kv.second, "label of '" + key + "' is empty");
     const bool is_parameter = m.parameter_index(key) >= 0;
-    const bool is_owner =
-        m.body_index(key) >= 0 ||
-        std::any_of(m.closures.begin(), m.closures.end(),
-                    [&](const Closure& c) { return c.name == key && c.length_param >= 0; });
+    const bool is_owner = m.body_index(key) >= 0 ||
+                          std::any_of(m.closures.begin(), m.closures.end(), [&](const Closure& c) {
+                            return c.name == key && c.length_param >= 0;
+                          });
     if (!is_parameter && !is_owner) {
       std::string hint;
       const std::string prefix = key.substr(0, key.find('.'));
@@ -390,7 +391,8 @@ void parse_labels(const YAML::Node& node, const std::string& source, Mechanism& 
         if (p.name.rfind(prefix + ".", 0) == 0 && shown++ < 8) hint += " " + p.name;
       fail(source, kv.first,
            "label for unknown parameter '" + key + "' (not a parameter, body or rod of robot '" +
-               m.name + "'" + (hint.empty() ? ")" : "; parameters of '" + prefix + "':" + hint + ")"));
+               m.name + "'" +
+               (hint.empty() ? ")" : "; parameters of '" + prefix + "':" + hint + ")"));
     }
     (is_parameter ? exact : owner_words)[key] = words;
   }

@@ -4,23 +4,27 @@
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/core/input_error.hpp"
 
-#include <Eigen/Geometry>
 #include <fmt/core.h>
 #include <urdf_parser/urdf_parser.h>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
-#include <numbers>
-#include <stdexcept>
 
 namespace robocal::calib {
 namespace {
 
-bool is_rotation(OpKind k) { return static_cast<int>(k) < 3; }
-Eigen::Vector3d unit_axis(OpKind k) { return Eigen::Vector3d::Unit(static_cast<int>(k) % 3); }
+bool is_rotation(OpKind k) {
+  return static_cast<int>(k) < 3;
+}
+Eigen::Vector3d unit_axis(OpKind k) {
+  return Eigen::Vector3d::Unit(static_cast<int>(k) % 3);
+}
 
 Eigen::Isometry3d elementary(OpKind kind, double value) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -53,7 +57,8 @@ JointSplit split(const Body& b, const Eigen::VectorXd& params) {
     side = side * elementary(op.kind, param_value(params, op.param));
     if (static_cast<int>(k) == b.joint_op) {
       // q = scale · reading + offset: the offset is a constant motion, folded in before.
-      s.before = s.before * elementary(op.kind, op.sign * param_value(params, b.encoder_offset_param));
+      s.before =
+          s.before * elementary(op.kind, op.sign * param_value(params, b.encoder_offset_param));
       if (b.encoder_scale_param >= 0) s.scale = params[b.encoder_scale_param];
       s.axis = op.sign * unit_axis(op.kind);
       s.rotation = is_rotation(op.kind);
@@ -83,26 +88,29 @@ bool is_identity(const Eigen::Isometry3d& T) {
   return T.matrix().isApprox(Eigen::Matrix4d::Identity(), 1e-15);
 }
 
-double deg(double rad) { return rad * 180.0 / std::numbers::pi; }
+double deg(double rad) {
+  return rad * 180.0 / std::numbers::pi;
+}
 
 }  // namespace
 
 std::string urdf_mismatch(const Mechanism& model) {
   if (!model.closures.empty())
-    return fmt::format("'{}' has closed loops ({} closures: a parallel robot); URDF describes a "
-                       "tree of links without loops (a serial arm)",
-                       model.name, model.closures.size());
+    return fmt::format(
+        "'{}' has closed loops ({} closures: a parallel robot); URDF describes a "
+        "tree of links without loops (a serial arm)",
+        model.name, model.closures.size());
   for (const Body& b : model.bodies)
     if (b.role == JointRole::kCut || (b.joint != JointType::kFixed && b.actuator < 0))
-      return fmt::format("'{}': body '{}' has a joint no controller drives (passive or ball "
-                         "joint); URDF's joints here are the controller's axes",
-                         model.name, b.name);
+      return fmt::format(
+          "'{}': body '{}' has a joint no controller drives (passive or ball "
+          "joint); URDF's joints here are the controller's axes",
+          model.name, b.name);
   return "";
 }
 
 std::string urdf_text(const Mechanism& model, const Eigen::VectorXd& params) {
-  if (const std::string why = urdf_mismatch(model); !why.empty())
-    throw std::invalid_argument(why);
+  if (const std::string why = urdf_mismatch(model); !why.empty()) throw std::invalid_argument(why);
   std::string links = "  <link name=\"world\"/>\n", joints;
   std::string notes;
   for (std::size_t i = 0; i < model.bodies.size(); ++i) {
@@ -112,7 +120,8 @@ std::string urdf_text(const Mechanism& model, const Eigen::VectorXd& params) {
     links += fmt::format("  <link name=\"{}\"/>\n", b.name);
     if (b.joint == JointType::kFixed) {
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      for (const ElementaryOp& op : b.ops) T = T * elementary(op.kind, param_value(params, op.param));
+      for (const ElementaryOp& op : b.ops)
+        T = T * elementary(op.kind, param_value(params, op.param));
       joints += fmt::format(
           "  <joint name=\"{0}\" type=\"fixed\">\n    <parent link=\"{1}\"/>\n    <child "
           "link=\"{0}\"/>\n    {2}\n  </joint>\n",
@@ -121,9 +130,10 @@ std::string urdf_text(const Mechanism& model, const Eigen::VectorXd& params) {
     }
     const JointSplit s = split(b, params);
     if (std::abs(s.scale - 1.0) > 1e-12)
-      notes += fmt::format("  <!-- joint {}: encoder scale {:.12g} cannot be written in URDF: its "
-                           "joint value is the joint's own angle/position, reading x scale -->\n",
-                           b.name, s.scale);
+      notes += fmt::format(
+          "  <!-- joint {}: encoder scale {:.12g} cannot be written in URDF: its "
+          "joint value is the joint's own angle/position, reading x scale -->\n",
+          b.name, s.scale);
     const bool offset = !is_identity(s.after);
     const std::string moving = offset ? b.name + "_moving" : b.name;
     if (offset) links += fmt::format("  <link name=\"{}\"/>\n", moving);
@@ -213,8 +223,9 @@ std::string robot_yaml_from_urdf(const std::string& urdf, const std::string& sou
       out += fmt::format(
           "  - {{name: {}{}, convention: xyz_rpy, joint: {}{}{}, params: {{x: {:.17g}, "
           "y: {:.17g}, z: {:.17g}, roll: {:.17g}, pitch: {:.17g}, yaw: {:.17g}}}{}}}\n",
-          j->child_link_name, link == m->getRoot() ? "" : ", parent: " + link->name, type, axis.empty() ? "" : ", role: actuated, axis: ",
-          axis, o.position.x, o.position.y, o.position.z, roll, pitch, yaw,
+          j->child_link_name, link == m->getRoot() ? "" : ", parent: " + link->name, type,
+          axis.empty() ? "" : ", role: actuated, axis: ", axis, o.position.x, o.position.y,
+          o.position.z, roll, pitch, yaw,
           j->limits && j->type != urdf::Joint::CONTINUOUS
               ? fmt::format(", limits: [{:.17g}, {:.17g}]", j->limits->lower, j->limits->upper)
               : std::string());
@@ -228,8 +239,7 @@ std::string robot_yaml_from_urdf(const std::string& urdf, const std::string& sou
 }
 
 std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params) {
-  if (const std::string why = urdf_mismatch(model); !why.empty())
-    throw std::invalid_argument(why);
+  if (const std::string why = urdf_mismatch(model); !why.empty()) throw std::invalid_argument(why);
   std::string convention;
   std::vector<int> joints;
   for (std::size_t i = 0; i < model.bodies.size(); ++i) {
@@ -244,9 +254,9 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
           std::count_if(b.ops.begin(), b.ops.end(),
                         [](const ElementaryOp& op) { return op.param >= 0; })));
     if (!convention.empty() && b.convention != convention)
-      throw std::invalid_argument(fmt::format(
-          "'{}' mixes dh and mdh joints ('{}' is {}): one table cannot show both", model.name,
-          b.name, b.convention));
+      throw std::invalid_argument(
+          fmt::format("'{}' mixes dh and mdh joints ('{}' is {}): one table cannot show both",
+                      model.name, b.name, b.convention));
     convention = b.convention;
     if (!joints.empty() && b.parent != joints.back())
       throw std::invalid_argument(fmt::format(
@@ -260,33 +270,31 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
     const int k = model.parameter_index(b.name + "." + key);
     return k >= 0 ? params[k] : 0.0;
   };
-  std::string t = fmt::format(
-      "{} table of '{}' ({}); theta includes the encoder zero\n", convention == "dh"
-                                                                      ? "Denavit-Hartenberg"
-                                                                      : "Modified DH (Craig)",
-      model.name,
-      convention == "dh" ? "A_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)"
-                         : "A_i = Rx(alpha_i) Tx(a_i) Rz(theta_i + q_i) Tz(d_i)");
+  std::string t =
+      fmt::format("{} table of '{}' ({}); theta includes the encoder zero\n",
+                  convention == "dh" ? "Denavit-Hartenberg" : "Modified DH (Craig)", model.name,
+                  convention == "dh" ? "A_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i)"
+                                     : "A_i = Rx(alpha_i) Tx(a_i) Rz(theta_i + q_i) Tz(d_i)");
   t += fmt::format("  {:<16} {:>9} {:>14} {:>12} {:>12} {:>12}\n", "joint", "type", "theta [deg]",
                    "d [mm]", "a [mm]", "alpha [deg]");
   for (const int j : joints) {
     const Body& b = model.bodies[static_cast<std::size_t>(j)];
     const double offset = param_value(params, b.encoder_offset_param);
     const bool revolute = b.joint == JointType::kRevolute;
-    t += fmt::format("  {:<16} {:>9} {:>14.6f} {:>12.4f} {:>12.4f} {:>12.6f}{}\n", b.name,
-                     revolute ? "revolute" : "prismatic",
-                     deg(value(b, "theta") + (revolute ? offset : 0.0)),
-                     (value(b, "d") + (revolute ? 0.0 : offset)) * 1e3, value(b, "a") * 1e3,
-                     deg(value(b, "alpha")),
-                     b.encoder_scale_param >= 0 && std::abs(params[b.encoder_scale_param] - 1) > 1e-12
-                         ? fmt::format("  (encoder scale {:.9g})", params[b.encoder_scale_param])
-                         : std::string());
+    t += fmt::format(
+        "  {:<16} {:>9} {:>14.6f} {:>12.4f} {:>12.4f} {:>12.6f}{}\n", b.name,
+        revolute ? "revolute" : "prismatic", deg(value(b, "theta") + (revolute ? offset : 0.0)),
+        (value(b, "d") + (revolute ? 0.0 : offset)) * 1e3, value(b, "a") * 1e3,
+        deg(value(b, "alpha")),
+        b.encoder_scale_param >= 0 && std::abs(params[b.encoder_scale_param] - 1) > 1e-12
+            ? fmt::format("  (encoder scale {:.9g})", params[b.encoder_scale_param])
+            : std::string());
   }
   // Base: world -> the first joint's parent frame; tool: last joint frame -> tool.
   JointState zero{Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.bodies.size()))};
   const Body& first = model.bodies[static_cast<std::size_t>(joints.front())];
-  const Eigen::Isometry3d base =
-      first.parent >= 0 ? frame_pose(model, params, zero, first.parent) : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d base = first.parent >= 0 ? frame_pose(model, params, zero, first.parent)
+                                                   : Eigen::Isometry3d::Identity();
   const Eigen::Isometry3d tool = frame_pose(model, params, zero, joints.back()).inverse() *
                                  frame_pose(model, params, zero, model.tool);
   const auto frame = [](const Eigen::Isometry3d& T) {

@@ -74,8 +74,7 @@ const std::vector<CommandSpec>& all_commands() {
       demo_command(),           kin_command(),      target_command(),  render_command(),
       intrinsics_command(),     rig_command(),      measure_command(), identify_command(),
       simulate_command(),       validate_command(), batch_command(),   plan_command(),
-      sim_controller_command(), version_command(),
-      export_command(),
+      sim_controller_command(), version_command(),  export_command(),
   };
   return commands;
 }

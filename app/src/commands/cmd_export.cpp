@@ -11,8 +11,9 @@
 namespace robocal::app {
 
 CommandSpec export_command() {
-  return {"export", "Write the calibrated robot as Klipper, Marlin or RepRapFirmware delta "
-                    "settings, a URDF or a DH table",
+  return {"export",
+          "Write the calibrated robot as Klipper, Marlin or RepRapFirmware delta "
+          "settings, a URDF or a DH table",
           [](CLI::App& cmd) -> CommandAction {
             auto input = std::make_shared<std::string>();
             auto format = std::make_shared<std::string>();

@@ -31,16 +31,14 @@ struct ExportSource {
 
 // A session exports its calibrated robot; anything else must be a robot file.
 ExportSource resolve(const std::string& input) {
-  if (!fs::exists(input))
-    throw core::InputError(input + ": no such session folder or robot file");
+  if (!fs::exists(input)) throw core::InputError(input + ": no such session folder or robot file");
   if (!fs::is_directory(input)) return {input, "robot_file"};
   const ResultsLayout results{input};
   if (!fs::exists(results.calibrated_robot()))
     throw core::InputError(fmt::format(
-        "{}: no identification results ({} is missing{}): run `robocal identify {}` first",
-        input, ResultsLayout::kCalibratedRobot,
-        fs::exists(results.identification()) ? "; the last identification did not produce one"
-                                             : "",
+        "{}: no identification results ({} is missing{}): run `robocal identify {}` first", input,
+        ResultsLayout::kCalibratedRobot,
+        fs::exists(results.identification()) ? "; the last identification did not produce one" : "",
         input));
   return {results.calibrated_robot().string(), "session"};
 }
@@ -63,8 +61,8 @@ nlohmann::json export_robot(const ExportRequest& request) {
                            {"robot", model.name},
                            {"format", request.format}};
   const auto refuse = [&](const std::string& why) {
-    return core::InputError(fmt::format("{}: cannot export as {}: {}", request.input,
-                                        request.format, why));
+    return core::InputError(
+        fmt::format("{}: cannot export as {}: {}", request.input, request.format, why));
   };
   std::string text;
   if (request.format == "urdf" || request.format == "dh") {

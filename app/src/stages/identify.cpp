@@ -157,7 +157,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   // The same, with the robot file's labels for the parameter names (what the summary prints).
   report["not_identified_in_words"] = nlohmann::json::array();
   for (const auto& m : report["not_identified"])
-    report["not_identified_in_words"].push_back(calib::in_plain_words(m.get<std::string>(), result));
+    report["not_identified_in_words"].push_back(
+        calib::in_plain_words(m.get<std::string>(), result));
   report["held_at_nominal"] = result.candidates.size() - result.estimated.size();
   report["start"] = params_json(model, start);
   report["estimate"] = params_json(model, result.estimate);

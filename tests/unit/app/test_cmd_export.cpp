@@ -42,7 +42,8 @@ fs::path scratch(const std::string& name) {
 }
 
 TEST(ExportCli, KlipperFromARobotFileAsJson) {
-  const CliRun r = run({"export", robot("linear_delta.yaml"), "--format", "klipper", "--json", "-"});
+  const CliRun r =
+      run({"export", robot("linear_delta.yaml"), "--format", "klipper", "--json", "-"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j.at("robot"), "linear_delta");

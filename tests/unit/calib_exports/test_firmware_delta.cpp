@@ -10,13 +10,13 @@
 // and for all: carriage height h_i = z + sqrt(L_i² - (x - x_i)² - (y - y_i)²), solved here for
 // the nozzle by Newton's method (the library uses closed-form trilateration).
 #include "../calib/calib_test_support.hpp"
+#include "robocal/calib/closure.hpp"
 #include "robocal/calib/firmware_delta.hpp"
 #include "robocal/calib/kinematics.hpp"
-#include "robocal/calib/closure.hpp"
 
-#include <Eigen/Dense>
 #include <fmt/core.h>
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 #include <cmath>
 #include <map>
@@ -62,8 +62,8 @@ std::array<Tower, 3> towers_of(DeltaFirmware firmware, std::map<std::string, dou
       arm = s[std::string("L_") + abc[i]];
       endstop = s["H"] + std::sqrt(arm * arm - R * R) + s[std::string("M666_") + xyz[i]];
     }
-    t[static_cast<std::size_t>(i)] = {R * std::cos(angle * kPi / 180), R * std::sin(angle * kPi / 180),
-                                      arm, endstop};
+    t[static_cast<std::size_t>(i)] = {R * std::cos(angle * kPi / 180),
+                                      R * std::sin(angle * kPi / 180), arm, endstop};
   }
   return t;
 }
@@ -136,7 +136,8 @@ Residual firmware_residual(const Mechanism& model, const Eigen::VectorXd& params
 
 // A linear delta built exactly as the firmware's model: towers on one circle of radius R at the
 // given angles (effector joints at their nominal offsets), rods L_i, endstop offsets off_i.
-Eigen::VectorXd firmware_shaped(const Mechanism& m, double R, const std::array<double, 3>& angle_deg,
+Eigen::VectorXd firmware_shaped(const Mechanism& m, double R,
+                                const std::array<double, 3>& angle_deg,
                                 const std::array<double, 3>& arm,
                                 const std::array<double, 3>& offset) {
   Eigen::VectorXd p = m.nominal_parameters();
@@ -186,11 +187,12 @@ TEST(FirmwareDelta, AModelWithinTheFirmwaresParametersIsFittedBackExactly) {
   // RRF keeps per-tower rods too: exact; Marlin has one rod, so equal rods are exact for it.
   const FirmwareDeltaFit rrf = fit_firmware_delta(m, p, DeltaFirmware::kReprapFirmware);
   EXPECT_LT(rrf.residual_max, 1e-9);
-  EXPECT_LT(firmware_residual(m, p, rrf, towers_of(DeltaFirmware::kReprapFirmware,
-                                                   settings_map(rrf)))
-                .max,
-            1e-6);
-  const Eigen::VectorXd equal_rods = firmware_shaped(m, R, angles, {0.2704, 0.2704, 0.2704}, offsets);
+  EXPECT_LT(
+      firmware_residual(m, p, rrf, towers_of(DeltaFirmware::kReprapFirmware, settings_map(rrf)))
+          .max,
+      1e-6);
+  const Eigen::VectorXd equal_rods =
+      firmware_shaped(m, R, angles, {0.2704, 0.2704, 0.2704}, offsets);
   const FirmwareDeltaFit marlin = fit_firmware_delta(m, equal_rods, DeltaFirmware::kMarlin);
   EXPECT_LT(marlin.residual_max, 1e-9);
   auto ms = settings_map(marlin);

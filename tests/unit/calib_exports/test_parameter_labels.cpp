@@ -43,14 +43,15 @@ TEST(ParameterLabels, TheIssuesExamplesReadAsWritten) {
           .label,
       "shoulder 1 encoder zero");
   const Mechanism printer = testing::load("linear_delta.yaml");
-  EXPECT_EQ(printer.parameters[static_cast<std::size_t>(printer.parameter_index("rod_a.length"))]
-                .label,
-            "tower A arm length");
+  EXPECT_EQ(
+      printer.parameters[static_cast<std::size_t>(printer.parameter_index("rod_a.length"))].label,
+      "tower A arm length");
 }
 
 TEST(ParameterLabels, BodyWordsExactLabelsAndRawNameFallback) {
-  const Mechanism m = parse_robot_yaml(kArm + "labels:\n  shoulder: joint 1\n  shoulder.a: upper "
-                                              "arm length\n",
+  const Mechanism m = parse_robot_yaml(kArm +
+                                           "labels:\n  shoulder: joint 1\n  shoulder.a: upper "
+                                           "arm length\n",
                                        "arm.yaml");
   const auto label = [&](const std::string& name) {
     return m.parameter_display_name(static_cast<std::size_t>(m.parameter_index(name)));

@@ -6,9 +6,9 @@
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/calib/serial_exports.hpp"
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <urdf_parser/urdf_parser.h>
+#include <Eigen/Geometry>
 
 #include <cmath>
 #include <map>
@@ -85,7 +85,8 @@ TEST_P(UrdfRoundTrip, UrdfdomReadsTheSameRobotAndTheImportGivesItBack) {
   const std::string xml = urdf_text(m, p);
   const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
   ASSERT_TRUE(model) << xml;
-  const Mechanism back = parse_robot_yaml(robot_yaml_from_urdf(xml, "exported.urdf"), "imported.yaml");
+  const Mechanism back =
+      parse_robot_yaml(robot_yaml_from_urdf(xml, "exported.urdf"), "imported.yaml");
   ASSERT_EQ(back.actuated.size(), m.actuated.size());
   std::mt19937 rng(5);
   double worst = 0.0;
@@ -101,8 +102,7 @@ TEST_P(UrdfRoundTrip, UrdfdomReadsTheSameRobotAndTheImportGivesItBack) {
       worst = std::max(worst, (got.translation() - expected.translation()).norm());
       EXPECT_LT((got.linear() - expected.linear()).norm(), 1e-9) << m.bodies[b].name;
     }
-    const Eigen::Isometry3d tool_back =
-        body_pose(back, back.nominal_parameters(), r, back.tool);
+    const Eigen::Isometry3d tool_back = body_pose(back, back.nominal_parameters(), r, back.tool);
     const Eigen::Isometry3d tool = body_pose(m, p, r, m.tool);
     EXPECT_LT((tool_back.translation() - tool.translation()).norm(), 1e-9);
     EXPECT_LT((tool_back.linear() - tool.linear()).norm(), 1e-9);
@@ -121,8 +121,8 @@ TEST(UrdfExport, ParallelRobotsAreRefusedWithTheReason) {
 
 TEST(UrdfImport, WhatRobocalCannotTakeIsNamed) {
   const auto error = [](const std::string& joint) {
-    const std::string xml = R"(<robot name="r"><link name="a"/><link name="b"/>)" + joint +
-                            R"(</robot>)";
+    const std::string xml =
+        R"(<robot name="r"><link name="a"/><link name="b"/>)" + joint + R"(</robot>)";
     try {
       robot_yaml_from_urdf(xml, "r.urdf");
     } catch (const core::InputError& e) {
@@ -133,8 +133,8 @@ TEST(UrdfImport, WhatRobocalCannotTakeIsNamed) {
   const std::string tilted = error(
       R"(<joint name="j1" type="continuous"><parent link="a"/><child link="b"/><axis xyz="0.6 0.8 0"/></joint>)");
   EXPECT_NE(tilted.find("r.urdf: joint 'j1'"), std::string::npos) << tilted;
-  const std::string planar = error(
-      R"(<joint name="j2" type="floating"><parent link="a"/><child link="b"/></joint>)");
+  const std::string planar =
+      error(R"(<joint name="j2" type="floating"><parent link="a"/><child link="b"/></joint>)");
   EXPECT_NE(planar.find("joint 'j2' is planar or floating"), std::string::npos) << planar;
   EXPECT_THROW(robot_yaml_from_urdf("<robot", "bad.urdf"), core::InputError);
 }

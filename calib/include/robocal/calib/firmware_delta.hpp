@@ -41,9 +41,9 @@ const char* to_string(DeltaFirmware firmware);
 struct FirmwareDeltaModel {
   double delta_radius = 0.0;
   std::array<double, 3> arm_length{};
-  std::array<double, 3> tower_angle{};       // θ_i, rad, about the firmware's z
-  std::array<double, 3> carriage_offset{};   // c_i: h_i = reading_i + c_i
-  std::array<double, 3> endstop_reading{};   // reading at which tower i's endstop triggers
+  std::array<double, 3> tower_angle{};      // θ_i, rad, about the firmware's z
+  std::array<double, 3> carriage_offset{};  // c_i: h_i = reading_i + c_i
+  std::array<double, 3> endstop_reading{};  // reading at which tower i's endstop triggers
 };
 
 // Where the firmware frame sits in the robot's base frame: p_firmware = R_y(pitch)·R_x(roll)·p_base
@@ -87,7 +87,8 @@ std::string firmware_delta_mismatch(const Mechanism& model, DeltaFirmware firmwa
 // with firmware_delta_mismatch's reason when it does not map, std::runtime_error when too few
 // workspace samples assemble).
 FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorXd& params,
-                                    DeltaFirmware firmware, const FirmwareDeltaOptions& options = {});
+                                    DeltaFirmware firmware,
+                                    const FirmwareDeltaOptions& options = {});
 
 // The firmware's settings as the user pastes them, with the residual and the assumptions in
 // comments: Klipper printer.cfg sections; Marlin M665/M666; RepRapFirmware M665/M666.
