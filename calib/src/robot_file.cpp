@@ -389,10 +389,19 @@ void parse_labels(const YAML::Node& node, const std::string& source, Mechanism& 
       int shown = 0;
       for (const Parameter& p : m.parameters)
         if (p.name.rfind(prefix + ".", 0) == 0 && shown++ < 8) hint += " " + p.name;
-      fail(source, kv.first,
-           "label for unknown parameter '" + key + "' (not a parameter, body or rod of robot '" +
-               m.name + "'" +
-               (hint.empty() ? ")" : "; parameters of '" + prefix + "':" + hint + ")"));
+      std::string what = "label for unknown parameter '";
+      what += key;
+      what += "' (not a parameter, body or rod of robot '";
+      what += m.name;
+      what += "'";
+      if (!hint.empty()) {
+        what += "; parameters of '";
+        what += prefix;
+        what += "':";
+        what += hint;
+      }
+      what += ")";
+      fail(source, kv.first, what);
     }
     (is_parameter ? exact : owner_words)[key] = words;
   }
