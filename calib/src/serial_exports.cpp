@@ -238,6 +238,111 @@ std::string robot_yaml_from_urdf(const std::string& urdf, const std::string& sou
   return out;
 }
 
+namespace {
+
+std::string frame_text(const Eigen::Isometry3d& T) {
+  const Eigen::Vector3d p = T.translation() * 1e3, r = rpy_of(T.linear());
+  return fmt::format("xyz [{:.4f}, {:.4f}, {:.4f}] mm, rpy [{:.6f}, {:.6f}, {:.6f}] deg", p.x(),
+                     p.y(), p.z(), deg(r.x()), deg(r.y()), deg(r.z()));
+}
+
+std::string dh_row(const std::string& name, bool revolute, double theta, double d, double a,
+                   double alpha) {
+  const auto clean = [](double v) { return std::abs(v) < 5e-13 ? 0.0 : v; };
+  return fmt::format("  {:<16} {:>9} {:>14.6f} {:>12.4f} {:>12.4f} {:>12.6f}\n", name,
+                     revolute ? "revolute" : "prismatic", clean(deg(theta)), clean(d * 1e3),
+                     clean(a * 1e3), clean(deg(alpha)));
+}
+
+// Classic DH frames from the joint axes at readings 0 (common normals between consecutive axes;
+// parallel axes: the normal through the previous origin). The joint values are the readings.
+std::string derived_dh_table(const Mechanism& model, const Eigen::VectorXd& params,
+                             const std::vector<int>& joints) {
+  const JointState state = make_joint_state(
+      model, params, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.actuated.size())),
+      Eigen::VectorXd());
+  std::vector<Eigen::Vector3d> point, axis;
+  for (const int j : joints) {
+    const Body& b = model.bodies[static_cast<std::size_t>(j)];
+    const JointSplit s = split(b, params);
+    if (std::abs(s.scale - 1.0) > 1e-12)
+      throw std::invalid_argument(fmt::format(
+          "'{}': joint '{}' has encoder scale {:.9g}; a DH row's joint value is the reading",
+          model.name, b.name, s.scale));
+    const Eigen::Isometry3d W = (b.parent >= 0 ? frame_pose(model, params, state, b.parent)
+                                               : Eigen::Isometry3d::Identity()) *
+                                s.before;
+    point.push_back(W.translation());
+    axis.push_back((W.linear() * s.axis).normalized());
+  }
+  const std::size_t n = joints.size();
+  std::vector<Eigen::Vector3d> origin(n), x(n), z(n);
+  z[0] = axis[0];
+  origin[0] = point[0] + z[0] * z[0].dot(-point[0]);  // the world origin's foot on axis 1
+  x[0] = Eigen::Vector3d::UnitX() - z[0] * z[0].x();
+  if (x[0].norm() < 1e-6) x[0] = Eigen::Vector3d::UnitY() - z[0] * z[0].y();
+  x[0].normalize();
+  std::string rows;
+  for (std::size_t k = 1; k < n; ++k) {
+    const Eigen::Vector3d u = z[k - 1], v = axis[k], w = u.cross(v);
+    Eigen::Vector3d foot_prev, foot_next;  // on axis k (line of z[k-1]) and on axis k+1
+    if (w.norm() < 1e-9) {
+      foot_prev = origin[k - 1];
+      foot_next = point[k] + v * v.dot(origin[k - 1] - point[k]);
+    } else {
+      // Closest points of the lines origin[k-1] + t u and point[k] + s v.
+      const Eigen::Vector3d r = origin[k - 1] - point[k];
+      const double b = u.dot(v), dn = 1.0 - b * b;
+      const double t = (b * v.dot(r) - u.dot(r)) / dn, s2 = (v.dot(r) - b * u.dot(r)) / dn;
+      if (std::abs(t) > 10.0 || std::abs(s2) > 10.0)
+        throw std::invalid_argument(fmt::format(
+            "'{}': the axes of joints '{}' and '{}' are nearly parallel ({:.3g} deg apart): their "
+            "common normal lies {:.3g} m away, so a DH table would be ill-conditioned (use the "
+            "URDF, or a Hayati/MCPC model)",
+            model.name, model.bodies[static_cast<std::size_t>(joints[k - 1])].name,
+            model.bodies[static_cast<std::size_t>(joints[k])].name, deg(std::asin(w.norm())),
+            std::max(std::abs(t), std::abs(s2))));
+      foot_prev = origin[k - 1] + t * u;
+      foot_next = point[k] + s2 * v;
+    }
+    const Eigen::Vector3d normal = foot_next - foot_prev;
+    x[k] =
+        normal.norm() > 1e-12 ? normal.normalized() : (w.norm() > 1e-9 ? w.normalized() : x[k - 1]);
+    z[k] = v;
+    origin[k] = foot_next;
+    const Eigen::Vector3d step = origin[k] - origin[k - 1];
+    const Body& b = model.bodies[static_cast<std::size_t>(joints[k - 1])];
+    rows += dh_row(b.name, b.joint == JointType::kRevolute,
+                   std::atan2(x[k - 1].cross(x[k]).dot(u), x[k - 1].dot(x[k])), step.dot(u),
+                   step.dot(x[k]), std::atan2(u.cross(z[k]).dot(x[k]), u.dot(z[k])));
+  }
+  // The last joint's frame: its own axis, no offset (the tool frame carries the rest).
+  const Body& last = model.bodies[static_cast<std::size_t>(joints.back())];
+  rows += dh_row(last.name, last.joint == JointType::kRevolute, 0, 0, 0, 0);
+  const auto frame_of = [&](std::size_t k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear().col(0) = x[k];
+    T.linear().col(1) = z[k].cross(x[k]);
+    T.linear().col(2) = z[k];
+    T.translation() = origin[k];
+    return T;
+  };
+  const Eigen::Isometry3d tool =
+      frame_of(n - 1).inverse() * frame_pose(model, params, state, model.tool);
+  std::string t = fmt::format(
+      "Denavit-Hartenberg table of '{}' derived from its joint axes (its robot file gives them as "
+      "{}; A_i = Rz(theta_i + q_i) Tz(d_i) Tx(a_i) Rx(alpha_i), q_i = the reading)\n",
+      model.name, model.bodies[static_cast<std::size_t>(joints.front())].convention);
+  t += fmt::format("  {:<16} {:>9} {:>14} {:>12} {:>12} {:>12}\n", "joint", "type", "theta [deg]",
+                   "d [mm]", "a [mm]", "alpha [deg]");
+  t += rows;
+  t += "  base (world -> joint 1's frame): " + frame_text(frame_of(0)) + "\n";
+  t += "  tool (last joint's frame -> tool): " + frame_text(tool) + "\n";
+  return t;
+}
+
+}  // namespace
+
 std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params) {
   if (const std::string why = urdf_mismatch(model); !why.empty()) throw std::invalid_argument(why);
   std::string convention;
@@ -245,19 +350,8 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
   for (std::size_t i = 0; i < model.bodies.size(); ++i) {
     const Body& b = model.bodies[i];
     if (b.joint == JointType::kFixed) continue;
-    if (b.convention != "dh" && b.convention != "mdh")
-      throw std::invalid_argument(fmt::format(
-          "'{}': joint '{}' is given as {} ({} numbers per joint); a DH table has 4 per joint and "
-          "would not be this model: give the robot file's joints in dh or mdh to get one (the "
-          "URDF export carries the full geometry)",
-          model.name, b.name, b.convention,
-          std::count_if(b.ops.begin(), b.ops.end(),
-                        [](const ElementaryOp& op) { return op.param >= 0; })));
-    if (!convention.empty() && b.convention != convention)
-      throw std::invalid_argument(
-          fmt::format("'{}' mixes dh and mdh joints ('{}' is {}): one table cannot show both",
-                      model.name, b.name, b.convention));
-    convention = b.convention;
+    // One DH convention throughout: the table reads the file's numbers; else it is derived.
+    convention = convention.empty() || convention == b.convention ? b.convention : "mixed";
     if (!joints.empty() && b.parent != joints.back())
       throw std::invalid_argument(fmt::format(
           "'{}': joint '{}' does not follow joint '{}' directly (fixed frames between joints or "
@@ -266,6 +360,8 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
     joints.push_back(static_cast<int>(i));
   }
   if (joints.empty()) throw std::invalid_argument("'" + model.name + "' has no moving joints");
+  // Joints not given in DH: the table is derived from the joint axes' geometry.
+  if (convention != "dh" && convention != "mdh") return derived_dh_table(model, params, joints);
   const auto value = [&](const Body& b, const char* key) {
     const int k = model.parameter_index(b.name + "." + key);
     return k >= 0 ? params[k] : 0.0;
