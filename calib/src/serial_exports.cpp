@@ -241,7 +241,12 @@ std::string robot_yaml_from_urdf(const std::string& urdf, const std::string& sou
 namespace {
 
 std::string frame_text(const Eigen::Isometry3d& T) {
-  const Eigen::Vector3d p = T.translation() * 1e3, r = rpy_of(T.linear());
+  // Rounding noise printed as 0 (not -0.000000, which reads like a correction).
+  const auto clean = [](Eigen::Vector3d v) {
+    for (double& c : v) c = std::abs(c) < 5e-10 ? 0.0 : c;
+    return v;
+  };
+  const Eigen::Vector3d p = clean(T.translation() * 1e3), r = clean(rpy_of(T.linear()));
   return fmt::format("xyz [{:.4f}, {:.4f}, {:.4f}] mm, rpy [{:.6f}, {:.6f}, {:.6f}] deg", p.x(),
                      p.y(), p.z(), deg(r.x()), deg(r.y()), deg(r.z()));
 }
@@ -393,13 +398,8 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
                                                    : Eigen::Isometry3d::Identity();
   const Eigen::Isometry3d tool = frame_pose(model, params, zero, joints.back()).inverse() *
                                  frame_pose(model, params, zero, model.tool);
-  const auto frame = [](const Eigen::Isometry3d& T) {
-    const Eigen::Vector3d p = T.translation() * 1e3, r = rpy_of(T.linear());
-    return fmt::format("xyz [{:.4f}, {:.4f}, {:.4f}] mm, rpy [{:.6f}, {:.6f}, {:.6f}] deg", p.x(),
-                       p.y(), p.z(), deg(r.x()), deg(r.y()), deg(r.z()));
-  };
-  t += "  base (world -> joint 1's frame): " + frame(base) + "\n";
-  t += "  tool (last joint's frame -> tool): " + frame(tool) + "\n";
+  t += "  base (world -> joint 1's frame): " + frame_text(base) + "\n";
+  t += "  tool (last joint's frame -> tool): " + frame_text(tool) + "\n";
   return t;
 }
 
