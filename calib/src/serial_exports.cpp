@@ -277,8 +277,8 @@ std::string derived_dh_table(const Mechanism& model, const Eigen::VectorXd& para
     const Eigen::Isometry3d W = (b.parent >= 0 ? frame_pose(model, params, state, b.parent)
                                                : Eigen::Isometry3d::Identity()) *
                                 s.before;
-    point.push_back(W.translation());
-    axis.push_back((W.linear() * s.axis).normalized());
+    point.emplace_back(W.translation());
+    axis.emplace_back((W.linear() * s.axis).normalized());
   }
   const std::size_t n = joints.size();
   std::vector<Eigen::Vector3d> origin(n), x(n), z(n);
