@@ -14,6 +14,8 @@ find_package(fcl 0.7 REQUIRED)
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 pkg_check_modules(LIBV4L2 REQUIRED IMPORTED_TARGET libv4l2)
+# URDF export/import (calib/serial_exports): Debian's liburdfdom-dev.
+pkg_check_modules(URDFDOM REQUIRED IMPORTED_TARGET urdfdom)
 if(ROBOCAL_BUILD_TESTS)
   find_package(GTest 1.12 REQUIRED)
   include(GoogleTest)

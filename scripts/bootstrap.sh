@@ -14,6 +14,8 @@ packages=(
   iproute2
   # planner: collision and distance queries (FCL; pulls in libccd and octomap)
   libfcl-dev
+  # exports: URDF read and written through urdfdom (robocal export --format urdf)
+  liburdfdom-dev
   # file formats, command line, logging
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   # tests and benchmarks; chromium renders the HTML report headless in its test

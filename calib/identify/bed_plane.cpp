@@ -8,6 +8,13 @@ namespace robocal::calib {
 BedPlanePredictor::BedPlanePredictor(const FramePredictor& inner)
     : inner_(inner), inner_count_(inner.parameter_count()) {}
 
+std::vector<std::string> BedPlanePredictor::parameter_labels() const {
+  auto labels = inner_.parameter_labels();
+  labels.emplace_back("bed tilt about x");
+  labels.emplace_back("bed tilt about y");
+  return labels;
+}
+
 std::vector<std::string> BedPlanePredictor::parameter_names() const {
   auto names = inner_.parameter_names();
   names.emplace_back("bed.tilt_x");

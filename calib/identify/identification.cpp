@@ -489,6 +489,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
   IdentificationResult result;
   const std::size_t P = model.parameter_count();
   result.names = model.parameter_names();
+  result.labels = model.parameter_labels();
   result.nominal = nominal;
   result.estimate = nominal;
   auto invalid = [&](std::string why) {

@@ -101,6 +101,7 @@ nlohmann::json to_json(const IdentificationResult& r) {
   for (std::size_t i = 0; i < r.names.size(); ++i) {
     const auto ii = static_cast<Eigen::Index>(i);
     nlohmann::json p{{"name", r.names[i]},
+                     {"label", i < r.labels.size() ? r.labels[i] : r.names[i]},
                      {"nominal", num(r.nominal(ii))},
                      {"value", num(r.estimate(ii))},
                      {"change", num(r.estimate(ii) - r.nominal(ii))},

@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 
 namespace robocal::calib {
@@ -29,7 +30,42 @@ std::string name_list(const std::vector<std::string>& names, std::size_t limit) 
   return out;
 }
 
+// The parameter's label when the robot file gives one, else its name.
+const std::string& display_label(const IdentificationResult& r, std::size_t i) {
+  return i < r.labels.size() && !r.labels[i].empty() ? r.labels[i] : r.names[i];
+}
+
 }  // namespace
+
+std::string in_plain_words(const std::string& text, const IdentificationResult& r) {
+  // Longest names first, so a name that is a prefix of another is not replaced inside it.
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < r.names.size() && i < r.labels.size(); ++i)
+    if (!r.labels[i].empty() && r.labels[i] != r.names[i]) order.push_back(i);
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return r.names[a].size() > r.names[b].size(); });
+  const auto name_char = [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '.';
+  };
+  std::string out = text;
+  for (std::size_t i : order) {
+    const std::string& name = r.names[i];
+    for (std::size_t at = out.find(name); at != std::string::npos; at = out.find(name, at)) {
+      const std::size_t end = at + name.size();
+      // A whole name: not glued to a longer one (a trailing '.' ends a sentence, so allowed).
+      const bool starts = at == 0 || !name_char(out[at - 1]);
+      const bool ends = end == out.size() || !name_char(out[end]) ||
+                        (out[end] == '.' && (end + 1 == out.size() || out[end + 1] == ' '));
+      if (starts && ends) {
+        out.replace(at, name.size(), r.labels[i]);
+        at += r.labels[i].size();
+      } else {
+        at = end;
+      }
+    }
+  }
+  return out;
+}
 
 std::string summary_text(const IdentificationResult& r) {
   std::string s = fmt::format("identify: {} - {}\n", to_string(r.status), r.message);
@@ -48,8 +84,8 @@ std::string summary_text(const IdentificationResult& r) {
     std::string sigma;
     if (r.uncertainty.ok)
       sigma = fmt::format(" +- {:.3g}", r.uncertainty.sigma(static_cast<Eigen::Index>(k)));
-    s += fmt::format("  {:<28} {:+.6g}{}  (nominal {:.6g}, change {:+.3g})\n",
-                     r.names[r.estimated[k]], r.estimate(i), sigma, r.nominal(i),
+    s += fmt::format("  {:<36} {:+.6g}{}  (nominal {:.6g}, change {:+.3g})\n",
+                     display_label(r, r.estimated[k]), r.estimate(i), sigma, r.nominal(i),
                      r.estimate(i) - r.nominal(i));
   }
   // Held parameters: the redundancy explanations say what each moves like.
@@ -57,14 +93,16 @@ std::string summary_text(const IdentificationResult& r) {
   for (const auto& red : r.identifiability.redundancies)
     if (std::find(r.estimated.begin(), r.estimated.end(), r.candidates[red.parameter]) ==
         r.estimated.end())
-      held.push_back(red.explanation);
+      held.push_back(in_plain_words(red.explanation, r));
   if (!held.empty()) {
     s += fmt::format("Held at nominal ({}):\n", held.size());
     for (std::size_t k = 0; k < held.size() && k < 12; ++k) s += "  " + held[k] + "\n";
     if (held.size() > 12) s += fmt::format("  ... and {} more (see the JSON)\n", held.size() - 12);
   }
   std::vector<std::string> no_effect;
-  for (std::size_t k : r.identifiability.no_effect) no_effect.push_back(r.identifiability.names[k]);
+  for (std::size_t k : r.identifiability.no_effect)
+    no_effect.push_back(k < r.candidates.size() ? display_label(r, r.candidates[k])
+                                                : r.identifiability.names[k]);
   if (!no_effect.empty())
     s += fmt::format("No effect on these measurements: {}\n", name_list(no_effect, 8));
   // Noise: stated vs what the residuals show.

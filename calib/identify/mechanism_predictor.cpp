@@ -23,6 +23,12 @@ std::vector<std::string> MechanismPredictor::parameter_names() const {
   return names;
 }
 
+std::vector<std::string> MechanismPredictor::parameter_labels() const {
+  std::vector<std::string> labels;
+  for (const auto& p : model_.parameters) labels.push_back(display_name(p));
+  return labels;
+}
+
 bool MechanismPredictor::predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators,
                                  int slot, bool with_jacobian, FramePrediction& out,
                                  std::string& why) const {

@@ -110,6 +110,14 @@ std::vector<std::string> CameraRigPredictor::parameter_names() const {
   return names;
 }
 
+std::vector<std::string> CameraRigPredictor::parameter_labels() const {
+  std::vector<std::string> labels = robot_.parameter_labels();
+  const std::vector<std::string> names = parameter_names();
+  labels.insert(labels.end(), names.begin() + static_cast<std::ptrdiff_t>(labels.size()),
+                names.end());
+  return labels;
+}
+
 std::size_t CameraRigPredictor::pose_offset(int camera) const {
   return offsets_.at(static_cast<std::size_t>(camera));
 }

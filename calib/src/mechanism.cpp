@@ -34,6 +34,14 @@ int Mechanism::parameter_index(const std::string& param_name) const {
   return -1;
 }
 
+const std::string& display_name(const Parameter& parameter) {
+  return parameter.label.empty() ? parameter.name : parameter.label;
+}
+
+const std::string& Mechanism::parameter_display_name(std::size_t index) const {
+  return display_name(parameters.at(index));
+}
+
 Eigen::VectorXd Mechanism::nominal_parameters() const {
   Eigen::VectorXd v(static_cast<Eigen::Index>(parameters.size()));
   for (std::size_t i = 0; i < parameters.size(); ++i)

@@ -342,11 +342,89 @@ void parse_assembly_mode(const YAML::Node& node, const std::string& source, Mech
   }
 }
 
+// ---- Labels: parameters in a technician's words (issue 20) ---------------------------------
+// Words for a parameter key of a convention: what the number is to someone holding the robot.
+std::string key_words(const std::string& convention, const std::string& key) {
+  static const std::map<std::string, std::string> kCommon = {
+      {"encoder_offset", "encoder zero"}, {"encoder_scale", "encoder scale"}, {"length", "length"}};
+  static const std::map<std::string, std::string> kXyzRpy = {
+      {"x", "x offset"},        {"y", "y offset"},         {"z", "z offset"},
+      {"roll", "tilt about x"}, {"pitch", "tilt about y"}, {"yaw", "turn about z"}};
+  static const std::map<std::string, std::string> kMcpc = {
+      {"a1", "tilt about x"}, {"a2", "tilt about y"}, {"a3", "turn about z"},
+      {"d1", "x offset"},     {"d2", "y offset"},     {"d3", "z offset"}};
+  static const std::map<std::string, std::string> kDh = {{"theta", "joint angle zero"},
+                                                         {"d", "offset along the joint axis"},
+                                                         {"a", "link length"},
+                                                         {"alpha", "link twist"},
+                                                         {"beta", "twist about y"}};
+  if (const auto it = kCommon.find(key); it != kCommon.end()) return it->second;
+  const auto& table = convention == "mcpc" ? kMcpc : (convention == "xyz_rpy" ? kXyzRpy : kDh);
+  if (const auto it = table.find(key); it != table.end()) return it->second;
+  return key;
+}
+
+// `labels:` maps a parameter name to its label, or a body or rod name to the words its
+// parameters start with ("carriage_a: tower A carriage" gives "tower A carriage encoder zero").
+// An exact parameter label wins over one made from its body's. A key that names nothing of this
+// robot is an error at its line (a typo would otherwise leave a parameter unlabelled silently).
+void parse_labels(const YAML::Node& node, const std::string& source, Mechanism& m) {
+  if (!node) return;
+  if (!node.IsMap()) fail(source, node, "labels must be a mapping NAME: words");
+  std::map<std::string, std::string> owner_words;  // body or rod name -> words
+  std::map<std::string, std::string> exact;        // parameter name -> label
+  for (const auto& kv : node) {
+    const std::string key = kv.first.Scalar();
+    const std::string words = text(source, kv.second, "label of '" + key + "'");
+    if (words.find_first_not_of(" \t") == std::string::npos)
+      fail(source, kv.second, "label of '" + key + "' is empty");
+    const bool is_parameter = m.parameter_index(key) >= 0;
+    const bool is_owner = m.body_index(key) >= 0 ||
+                          std::any_of(m.closures.begin(), m.closures.end(), [&](const Closure& c) {
+                            return c.name == key && c.length_param >= 0;
+                          });
+    if (!is_parameter && !is_owner) {
+      std::string hint;
+      const std::string prefix = key.substr(0, key.find('.'));
+      int shown = 0;
+      for (const Parameter& p : m.parameters)
+        if (p.name.rfind(prefix + ".", 0) == 0 && shown++ < 8) hint += " " + p.name;
+      std::string what = "label for unknown parameter '";
+      what += key;
+      what += "' (not a parameter, body or rod of robot '";
+      what += m.name;
+      what += "'";
+      if (!hint.empty()) {
+        what += "; parameters of '";
+        what += prefix;
+        what += "':";
+        what += hint;
+      }
+      what += ")";
+      fail(source, kv.first, what);
+    }
+    (is_parameter ? exact : owner_words)[key] = words;
+  }
+  for (Parameter& p : m.parameters) {
+    if (const auto it = exact.find(p.name); it != exact.end()) {
+      p.label = it->second;
+      continue;
+    }
+    const auto dot = p.name.find('.');
+    const auto owner = owner_words.find(p.name.substr(0, dot));
+    if (owner == owner_words.end()) continue;
+    const std::string convention =
+        p.body >= 0 ? m.bodies[static_cast<std::size_t>(p.body)].convention : std::string();
+    p.label = owner->second + " " + key_words(convention, p.name.substr(dot + 1));
+  }
+}
+// ---- end of labels -----------------------------------------------------------------------------
+
 Mechanism parse(const YAML::Node& root, const std::string& source) {
   if (!root.IsMap()) fail(source, root, "a robot file must be a YAML mapping");
   check_keys(source, root, "robot file",
              {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool", "task",
-              "closed_form", "workspace", "bodies", "closures", "rods", "assembly_mode"});
+              "closed_form", "workspace", "bodies", "closures", "rods", "assembly_mode", "labels"});
   Mechanism m;
   m.source = source;
   if (!root["robot"]) fail(source, root, "missing 'robot' (the robot's name)");
@@ -819,6 +897,7 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
     m.workspace.min_task_conditioning = c;
   }
   parse_assembly_mode(root["assembly_mode"], source, m);
+  parse_labels(root["labels"], source, m);
   return m;
 }
 

@@ -70,6 +70,7 @@ CommandSpec sim_controller_command();
 CommandSpec plan_command();
 CommandSpec compensate_command();
 CommandSpec report_command();
+CommandSpec export_command();
 
 // In the order of a calibration: the demo first, then the steps a user runs on real data.
 const std::vector<CommandSpec>& all_commands() {
@@ -78,6 +79,7 @@ const std::vector<CommandSpec>& all_commands() {
       intrinsics_command(),     rig_command(),      measure_command(),    identify_command(),
       simulate_command(),       validate_command(), batch_command(),      plan_command(),
       sim_controller_command(), version_command(),  compensate_command(), report_command(),
+      export_command(),
   };
   return commands;
 }

@@ -16,6 +16,7 @@
 #include "robocal/calib/fit_gate.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/identification_json.hpp"
+#include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal_version.hpp"
@@ -180,6 +181,11 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   report["not_identified"] = result.identifiability.messages;
   if (result.relinearisation.attempted)
     report["not_identified"].push_back(result.relinearisation.message);
+  // The same, with the robot file's labels for the parameter names (what the summary prints).
+  report["not_identified_in_words"] = nlohmann::json::array();
+  for (const auto& m : report["not_identified"])
+    report["not_identified_in_words"].push_back(
+        calib::in_plain_words(m.get<std::string>(), result));
   report["held_at_nominal"] = result.candidates.size() - result.estimated.size();
   report["start"] = params_json(model, start);
   report["estimate"] = params_json(model, result.estimate);

@@ -331,6 +331,7 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     const bool base_frame = body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0;
     const auto carried = carries.find(model.parameters[i].name);
     params.push_back({{"name", model.parameters[i].name},
+                      {"label", calib::display_name(model.parameters[i])},
                       {"unit", unit_name(model.parameters[i].unit)},
                       {"estimated_change", estimate[k] - start[k]},
                       {"true_change", truth[k] - true_nominal[k]},

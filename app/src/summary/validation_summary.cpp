@@ -122,7 +122,7 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
     const auto unit = p.at("unit").get<std::string>();
     const int stands_in_for = p.value("stands_in_for", 0);
     any_stand_in = any_stand_in || stands_in_for > 0;
-    fmt::print(out, "    {:<24} {}  ({}){}\n", p.at("name").get<std::string>(),
+    fmt::print(out, "    {:<36} {}  ({}){}\n", p.value("label", p.at("name").get<std::string>()),
                fmt_param_change(unit, p.at("estimated_change").get<double>()),
                fmt_param_change(unit, p.at("true_change").get<double>()),
                stands_in_for > 0 ? fmt::format("  *{}", stands_in_for) : std::string());
@@ -134,7 +134,9 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
                "so its change is\n       their combination, not comparable with its own true "
                "change\n");
   if (ident.contains("not_identified") && !ident["not_identified"].empty()) {
-    const auto& messages = ident["not_identified"];
+    const auto& messages = ident.contains("not_identified_in_words")
+                               ? ident["not_identified_in_words"]
+                               : ident["not_identified"];
     fmt::print(out, "\n  what could not be identified ({} parameters held at nominal):\n",
                ident.value("held_at_nominal", 0));
     for (std::size_t k = 0; k < std::min<std::size_t>(6, messages.size()); ++k) {

@@ -28,7 +28,8 @@ class BedPlanePredictor final : public FramePredictor {
   explicit BedPlanePredictor(const FramePredictor& inner);
 
   std::size_t parameter_count() const override { return inner_count_ + 2; }
-  std::vector<std::string> parameter_names() const override;  // inner's + bed.tilt_x, bed.tilt_y
+  std::vector<std::string> parameter_labels() const override;  // inner's + "bed tilt about x/y"
+  std::vector<std::string> parameter_names() const override;   // inner's + bed.tilt_x, bed.tilt_y
   bool predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators, int slot,
                bool with_jacobian, FramePrediction& out, std::string& why) const override;
   bool pixel_residual(const PixelObservation& obs, const Eigen::VectorXd& params,

@@ -49,6 +49,8 @@ class FramePredictor {
   virtual ~FramePredictor() = default;
   virtual std::size_t parameter_count() const = 0;
   virtual std::vector<std::string> parameter_names() const = 0;
+  // What a person reads for each parameter (the robot file's labels); the raw names by default.
+  virtual std::vector<std::string> parameter_labels() const { return parameter_names(); }
   // Predicts the measured frame for `actuators` with parameter vector `params`. `slot` identifies
   // the pose so an implementation may warm-start from its previous solution. When `with_jacobian`
   // is false the jacobian may be left empty. Returns false (and says why) when the pose cannot be
@@ -201,6 +203,7 @@ struct IdentificationResult {
   IdentificationStatus status = IdentificationStatus::kInvalidInput;
   std::string message;
   std::vector<std::string> names;
+  std::vector<std::string> labels;  // FramePredictor::parameter_labels, same order as names
   Eigen::VectorXd nominal;
   Eigen::VectorXd estimate;               // full parameter vector (nominal where not estimated)
   std::vector<std::size_t> estimated;     // indices actually estimated (identifiable candidates)

@@ -10,6 +10,11 @@ namespace robocal::calib {
 
 std::string summary_text(const IdentificationResult& result);
 
+// `text` (e.g. an identifiability explanation) with every raw parameter name of `result` that has
+// a label replaced by the label: "body26.d1 moves like ..." -> "rod 26 length moves like ...".
+// Only whole names are replaced (body2.d1 inside body22.d1 is left alone).
+std::string in_plain_words(const std::string& text, const IdentificationResult& result);
+
 // One line per validation ("held-out: 12 poses, position RMS 1.23 mm -> 12.5 um").
 std::string validation_line(const std::string& label, const ValidationReport& report);
 

@@ -77,7 +77,13 @@ struct Parameter {
   int body = -1;     // owning body (-1 for rods: see closure)
   int closure = -1;  // owning closure for rod lengths
   int line = 0;      // 1-based line in the robot file (0 = generated)
+  // Plain words a technician reads ("rod 26 length", "shoulder 1 encoder zero"): robot file
+  // `labels:` (testdata/robots/README.md, "Labels"); empty when the file gives none.
+  std::string label;
 };
+
+// What a person reads for a parameter: its label when the robot file gives one, else its name.
+const std::string& display_name(const Parameter& parameter);
 
 enum class ShapeKind : std::uint8_t { kCapsule, kBox };
 
@@ -231,6 +237,8 @@ struct Mechanism {
   // -1 if absent.
   int body_index(const std::string& name) const;
   int parameter_index(const std::string& name) const;
+  // display_name of parameter `index` (label if the robot file gives one, else the raw name).
+  const std::string& parameter_display_name(std::size_t index) const;
   // Nominal parameter values in parameter order.
   Eigen::VectorXd nominal_parameters() const;
   // Home joint values of the passive joints (generic seed).

@@ -22,6 +22,7 @@ class MechanismPredictor final : public FramePredictor {
 
   std::size_t parameter_count() const override;
   std::vector<std::string> parameter_names() const override;
+  std::vector<std::string> parameter_labels() const override;  // display_name of each
   bool predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators, int slot,
                bool with_jacobian, FramePrediction& out, std::string& why) const override;
 

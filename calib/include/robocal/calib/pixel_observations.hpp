@@ -52,6 +52,8 @@ class CameraRigPredictor final : public FramePredictor {
 
   std::size_t parameter_count() const override;
   std::vector<std::string> parameter_names() const override;
+  // The robot's labels, then the cameras' names ("camera1.x": a camera's pose, not the robot).
+  std::vector<std::string> parameter_labels() const override;
   // The robot's prediction; the jacobian has zero columns for the camera parameters.
   bool predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators, int slot,
                bool with_jacobian, FramePrediction& out, std::string& why) const override;
