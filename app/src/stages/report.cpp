@@ -28,10 +28,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// The name a person reads for a parameter. Today the identification's own name; when robot
-// files carry plain-word labels (calib's display-name function), this is the one place to switch.
-std::string parameter_display_name(const std::string& name) {
-  return name;
+// The name a person reads for a parameter: the robot file's plain-word label, with the
+// parameter's own name after it so the row can be found in the JSON and the robot file.
+std::string parameter_display_name(const calib::Mechanism& model, const std::string& name) {
+  const int index = model.parameter_index(name);
+  if (index < 0) return name;
+  const std::string& label = model.parameter_display_name(static_cast<std::size_t>(index));
+  return label == name ? name : label + " (" + name + ")";
 }
 
 constexpr std::size_t kHistogramBins = 30;
@@ -72,7 +75,7 @@ ReportAccuracy accuracy_row(const std::string& label, const nlohmann::json& part
   return a;
 }
 
-void add_parameters(ReportData& d, const IdentificationFile& ident,
+void add_parameters(ReportData& d, const calib::Mechanism& model, const IdentificationFile& ident,
                     const nlohmann::json& analysis) {
   const nlohmann::json empty = nlohmann::json::array();
   const nlohmann::json& identifiability =
@@ -81,14 +84,14 @@ void add_parameters(ReportData& d, const IdentificationFile& ident,
   for (const auto& red : identifiability.value("redundancies", empty))
     for (const auto& partner : red.value("partners", empty))
       stands_for[partner.value("name", "")].push_back(
-          parameter_display_name(red.value("parameter", "")));
+          parameter_display_name(model, red.value("parameter", "")));
   std::map<std::string, bool> correlated;
   const nlohmann::json& uncertainty = analysis.value("uncertainty", nlohmann::json::object());
   std::vector<ReportCorrelation> correlations;
   for (const auto& c : uncertainty.value("strongly_correlated", empty)) {
     correlated[c.value("first", "")] = correlated[c.value("second", "")] = true;
-    correlations.push_back({parameter_display_name(c.value("first", "")),
-                            parameter_display_name(c.value("second", "")),
+    correlations.push_back({parameter_display_name(model, c.value("first", "")),
+                            parameter_display_name(model, c.value("second", "")),
                             c.value("correlation", 0.0)});
   }
   std::stable_sort(correlations.begin(), correlations.end(),
@@ -102,7 +105,7 @@ void add_parameters(ReportData& d, const IdentificationFile& ident,
     const std::string name = p.value("name", "");
     const auto [factor, unit] = display_unit(units.value(name, ""));
     ReportParameter row;
-    row.name = parameter_display_name(name);
+    row.name = parameter_display_name(model, name);
     row.unit = unit;
     row.nominal = p.value("nominal", 0.0) * factor;
     row.value = p.value("value", 0.0) * factor;
@@ -285,7 +288,7 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     d.measured_side.push_back(side(m.rig_T_target.translation()));
   }
 
-  add_parameters(d, ident, analysis);
+  add_parameters(d, robot.model, ident, analysis);
   std::map<std::string, double> rms_by_pose;
   for (const auto& m : measured) rms_by_pose[m.pose] = m.rms_px;
   add_cameras(d, s, results, rms_by_pose);
