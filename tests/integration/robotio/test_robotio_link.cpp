@@ -31,7 +31,9 @@ constexpr MoveSpeed kSpeed{0.2, 4.0};
 
 enum class Wire { kTcp, kPty };
 // How GoogleTest shows the parameter (test listings, failures): "Tcp", not raw bytes.
-void PrintTo(Wire wire, std::ostream* os) { *os << (wire == Wire::kTcp ? "Tcp" : "Pty"); }
+void PrintTo(Wire wire, std::ostream* os) {
+  *os << (wire == Wire::kTcp ? "Tcp" : "Pty");
+}
 
 class LinkTest : public ScratchDirTest {
  protected:

@@ -56,7 +56,8 @@ TEST(Files, AtomicWriteRefusesToOverwriteRecordedDataAndReplacesResults) {
     rc::read_text_file(dir / "missing.txt");
     ADD_FAILURE() << "no error for a missing file";
   } catch (const rc::InputError& e) {
-    EXPECT_EQ(std::string(e.what()), (dir / "missing.txt").string() + ": cannot open file (No such file or directory)");
+    EXPECT_EQ(std::string(e.what()),
+              (dir / "missing.txt").string() + ": cannot open file (No such file or directory)");
   }
   fs::remove_all(dir);
 }

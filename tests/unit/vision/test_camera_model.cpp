@@ -225,7 +225,8 @@ TEST(CameraFile, ErrorsNameFileAndLine) {
     rv::load_camera_file("/nonexistent/cam.yaml");
     FAIL();
   } catch (const rv::FileFormatError& e) {
-    EXPECT_EQ(std::string(e.what()), "/nonexistent/cam.yaml: cannot open file (No such file or directory)");
+    EXPECT_EQ(std::string(e.what()),
+              "/nonexistent/cam.yaml: cannot open file (No such file or directory)");
   }
 }
 
