@@ -191,6 +191,12 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     validation = read_validation(results, "");
     if (validation->status != "ok") validation.reset();
   }
+  // A validation.json from before per-pose points were written has the summary figures but no
+  // points: the page would show empty per-pose plots under held-out headings. Say so instead.
+  if (validation && validation->points.empty() && !validation->report.contains("held_out_points"))
+    throw InputError(results.report("validation").string() +
+                     ": this validation has no per-pose held-out points (written by an older "
+                     "robocal); run `robocal validate` on the session again, then the report");
   std::vector<MeasuredPose> measured;
   if (fs::exists(results.measured_poses())) measured = read_used_measured_poses(results, "");
 

@@ -47,7 +47,7 @@ TruePoseReading parse_true_pose_reply(const std::string& line, const std::string
   return reading;
 }
 
-SimControllerTruth::SimControllerTruth(const std::string& address, BoardMounting mounting,
+SimControllerTruth::SimControllerTruth(const std::string& address, const BoardMounting& mounting,
                                        std::chrono::milliseconds timeout)
     : channel_(make_transport("tcp:" + address, 0)), mounting_(mounting), timeout_(timeout) {
   channel_->open();

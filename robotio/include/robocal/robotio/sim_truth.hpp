@@ -42,7 +42,7 @@ class SimControllerTruth final : public TruePoseSource {
  public:
   // `address` = "HOST:PORT" as sim-controller announces it ("pose 127.0.0.1:P"). Connects at
   // once; throws LinkError naming the channel when it cannot.
-  SimControllerTruth(const std::string& address, BoardMounting mounting,
+  SimControllerTruth(const std::string& address, const BoardMounting& mounting,
                      std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
 
   // One round trip (thread-safe: several cameras render at once). Throws std::runtime_error
