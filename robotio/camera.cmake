@@ -12,6 +12,7 @@ robocal_library(robocal_robotio_camera
     src/camera/camera_checks.cpp
     src/camera/capture_link.cpp
     src/camera/sim_truth.cpp
+    src/camera/camera_open.cpp
   PUBLIC_DEPS robocal_vision robocal_robotio ${OpenCV_LIBS}
   PRIVATE_DEPS PkgConfig::ARAVIS PkgConfig::LIBV4L2 fmt::fmt yaml-cpp
     nlohmann_json::nlohmann_json)

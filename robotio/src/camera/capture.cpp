@@ -320,6 +320,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
     TakenPose done = in_flight.get();  // rethrows a write failure
     if (done.written) {
       result.poses.push_back(done.report);
+      if (options.on_pose_recorded) options.on_pose_recorded(done.report);
     } else {
       retakes[done.report.index] = done.report.retakes + 1;
       queue.push_back(done.report.index);

@@ -53,6 +53,8 @@ struct CaptureCamera {
   vision::CameraModel model;
 };
 
+struct PoseCaptureReport;
+
 struct CaptureOptions {
   int shots_per_pose = 2;  // frames per camera per pose; >= 2 for the motion check
   int max_retakes = 3;     // retakes of a pose whose target moved; then recorded as is, flagged
@@ -66,6 +68,8 @@ struct CaptureOptions {
   int png_compression = 1;            // 0..9: 1 keeps writing fast (lossless either way)
   // Observers (progress display, tests): every file written into staging, every pose done.
   std::function<void(const std::filesystem::path&)> on_file_written;
+  // Called on the calling thread once a pose is recorded (its folder renamed into place).
+  std::function<void(const PoseCaptureReport&)> on_pose_recorded;
 };
 
 enum class PoseCaptureStatus { kRecorded, kAlreadyRecorded };

@@ -1,0 +1,566 @@
+#include "live/collect.hpp"
+
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "cli/progress.hpp"
+#include "live/cell_clearance.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal/planner/cell.hpp"
+#include "robocal/planner/collision_scene.hpp"
+#include "robocal/planner/plan_output.hpp"
+#include "robocal/robotio/camera_open.hpp"
+#include "robocal/robotio/capture.hpp"
+#include "robocal/robotio/capture_link.hpp"
+#include "robocal/robotio/gcode_link.hpp"
+#include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/safety_guard.hpp"
+#include "robocal/vision/camera_io.hpp"
+#include "robocal/vision/target_io.hpp"
+#include "robocal_version.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+
+#include <fmt/core.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <ctime>
+#include <iostream>
+#include <memory>
+#include <set>
+#include <thread>
+
+namespace robocal::app {
+namespace {
+
+namespace fs = std::filesystem;
+using robotio::SafetyGuard;
+
+// ---- signals: SIGTERM stops like Ctrl-C, SIGUSR1 pauses / resumes between poses ---------------
+
+std::atomic<SafetyGuard*> g_guard{nullptr};
+std::atomic<bool> g_paused{false};
+std::atomic<int> g_stop_signal{0};
+
+extern "C" void on_collect_term(int sig) {
+  g_stop_signal = sig;
+  if (SafetyGuard* guard = g_guard.load()) guard->request_stop_from_signal();
+}
+extern "C" void on_collect_usr1(int /*sig*/) {
+  g_paused = !g_paused.load();
+}
+
+extern "C" void on_collect_int(int sig) {
+  SafetyGuard* guard = g_guard.load();
+  if (guard == nullptr || guard->stop_requested()) {
+    std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C: the operator wants out now
+    std::raise(SIGINT);
+    return;
+  }
+  g_stop_signal = sig;
+  guard->request_stop_from_signal();
+}
+
+// Installed while the guard lives; restores the previous handlers when it goes.
+class StopSignals {
+ public:
+  explicit StopSignals(SafetyGuard& guard) {
+    g_guard = &guard;
+    g_stop_signal = 0;
+    g_paused = false;
+    install(SIGINT, on_collect_int, &old_int_);
+    install(SIGTERM, on_collect_term, &old_term_);
+    install(SIGUSR1, on_collect_usr1, &old_usr1_);
+  }
+  ~StopSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+    sigaction(SIGUSR1, &old_usr1_, nullptr);
+    g_guard = nullptr;
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+  StopSignals(StopSignals&&) = delete;
+  StopSignals& operator=(StopSignals&&) = delete;
+
+ private:
+  static void install(int sig, void (*handler)(int), struct sigaction* old) {
+    struct sigaction sa {};
+    sa.sa_handler = handler;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = 0;  // no SA_RESTART: blocking reads return EINTR and the link notices the stop
+    sigaction(sig, &sa, old);
+  }
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+  struct sigaction old_usr1_ {};
+};
+
+// Waits between poses while paused (SIGUSR1); a stop request ends the wait (the guard then
+// refuses the next move, and capture stops with the reason).
+class PausableRobot final : public robotio::CaptureRobot {
+ public:
+  PausableRobot(robotio::CaptureRobot& inner, const SafetyGuard& guard, std::FILE* out)
+      : inner_(&inner), guard_(&guard), out_(out) {}
+  Eigen::VectorXd move_and_settle(const Eigen::VectorXd& target) override {
+    wait_while_paused();
+    return inner_->move_and_settle(target);
+  }
+  Eigen::VectorXd read_actuators() override { return inner_->read_actuators(); }
+  void stop(const std::string& reason) override { inner_->stop(reason); }
+
+ private:
+  void wait_while_paused() {
+    bool said = false;
+    while (g_paused.load() && !guard_->stop_requested()) {
+      if (!said && out_ != nullptr) {
+        fmt::print(out_,
+                   "\ncollect: paused (robot standing still). Send SIGUSR1 again to go on "
+                   "(kill -USR1 {}), Ctrl-C to stop.\n",
+                   ::getpid());
+        std::fflush(out_);
+      }
+      said = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    if (said && out_ != nullptr && !guard_->stop_requested())
+      fmt::print(out_, "collect: resumed\n");
+  }
+  robotio::CaptureRobot* inner_;
+  const SafetyGuard* guard_;
+  std::FILE* out_;
+};
+
+// ---- inputs ------------------------------------------------------------------------------------
+
+struct CollectInputs {
+  std::string robot_file;
+  calib::Mechanism model;
+  planner::Cell cell;
+  std::vector<Eigen::VectorXd> targets;
+  std::string plan_text;
+  std::vector<int> camera_of;  // per cell camera: index into options.cameras
+};
+
+CollectInputs read_inputs(const CollectOptions& o) {
+  CollectInputs in;
+  if (o.cell.empty()) throw InputError("no cell file: give --cell FILE (planner/README.md)");
+  if (o.plan.empty())
+    throw InputError("no plan file: give --plan FILE (written by `robocal plan`)");
+  in.cell = planner::load_cell_file(o.cell);
+  const std::string robot = o.robot.empty() ? in.cell.robot_file : o.robot;
+  if (robot.empty())
+    throw InputError("no robot: give --robot NAME|FILE or name one in the cell file ('robot:')");
+  in.robot_file = resolve_robot(robot);
+  try {
+    in.model = calib::load_robot_file(in.robot_file);
+  } catch (const calib::RobotFileError& e) {
+    throw InputError(e.what());
+  }
+  in.plan_text = core::read_text_file(o.plan);
+  in.targets = planner::read_plan_actuators(o.plan);
+  if (in.targets.empty()) throw InputError(o.plan + ": the plan has no poses");
+  const auto n = static_cast<Eigen::Index>(in.model.actuated.size());
+  for (std::size_t i = 0; i < in.targets.size(); ++i) {
+    const Eigen::VectorXd& t = in.targets[i];
+    if (t.size() != n)
+      throw InputError(fmt::format("{}: pose {} has {} actuator readings; robot '{}' has {}",
+                                   o.plan, i, t.size(), in.model.name, n));
+    if (!t.allFinite())
+      throw InputError(
+          fmt::format("{}: pose {} has a reading that is not a finite number", o.plan, i));
+  }
+  // Every camera of the cell needs a source (unless nothing is captured); every source a camera.
+  in.camera_of.assign(in.cell.cameras.size(), -1);
+  std::set<std::string> seen;
+  for (std::size_t k = 0; k < o.cameras.size(); ++k) {
+    const CollectCamera& c = o.cameras[k];
+    const int index = in.cell.camera_index(c.name);
+    if (index < 0) {
+      std::string names;
+      for (const auto& cc : in.cell.cameras) names += (names.empty() ? "" : ", ") + cc.name;
+      throw InputError(fmt::format("--camera {}={}: the cell {} has no camera '{}' (it has: {})",
+                                   c.name, c.source, o.cell, c.name, names));
+    }
+    if (!seen.insert(c.name).second) throw InputError("--camera " + c.name + " is given twice");
+    try {
+      (void)robotio::parse_camera_source(c.source);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--camera ") + c.name + ": " + e.what());
+    }
+    in.camera_of[static_cast<std::size_t>(index)] = static_cast<int>(k);
+  }
+  if (!o.dry_run) {
+    for (std::size_t i = 0; i < in.cell.cameras.size(); ++i)
+      if (in.camera_of[i] < 0)
+        throw InputError(
+            fmt::format("camera '{}' of the cell has no source: give --camera {}=aravis:ID (or "
+                        "v4l2:/dev/videoN); `robocal collect --help` shows how to list cameras",
+                        in.cell.cameras[i].name, in.cell.cameras[i].name));
+  }
+  return in;
+}
+
+robotio::SafetyLimits guard_limits(const CollectOptions& o, const planner::Cell& cell) {
+  robotio::SafetyLimits l;
+  if (cell.workspace.declared) {
+    l.workspace_min = cell.workspace.min;
+    l.workspace_max = cell.workspace.max;
+  }
+  l.max_speed = o.speed;
+  l.max_acceleration = o.acceleration;
+  return l;
+}
+
+// ---- the session folder ------------------------------------------------------------------------
+
+std::int64_t iso_utc_to_ns(const std::string& iso) {
+  std::tm tm{};
+  if (strptime(iso.c_str(), "%Y-%m-%dT%H:%M:%SZ", &tm) == nullptr) return 0;
+  return static_cast<std::int64_t>(timegm(&tm)) * 1'000'000'000LL;
+}
+
+void check_new_session_folder(const fs::path& dir) {
+  if (fs::exists(dir) && !fs::is_empty(dir))
+    throw InputError(dir.string() +
+                     ": exists and is not empty (recorded data is never overwritten); use "
+                     "--resume to continue a collection there, or another folder");
+}
+
+// A new session: recorded files written once (robot, target, camera intrinsics, plan), then
+// session.yaml. Returns the session start (ns, host clock).
+std::int64_t start_session(const CollectOptions& o, const CollectInputs& in) {
+  const fs::path dir = o.session;
+  check_new_session_folder(dir);
+  fs::create_directories(dir);
+  Session s;
+  s.dir = dir;
+  s.software = std::string("robocal ") + kVersion;
+  s.created = utc_now();
+  s.source = "recorded";
+  s.robot_name = in.model.name;
+  s.actuators = static_cast<int>(in.model.actuated.size());
+  s.measured_frame = in.cell.target.frame.empty()
+                         ? in.model.bodies[static_cast<std::size_t>(in.model.tool)].name
+                         : in.cell.target.frame;
+  s.calibration_target = s.ee_target;  // the same board, until calibration views say otherwise
+  for (const auto& c : in.cell.cameras)
+    s.cameras.push_back({c.name, c.model.width, c.model.height});
+  core::write_file_atomic(s.path(s.robot_file), core::read_text_file(in.robot_file),
+                          core::Overwrite::kRefuse);
+  fs::create_directories(dir / "targets");
+  core::write_file_atomic(s.path(s.ee_target), vision::target_to_yaml(in.cell.target.board.spec),
+                          core::Overwrite::kRefuse);
+  fs::create_directories(dir / "cameras");
+  for (const auto& c : in.cell.cameras)
+    core::write_file_atomic(dir / "cameras" / (c.name + ".yaml"),
+                            vision::camera_to_yaml(c.model, c.name), core::Overwrite::kRefuse);
+  core::write_file_atomic(dir / "plan.yaml", in.plan_text, core::Overwrite::kRefuse);
+  core::write_file_atomic(dir / "session.yaml", session_to_yaml(s), core::Overwrite::kRefuse);
+  return iso_utc_to_ns(s.created);
+}
+
+// An interrupted collection: the same robot and the same plan, or it is refused.
+std::int64_t continue_session(const CollectOptions& o, const CollectInputs& in) {
+  const fs::path dir = o.session;
+  if (!is_session(dir))
+    throw InputError(dir.string() +
+                     ": no session.yaml, so there is nothing to resume (start without --resume)");
+  const Session s = load_session(dir);
+  if (s.robot_name != in.model.name)
+    throw InputError(fmt::format("{}: recorded with robot '{}', not '{}'",
+                                 (dir / "session.yaml").string(), s.robot_name, in.model.name));
+  const fs::path stored = dir / "plan.yaml";
+  if (!fs::exists(stored))
+    throw InputError(stored.string() + ": missing: this session was not recorded by collect");
+  if (core::read_text_file(stored.string()) != in.plan_text)
+    throw InputError(fmt::format(
+        "{}: this session was collected with another plan than {}; resume with its own plan "
+        "(--plan {}) so pose numbers keep their meaning",
+        stored.string(), o.plan, stored.string()));
+  return iso_utc_to_ns(s.created);
+}
+
+// ---- operator ----------------------------------------------------------------------------------
+
+bool operator_confirms(const CollectOptions& o, std::FILE* out) {
+  if (o.yes) return true;
+  if (::isatty(STDIN_FILENO) == 0) return false;  // nobody to ask: never move unconfirmed
+  fmt::print(out, "Type yes to start moving the robot (anything else cancels): ");
+  std::fflush(out);
+  std::string answer;
+  if (!std::getline(std::cin, answer)) return false;
+  return answer == "yes";
+}
+
+std::string describe(const CollectOptions& o, const CollectInputs& in, std::size_t remaining) {
+  std::string cams;
+  for (const auto& c : o.cameras)
+    cams += fmt::format("{}{} ({})", cams.empty() ? "" : ", ", c.name, c.source);
+  return fmt::format(
+      "  robot:     {} ({} actuators), controller at {}\n"
+      "  plan:      {} ({} poses, {} still to record)\n"
+      "  cameras:   {}\n"
+      "  speed:     {} /s, acceleration {} /s^2 (actuator units: m or rad)\n"
+      "  workspace: {}\n"
+      "  obstacles: {} in the cell, clearance {} mm; every motion is checked before it is sent\n",
+      in.model.name, static_cast<int>(in.model.actuated.size()), o.link, o.plan, in.targets.size(),
+      remaining, cams.empty() ? "(none)" : cams, o.speed, o.acceleration,
+      in.cell.workspace.declared
+          ? fmt::format("x {:.3f}..{:.3f}, y {:.3f}..{:.3f}, z {:.3f}..{:.3f} m",
+                        in.cell.workspace.min.x(), in.cell.workspace.max.x(),
+                        in.cell.workspace.min.y(), in.cell.workspace.max.y(),
+                        in.cell.workspace.min.z(), in.cell.workspace.max.z())
+          : "not declared in the cell (only actuator limits apply)",
+      in.cell.obstacles.size(), in.cell.margins.clearance * 1e3);
+}
+
+std::size_t recorded_on_disk(const fs::path& session, std::size_t count) {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < count; ++i)
+    if (fs::exists(session / "poses" / robotio::pose_folder_name(static_cast<int>(i)))) ++n;
+  return n;
+}
+
+// ---- dry run -----------------------------------------------------------------------------------
+
+// Checks the plan's motions in order; the summary gets the refusals, `status` the verdict.
+nlohmann::json dry_run(const CollectInputs& in, SafetyGuard& guard, const CollectOptions& o,
+                       std::FILE* out, std::string& status) {
+  guard.set_dry_run(true);
+  nlohmann::json refused = nlohmann::json::array();
+  Eigen::VectorXd from = in.targets.front();
+  double path = 0.0;
+  for (std::size_t i = 0; i < in.targets.size(); ++i) {
+    const robotio::GuardVerdict v =
+        guard.check_move(from, in.targets[i], {o.speed, o.acceleration});
+    if (!v.allowed) {
+      refused.push_back({{"pose", i}, {"reason", v.reason}});
+      if (out) fmt::print(out, "  pose {:3}: REFUSED: {}\n", i, v.reason);
+    } else {
+      path += (in.targets[i] - from).norm();
+      from = in.targets[i];
+    }
+  }
+  nlohmann::json r;
+  status = refused.empty() ? "dry_run_ok" : "refused";
+  r["motions_checked"] = in.targets.size();
+  r["refused"] = refused;
+  r["actuator_path_length"] = path;
+  if (out)
+    fmt::print(out,
+               "dry run: {} motions checked by the safety guard (limits, workspace, obstacles), "
+               "{} refused; nothing moved{}\n",
+               in.targets.size(), refused.size(),
+               refused.empty() ? "" : ": fix the plan or the cell before collecting");
+  return r;
+}
+
+// ---- capture -----------------------------------------------------------------------------------
+
+struct OpenCameras {
+  std::vector<std::unique_ptr<robotio::CameraSource>> sources;
+  std::vector<robotio::CaptureCamera> capture;
+};
+
+OpenCameras open_cameras(const CollectOptions& o, const CollectInputs& in, std::FILE* out) {
+  OpenCameras c;
+  for (std::size_t i = 0; i < in.cell.cameras.size(); ++i) {
+    const planner::CellCamera& cell_camera = in.cell.cameras[i];
+    const CollectCamera& given = o.cameras[static_cast<std::size_t>(in.camera_of[i])];
+    auto source = robotio::open_camera_source(given.source, cell_camera.name);
+    const robotio::Region region = source->region();
+    if (region.width != cell_camera.model.width || region.height != cell_camera.model.height)
+      source->set_region({0, 0, cell_camera.model.width, cell_camera.model.height});
+    source->start(robotio::TriggerMode::kSoftware);
+    const robotio::CameraInfo info = source->info();
+    if (out)
+      fmt::print(out, "camera {}: {} {} (serial {}) via {}\n", cell_camera.name, info.vendor,
+                 info.model, info.serial, given.source);
+    c.capture.push_back({source.get(), cell_camera.model});
+    c.sources.push_back(std::move(source));
+  }
+  return c;
+}
+
+nlohmann::json pose_json(const robotio::PoseCaptureReport& p) {
+  return {{"pose", p.name},
+          {"retakes", p.retakes},
+          {"frame_retries", p.frame_retries},
+          {"still_moving", p.still_moving},
+          {"motion_chi2", p.motion_chi2},
+          {"corners", p.corners},
+          {"move_s", p.move_s},
+          {"grab_s", p.grab_s},
+          {"check_s", p.check_s},
+          {"write_s", p.write_s}};
+}
+
+// The summary gets the outcome's status, message and signal.
+CollectOutcome finished(CollectOutcome outcome) {
+  outcome.summary["status"] = outcome.status;
+  if (!outcome.message.empty()) outcome.summary["message"] = outcome.message;
+  if (outcome.signal != 0) outcome.summary["signal"] = outcome.signal;
+  return outcome;
+}
+
+}  // namespace
+
+CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) {
+  std::FILE* out = log.out;
+  const CollectInputs in = read_inputs(o);
+  CollectOutcome res;
+  nlohmann::json& r = res.summary;
+  r = {{"stage", "collect"},
+       {"session", o.session.string()},
+       {"robot", in.model.name},
+       {"plan", o.plan},
+       {"poses_planned", in.targets.size()}};
+
+  SafetyGuard guard(in.model, in.model.nominal_parameters(), guard_limits(o, in.cell));
+  planner::CollisionOptions co;
+  co.clearance = in.cell.margins.clearance;
+  co.self_clearance = in.cell.margins.self_clearance;
+  const Eigen::VectorXd params = in.model.nominal_parameters();
+  const planner::CollisionScene scene(in.model, in.cell, co);
+  guard.set_clearance_check(cell_clearance_check(in.model, params, scene));
+
+  if (o.dry_run) {
+    r.update(dry_run(in, guard, o, out, res.status));
+    return finished(std::move(res));
+  }
+
+  // The session folder is checked first (file problems are exit 3, before any connection), and
+  // nothing is created or moved until the controller and every camera answer.
+  if (o.resume) {
+    (void)continue_session(o, in);
+  } else {
+    check_new_session_folder(o.session);
+  }
+  robotio::GcodeLinkOptions lo;
+  lo.address = o.link;
+  lo.baud = o.baud;
+  lo.axes = robotio::axes_for_robot(in.model, o.steps_per_mm, o.steps_per_degree);
+  lo.reply_timeout = std::chrono::milliseconds(static_cast<long>(o.reply_timeout_s * 1000));
+  lo.accept_unknown_firmware = o.accept_unknown_firmware;
+  robotio::GcodeLink link(guard, lo);
+  try {
+    const auto firmware = link.connect();
+    r["firmware"] = firmware.name;
+    if (out) fmt::print(out, "controller at {}: {}\n", o.link, firmware.name);
+  } catch (const robotio::LinkError& e) {
+    res.status = "failed";
+    res.message = fmt::format("controller at {}: {}", o.link, e.what());
+    return finished(std::move(res));
+  }
+  OpenCameras cameras;
+  try {
+    cameras = open_cameras(o, in, out);
+  } catch (const std::exception& e) {
+    res.status = "failed";
+    res.message = std::string("camera: ") + e.what();
+    return finished(std::move(res));
+  }
+
+  const std::size_t already = recorded_on_disk(o.session, in.targets.size());
+  if (out) {
+    fmt::print(out, "{} collection in {}:\n{}", o.resume ? "Continuing the" : "Starting a",
+               o.session.string(), describe(o, in, in.targets.size() - already));
+  }
+  if (already == in.targets.size()) {
+    res.status = "ok";
+    r["already_recorded"] = already;
+    r["recorded"] = 0;
+    if (out) fmt::print(out, "every pose of the plan is already recorded; nothing to do\n");
+    return finished(std::move(res));
+  }
+  if (!operator_confirms(o, out)) {
+    res.status = "cancelled";
+    res.message = o.yes || ::isatty(STDIN_FILENO) != 0
+                      ? "the operator did not confirm; nothing moved"
+                      : "the operator did not confirm (no terminal to ask on): nothing moved; "
+                        "check the plan (--dry-run), then give --yes";
+    return finished(std::move(res));
+  }
+  const std::int64_t start_ns = o.resume ? continue_session(o, in) : start_session(o, in);
+  guard.arm(o.yes ? "--yes on the command line" : "typed yes at the prompt");
+
+  const StopSignals signals(guard);
+  nlohmann::json summary_poses = nlohmann::json::array();
+  robotio::CaptureResult result;
+  try {
+    if (o.home) {
+      if (out) fmt::print(out, "homing...\n");
+      link.home();
+    }
+    robotio::LinkCaptureRobot link_robot(link, {o.speed, o.acceleration});
+    PausableRobot robot(link_robot, guard, out);
+    robotio::CaptureOptions co_capture;
+    co_capture.shots_per_pose = o.shots;
+    co_capture.session_start_ns = start_ns;
+    StageProgress progress(out, "collect", in.targets.size() - already);
+    co_capture.on_pose_recorded = [&](const robotio::PoseCaptureReport&) { progress.advance(); };
+    result = robotio::capture_poses(o.session, in.targets, robot, cameras.capture,
+                                    in.cell.target.board, co_capture);
+    progress.finish(fmt::format("{} poses recorded", result.recorded()));
+  } catch (const robotio::MotionRefused& e) {
+    result.stop_reason = e.what();
+  } catch (const robotio::LinkError& e) {
+    result.stop_reason = fmt::format("controller at {}: {}", o.link, e.what());
+  }
+  for (auto& c : cameras.sources) c->close();
+
+  int still_moving = 0;
+  int retakes = 0;
+  for (const auto& p : result.poses) {
+    if (p.status != robotio::PoseCaptureStatus::kRecorded) continue;
+    summary_poses.push_back(pose_json(p));
+    still_moving += p.still_moving ? 1 : 0;
+    retakes += p.retakes;
+  }
+  const std::size_t on_disk = recorded_on_disk(o.session, in.targets.size());
+  r["recorded"] = on_disk - already;
+  r["already_recorded"] = already;
+  r["recorded_total"] = on_disk;
+  r["retakes"] = retakes;
+  r["still_moving"] = still_moving;
+  r["poses"] = summary_poses;
+  const int sig = g_stop_signal.load();
+  if (result.complete && on_disk == in.targets.size()) {
+    res.status = "ok";
+  } else {
+    res.status = sig != 0 ? "interrupted" : "incomplete";
+    res.signal = sig;
+    res.message = result.stop_reason;
+  }
+  if (out) {
+    fmt::print(out, "{} of {} poses recorded ({} now, {} before){}\n", on_disk, in.targets.size(),
+               on_disk - already, already,
+               still_moving > 0 ? fmt::format("; {} recorded while the target still moved "
+                                              "(flagged in pose.yaml)",
+                                              still_moving)
+                                : "");
+    if (res.status != "ok")
+      fmt::print(out,
+                 "collection stopped: {}\nThe robot was stopped. Every recorded pose is complete "
+                 "on disk. To go on, run the same command with --resume.\n",
+                 result.stop_reason);
+    else
+      fmt::print(out,
+                 "next: calibration views for the intrinsics and rig (app/SESSION.md), then "
+                 "`robocal measure {}`\n",
+                 o.session.string());
+  }
+  return finished(std::move(res));
+}
+
+int collect_exit_code(const CollectOutcome& outcome) {
+  if (outcome.status == "ok" || outcome.status == "dry_run_ok") return kExitOk;
+  if (outcome.status == "interrupted") return 128 + outcome.signal;
+  return kExitFailure;
+}
+
+}  // namespace robocal::app

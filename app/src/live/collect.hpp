@@ -1,0 +1,65 @@
+#pragma once
+// `robocal collect`: a plan's poses driven on a real controller and recorded by real cameras into
+// a session folder (app/SESSION.md). Orchestration only: the guard, link, cameras and capture loop
+// are robotio's, the plan and cell are the planner's; this file wires them, asks the operator
+// before the first motion, shows progress, and says what is on disk when it stops.
+//
+// Safety (shared/reference/product.md): every motion passes one SafetyGuard, built from the
+// robot file's actuator limits, the cell's declared workspace and obstacles (the planner's FCL
+// scene as the guard's clearance check) and the speed limits given here. Nothing moves before the
+// operator confirms (a typed "yes" on a terminal, or --yes for scripts); Ctrl-C or SIGTERM stops
+// the robot through the guard and keeps every recorded pose; SIGUSR1 pauses between poses and a
+// second SIGUSR1 resumes.
+#include "stages/stages.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace robocal::app {
+
+struct CollectCamera {
+  std::string name;    // the cell's camera name (also the image file names)
+  std::string source;  // robotio/camera_open.hpp: aravis:ID or v4l2:/dev/videoN
+};
+
+struct CollectOptions {
+  std::filesystem::path session;  // created, or continued with `resume`
+  std::string robot;              // library name or file; empty = the cell's robot
+  std::string cell;               // cell file (planner/README.md)
+  std::string plan;               // plan file (`robocal plan`)
+  std::string link;               // tcp:HOST:PORT or a serial device (/dev/ttyACM0)
+  int baud = 115200;
+  double steps_per_mm = 80.0;       // the controller's steps per mm (prismatic actuators)
+  double steps_per_degree = 100.0;  // steps per degree (revolute actuators)
+  double reply_timeout_s = 2.0;
+  bool accept_unknown_firmware = false;
+  std::vector<CollectCamera> cameras;
+  double speed = 0.02;        // actuator units/s (m/s prismatic, rad/s revolute)
+  double acceleration = 0.5;  // actuator units/s^2
+  int shots = 2;              // frames per camera per pose (>= 2: the settled-frame test)
+  bool home = true;           // home the controller before the first pose
+  bool dry_run = false;       // check every motion through the guard; move nothing
+  bool resume = false;        // continue an interrupted session at the next unrecorded pose
+  bool yes = false;           // the operator's confirmation given on the command line
+};
+
+struct CollectOutcome {
+  // ok | dry_run_ok | refused (a motion the guard refuses) | failed (controller or camera) |
+  // cancelled (not confirmed) | incomplete (stopped early) | interrupted (SIGINT / SIGTERM)
+  std::string status;
+  std::string message;     // why, when not ok
+  int signal = 0;          // the signal that interrupted it
+  nlohmann::json summary;  // everything, for --json (status, message and signal included)
+};
+
+// Runs the collection. Throws InputError for bad files / arguments (exit 3).
+CollectOutcome collect_session(const CollectOptions& options, const PipelineLog& log);
+
+// 0 complete (or a dry run whose motions all passed), 1 stopped early, refused, failed or
+// cancelled (what is recorded stays), 130 / 143 interrupted by SIGINT / SIGTERM.
+int collect_exit_code(const CollectOutcome& outcome);
+
+}  // namespace robocal::app
