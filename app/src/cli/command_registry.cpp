@@ -66,6 +66,7 @@ CommandSpec demo_command();
 CommandSpec simulate_command();
 CommandSpec validate_command();
 CommandSpec batch_command();
+CommandSpec batch_merge_command();
 CommandSpec sim_controller_command();
 CommandSpec plan_command();
 CommandSpec compensate_command();
@@ -76,15 +77,13 @@ CommandSpec collect_command();
 // In the order of a calibration: the demo first, then the steps a user runs on real data.
 const std::vector<CommandSpec>& all_commands() {
   static const std::vector<CommandSpec> commands = {
-      demo_command(),       kin_command(),
-      target_command(),     render_command(),
-      intrinsics_command(), rig_command(),
-      measure_command(),    identify_command(),
-      simulate_command(),   validate_command(),
-      batch_command(),      plan_command(),
-      collect_command(),    sim_controller_command(),
-      version_command(),    compensate_command(),
-      report_command(),     export_command(),
+      // clang-format off
+      demo_command(), kin_command(), target_command(), render_command(), intrinsics_command(),
+      rig_command(), measure_command(), identify_command(), simulate_command(),
+      validate_command(), batch_command(), batch_merge_command(), plan_command(),
+      collect_command(), sim_controller_command(), version_command(), compensate_command(),
+      report_command(), export_command(),
+      // clang-format on
   };
   return commands;
 }

@@ -1,6 +1,10 @@
 // `robocal batch DIR...`: measure -> identify -> validate on several session folders, in
 // parallel with --jobs. Every session is processed exactly as by the single commands (same
-// functions, same files in its results/), so the results are the same as one by one.
+// functions, same files in its results/), so the results are the same as one by one. With
+// --shard K/N only the K-th of N slices of the list (batch/batch_shard.hpp); `robocal
+// batch-merge` puts the shards' summaries back together.
+#include "batch/batch_shard.hpp"
+#include "batch/batch_summary.hpp"
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
 #include "stages/stages.hpp"
@@ -13,6 +17,7 @@
 #include <chrono>
 #include <memory>
 #include <mutex>
+#include <set>
 
 namespace robocal::app {
 
@@ -24,6 +29,7 @@ struct BatchOptions {
   int threads = 2;
   int held_out = 500;
   std::string json;
+  std::string shard;  // "K/N", empty: the whole list
 };
 
 // One session end to end; bad input becomes an "error" entry, never stops the batch.
@@ -78,76 +84,107 @@ nlohmann::json process(const std::string& dir, const BatchOptions& o, const Pipe
   return row;
 }
 
-std::string um(const nlohmann::json& row, const char* key) {
-  return row.contains(key) ? fmt::format("{:.1f}", row[key].get<double>() * 1e6) : "-";
-}
-
 int run_batch(const BatchOptions& o) {
   std::FILE* out = human_stream(o.json);
-  const int n = static_cast<int>(o.sessions.size());
-  std::vector<nlohmann::json> rows(o.sessions.size());
+  // The folders this run processes: the whole list, or this shard's slice of it.
+  std::vector<std::string> sessions = o.sessions;
+  nlohmann::json shard_doc;
+  if (!o.shard.empty()) {
+    const Shard shard = parse_shard(o.shard);  // CLI11 checked the syntax
+    // A folder named twice would be processed by two shards at once, writing the same results/.
+    std::set<std::string> seen;
+    for (const auto& dir : o.sessions) {
+      if (!seen.insert(dir).second) {
+        fmt::print(stderr,
+                   "--shard: the folder list names '{}' twice; a sharded batch needs each folder "
+                   "once\n",
+                   dir);
+        return kExitUsage;
+      }
+    }
+    const auto taken = shard_positions(o.sessions, shard);
+    sessions.clear();
+    for (const std::size_t p : taken) sessions.push_back(o.sessions[p]);
+    shard_doc = shard_section(o.sessions, shard, taken);
+    fmt::print(
+        out,
+        "shard {}/{}: {} of {} folders (positions {}, {}, {}, ... of the list sorted by name)\n",
+        shard.index, shard.count, sessions.size(), o.sessions.size(), shard.index,
+        shard.index + shard.count, shard.index + 2 * shard.count);
+  }
+  const int n = static_cast<int>(sessions.size());
+  std::vector<nlohmann::json> rows(sessions.size());
   std::mutex print_mutex;
   // Sessions in parallel run silently with one thread each; a single job keeps progress output.
-  const int jobs = std::clamp(o.jobs, 1, n);
+  const int jobs = std::clamp(o.jobs, 1, std::max(n, 1));
   core::parallel_for(n, jobs, [&](int i) {
     const auto k = static_cast<std::size_t>(i);
     PipelineLog log;
     log.out = jobs == 1 ? out : nullptr;
     log.threads = jobs == 1 ? o.threads : 1;
-    if (jobs == 1) fmt::print(out, "\n--- {}\n", o.sessions[k]);
-    rows[k] = process(o.sessions[k], o, log);
+    if (jobs == 1) fmt::print(out, "\n--- {}\n", sessions[k]);
+    rows[k] = process(sessions[k], o, log);
     const std::lock_guard<std::mutex> lock(print_mutex);
     const auto& r = rows[k];
     const std::string why = r.contains("error")    ? r["error"].get<std::string>()
                             : r.contains("reason") ? r["reason"].get<std::string>()
                                                    : "";
-    fmt::print(out, "{}: {}{}\n", o.sessions[k], r["status"].get<std::string>(),
+    fmt::print(out, "{}: {}{}\n", sessions[k], r["status"].get<std::string>(),
                why.empty() ? "" : " (" + why + ")");
     std::fflush(out);
   });
 
-  fmt::print(out, "\n{:<40} {:>6} {:>10} {:>12} {:>14} {:>9}\n", "session", "poses", "identify",
-             "nominal µm", "calibrated µm", "seconds");
-  int failed = 0;
-  for (const auto& r : rows) {
-    fmt::print(out, "{:<40} {:>6} {:>10} {:>12} {:>14} {:>9.1f}\n", r["session"].get<std::string>(),
-               fmt::format("{}/{}", r.value("poses_used", 0), r.value("poses_total", 0)),
-               r.value("identify", r.contains("error") ? "error" : "-"), um(r, "nominal_rms_m"),
-               um(r, "calibrated_rms_m"), r["seconds"].get<double>());
-    failed += r["status"] == "ok" ? 0 : 1;
-  }
-  fmt::print(out, "{} of {} sessions ok\n", n - failed, n);
-  const nlohmann::json doc{{"sessions", rows}, {"ok", n - failed}, {"failed", failed}};
+  print_batch_table(out, rows);
+  nlohmann::json doc = batch_summary(rows);
+  if (!shard_doc.is_null()) doc["shard"] = shard_doc;
   if (!o.json.empty()) write_json(doc, o.json);
-  return failed == 0 ? kExitOk : kExitFailure;
+  return batch_exit_code(doc);
 }
 
 }  // namespace
 
 CommandSpec batch_command() {
-  return {"batch", "Process recorded session folders end to end (measure, identify, validate)",
-          [](CLI::App& cmd) -> CommandAction {
-            auto o = std::make_shared<BatchOptions>();
-            cmd.footer(
-                "Runs `robocal measure`, `identify` and `validate` on each SESSION folder "
-                "(app/SESSION.md), --jobs of them at a time; each session's results/ get exactly "
-                "what the single commands write. A session with bad input is reported and the "
-                "others go on. Sessions without truth/ (recorded ones) are not validated. Prints "
-                "a summary table; --json writes it as JSON. Exit code 1 when any session "
-                "failed.");
-            cmd.add_option("sessions", o->sessions, "Session folders")->required();
-            cmd.add_option("--jobs,-j", o->jobs, "Sessions processed in parallel")
-                ->check(CLI::Range(1, 64))
-                ->capture_default_str();
-            cmd.add_option("--threads", o->threads, "Detection threads with --jobs 1")
-                ->check(CLI::Range(1, 64))
-                ->capture_default_str();
-            cmd.add_option("--held-out", o->held_out, "Held-out configurations for validate")
-                ->check(CLI::Range(10, 100000))
-                ->capture_default_str();
-            cmd.add_option("--json", o->json, "Write the summary JSON here ('-' = stdout)");
-            return [o]() { return run_batch(*o); };
-          }};
+  return {
+      "batch", "Process recorded session folders end to end (measure, identify, validate)",
+      [](CLI::App& cmd) -> CommandAction {
+        auto o = std::make_shared<BatchOptions>();
+        cmd.footer(
+            "Runs `robocal measure`, `identify` and `validate` on each SESSION folder "
+            "(app/SESSION.md), --jobs of them at a time; each session's results/ get exactly "
+            "what the single commands write. A session with bad input is reported and the "
+            "others go on. Sessions without truth/ (recorded ones) are not validated. Prints "
+            "a summary table; --json writes it as JSON. Exit code 1 when any session "
+            "failed.\n\n"
+            "Examples:\n"
+            "  robocal batch runs/* --jobs 2 --json summary.json\n"
+            "  robocal batch runs/* --shard 0/2 --json shard-0.json   # one machine\n"
+            "  robocal batch runs/* --shard 1/2 --json shard-1.json   # another one\n"
+            "  robocal batch-merge shard-0.json shard-1.json --json summary.json\n\n"
+            "--shard K/N processes the folders at positions K, K+N, K+2N, ... of the list "
+            "sorted by name, so every shard takes the same slice whatever order the folders "
+            "are given in, and the N shards together take each folder once. K counts from 0, "
+            "like Kubernetes' JOB_COMPLETION_INDEX and Slurm's SLURM_ARRAY_TASK_ID with "
+            "--array=0-(N-1): --shard \"$SLURM_ARRAY_TASK_ID/N\". Give every shard the same "
+            "folder list. The shard's --json summary records K, N, the whole list and the "
+            "folders it took; `robocal batch-merge` combines the N summaries into the one "
+            "this batch would write without --shard.");
+        cmd.add_option("sessions", o->sessions, "Session folders")->required();
+        cmd.add_option("--jobs,-j", o->jobs, "Sessions processed in parallel")
+            ->check(CLI::Range(1, 64))
+            ->capture_default_str();
+        cmd.add_option("--threads", o->threads, "Detection threads with --jobs 1")
+            ->check(CLI::Range(1, 64))
+            ->capture_default_str();
+        cmd.add_option("--held-out", o->held_out, "Held-out configurations for validate")
+            ->check(CLI::Range(10, 100000))
+            ->capture_default_str();
+        cmd.add_option("--json", o->json, "Write the summary JSON here ('-' = stdout)");
+        cmd.add_option("--shard", o->shard,
+                       "Process only slice K of N of the folder list (K from 0), e.g. 0/4")
+            ->type_name("K/N")
+            ->check(CLI::Validator([](std::string& text) { return shard_syntax_error(text); }, ""));
+        return [o]() { return run_batch(*o); };
+      }};
 }
 
 }  // namespace robocal::app
