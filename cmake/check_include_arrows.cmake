@@ -47,7 +47,7 @@ foreach(part IN LISTS parts)
         set(target_part "")
         if(header MATCHES "^robocal/([a-z_]+)/")
           set(target_part "${CMAKE_MATCH_1}")
-        elseif(header MATCHES "^(cli|commands|session|stages|simcell|summary)/"
+        elseif(header MATCHES "^(cli|commands|session|stages|simcell|summary|live|batch)/"
                OR header MATCHES "^robocal_version\\.hpp$")
           set(target_part "app")
         endif()
