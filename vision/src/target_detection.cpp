@@ -1,7 +1,9 @@
 #include "robocal/vision/target_detection.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -22,10 +24,14 @@ std::string lower_extension(const std::filesystem::path& p) {
 
 // libpng/libjpeg decode truncated files with only a warning; check the end markers ourselves.
 std::string truncation_problem(const std::filesystem::path& path, const std::string& ext) {
+  errno = 0;
   std::ifstream f(path, std::ios::binary);
+  // An unreadable file (permissions, I/O error) is not a short one: say why it cannot be read.
+  if (!f) return std::string("cannot open for reading (") + std::strerror(errno) + ")";
   f.seekg(0, std::ios::end);
   const auto size = static_cast<long long>(f.tellg());
-  if (size < 16) return "file too short to be an image";
+  if (size < 0) return std::string("cannot read (") + std::strerror(errno) + ")";
+  if (size < 16) return fmt::format("file too short to be an image ({} bytes)", size);
   char head[4] = {0, 0, 0, 0};
   f.seekg(0);
   f.read(head, 4);

@@ -5,7 +5,42 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <filesystem>
+#include <string>
+#include <vector>
+
 namespace robocal::app {
+
+namespace {
+
+// A target that no printer takes, or a drawing too large to open, is almost always a typo in
+// cols/rows or the square size: say so instead of silently writing it.
+template <typename Args>
+std::vector<std::string> print_warnings(const vision::TargetBoard& board,
+                                        const Eigen::Vector2d& size, const Args& a) {
+  std::vector<std::string> w;
+  constexpr double kA0Long = 1.189;  // m
+  constexpr double kA0Short = 0.841;
+  if (std::max(size.x(), size.y()) > kA0Long || std::min(size.x(), size.y()) > kA0Short)
+    w.push_back(fmt::format(
+        "the paper is {:.0f} x {:.0f} mm, larger than A0 (841 x 1189 mm): check cols, rows and "
+        "the square size in {}",
+        size.x() * 1000, size.y() * 1000, a.target));
+  for (const std::string& file : {a.svg, a.pdf}) {
+    std::error_code ec;
+    if (file.empty()) continue;
+    const auto bytes = std::filesystem::file_size(file, ec);
+    if (!ec && bytes > 5'000'000)
+      w.push_back(fmt::format(
+          "{} is {:.1f} MB ({} corners, {} markers): large drawings are slow "
+          "to open and print",
+          file, static_cast<double>(bytes) / 1e6, board.corners.size(), board.markers.size()));
+  }
+  return w;
+}
+
+}  // namespace
 
 // `robocal target board.yaml --svg board.svg [--pdf board.pdf]`: checks a target file and writes
 // a true-scale drawing to print.
@@ -33,12 +68,15 @@ CommandSpec target_command() {
                 throw InputError(e.what());
               }
               const Eigen::Vector2d size = board.extent_max - board.extent_min;
+              const std::vector<std::string> warnings = print_warnings(board, size, *a);
+              for (const std::string& w : warnings) fmt::print(stderr, "warning: {}\n", w);
               if (a->json) {
                 nlohmann::json corners = nlohmann::json::array();
                 for (const auto& c : board.corners)
                   corners.push_back({{"id", c.id}, {"x", c.point.x()}, {"y", c.point.y()}});
                 write_json({{"type", vision::target_kind_name(board.spec.kind)},
                             {"paper_m", {size.x(), size.y()}},
+                            {"warnings", warnings},
                             {"corners", corners}},
                            "-");
               } else {
