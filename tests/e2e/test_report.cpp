@@ -182,6 +182,34 @@ void check_without_truth() {
     EXPECT_NE(html.find("id=\"" + id + "\""), std::string::npos) << id;
 }
 
+// Held-out configurations a model could not answer are failures the page names, with the
+// count (edited into the demo's validation.json: the demo itself has none); a validation.json
+// from before per-pose points were written is refused with what to run, the old page kept.
+void check_unanswered_and_old_validation() {
+  const fs::path edited = fs::temp_directory_path() / "robocal_e2e_report_unanswered";
+  fs::remove_all(edited);
+  fs::copy(demo_session(), edited, fs::copy_options::recursive);
+  const fs::path validation = edited / "results" / "validation.json";
+  nlohmann::json v = nlohmann::json::parse(read_file(validation));
+  const auto answered = v.at("held_out_points").at("position_m").size();
+  v["unanswered"] = {{"nominal", 0}, {"calibrated", 7}};
+  v["held_out_drawn"] = answered + 7;
+  { std::ofstream(validation) << v.dump(); }
+  ASSERT_EQ(run_cli({"report", edited.string()}), 0);
+  const std::string html = read_file(page_of(edited));
+  EXPECT_NE(html.find("FAILURES: of " + std::to_string(answered + 7)), std::string::npos);
+  EXPECT_NE(html.find("calibrated model 7"), std::string::npos);
+
+  v.erase("held_out_points");
+  { std::ofstream(validation) << v.dump(); }
+  const std::string old_page = read_file(page_of(edited));
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_cli({"report", edited.string()}), 3);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("robocal validate"), std::string::npos) << err;
+  EXPECT_EQ(read_file(page_of(edited)), old_page);
+}
+
 TEST(Report, DemoPageBadInputAndHeadlessChromium) {
   {
     SCOPED_TRACE("the demo's page");
@@ -194,6 +222,10 @@ TEST(Report, DemoPageBadInputAndHeadlessChromium) {
   {
     SCOPED_TRACE("a session without truth");
     check_without_truth();
+  }
+  {
+    SCOPED_TRACE("unanswered held-out configurations; an old validation.json");
+    check_unanswered_and_old_validation();
   }
   SCOPED_TRACE("headless Chromium");
   check_in_chromium();  // last: skips the test when chromium is absent

@@ -216,6 +216,25 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
         "Held-out poses are robot positions the calibration never saw, compared with the true "
         "robot. Inside the measured region (between the measured poses) the model interpolates; "
         "outside it extrapolates, and the error usually grows.";
+    // Configurations a model could not answer are failures that the figures leave out: the
+    // page says how many, as the terminal summary does.
+    if (v.contains("unanswered") && v.at("unanswered").is_object()) {
+      int total = 0;
+      std::string which;
+      for (const auto& [model, count] : v.at("unanswered").items()) {
+        const int n = count.is_number_integer() ? count.get<int>() : 0;
+        if (n == 0) continue;
+        total += n;
+        which += fmt::format("{}{} model {}", which.empty() ? "" : ", ", model, n);
+      }
+      summary["unanswered"] = v.at("unanswered");
+      if (total > 0)
+        d.accuracy_note += fmt::format(
+            " FAILURES: of {} configurations drawn from the true robot, a model could not "
+            "answer (its loops do not close on the intended assembly mode) at {}; the figures "
+            "are over the {} that every model answers.",
+            v.value("held_out_drawn", validation->points.size()), which, validation->points.size());
+    }
     d.per_pose_source = "held-out poses";
     for (const auto& p : validation->points) {
       d.error_before.push_back(p.nominal_error.norm());
