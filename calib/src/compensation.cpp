@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -364,12 +365,13 @@ struct Compensator::Impl {
       if (!seed->actuator_q.allFinite()) return false;
       x.head(na) = seed->actuator_q;
     } else {
-      // As solve_ik's cold start: the closed form of the file's geometry.
-      if (m->closed_form.kind == ClosedFormKind::kNone || m->task.type != TaskType::kPosition)
-        return false;
-      const auto total = closed_form_inverse(m->closed_form, ik.target.pose.translation());
-      if (!total) return false;
-      for (Eigen::Index i = 0; i < na; ++i) {
+      // As solve_ik's cold start: the closed form of the file's geometry, else home.
+      x.head(na) = home_q;
+      const auto total =
+          m->closed_form.kind != ClosedFormKind::kNone && m->task.type == TaskType::kPosition
+              ? closed_form_inverse(m->closed_form, ik.target.pose.translation())
+              : std::nullopt;
+      for (Eigen::Index i = 0; total && i < na; ++i) {
         const Body& b =
             m->bodies[static_cast<std::size_t>(m->actuated[static_cast<std::size_t>(i)])];
         const ElementaryOp& op = b.ops[static_cast<std::size_t>(b.joint_op)];
