@@ -382,15 +382,16 @@ struct Compensator::Impl {
       if (!seed->passive.allFinite()) return false;
       x.tail(np) = seed->passive;
     } else if (np > 0) {
-      // Predicted passive joints, then the loops closed at the seeded actuators (roughly: the IK
-      // finishes), so that the IK's first steps do not carry the actuators to another branch.
+      // Predicted passive joints, then the loops closed at the seeded actuators (roughly, to
+      // 1e-2: the IK finishes), so that its first steps do not carry the actuators to another
+      // branch (from the prediction alone they do, on a Delta, for ~2 % of the targets).
       if (!passive_predictor()) return false;
       passive = home_passive + passive_slope * (x.head(na) - home_q);
       for (Eigen::Index i = 0; i < na; ++i)
         cal_closure.q[m->actuated[static_cast<std::size_t>(i)]] = x[i];
       double residual = 0.0;
       int steps = 0;
-      const bool closed = newton(cal_closure, passive, 1e-5, 12, residual, steps);
+      const bool closed = newton(cal_closure, passive, 1e-2, 12, residual, steps);
       iterations += steps;
       if (!closed) return false;
       x.tail(np) = passive;
@@ -538,9 +539,12 @@ std::vector<CompensatedTarget> compensate_targets(const CompensationModels& mode
                       .squaredNorm();
     return d;
   };
+  // Farther than this (1 cm, or its equivalent), a cold start (closed form, a few Newton steps)
+  // costs less than a warm one from the nearest answer.
+  constexpr double kWarmDistance2 = 1e-4;
   for (std::size_t k = 0; k < targets.size(); ++k) {
     IkSeed seed;
-    double best = std::numeric_limits<double>::infinity();
+    double best = kWarmDistance2;
     for (const std::size_t j : solved) {
       const double d = distance(targets[k], targets[j]);
       if (d < best) {
