@@ -429,9 +429,9 @@ struct Compensator::Impl {
                                   params[b.encoder_offset_param];
     }
     passive = ik_answer.passive;
-    // First steps with the factors of the calibrated closure's Jacobian in the passive joints (a
-    // block of the IK's last Jacobian, taken close to this state): the models differ by
-    // millimetres, so these steps contract about a thousandfold without a new Jacobian.
+    // First step with the factors of the calibrated closure's Jacobian in the passive joints (a
+    // block of the IK's last Jacobian, taken close to this state) instead of a new Jacobian: it
+    // costs one small factorisation, and the chord rule decides when a new Jacobian is due.
     const auto na = static_cast<Eigen::Index>(m->actuated.size());
     const auto np = static_cast<Eigen::Index>(m->passive.size());
     const bool given = from_fast_ik && np > 0 && closure.ws.lu.factor(ik.ws.J.block(0, na, np, np));
