@@ -92,11 +92,13 @@ struct ClosureSolver::Impl {
   detail::TreeEvaluator seed_ev;
   detail::LmWorkspace ws, pin_ws;
   Eigen::VectorXd q;
-  // The robot file's design parameters, and whether the loops of `params` differ from them (base
-  // and task frames aside): cold solves of such a model follow the design's answer to `params`
-  // (from_design below).
+  // The robot file's design parameters and their evaluator, and whether the loops of `params`
+  // differ from them (base and task frames aside; -1 = not yet known): cold solves of such a model
+  // follow the design's answer to `params` (from_design below). Set up on the first cold solve
+  // that needs them (solve_closure() builds a solver per call).
   Eigen::VectorXd design;
-  bool differs_from_design = false;
+  detail::TreeEvaluator design_ev;
+  int differs_from_design = -1;
 
   Impl(const Mechanism& m, const Eigen::VectorXd& p, const ClosureOptions& o)
       : model(&m),
@@ -104,11 +106,18 @@ struct ClosureSolver::Impl {
         options(o),
         ev(m, p),
         seed_ev(m, seed_params(m, p)),
-        q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))),
-        design(m.nominal_parameters()) {
+        q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))) {
     ws.resize(m.constraint_rows(), static_cast<Eigen::Index>(m.passive.size()));
-    differs_from_design =
-        p.size() == design.size() && (seed_params(m, p) - design).cwiseAbs().maxCoeff() > 0.0;
+  }
+
+  bool differs_from_design_loops() {
+    if (differs_from_design < 0) {
+      design = model->nominal_parameters();
+      differs_from_design = params.size() == design.size() &&
+                            (seed_params(*model, params) - design).cwiseAbs().maxCoeff() > 0.0;
+      if (differs_from_design) design_ev = detail::TreeEvaluator(*model, design);
+    }
+    return differs_from_design == 1;
   }
 
   static Eigen::VectorXd seed_params(const Mechanism& m, const Eigen::VectorXd& p) {
@@ -209,33 +218,38 @@ struct ClosureSolver::Impl {
   // ambiguous too, whatever its own conditioning: a geometry error of the file's tolerances moves
   // the answer between those configurations. Returns false (r unspecified) when the design's
   // answer is not on an acceptable mode or a step does not close; the caller then seeds as before.
+  static constexpr double kDesignStep = 1.0;  // largest step (fraction of the parameter path)
   bool from_design(const Eigen::VectorXd& readings, ClosureResult& r) {
-    detail::TreeEvaluator design_ev(*model, design);
     ClosureSystem dsys{&design_ev, &q, model};
     set_actuators(readings, design);
     r.passive = seed(design_ev, design);
     attempt(dsys, r);
     if (!r.ok() || !r.mode.acceptable()) return false;
     const ModeCheck design_mode = r.mode;
-    // Adaptive steps as in continuation(): a step that does not close, or closes on another mode,
-    // or moves a passive joint by more than 0.2 rad (a jump across a fold of the branch) is
-    // halved.
+    // Steps in the parameters, the whole path at once when it closes (bench_assembly_modes: the
+    // same answers as 2 or 4 steps, and as the reference's 8): a step that does not close, closes
+    // on another mode, or moves a passive joint by more than 0.2 rad (a jump across a fold of the
+    // branch) is halved.
     Eigen::VectorXd last = r.passive;
-    double t = 0.0, h = 0.25;
+    double t = 0.0, h = kDesignStep;
     while (t < 1.0) {
       const double t_try = std::min(1.0, t + h);
-      const Eigen::VectorXd p = design + t_try * (params - design);
       detail::TreeEvaluator step_ev;
-      if (t_try < 1.0) step_ev = detail::TreeEvaluator(*model, p);
+      if (t_try < 1.0) {
+        const Eigen::VectorXd p = design + t_try * (params - design);
+        step_ev = detail::TreeEvaluator(*model, p);
+        set_actuators(readings, p);
+      } else {
+        set_actuators(readings, params);
+      }
       ClosureSystem ssys{t_try < 1.0 ? &step_ev : &ev, &q, model};
-      set_actuators(readings, p);
       r.passive = last;
       attempt(ssys, r);
       if (r.ok() && r.mode.verdict != ModeVerdict::kOther &&
           (r.passive - last).cwiseAbs().maxCoeff() <= 0.2) {
         t = t_try;
         last = r.passive;
-        h = std::min(2.0 * h, 0.25);
+        h = std::min(2.0 * h, kDesignStep);
       } else {
         h *= 0.5;
         if (h < 1.0 / 256) return false;
@@ -332,7 +346,7 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   const bool warm = seed.size() == n;
   bool done = false;
   if (!warm && s.options.enforce_mode && n > 0 && !m.assembly_mode.invariants.empty() &&
-      s.differs_from_design) {
+      s.differs_from_design_loops()) {
     result.seed_used = "design";
     done = s.from_design(actuator_readings, result);
     s.set_actuators(actuator_readings);
