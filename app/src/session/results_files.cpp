@@ -406,7 +406,10 @@ void write_truth(const ResultsLayout& results, const calib::Mechanism& model,
       {"poses", poses},
       {"nominal", params_json(model, truth.nominal)},
       {"truth", params_json(model, truth.truth)},
-      {"perturbation", truth.perturbation}};
+      {"perturbation", truth.perturbation},
+      {"elastic_sag",
+       {{"per_m", truth.elastic_sag},
+        {"model", "the frame sinks along -z of the world by per_m * (x^2 + y^2)"}}}};
   core::write_file_atomic(results.truth(), doc.dump(2) + "\n", core::Overwrite::kRefuse);
 }
 
@@ -425,6 +428,8 @@ TruthFile read_truth(const ResultsLayout& results, const calib::Mechanism& model
                            to_vector(p.at("true_actuators").get<std::vector<double>>()),
                            pose_from_json(p.at("world_T_board"), file)});
     out.perturbation = doc.value("perturbation", nlohmann::json::object());
+    if (doc.contains("elastic_sag"))
+      out.elastic_sag = doc.at("elastic_sag").at("per_m").get<double>();
   } catch (const nlohmann::json::exception& e) {
     throw InputError(fmt::format("{}: malformed ({})", file, e.what()));
   }

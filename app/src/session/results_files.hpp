@@ -165,6 +165,9 @@ struct TruthFile {
   std::vector<TruthPose> poses;
   Eigen::VectorXd nominal, truth;  // robot parameters
   nlohmann::json perturbation;     // the simulation's tolerances (informative)
+  // Elastic deflection of the true robot (simcell's elastic_deflection), m per m^2; 0 in files
+  // written before it existed (a rigid truth).
+  double elastic_sag = 0.0;
 };
 void write_truth(const ResultsLayout& results, const calib::Mechanism& model,
                  const TruthFile& truth);

@@ -71,7 +71,7 @@ bool true_frame_pose(const SimulatedCell& cell, const Eigen::VectorXd& readings,
                      Eigen::Isometry3d* world_T_frame) {
   const auto fk = calib::forward_kinematics(cell.model, cell.truth, readings, cell.target_frame);
   if (!fk.closure.ok()) return false;
-  *world_T_frame = fk.pose;
+  *world_T_frame = elastic_deflection(fk.pose, cell.options.elastic_sag);
   return true;
 }
 

@@ -5,6 +5,7 @@
 #include "session/results_files.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
+#include "simcell/simulated_cell.hpp"
 #include "stages/measured_region.hpp"
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
@@ -145,7 +146,8 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   };
   int truth_unanswered = 0;
   for (const auto& q : configurations) {
-    const auto true_fk = calib::forward_kinematics(model, truth, q, robot.frame);
+    auto true_fk = calib::forward_kinematics(model, truth, q, robot.frame);
+    true_fk.pose = elastic_deflection(true_fk.pose, truth_file.elastic_sag);
     if (!answers(true_fk)) {
       ++truth_unanswered;  // sample_actuators checked it; kept for completeness
       continue;
