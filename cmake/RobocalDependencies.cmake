@@ -1,7 +1,24 @@
 # Every dependency is a Debian 12 package (scripts/bootstrap.sh installs them), found the ordinary
 # way: find_package where the package ships a CMake config, pkg-config otherwise.
 find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+function(robocal_use_shared_ceres)
+  get_target_property(archive Ceres::ceres IMPORTED_LOCATION_RELEASE)
+  string(REGEX REPLACE "\\.a$" ".so" shared "${archive}")
+  if(NOT archive MATCHES "\\.a$" OR NOT EXISTS "${shared}")
+    message(FATAL_ERROR "robocal links the shared Ceres library; expected ${shared} next to "
+                        "${archive} (Debian package libceres-dev)")
+  endif()
+  set_target_properties(Ceres::ceres PROPERTIES IMPORTED_LOCATION_RELEASE "${shared}"
+                                                IMPORTED_LOCATION "${shared}")
+endfunction()
+
 find_package(Ceres 2.1 REQUIRED)
+# Debian's Ceres config imports the static libceres.a. Its objects carry their own, unsanitized
+# copies of Eigen's inline allocator (plain malloc), and in a sanitizer build the linker may pick
+# those copies for our code too, whose matching free is Eigen's sanitizer-build one: a
+# heap-buffer-overflow that is not ours. The shared libceres.so exports only Ceres' API (Eigen
+# stays hidden inside it), so every Eigen allocation of our code stays in our code.
+robocal_use_shared_ceres()
 find_package(OpenCV 4.6 REQUIRED COMPONENTS core imgproc imgcodecs calib3d aruco)
 find_package(apriltag 3.3 REQUIRED)
 find_package(yaml-cpp 0.7 REQUIRED)
