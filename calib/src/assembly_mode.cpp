@@ -38,7 +38,15 @@ std::string ModeCheck::describe() const {
         << " has the opposite sign to the robot file's declaration (margin " << margin << ")";
       break;
     case ModeVerdict::kAmbiguous:
-      if (invariant == "closure_conditioning")
+      if (invariant.rfind("design_", 0) == 0)
+        s << "ambiguous assembly mode: the robot file's design geometry is near a singular "
+             "configuration of the loops at these joint values ("
+          << invariant.substr(7)
+          << "), where assembly modes meet: the loops of this model close in several "
+             "configurations nearby that all satisfy the declared invariants (constraint "
+             "Jacobian sigma_min/sigma_max "
+          << conditioning << ")";
+      else if (invariant == "closure_conditioning")
         s << "ambiguous assembly mode: the loops are near a singular configuration (constraint "
              "Jacobian sigma_min/sigma_max "
           << conditioning << "), where assembly modes meet";

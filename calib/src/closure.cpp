@@ -92,6 +92,13 @@ struct ClosureSolver::Impl {
   detail::TreeEvaluator seed_ev;
   detail::LmWorkspace ws, pin_ws;
   Eigen::VectorXd q;
+  // The robot file's design parameters and their evaluator, and whether the loops of `params`
+  // differ from them (base and task frames aside; -1 = not yet known): cold solves of such a model
+  // follow the design's answer to `params` (from_design below). Set up on the first cold solve
+  // that needs them (solve_closure() builds a solver per call).
+  Eigen::VectorXd design;
+  detail::TreeEvaluator design_ev;
+  int differs_from_design = -1;
 
   Impl(const Mechanism& m, const Eigen::VectorXd& p, const ClosureOptions& o)
       : model(&m),
@@ -101,6 +108,16 @@ struct ClosureSolver::Impl {
         seed_ev(m, seed_params(m, p)),
         q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))) {
     ws.resize(m.constraint_rows(), static_cast<Eigen::Index>(m.passive.size()));
+  }
+
+  bool differs_from_design_loops() {
+    if (differs_from_design < 0) {
+      design = model->nominal_parameters();
+      differs_from_design = params.size() == design.size() &&
+                            (seed_params(*model, params) - design).cwiseAbs().maxCoeff() > 0.0;
+      if (differs_from_design) design_ev = detail::TreeEvaluator(*model, design);
+    }
+    return differs_from_design == 1;
   }
 
   static Eigen::VectorXd seed_params(const Mechanism& m, const Eigen::VectorXd& p) {
@@ -117,20 +134,23 @@ struct ClosureSolver::Impl {
     return out;
   }
 
-  bool set_actuators(const Eigen::VectorXd& readings) {
+  bool set_actuators(const Eigen::VectorXd& readings) { return set_actuators(readings, params); }
+  bool set_actuators(const Eigen::VectorXd& readings, const Eigen::VectorXd& p) {
     if (readings.size() != static_cast<Eigen::Index>(model->actuated.size()) ||
         !readings.allFinite())
       return false;
     for (std::size_t i = 0; i < model->actuated.size(); ++i) {
       const Body& b = model->bodies[model->actuated[i]];
-      q[model->actuated[i]] =
-          params[b.encoder_scale_param] * readings[static_cast<Eigen::Index>(i)] +
-          params[b.encoder_offset_param];
+      q[model->actuated[i]] = p[b.encoder_scale_param] * readings[static_cast<Eigen::Index>(i)] +
+                              p[b.encoder_offset_param];
     }
     return true;
   }
 
-  Eigen::VectorXd seed() {
+  Eigen::VectorXd seed() { return seed(seed_ev, params); }
+  // Closed-form seed for the actuators in q, with the loops of `loop_ev` (whose parameters are p
+  // but for the base and task frames).
+  Eigen::VectorXd seed(detail::TreeEvaluator& loop_ev, const Eigen::VectorXd& p) {
     Eigen::VectorXd x = model->home_passive();
     if (model->closed_form.kind == ClosedFormKind::kNone || model->passive.empty()) return x;
     Eigen::VectorXd qa(static_cast<Eigen::Index>(model->actuated.size()));
@@ -138,11 +158,11 @@ struct ClosureSolver::Impl {
       const Body& b = model->bodies[model->actuated[i]];
       // Closed forms use the total joint angle (joint op parameter + q).
       qa[static_cast<Eigen::Index>(i)] =
-          detail::op_value(b.ops[b.joint_op], params, q[model->actuated[i]]);
+          detail::op_value(b.ops[b.joint_op], p, q[model->actuated[i]]);
     }
     const auto T = closed_form_forward(model->closed_form, qa);
     if (!T) return x;
-    ClosureSystem pinned{&seed_ev, &q, model, model->task.frame, *T};
+    ClosureSystem pinned{&loop_ev, &q, model, model->task.frame, *T};
     pin_ws.resize(pinned.rows(), x.size());
     detail::levenberg_marquardt(pinned, x, pin_ws, 50, 1e-10, 0.5);
     return x;
@@ -162,8 +182,8 @@ struct ClosureSolver::Impl {
     // evaluation is the accepted point).
     if (lm.converged)
       r.mode = detail::check_mode(
-          *model, q, [&](int b) -> const Eigen::Vector3d& { return ev.pose(b).p; },
-          [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; }, conditioning(sys));
+          *model, q, [&](int b) -> const Eigen::Vector3d& { return sys.ev->pose(b).p; },
+          [&](int b) -> const Eigen::Matrix3d& { return sys.ev->pose(b).R; }, conditioning(sys));
   }
 
   // Estimate of sigma_min / sigma_max of the constraint Jacobian at a converged answer (the
@@ -186,6 +206,62 @@ struct ClosureSolver::Impl {
     const Eigen::JacobiSVD<Eigen::MatrixXd> svd(ws.J);
     const Eigen::VectorXd& sv = svd.singularValues();
     return sv.size() == n && sv[0] > 0.0 ? sv[n - 1] / sv[0] : 0.0;
+  }
+
+  // Cold solve of a model whose loops differ from the robot file's design (closure.hpp, step 1):
+  // the design's answer at these readings (closed-form seed, design loops), then continuation in
+  // the parameters from the design to `params` at the same readings, so the answer is the one the
+  // design's intended answer turns into (a perturbed loop closes in many configurations that
+  // satisfy every declared invariant where the design is near a singularity of its loops: a
+  // nearest-seed answer can be any of them). Where the design's own answer is not clearly
+  // intended (ambiguous: near a singularity, where modes meet), the model's answer is reported
+  // ambiguous too, whatever its own conditioning: a geometry error of the file's tolerances moves
+  // the answer between those configurations. Returns false (r unspecified) when the design's
+  // answer is not on an acceptable mode or a step does not close; the caller then seeds as before.
+  static constexpr double kDesignStep = 1.0;  // largest step (fraction of the parameter path)
+  bool from_design(const Eigen::VectorXd& readings, ClosureResult& r) {
+    ClosureSystem dsys{&design_ev, &q, model};
+    set_actuators(readings, design);
+    r.passive = seed(design_ev, design);
+    attempt(dsys, r);
+    if (!r.ok() || !r.mode.acceptable()) return false;
+    const ModeCheck design_mode = r.mode;
+    // Steps in the parameters, the whole path at once when it closes (bench_assembly_modes: the
+    // same answers as 2 or 4 steps, and as the reference's 8): a step that does not close, closes
+    // on another mode, or moves a passive joint by more than 0.2 rad (a jump across a fold of the
+    // branch) is halved.
+    Eigen::VectorXd last = r.passive;
+    double t = 0.0, h = kDesignStep;
+    while (t < 1.0) {
+      const double t_try = std::min(1.0, t + h);
+      detail::TreeEvaluator step_ev;
+      if (t_try < 1.0) {
+        const Eigen::VectorXd p = design + t_try * (params - design);
+        step_ev = detail::TreeEvaluator(*model, p);
+        set_actuators(readings, p);
+      } else {
+        set_actuators(readings, params);
+      }
+      ClosureSystem ssys{t_try < 1.0 ? &step_ev : &ev, &q, model};
+      r.passive = last;
+      attempt(ssys, r);
+      if (r.ok() && r.mode.verdict != ModeVerdict::kOther &&
+          (r.passive - last).cwiseAbs().maxCoeff() <= 0.2) {
+        t = t_try;
+        last = r.passive;
+        h = std::min(2.0 * h, kDesignStep);
+      } else {
+        h *= 0.5;
+        if (h < 1.0 / 256) return false;
+      }
+    }
+    if (design_mode.verdict == ModeVerdict::kAmbiguous &&
+        r.mode.verdict == ModeVerdict::kIntended) {
+      r.mode.verdict = ModeVerdict::kAmbiguous;
+      r.mode.invariant = "design_" + design_mode.invariant;
+      r.mode.conditioning = std::min(r.mode.conditioning, design_mode.conditioning);
+    }
+    return true;
   }
 
   // Continuation from the home configuration to `readings` (closure.hpp, step 2).
@@ -268,10 +344,20 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   }
   ClosureSystem sys{&s.ev, &s.q, &m};
   const bool warm = seed.size() == n;
-  result.passive = warm ? seed : s.seed();
-  result.seed_used =
-      warm ? "warm" : (m.closed_form.kind != ClosedFormKind::kNone ? "closed_form" : "home");
-  s.attempt(sys, result);
+  bool done = false;
+  if (!warm && s.options.enforce_mode && n > 0 && !m.assembly_mode.invariants.empty() &&
+      s.differs_from_design_loops()) {
+    result.seed_used = "design";
+    done = s.from_design(actuator_readings, result);
+    s.set_actuators(actuator_readings);
+    if (!done) result.iterations = 0;
+  }
+  if (!done) {
+    result.passive = warm ? seed : s.seed();
+    result.seed_used =
+        warm ? "warm" : (m.closed_form.kind != ClosedFormKind::kNone ? "closed_form" : "home");
+    s.attempt(sys, result);
+  }
   // Serial chains (no passive joint) have one answer per reading: the verdict is reported, there is
   // nothing to re-seed.
   if (s.options.enforce_mode && n > 0 && !m.assembly_mode.invariants.empty() &&
