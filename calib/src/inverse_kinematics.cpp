@@ -87,6 +87,9 @@ struct IkSystem {
 
 namespace {
 
+// Task-frame poses closer than this (m, rad) are the same answer.
+constexpr double kSamePose = 1e-9;
+
 // Passive joints closing the loops at actuator joint values qa (any mode; the final IK solve
 // checks the mode of the whole state).
 Eigen::VectorXd passive_for(const Mechanism& model, const Eigen::VectorXd& params,
@@ -269,6 +272,51 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
     if (!found && other_mode.verdict == ModeVerdict::kOther) {
       out.status = SolveStatus::kOtherMode;
       out.mode = other_mode;
+    }
+  }
+  if (check && np > 0 && out.ok() && out.mode.acceptable() &&
+      detail::loops_differ_from_design(model, params)) {
+    // A perturbed model's loops can close in several configurations near a singularity of the
+    // design, all satisfying the declared invariants, and the IK may have settled on one that
+    // forward kinematics (the design's answer followed to these parameters) does not give for its
+    // readings: a controller commanded these readings would put the tool elsewhere. So the answer
+    // must be what FK gives for its readings; if not, Newton again from FK's configuration, and
+    // failing that, refused as another mode.
+    auto fk_agrees = [&](const Eigen::VectorXd& xs, ClosureResult& fk) {
+      fk = solve_closure(model, params, readings_from_joint_values(model, params, xs.head(na)),
+                         xs.tail(np));
+      if (!fk.ok() || !fk.mode.acceptable()) return false;
+      // The same task-frame pose (not the same passive values: idle rotations of a rod about its
+      // own axis, or a turn of 2 pi, change those and nothing else).
+      const Eigen::VectorXd readings = readings_from_joint_values(model, params, xs.head(na));
+      const Eigen::Isometry3d by_fk = frame_pose(
+          model, params, make_joint_state(model, params, readings, fk.passive), model.task.frame);
+      const Eigen::Isometry3d by_ik = frame_pose(
+          model, params, make_joint_state(model, params, readings, xs.tail(np)), model.task.frame);
+      return (by_fk.translation() - by_ik.translation()).norm() <= kSamePose &&
+             rotation_log(by_fk.linear().transpose() * by_ik.linear()).norm() <= kSamePose;
+    };
+    ClosureResult fk;
+    bool agrees = fk_agrees(x, fk);
+    if (!agrees && fk.ok() && fk.mode.acceptable()) {
+      Eigen::VectorXd xs = x;
+      xs.tail(np) = fk.passive;
+      IkResult r;
+      r.iterations = out.iterations;
+      run(xs, r);
+      out.iterations = r.iterations;
+      if (r.ok() && r.mode.acceptable() && fk_agrees(xs, fk)) {
+        agrees = true;
+        x = xs;
+        out.residual = r.residual;
+      }
+    }
+    if (agrees) {
+      out.mode = fk.mode;  // with the closure's conditioning and the design's verdict
+    } else {
+      out.status = SolveStatus::kOtherMode;
+      out.mode.verdict = ModeVerdict::kOther;
+      out.mode.invariant = "design_branch";
     }
   }
   out.actuator_q = x.head(na);
