@@ -250,19 +250,14 @@ struct ClosureSolver::Impl {
   }
 
   // A warm answer of a model whose loops differ from the design, close to a singularity of its
-  // loops: there the perturbed loops close in several nearby configurations that all satisfy the
-  // declared invariants (the design's one configuration split by the perturbation), and a warm
-  // seed may settle on any of them. The answer that counts is the cold one (the design's answer
-  // followed to `params`, from_design), so here the warm answer is compared with it and replaced
-  // when they differ; when they agree the cold verdict is kept (ambiguous where the design is).
-  // Away from such singularities (conditioning above kDesignCheckMargin times the ambiguity
-  // threshold; the split configurations seen in the dense sweep had 1.0-1.8 times it) the
-  // configurations are far apart and the invariants tell them apart, so the hot path pays
-  // nothing.
-  static constexpr double kDesignCheckMargin = 3.0;
+  // loops (detail::kDesignCheckMargin): a warm seed may settle on any of the nearby configurations
+  // that satisfy the declared invariants, and the answer that counts is the cold one (the
+  // design's answer followed to `params`, from_design). So the warm answer is compared with it
+  // and replaced when they differ; when they agree the cold verdict is kept (ambiguous where the
+  // design is).
   void check_warm_against_design(const Eigen::VectorXd& readings, ClosureResult& r) {
     if (!options.enforce_mode || !r.ok() || !r.mode.acceptable() || r.mode.conditioning < 0.0 ||
-        r.mode.conditioning >= kDesignCheckMargin * model->assembly_mode.min_conditioning ||
+        r.mode.conditioning >= detail::kDesignCheckMargin * model->assembly_mode.min_conditioning ||
         !differs_from_design_loops())
       return;
     ClosureResult cold = r;

@@ -5,6 +5,9 @@
 #include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
 
+#include <Eigen/LU>
+#include <Eigen/SVD>
+
 #include <cmath>
 #include <random>
 
@@ -274,14 +277,37 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       out.mode = other_mode;
     }
   }
+  // sigma_min / sigma_max of the closure Jacobian (passive columns) at x, < 0 where not square.
+  const auto closure_conditioning = [&](const Eigen::VectorXd& xs) {
+    const int mc = ev.rows();
+    if (mc != np) return -1.0;
+    Eigen::VectorXd r(mc + task_rows(model.task.type));
+    sys.evaluate(xs, r);
+    Eigen::MatrixXd J(mc, np);
+    for (Eigen::Index j = 0; j < np; ++j)
+      ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(J);
+    Eigen::VectorXd v(np), w(np);
+    const double estimate = detail::sigma_ratio_estimate(lu, J, v, w);
+    // The estimate only overstates the ratio: near the gate the exact values decide.
+    if (estimate >= 2.0 * detail::kDesignCheckMargin * model.assembly_mode.min_conditioning)
+      return estimate;
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    return sv[0] > 0.0 ? sv[np - 1] / sv[0] : 0.0;
+  };
+  const auto near_design_singularity = [&] {
+    const double c = closure_conditioning(x);
+    return c >= 0.0 && c < detail::kDesignCheckMargin * model.assembly_mode.min_conditioning;
+  };
   if (check && np > 0 && out.ok() && out.mode.acceptable() &&
-      detail::loops_differ_from_design(model, params)) {
+      detail::loops_differ_from_design(model, params) && near_design_singularity()) {
     // A perturbed model's loops can close in several configurations near a singularity of the
-    // design, all satisfying the declared invariants, and the IK may have settled on one that
-    // forward kinematics (the design's answer followed to these parameters) does not give for its
-    // readings: a controller commanded these readings would put the tool elsewhere. So the answer
-    // must be what FK gives for its readings; if not, Newton again from FK's configuration, and
-    // failing that, refused as another mode.
+    // design (detail::kDesignCheckMargin), all satisfying the declared invariants, and the IK may
+    // have settled on one that forward kinematics (the design's answer followed to these
+    // parameters) does not give for its readings: a controller commanded these readings would put
+    // the tool elsewhere. So the answer must be what FK gives for its readings; if not, Newton
+    // again from FK's configuration, and failing that, refused as another mode.
     auto fk_agrees = [&](const Eigen::VectorXd& xs, ClosureResult& fk) {
       fk = solve_closure(model, params, readings_from_joint_values(model, params, xs.head(na)),
                          xs.tail(np));
