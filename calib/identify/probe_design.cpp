@@ -1,0 +1,114 @@
+#include "robocal/calib/probe_design.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace robocal::calib {
+
+namespace {
+
+// trace(M⁻¹ A) for symmetric positive definite M; +inf otherwise.
+double trace_of_inverse_times(const Eigen::MatrixXd& M, const Eigen::MatrixXd& A) {
+  const Eigen::LLT<Eigen::MatrixXd> llt(M);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  const double t = llt.solve(A).trace();
+  return std::isfinite(t) && t >= 0.0 ? t : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
+double average_prediction_variance(const Eigen::MatrixXd& information,
+                                   const Eigen::MatrixXd& targets, double ridge) {
+  if (targets.rows() == 0) return 0.0;
+  const auto p = information.rows();
+  const Eigen::MatrixXd A = targets.transpose() * targets / static_cast<double>(targets.rows());
+  return trace_of_inverse_times(information + ridge * Eigen::MatrixXd::Identity(p, p), A);
+}
+
+ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
+                             const Eigen::MatrixXd& targets, const Eigen::MatrixXd& information0,
+                             std::size_t count, const DesignOptions& options) {
+  const Eigen::Index p = targets.cols();
+  Eigen::MatrixXd M0 = information0.size() > 0 ? information0 : Eigen::MatrixXd::Zero(p, p);
+  if (M0.rows() != p || M0.cols() != p)
+    throw std::invalid_argument(
+        "i_optimal_design: information0 must be p x p (p = target columns)");
+  std::vector<Eigen::MatrixXd> info;  // FᵀF per candidate
+  info.reserve(candidate_rows.size());
+  Eigen::MatrixXd total = Eigen::MatrixXd::Zero(p, p);
+  for (const auto& F : candidate_rows) {
+    if (F.cols() != p)
+      throw std::invalid_argument("i_optimal_design: candidate rows must have p columns");
+    info.push_back(F.transpose() * F);
+    total += info.back();
+  }
+  double scale = 0.0;
+  for (Eigen::Index i = 0; i < p; ++i) scale = std::max({scale, total(i, i), M0(i, i)});
+  const Eigen::MatrixXd ridge =
+      options.ridge * (scale > 0.0 ? scale : 1.0) * Eigen::MatrixXd::Identity(p, p);
+  const Eigen::MatrixXd A =
+      targets.rows() > 0
+          ? Eigen::MatrixXd(targets.transpose() * targets / static_cast<double>(targets.rows()))
+          : Eigen::MatrixXd::Zero(p, p);
+  auto objective = [&](const Eigen::MatrixXd& M) { return trace_of_inverse_times(M + ridge, A); };
+
+  ExactDesign design;
+  if (!options.allow_repeats) count = std::min(count, candidate_rows.size());
+  std::vector<int> times(candidate_rows.size(), 0);
+  Eigen::MatrixXd M = M0;
+  // Greedy: the candidate that lowers the average most (ties: the first).
+  while (design.chosen.size() < count) {
+    std::size_t best = candidate_rows.size();
+    double best_value = std::numeric_limits<double>::infinity();
+    for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
+      if (!options.allow_repeats && times[c] > 0) continue;
+      const double v = objective(M + info[c]);
+      if (v < best_value || best == candidate_rows.size()) {
+        best = c;
+        best_value = v;
+      }
+    }
+    if (best == candidate_rows.size()) break;
+    design.chosen.push_back(best);
+    ++times[best];
+    M += info[best];
+  }
+  double value = objective(M);
+  design.greedy_average_variance = value;
+  // Exchange: the best swap of a chosen point for another candidate, while it lowers the average
+  // by more than rounding.
+  for (int pass = 0; pass < options.max_exchange_passes; ++pass) {
+    double best_value = value;
+    std::size_t out_k = design.chosen.size();
+    std::size_t in_c = candidate_rows.size();
+    for (std::size_t k = 0; k < design.chosen.size(); ++k) {
+      const std::size_t out = design.chosen[k];
+      const Eigen::MatrixXd without = M - info[out];
+      for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
+        if (c == out || (!options.allow_repeats && times[c] > 0)) continue;
+        const double v = objective(without + info[c]);
+        if (v < best_value * (1.0 - 1e-12)) {
+          best_value = v;
+          out_k = k;
+          in_c = c;
+        }
+      }
+    }
+    if (out_k == design.chosen.size()) break;
+    --times[design.chosen[out_k]];
+    design.chosen[out_k] = in_c;
+    ++times[in_c];
+    ++design.exchanges;
+    M = M0;  // summed afresh: no drift from repeated add and subtract
+    for (std::size_t c : design.chosen) M += info[c];
+    value = objective(M);
+  }
+  design.average_variance = value;
+  return design;
+}
+
+}  // namespace robocal::calib
