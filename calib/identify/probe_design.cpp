@@ -29,6 +29,53 @@ double average_prediction_variance(const Eigen::MatrixXd& information,
   return trace_of_inverse_times(information + ridge * Eigen::MatrixXd::Identity(p, p), A);
 }
 
+double average_prediction_error_with_held(const Eigen::MatrixXd& information,
+                                          const Eigen::MatrixXd& targets,
+                                          const std::vector<std::size_t>& held,
+                                          const Eigen::VectorXd& held_sigma) {
+  if (targets.rows() == 0) return 0.0;
+  const Eigen::Index p = information.rows();
+  std::vector<bool> is_held(static_cast<std::size_t>(p), false);
+  for (std::size_t i : held) is_held.at(i) = true;
+  std::vector<Eigen::Index> S;
+  std::vector<Eigen::Index> H;
+  for (Eigen::Index i = 0; i < p; ++i) (is_held[static_cast<std::size_t>(i)] ? H : S).push_back(i);
+  const Eigen::MatrixXd A = targets.transpose() * targets / static_cast<double>(targets.rows());
+  const auto ns = static_cast<Eigen::Index>(S.size());
+  const auto nh = static_cast<Eigen::Index>(H.size());
+  auto block = [](const Eigen::MatrixXd& X, const std::vector<Eigen::Index>& r,
+                  const std::vector<Eigen::Index>& c) {
+    Eigen::MatrixXd out(static_cast<Eigen::Index>(r.size()), static_cast<Eigen::Index>(c.size()));
+    for (std::size_t i = 0; i < r.size(); ++i)
+      for (std::size_t j = 0; j < c.size(); ++j)
+        out(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = X(r[i], c[j]);
+    return out;
+  };
+  double variance = 0.0;
+  Eigen::MatrixXd K(ns, nh);
+  if (ns > 0) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(block(information, S, S));
+    if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+    variance = llt.solve(block(A, S, S)).trace();
+    K = llt.solve(block(information, S, H));
+  }
+  double bias = 0.0;
+  if (nh > 0) {
+    // Error per unit held deviation: g_S K − g_H, i.e. E = [K; −I] over (S, H).
+    Eigen::MatrixXd E(p, nh);
+    std::vector<Eigen::Index> order = S;
+    order.insert(order.end(), H.begin(), H.end());
+    E.topRows(ns) = K;
+    E.bottomRows(nh) = -Eigen::MatrixXd::Identity(nh, nh);
+    Eigen::VectorXd d(nh);
+    for (Eigen::Index k = 0; k < nh; ++k) d(k) = held_sigma(H[static_cast<std::size_t>(k)]);
+    const Eigen::MatrixXd ED = E * d.asDiagonal();
+    bias = (ED.transpose() * block(A, order, order) * ED).trace();
+  }
+  const double total = variance + bias;
+  return std::isfinite(total) ? total : std::numeric_limits<double>::infinity();
+}
+
 ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
                              const Eigen::MatrixXd& targets, const Eigen::MatrixXd& information0,
                              std::size_t count, const DesignOptions& options) {
@@ -43,7 +90,7 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
   for (const auto& F : candidate_rows) {
     if (F.cols() != p)
       throw std::invalid_argument("i_optimal_design: candidate rows must have p columns");
-    info.push_back(F.transpose() * F);
+    info.emplace_back(F.transpose() * F);
     total += info.back();
   }
   double scale = 0.0;
@@ -54,7 +101,23 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
       targets.rows() > 0
           ? Eigen::MatrixXd(targets.transpose() * targets / static_cast<double>(targets.rows()))
           : Eigen::MatrixXd::Zero(p, p);
-  auto objective = [&](const Eigen::MatrixXd& M) { return trace_of_inverse_times(M + ridge, A); };
+  if (options.held && options.held_sigma.size() != p)
+    throw std::invalid_argument("i_optimal_design: held_sigma must have one entry per parameter");
+  std::vector<std::size_t> picked;  // the design being evaluated (for `held`)
+  auto objective = [&](const Eigen::MatrixXd& M) {
+    if (options.held) {
+      Eigen::Index n = 0;
+      for (std::size_t c : picked) n += candidate_rows[c].rows();
+      Eigen::MatrixXd rows(n, p);
+      n = 0;
+      for (std::size_t c : picked) {
+        rows.middleRows(n, candidate_rows[c].rows()) = candidate_rows[c];
+        n += candidate_rows[c].rows();
+      }
+      return average_prediction_error_with_held(M, targets, options.held(rows), options.held_sigma);
+    }
+    return trace_of_inverse_times(M + ridge, A);
+  };
 
   ExactDesign design;
   if (!options.allow_repeats) count = std::min(count, candidate_rows.size());
@@ -66,6 +129,8 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
     double best_value = std::numeric_limits<double>::infinity();
     for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
       if (!options.allow_repeats && times[c] > 0) continue;
+      picked = design.chosen;
+      picked.push_back(c);
       const double v = objective(M + info[c]);
       if (v < best_value || best == candidate_rows.size()) {
         best = c;
@@ -77,6 +142,7 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
     ++times[best];
     M += info[best];
   }
+  picked = design.chosen;
   double value = objective(M);
   design.greedy_average_variance = value;
   // Exchange: the best swap of a chosen point for another candidate, while it lowers the average
@@ -90,6 +156,8 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
       const Eigen::MatrixXd without = M - info[out];
       for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
         if (c == out || (!options.allow_repeats && times[c] > 0)) continue;
+        picked = design.chosen;
+        picked[k] = c;
         const double v = objective(without + info[c]);
         if (v < best_value * (1.0 - 1e-12)) {
           best_value = v;
@@ -105,6 +173,7 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
     ++design.exchanges;
     M = M0;  // summed afresh: no drift from repeated add and subtract
     for (std::size_t c : design.chosen) M += info[c];
+    picked = design.chosen;
     value = objective(M);
   }
   design.average_variance = value;

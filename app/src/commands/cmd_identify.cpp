@@ -310,8 +310,15 @@ int run_identify(const IdentifyOptions& o) {
   if (res.limited_data || res.status == IdentificationStatus::kNotIdentifiable) {
     const bool solved = res.status == IdentificationStatus::kConverged ||
                         res.status == IdentificationStatus::kNotConverged;
+    // Suggested points are designed for this fit: its base-set preference decides what it
+    // holds at nominal; with priors it estimates everything (MAP).
+    AdviceOptions advice_options;
+    advice_options.preference = opt.preference;
+    advice_options.map_estimator = !opt.prior_sigma.empty();
+    if (advice_options.map_estimator) advice_options.prior_sigma = opt.prior_sigma;
     advice = advise_like_the_data(robot_pred, pred, solved ? res.estimate : nominal,
-                                  fit.poses.empty() ? file.measurements : fit, opt.candidates);
+                                  fit.poses.empty() ? file.measurements : fit, opt.candidates,
+                                  advice_options);
     doc["advice"] = advice_json(advice);
   }
 

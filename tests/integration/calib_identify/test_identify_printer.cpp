@@ -246,6 +246,52 @@ TEST_F(Printer, AdviceSaysWhatToMeasureNextAndWhereAndItWorks) {
   EXPECT_LT(e_after, 0.5 * e_before);
 }
 
+// Probe-point design: seven points the advice designs from no data (I-optimal for the bed height
+// over the printed square, for identify's estimator) against the firmwares' fixed 7-point pattern,
+// same count, same truths and noise: the designed points predict held-out heights better.
+TEST_F(Printer, DesignedProbePointsBeatTheFixedPatternOnHeldOutHeights) {
+  std::vector<Eigen::VectorXd> bed;
+  for (double x = -0.09; x <= 0.0901; x += 0.015)
+    for (double y = -0.09; y <= 0.0901; y += 0.015)
+      if (std::hypot(x, y) <= 0.09) bed.push_back(commanded_readings(model, {x, y, 0.0}));
+  AdviceOptions o;
+  o.distances = false;
+  o.redundancy = 0;
+  o.max_suggestions = 7;
+  for (double x = -0.06; x <= 0.0601; x += 0.01)
+    for (double y = -0.06; y <= 0.0601; y += 0.01)
+      o.working_area.push_back(commanded_readings(model, {x, y, 0.0}));
+  for (const auto& prm : model.parameters) o.prior_sigma.push_back(prm.sigma);
+  auto opt = solve_options_from_model(model, false);
+  o.preference = opt.preference;
+  opt.candidates = printer_candidates(model);
+  const auto advice = advise_measurements(pred, nominal, {}, opt.candidates, bed, {}, o);
+  ASSERT_EQ(advice.suggestions.size(), 7u);
+  std::vector<Eigen::Vector2d> designed;
+  for (const auto& s : advice.suggestions) {
+    EXPECT_EQ(s.kind, "probe height");
+    designed.emplace_back(s.position.x(), s.position.y());
+  }
+  double ms_fixed = 0.0;
+  double ms_designed = 0.0;
+  for (unsigned seed = 1; seed <= 12; ++seed) {
+    for (int which = 0; which < 2; ++which) {
+      std::mt19937 rng(seed);
+      const Eigen::VectorXd truth = printer_truth(model, rng);
+      PrinterData data;
+      add_probe_heights(model, truth, which == 0 ? probe_pattern(0.08) : designed, 10e-6, rng,
+                        data);
+      const auto res = identify(pred, nominal, data.measurements, opt);
+      ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
+      const double e = heldout_height_rms(truth, res.estimate);
+      (which == 0 ? ms_fixed : ms_designed) += e * e;
+    }
+  }
+  std::cout << "held-out height RMS: fixed pattern " << 1e6 * std::sqrt(ms_fixed / 12)
+            << " um, designed " << 1e6 * std::sqrt(ms_designed / 12) << " um\n";
+  EXPECT_LT(ms_designed, ms_fixed);
+}
+
 // σ spread over six orders of magnitude (0.1 µm .. 0.1 m) per pose, noise drawn with each pose's
 // own σ: no genuine pose may be flagged. The old test (pooled robust scale of the raw whitened
 // residuals, dof = rows) is run on the same residuals to show the symptom it had.

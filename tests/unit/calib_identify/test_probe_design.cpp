@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <functional>
@@ -141,6 +142,49 @@ TEST(ProbeDesign, LeavesUndeterminedWhatTheWorkingAreaSeesLeast) {
   std::vector<std::size_t> chosen = d.chosen;
   std::sort(chosen.begin(), chosen.end());
   EXPECT_EQ(chosen, (std::vector<std::size_t>{1, 2}));
+}
+
+}  // namespace
+
+namespace {
+
+TEST(ProbeDesign, HeldParameterErrorMatchesSimulation) {
+  // A linear model y = F δ + ε (unit noise), the estimator fits the parameters S by least squares
+  // with those in H held at 0 while their truth is N(0, σ_H²). The formula for the average
+  // squared prediction error over the targets against a simulation of that estimator.
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const int p = 5;
+  Eigen::MatrixXd F(8, p);
+  for (Eigen::Index i = 0; i < F.size(); ++i) F.data()[i] = n01(rng);
+  Eigen::MatrixXd G(4, p);
+  for (Eigen::Index i = 0; i < G.size(); ++i) G.data()[i] = n01(rng);
+  const std::vector<std::size_t> held = {1, 4};
+  Eigen::VectorXd sigma(p);
+  sigma << 0.0, 0.7, 0.0, 0.0, 1.3;
+  const double formula =
+      robocal::calib::average_prediction_error_with_held(F.transpose() * F, G, held, sigma);
+  Eigen::MatrixXd FS(F.rows(), 3);
+  FS << F.col(0), F.col(2), F.col(3);
+  Eigen::MatrixXd GS(G.rows(), 3);
+  GS << G.col(0), G.col(2), G.col(3);
+  const Eigen::MatrixXd solve = (FS.transpose() * FS).inverse() * FS.transpose();
+  double sum = 0.0;
+  const int draws = 40000;
+  for (int k = 0; k < draws; ++k) {
+    Eigen::VectorXd truth(p);
+    for (int i = 0; i < p; ++i) truth(i) = sigma(i) > 0.0 ? sigma(i) * n01(rng) : n01(rng);
+    Eigen::VectorXd y = F * truth;
+    for (Eigen::Index i = 0; i < y.size(); ++i) y(i) += n01(rng);
+    const Eigen::VectorXd est = solve * y;
+    sum += (GS * est - G * truth).squaredNorm() / static_cast<double>(G.rows());
+  }
+  const double simulated = sum / draws;
+  // The mean of 40 000 draws of a sum of squares: a few per mille of statistical error.
+  EXPECT_NEAR(simulated / formula, 1.0, 0.02) << "formula " << formula << " simulated " << simulated;
+  // Nothing held: the plain average prediction variance.
+  EXPECT_NEAR(robocal::calib::average_prediction_error_with_held(F.transpose() * F, G, {}, sigma),
+              average_prediction_variance(F.transpose() * F, G), 1e-12);
 }
 
 }  // namespace
