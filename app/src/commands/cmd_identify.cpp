@@ -29,6 +29,21 @@ namespace {
 
 using namespace robocal::calib;
 
+// What the validation errors of `poses` are of: positions (points, poses), probe heights, or both.
+std::string errors_of(const std::vector<PoseMeasurement>& poses) {
+  bool position = false;
+  bool height = false;
+  for (const auto& p : poses)
+    for (const auto& o : p.observations) {
+      position = position || std::holds_alternative<PointObservation>(o) ||
+                 std::holds_alternative<PoseObservation>(o);
+      height = height || std::holds_alternative<ProbeHeightObservation>(o);
+    }
+  if (height && !position) return "probe height";
+  if (height) return "position and probe height";
+  return "position";
+}
+
 struct IdentifyOptions {
   std::string session;
   std::string robot;
@@ -352,9 +367,11 @@ int run_identify(const IdentifyOptions& o) {
     // The plain-words summary always (JSON only where asked); stderr when JSON takes stdout.
     std::FILE* out = human_stream(o.json);
     std::string text = summary_text(res);
-    text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit.poses));
+    text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit.poses),
+                            errors_of(fit.poses));
     if (!held.empty())
-      text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held));
+      text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held),
+                              errors_of(held));
     if (doc.contains("calibrated_robot"))
       text += fmt::format("calibrated robot file: {}\n", o.out_robot);
     text += advice.text;
