@@ -13,6 +13,8 @@
 //    the parameters held at nominal are exact; the truth perturbs them too, so the same draws
 //    without noise give the gauge's bias (gauge_bias_rms_um), and the error is also compared with
 //    bound² + bias² (ratio_to_bound_and_gauge_bias).
+//  - "heights_with_priors": the same 7 heights with the robot file's tolerances as priors (MAP,
+//    identify --priors): all nine estimated; held-out error against the posterior's prediction.
 //  - "heights_and_distances": the same plus twelve caliper distances on a printed part (σ 10 µm):
 //    identified count and held-out 3-D error at the layer above the bed, before and after.
 //  - "designed_probe_points": seven probe points chosen by calib's advice (advise_measurements
@@ -59,8 +61,11 @@ struct HeightFigures {
 
 // `noise` false: the same draw's truth measured without noise (σ still stated as 10 µm): what is
 // left of the held-out error is the bias of the parameters held at nominal (the gauge).
+// `priors`: the robot file's tolerances as priors (identify --priors, MAP): every parameter is
+// estimated and Σ is the posterior covariance.
 void heights_draw(const calib::Mechanism& model, unsigned seed, HeightFigures& f,
-                  const std::vector<Eigen::Vector2d>& pattern, bool noise = true) {
+                  const std::vector<Eigen::Vector2d>& pattern, bool noise = true,
+                  bool priors = false) {
   const calib::MechanismPredictor pred(model);
   const Eigen::VectorXd nominal = model.nominal_parameters();
   std::mt19937 rng(seed);
@@ -70,7 +75,7 @@ void heights_draw(const calib::Mechanism& model, unsigned seed, HeightFigures& f
   if (!noise)
     for (auto& pose : data.measurements.poses)
       for (auto& o : pose.observations) std::get<calib::ProbeHeightObservation>(o).sigma = 10e-6;
-  auto opt = calib::solve_options_from_model(model, false);
+  auto opt = calib::solve_options_from_model(model, priors);
   opt.candidates = test::printer_candidates(model);
   opt.keep_stated_noise = true;  // the stated σ is the true one: Σ is the bound itself
   const auto res = calib::identify(pred, nominal, data.measurements, opt);
@@ -175,6 +180,7 @@ int main(int argc, char** argv) {
     HeightFigures ranked;
     HeightFigures h_bias;
     HeightFigures designed_bias;
+    HeightFigures map;
     DistanceFigures d;
     const auto pattern = designed_pattern(model, true);
     const auto rank_pattern = designed_pattern(model, false);
@@ -184,6 +190,8 @@ int main(int argc, char** argv) {
       heights_draw(model, static_cast<unsigned>(100 + k), ranked, rank_pattern);
       heights_draw(model, static_cast<unsigned>(100 + k), h_bias, test::probe_pattern(0.08), false);
       heights_draw(model, static_cast<unsigned>(100 + k), designed_bias, pattern, false);
+      heights_draw(model, static_cast<unsigned>(100 + k), map, test::probe_pattern(0.08), true,
+                   true);
       distances_draw(model, static_cast<unsigned>(200 + k), d);
     }
     nlohmann::json out;
@@ -200,6 +208,11 @@ int main(int argc, char** argv) {
         {"ratio_to_bound", std::sqrt(h.error_ms / h.bound_ms)},
         {"gauge_bias_rms_um", 1e6 * std::sqrt(h_bias.error_ms / h_bias.points)},
         {"ratio_to_bound_and_gauge_bias", std::sqrt(h.error_ms / (h.bound_ms + h_bias.error_ms))}};
+    out["heights_with_priors"] = {
+        {"identified_parameters", map.identified},
+        {"heldout_height_rms_um", 1e6 * std::sqrt(map.error_ms / map.points)},
+        {"posterior_rms_um", 1e6 * std::sqrt(map.bound_ms / map.points)},
+        {"ratio_to_bound", std::sqrt(map.error_ms / map.bound_ms)}};
     out["heights_and_distances"] = {
         {"distances", 12},
         {"draws_with_all_nine_identified", d.nine_identified},
