@@ -82,6 +82,11 @@ Eigen::MatrixXd prediction_rows(const FramePredictor& model, const Eigen::Vector
   return out;
 }
 
+// The held-parameter criterion runs identify's analysis for every design it weighs: affordable
+// for a printer's parameter set (9: ~0.5 s for the identify command's advice), not for every
+// parameter of a robot file (49 on the linear delta: 20 s); those get the variance criterion.
+constexpr std::size_t kHeldModelMaxParameters = 16;
+
 // As many suggestions as the rank rule chose, chosen again I-optimally for the predictions over
 // the working area (probe_design.hpp); kept unless they separate fewer parameters.
 void redesign(const FramePredictor& model, const Eigen::VectorXd& params,
@@ -113,7 +118,7 @@ void redesign(const FramePredictor& model, const Eigen::VectorXd& params,
   DesignOptions design_options;
   if (priors && options.map_estimator) {
     for (Eigen::Index k = 0; k < n; ++k) M0(k, k) += 1.0 / (sigma(k) * sigma(k));
-  } else if (priors) {
+  } else if (priors && cols.size() <= kHeldModelMaxParameters) {
     // What identify will hold at nominal with these rows: its analysis, with the little-data
     // rule's stricter tolerance when the equations are fewer than the parameters.
     IdentifiabilityOptions analysis;

@@ -119,6 +119,38 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
     return trace_of_inverse_times(M + ridge, A);
   };
 
+  // The objective of `base` + each candidate's rows (those `skip` rejects get +inf). Without
+  // `held`, by the Woodbury identity from one factorisation of `base`: with B = (base + ridge)⁻¹,
+  // adding the rows F lowers trace(B A) by trace((I + F B Fᵀ)⁻¹ F B A B Fᵀ).
+  auto values_with = [&](const Eigen::MatrixXd& base, const std::function<bool(std::size_t)>& skip,
+                         const std::function<void(std::size_t)>& set_picked) {
+    std::vector<double> v(candidate_rows.size(), std::numeric_limits<double>::infinity());
+    const Eigen::LLT<Eigen::MatrixXd> llt(base + ridge);
+    const bool fast = !options.held && llt.info() == Eigen::Success;
+    Eigen::MatrixXd B;
+    Eigen::MatrixXd C;
+    double t0 = 0.0;
+    if (fast) {
+      B = llt.solve(Eigen::MatrixXd::Identity(p, p));
+      C = B * A * B;
+      t0 = (B * A).trace();
+    }
+    for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
+      if (skip(c)) continue;
+      if (!fast) {
+        set_picked(c);
+        v[c] = objective(base + info[c]);
+        continue;
+      }
+      const Eigen::MatrixXd& F = candidate_rows[c];
+      Eigen::MatrixXd S = F * B * F.transpose();
+      S.diagonal().array() += 1.0;
+      const double fall = S.llt().solve(F * C * F.transpose()).trace();
+      v[c] = t0 - fall;
+    }
+    return v;
+  };
+
   ExactDesign design;
   if (!options.allow_repeats) count = std::min(count, candidate_rows.size());
   std::vector<int> times(candidate_rows.size(), 0);
@@ -127,14 +159,17 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
   while (design.chosen.size() < count) {
     std::size_t best = candidate_rows.size();
     double best_value = std::numeric_limits<double>::infinity();
+    const auto values = values_with(
+        M, [&](std::size_t c) { return !options.allow_repeats && times[c] > 0; },
+        [&](std::size_t c) {
+          picked = design.chosen;
+          picked.push_back(c);
+        });
     for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
       if (!options.allow_repeats && times[c] > 0) continue;
-      picked = design.chosen;
-      picked.push_back(c);
-      const double v = objective(M + info[c]);
-      if (v < best_value || best == candidate_rows.size()) {
+      if (values[c] < best_value || best == candidate_rows.size()) {
         best = c;
-        best_value = v;
+        best_value = values[c];
       }
     }
     if (best == candidate_rows.size()) break;
@@ -145,36 +180,41 @@ ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
   picked = design.chosen;
   double value = objective(M);
   design.greedy_average_variance = value;
-  // Exchange: the best swap of a chosen point for another candidate, while it lowers the average
-  // by more than rounding.
+  // Exchange sweeps: each chosen point in turn is swapped for the candidate that lowers the
+  // average most (by more than rounding), until a sweep changes nothing.
   for (int pass = 0; pass < options.max_exchange_passes; ++pass) {
-    double best_value = value;
-    std::size_t out_k = design.chosen.size();
-    std::size_t in_c = candidate_rows.size();
+    bool changed = false;
     for (std::size_t k = 0; k < design.chosen.size(); ++k) {
       const std::size_t out = design.chosen[k];
       const Eigen::MatrixXd without = M - info[out];
-      for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
-        if (c == out || (!options.allow_repeats && times[c] > 0)) continue;
+      double best_value = value;
+      std::size_t in_c = candidate_rows.size();
+      auto skip = [&](std::size_t c) {
+        return c == out || (!options.allow_repeats && times[c] > 0);
+      };
+      const auto values = values_with(without, skip, [&](std::size_t c) {
         picked = design.chosen;
         picked[k] = c;
-        const double v = objective(without + info[c]);
-        if (v < best_value * (1.0 - 1e-12)) {
-          best_value = v;
-          out_k = k;
+      });
+      for (std::size_t c = 0; c < candidate_rows.size(); ++c) {
+        if (skip(c)) continue;
+        if (values[c] < best_value * (1.0 - 1e-12)) {
+          best_value = values[c];
           in_c = c;
         }
       }
+      if (in_c == candidate_rows.size()) continue;
+      --times[out];
+      design.chosen[k] = in_c;
+      ++times[in_c];
+      ++design.exchanges;
+      changed = true;
+      M = M0;  // summed afresh: no drift from repeated add and subtract
+      for (std::size_t c : design.chosen) M += info[c];
+      picked = design.chosen;
+      value = objective(M);
     }
-    if (out_k == design.chosen.size()) break;
-    --times[design.chosen[out_k]];
-    design.chosen[out_k] = in_c;
-    ++times[in_c];
-    ++design.exchanges;
-    M = M0;  // summed afresh: no drift from repeated add and subtract
-    for (std::size_t c : design.chosen) M += info[c];
-    picked = design.chosen;
-    value = objective(M);
+    if (!changed) break;
   }
   design.average_variance = value;
   return design;
