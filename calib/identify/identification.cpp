@@ -264,6 +264,61 @@ std::optional<Eigen::Vector3d> observed_position(const Observation& obs) {
   return std::nullopt;
 }
 
+// Fit residuals per observation type at `params` (ResidualDiagnostics::by_type), in the order
+// point, pose position, pose rotation, probe height, distance; types without data left out.
+std::vector<TypeResiduals> residuals_by_type(const FramePredictor& model,
+                                             const Eigen::VectorXd& params,
+                                             const std::vector<const PoseMeasurement*>& poses,
+                                             const std::map<std::string, int>& slot_of,
+                                             const std::vector<DistanceMeasurement>& distances) {
+  std::vector<TypeResiduals> out = {{"point", "m"},
+                                    {"pose position", "m"},
+                                    {"pose rotation", "rad"},
+                                    {"probe height", "m"},
+                                    {"distance", "m"}};
+  auto add = [&](std::size_t type, double e) {
+    auto& t = out[type];
+    ++t.count;
+    t.rms += e * e;
+    t.max = std::max(t.max, e);
+  };
+  std::map<std::string, Eigen::Vector3d> at;
+  for (const auto* pose : poses) {
+    FramePrediction pred;
+    std::string why;
+    const auto slot = slot_of.find(pose->id);
+    if (!model.predict(params, pose->actuators, slot == slot_of.end() ? -1 : slot->second, false,
+                       pred, why))
+      continue;
+    at[pose->id] = pred.pose.translation();
+    for (const auto& obs : pose->observations) {
+      if (const auto* p = std::get_if<PointObservation>(&obs))
+        add(0, (pred.pose.translation() - p->measured).norm());
+      if (const auto* p = std::get_if<PoseObservation>(&obs)) {
+        add(1, (pred.pose.translation() - p->measured_position).norm());
+        add(2, Eigen::AngleAxisd(pred.pose.linear() * p->measured_rotation.transpose()).angle());
+      }
+      if (const auto* h = std::get_if<ProbeHeightObservation>(&obs)) {
+        double r = 0.0;  // whitened, against the estimated bed plane when there is one
+        if (model.probe_residual(*h, params, pred, r, nullptr, why)) add(3, std::abs(r) * h->sigma);
+      }
+    }
+  }
+  for (const auto& d : distances) {
+    const auto a = at.find(d.first);
+    const auto b = at.find(d.second);
+    if (a != at.end() && b != at.end())
+      add(4, std::abs((a->second - b->second).norm() - d.observation.measured_distance));
+  }
+  std::vector<TypeResiduals> present;
+  for (auto& t : out)
+    if (t.count > 0) {
+      t.rms = std::sqrt(t.rms / static_cast<double>(t.count));
+      present.push_back(t);
+    }
+  return present;
+}
+
 double spread(const std::vector<Eigen::Vector3d>& pts) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for (const auto& p : pts) c += p;
@@ -1033,6 +1088,8 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     }
     result.residuals = diagnose_residuals(per_pose, options.outliers);
   }
+  result.residuals.by_type =
+      residuals_by_type(model, best, as.poses, slot_of, measurements.distances);
   if (result.uncertainty.ok) {
     std::vector<Eigen::MatrixXd> frame_jacobians;
     for (const auto* pose : as.poses) {
