@@ -5,7 +5,8 @@
 // On the library linear delta, per draw: a truth with the nine printer parameters perturbed
 // (printer_scenario.hpp), then
 //  - "heights": the firmwares' 7-point probe pattern (radius 80 mm, σ 10 µm), the nine printer
-//    parameters as candidates; the rank analysis keeps the identifiable subset. Held-out bed
+//    parameters as candidates; the rank analysis finds the identifiable subset and identify's
+//    gauge choice (gauge_choice.hpp) which confounded ones are held at nominal. Held-out bed
 //    heights on a 5 × 5 grid inside the probed circle: |predicted − true| against the Cramér–Rao
 //    prediction sqrt(J_h Σ J_hᵀ) of the identified subset (Σ: the fit's covariance at the stated,
 //    here true, noise; J_h by central differences at the estimate). The ratio of the mean-square
