@@ -181,7 +181,8 @@ TEST(ProbeDesign, HeldParameterErrorMatchesSimulation) {
   }
   const double simulated = sum / draws;
   // The mean of 40 000 draws of a sum of squares: a few per mille of statistical error.
-  EXPECT_NEAR(simulated / formula, 1.0, 0.02) << "formula " << formula << " simulated " << simulated;
+  EXPECT_NEAR(simulated / formula, 1.0, 0.02)
+      << "formula " << formula << " simulated " << simulated;
   // Nothing held: the plain average prediction variance.
   EXPECT_NEAR(robocal::calib::average_prediction_error_with_held(F.transpose() * F, G, {}, sigma),
               average_prediction_variance(F.transpose() * F, G), 1e-12);
