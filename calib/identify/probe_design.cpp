@@ -57,7 +57,12 @@ double average_prediction_error_with_held(const Eigen::MatrixXd& information,
     const Eigen::LLT<Eigen::MatrixXd> llt(block(information, S, S));
     if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
     variance = llt.solve(block(A, S, S)).trace();
-    K = llt.solve(block(information, S, H));
+    // With no held column the right-hand side is empty: solved as one zero column and dropped
+    // (Eigen's triangular solve of an empty matrix binds a reference to its first element,
+    // undefined behaviour the sanitizers stop on).
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(ns, std::max<Eigen::Index>(nh, 1));
+    if (nh > 0) rhs = block(information, S, H);
+    K = llt.solve(rhs).leftCols(nh);
   }
   double bias = 0.0;
   if (nh > 0) {
