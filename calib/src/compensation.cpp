@@ -51,18 +51,6 @@ TaskTarget position_target(const Eigen::Vector3d& p) {
 
 namespace {
 
-int task_rows(TaskType t) {
-  switch (t) {
-    case TaskType::kPosition:
-      return 3;
-    case TaskType::kPose:
-      return 6;
-    case TaskType::kJoint:
-      return 1;
-  }
-  return 0;
-}
-
 // LU factorisation with partial pivoting of a small square matrix, in storage kept between calls
 // (Eigen's blocked LU spends most of its time in packing and dispatch at these sizes, ~18 x 18).
 class SmallLu {
@@ -157,7 +145,7 @@ struct SquareSystem {
         with_task(task) {}
 
   [[nodiscard]] Eigen::Index rows() const {
-    return ev.rows() + (with_task ? task_rows(m->task.type) : 0);
+    return ev.rows() + (with_task ? detail::task_rows(m->task.type) : 0);
   }
   [[nodiscard]] bool square() const { return rows() == static_cast<Eigen::Index>(unknowns.size()); }
 
@@ -197,7 +185,7 @@ struct SquareSystem {
         continue;
       }
       if (!detail::in_subtree(*m, b, f)) {
-        col.segment(mc, task_rows(m->task.type)).setZero();
+        col.segment(mc, detail::task_rows(m->task.type)).setZero();
         continue;
       }
       const detail::Rigid& F = ev.pose(f);

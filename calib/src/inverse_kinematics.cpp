@@ -14,18 +14,6 @@
 namespace robocal::calib {
 namespace {
 
-int task_rows(TaskType t) {
-  switch (t) {
-    case TaskType::kPosition:
-      return 3;
-    case TaskType::kPose:
-      return 6;
-    case TaskType::kJoint:
-      return 1;
-  }
-  return 0;
-}
-
 // Closure rows + task rows as a function of [actuated q; passive].
 struct IkSystem {
   detail::TreeEvaluator* ev;
@@ -34,7 +22,7 @@ struct IkSystem {
   std::vector<int> unknown_bodies;
   TaskTarget target;
 
-  Eigen::Index rows() const { return ev->rows() + task_rows(m->task.type); }
+  Eigen::Index rows() const { return ev->rows() + detail::task_rows(m->task.type); }
 
   void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
     for (std::size_t j = 0; j < unknown_bodies.size(); ++j)
@@ -73,7 +61,7 @@ struct IkSystem {
         continue;
       }
       if (!detail::in_subtree(*m, b, f)) {
-        col.segment(mc, task_rows(m->task.type)).setZero();
+        col.segment(mc, detail::task_rows(m->task.type)).setZero();
         continue;
       }
       Eigen::Vector3d w, v;
@@ -281,7 +269,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   const auto closure_conditioning = [&](const Eigen::VectorXd& xs) {
     const int mc = ev.rows();
     if (mc != np) return -1.0;
-    Eigen::VectorXd r(mc + task_rows(model.task.type));
+    Eigen::VectorXd r(mc + detail::task_rows(model.task.type));
     sys.evaluate(xs, r);
     Eigen::MatrixXd J(mc, np);
     for (Eigen::Index j = 0; j < np; ++j)
