@@ -35,6 +35,7 @@
 // corners of tags cut by the image border; refined tags alone -0.0003 +- 0.002); corner error
 // RMS 0.018 -> 0.013 px, sigma(fx) 0.026 -> 0.014 px.
 #include "robocal/vision/apriltag_detector.hpp"
+#include "robocal/vision/camera_parameter_names.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
 #include "robocal/vision/renderer.hpp"
 #include "robocal/vision/target_detection.hpp"

@@ -1,5 +1,7 @@
 #include "robocal/calib/pixel_observations.hpp"
 
+#include "robocal/vision/camera_parameter_names.hpp"
+
 #include <ceres/jet.h>
 #include <ceres/rotation.h>
 #include <fmt/core.h>
@@ -59,18 +61,6 @@ Eigen::Vector3d rotation_vector_of(const Eigen::Matrix3d& R) {
 
 }  // namespace
 
-std::vector<std::string> camera_parameter_names(vision::CameraKind kind) {
-  switch (kind) {
-    case vision::CameraKind::kPinholeRational:
-      return {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"};
-    case vision::CameraKind::kFisheyeKB4:
-      return {"fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4"};
-    case vision::CameraKind::kPinholeRadtan:
-    default:
-      return {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"};
-  }
-}
-
 CameraRigPredictor::CameraRigPredictor(const FramePredictor& robot,
                                        std::vector<ObservingCamera> cameras,
                                        CameraRigOptions options)
@@ -104,7 +94,7 @@ std::vector<std::string> CameraRigPredictor::parameter_names() const {
   for (const auto& cam : cameras_) {
     for (const char* n : {"x", "y", "z", "rx", "ry", "rz"}) names.push_back(cam.name + "." + n);
     if (options_.estimate_intrinsics)
-      for (const auto& n : camera_parameter_names(cam.model.kind))
+      for (const auto& n : vision::camera_param_names(cam.model.kind))
         names.push_back(cam.name + "." + n);
   }
   return names;

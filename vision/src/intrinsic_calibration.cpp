@@ -1,5 +1,7 @@
 #include "robocal/vision/intrinsic_calibration.hpp"
 
+#include "robocal/vision/camera_parameter_names.hpp"
+
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
@@ -209,22 +211,6 @@ const std::vector<std::string>& image_region_names() {
   static const std::vector<std::string> names = {"top-left",    "top-centre",    "top-right",
                                                  "middle-left", "centre",        "middle-right",
                                                  "bottom-left", "bottom-centre", "bottom-right"};
-  return names;
-}
-
-std::vector<std::string> camera_param_names(CameraKind kind) {
-  std::vector<std::string> names = {"fx", "fy", "cx", "cy"};
-  switch (kind) {
-    case CameraKind::kPinholeRadtan:
-      for (const char* n : {"k1", "k2", "p1", "p2", "k3"}) names.emplace_back(n);
-      break;
-    case CameraKind::kPinholeRational:
-      for (const char* n : {"k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"}) names.emplace_back(n);
-      break;
-    case CameraKind::kFisheyeKB4:
-      for (const char* n : {"k1", "k2", "k3", "k4"}) names.emplace_back(n);
-      break;
-  }
   return names;
 }
 

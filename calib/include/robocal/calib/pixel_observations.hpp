@@ -137,7 +137,4 @@ struct PixelErrorStatistics {
 PixelErrorStatistics pixel_errors(const CameraRigPredictor& rig, const Eigen::VectorXd& params,
                                   const std::vector<PoseMeasurement>& poses);
 
-// Names of a camera model's parameters in layout order ("fx", "fy", "cx", "cy", "k1", ...).
-std::vector<std::string> camera_parameter_names(vision::CameraKind kind);
-
 }  // namespace robocal::calib

@@ -118,7 +118,4 @@ IntrinsicCalibrationResult calibrate_intrinsics(const std::vector<CalibrationVie
 /// Names of the 3x3 image regions, row-major ("top-left" ... "bottom-right").
 const std::vector<std::string>& image_region_names();
 
-/// Names of the parameters of a camera kind ("fx", "fy", "cx", "cy", "k1", ...).
-std::vector<std::string> camera_param_names(CameraKind kind);
-
 }  // namespace robocal::vision
