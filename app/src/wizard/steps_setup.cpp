@@ -17,6 +17,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -81,7 +82,8 @@ void explain_identifiability(const WizardContext& ctx, const calib::Mechanism& m
              "What a calibration with this model can find (6-D board poses seen by the cameras, "
              "{} poses spread over the workspace):\n"
              "  {} of the {} free geometric parameters can be identified;\n"
-             "  {} cannot be told apart from others and stay at their nominal values.\n",
+             "  {} have no effect on what the cameras see or cannot be told apart from others:\n"
+             "  they stay at their nominal values (only their combinations are identified).\n",
              poses.size(), report.rank, cand.size(), report.redundant.size());
   std::size_t shown = 0;
   for (const auto& r : report.redundancies) {
@@ -176,6 +178,7 @@ class ControllerStep final : public Step {
                             "Home the robot now? Every axis moves to its endstop (collection "
                             "homes anyway, after the safety confirmation)",
                             false)) {
+          guard.arm("the operator confirmed homing in the wizard");
           robot.home();
           fmt::print(ctx.out, "Homed.\n");
         }
@@ -215,7 +218,7 @@ std::vector<CameraEntry> parse_cameras(const std::string& text) {
 
 // Opens each camera, checks one frame; true when every check passed.
 bool check_cameras(const WizardContext& ctx, const std::vector<CameraEntry>& cams,
-                   const vision::TargetBoard& board) {
+                   const vision::TargetBoard& board, int width, int height) {
   bool all_ok = true;
   vision::AprilTagDetectorOptions dopt;
   dopt.family = board.spec.family;
@@ -224,6 +227,7 @@ bool check_cameras(const WizardContext& ctx, const std::vector<CameraEntry>& cam
     try {
       auto cam = robotio::open_camera_source(c.source, c.name);
       const auto info = cam->info();
+      if (width > 0) cam->set_region({0, 0, width, height});
       cam->start(robotio::TriggerMode::kSoftware);
       const robotio::Frame frame = cam->grab(std::chrono::milliseconds(5000));
       cam->stop();
@@ -271,20 +275,30 @@ class CamerasStep final : public Step {
       const std::string target = ctx.ask.ask(
           "cameras.target", "Target file of the board on the end-effector (vision/README.md)",
           ctx.state.get("cameras.target"));
+      const std::string size = ctx.ask.ask(
+          "cameras.size",
+          "Image size the cameras deliver, WIDTHxHEIGHT as their intrinsics ('keep': as set now)",
+          ctx.state.get("cameras.size", "keep"));
       std::vector<CameraEntry> cams;
       vision::TargetBoard board;
+      int width = 0;
+      int height = 0;
       try {
         cams = parse_cameras(list);
         board = load_board(target);
+        if (size != "keep" &&
+            (std::sscanf(size.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0))
+          throw InputError(fmt::format("'{}': give the size as WIDTHxHEIGHT, e.g. 1280x960", size));
       } catch (const InputError& e) {
         say_check(ctx, false, e.what(),
                   "give the cameras as NAME=SOURCE and an existing target file");
         continue;
       }
       ctx.state.set("cameras.list", list);
+      ctx.state.set("cameras.size", size);
       ctx.state.set("cameras.target", fs::absolute(target).string());
       for (;;) {
-        const bool ok = check_cameras(ctx, cams, board);
+        const bool ok = check_cameras(ctx, cams, board, width, height);
         say_check(ctx, ok,
                   ok ? "every camera sees the whole board, sharp and well exposed"
                      : "a camera is not ready (above)",
