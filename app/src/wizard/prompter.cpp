@@ -104,7 +104,7 @@ std::string Prompter::ask(const std::string& key, const std::string& question,
   const auto it = answers_.find(key);
   if (it != answers_.end() && used_.count(key) == 0) {
     used_.insert(key);
-    const std::string value = it->second.empty() ? default_value : it->second;
+    std::string value = it->second.empty() ? default_value : it->second;
     fmt::print(out_, "{}: {}   (answers file: {})\n", shown, value, key);
     given_[key] = value;
     return value;

@@ -3,15 +3,23 @@
 // stages), validation on held-out poses and the export.
 #include "cli/cli_common.hpp"
 #include "live/collect.hpp"
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/held_out_errors.hpp"
+#include "session/results_files.hpp"
+#include "session/results_layout.hpp"
 #include "session/session.hpp"
+#include "session/session_robot.hpp"
 #include "stages/export_stage.hpp"
 #include "stages/stages.hpp"
 #include "wizard/step.hpp"
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 namespace robocal::app::wizard {
@@ -136,16 +144,36 @@ class IdentifyStep final : public Step {
         missing.push_back((s.path(s.intrinsics_views) / c.name).string());
     if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
       missing.push_back(s.path(s.rig_views).string());
-    if (!missing.empty()) {
+    while (!missing.empty()) {
       std::string list;
       for (const auto& m : missing) list += "\n    " + m;
       say_check(
           ctx, false,
           "the measurement needs calibration views that the session does not have yet:" + list,
-          "the wizard cannot record calibration views live yet: record them (board "
-          "images, app/SESSION.md) into those folders, then run `robocal wizard --resume " +
-              ctx.state.folder.string() + "`");
-      return StepOutcome::stopped("calibration views missing; the recorded poses are kept");
+          "the wizard does not record calibration views live yet: give a folder that "
+          "holds them as app/SESSION.md lays them out (intrinsics/<camera>/*.png, "
+          "rig/view_NNN/<camera>.png, of the board on the end-effector) and the wizard "
+          "copies them into the session, or stop and resume later");
+      const std::string views = ctx.ask.ask(
+          "identify.views", "Folder with the calibration views ('quit' to stop here)", "quit");
+      if (views == "quit")
+        return StepOutcome::stopped("calibration views missing; the recorded poses are kept");
+      if (!fs::is_directory(fs::path(views) / "intrinsics")) {
+        fmt::print(ctx.out, "  {}: no intrinsics/ folder in it\n", views);
+        continue;
+      }
+      // Recorded data is written once: only what the session does not have is copied.
+      const fs::path into = ctx.state.session() / "calibration";
+      fs::create_directories(into);
+      for (const char* sub : {"intrinsics", "rig"})
+        if (fs::is_directory(fs::path(views) / sub) && !fs::exists(into / sub))
+          fs::copy(fs::path(views) / sub, into / sub, fs::copy_options::recursive);
+      missing.clear();
+      for (const auto& c : s.cameras)
+        if (!has_images(s.path(s.intrinsics_views) / c.name))
+          missing.push_back((s.path(s.intrinsics_views) / c.name).string());
+      if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
+        missing.push_back(s.path(s.rig_views).string());
     }
     PipelineLog log;
     log.out = ctx.out;
@@ -160,34 +188,101 @@ class IdentifyStep final : public Step {
   }
 };
 
+// The session without its held-out poses (every K-th used pose): the recorded files, shared by
+// copy (the fit session is the wizard's own scratch, never a recording).
+std::set<std::string> make_fit_session(const fs::path& session, const fs::path& fit,
+                                       const std::vector<MeasuredPose>& used, int every) {
+  std::set<std::string> held;
+  for (std::size_t k = 0; k < used.size(); ++k)
+    if ((k + 1) % static_cast<std::size_t>(every) == 0) held.insert(used[k].pose);
+  fs::remove_all(fit);
+  fs::create_directories(fit / "poses");
+  for (const auto& e : fs::directory_iterator(session)) {
+    const std::string name = e.path().filename().string();
+    if (name == "poses" || name == "results") continue;
+    fs::copy(e.path(), fit / name, fs::copy_options::recursive);
+  }
+  for (const auto& e : fs::directory_iterator(session / "poses"))
+    if (held.count(e.path().filename().string()) == 0)
+      fs::copy(e.path(), fit / "poses" / e.path().filename(), fs::copy_options::recursive);
+  return held;
+}
+
 class ValidateStep final : public Step {
  public:
   std::string key() const override { return "validate"; }
   std::string title() const override { return "Validate on held-out poses"; }
   std::string what() const override {
-    return "Every K-th measured pose is left out of a second fit and predicted by it: the "
-           "error on poses the fit never saw is what to expect in use.";
+    return "Every K-th measured pose is left out of a second identification; the model fitted "
+           "without them predicts where the board was at those poses, and the cameras say "
+           "where it really was. That error, on poses the fit never saw, is what to expect in "
+           "use.";
   }
   StepOutcome run(WizardContext& ctx) override {
-    const std::string every =
-        ctx.ask.ask("validate.holdout_every", "Hold out every K-th pose", "4");
-    const fs::path results = ctx.state.session() / "results";
-    const fs::path json = results / "wizard_validation.json";
-    const std::string measurements = (results / "measurements.yaml").string();
-    const std::string robot = ctx.state.get("robot.file");
-    const std::string json_path = json.string();
-    const std::vector<const char*> argv = {
-        "robocal", "identify",    "--measurements",  measurements.c_str(),
-        "--robot", robot.c_str(), "--holdout-every", every.c_str(),
-        "--quiet", "--json",      json_path.c_str()};
-    const int code = run_cli(static_cast<int>(argv.size()), argv.data());
-    if (code != 0 || !fs::exists(json))
-      return StepOutcome::stopped(fmt::format("the held-out fit failed (exit {})", code));
-    std::ifstream in(json);
-    const auto j = nlohmann::json::parse(in);
-    fmt::print(ctx.out, "Held-out validation: {}\n",
-               j.value("validation", nlohmann::json{}).dump());
-    say_check(ctx, true, "held-out validation written to " + json_path);
+    const std::string every_text =
+        ctx.ask.ask("validate.holdout_every", "Hold out every K-th measured pose", "4");
+    const int every = std::max(2, std::atoi(every_text.c_str()));
+    const ResultsLayout results{ctx.state.session()};
+    const auto used = read_used_measured_poses(results, "run the identify step first");
+    const fs::path fit = ctx.state.folder / "validation" / "fit_session";
+    const auto held = make_fit_session(ctx.state.session(), fit, used, every);
+    if (held.empty())
+      return StepOutcome::stopped(
+          fmt::format("{} measured poses: too few to hold every {}th out; record more poses",
+                      used.size(), every));
+    fmt::print(ctx.out, "Fitting without {} of the {} measured poses...\n", held.size(),
+               used.size());
+    PipelineLog log;
+    log.out = nullptr;  // the same stages as the identify step, quietly
+    const auto measured = measure_session(fit, "", log);
+    const auto ident = measured.value("status", "") == "ok"
+                           ? identify_session(fit, "", log, "pose", true)
+                           : measured;
+    if (ident.value("status", "") != "ok")
+      return StepOutcome::stopped(
+          "the fit without the held-out poses failed: " + ident.value("message", std::string("?")) +
+          "; record more poses (a larger plan)");
+    const SessionRobot robot = session_robot(load_session(fit), "");
+    const IdentificationFile id = read_identification(ResultsLayout{fit}, robot.model, "");
+    std::vector<Eigen::Vector3d> measured_at, calibrated_at, nominal_at;
+    int unanswered = 0;
+    for (const auto& p : used) {
+      if (held.count(p.pose) == 0) continue;
+      const auto cal =
+          calib::forward_kinematics(robot.model, id.estimate, p.actuators, robot.frame);
+      const auto nom = calib::forward_kinematics(robot.model, id.start, p.actuators, robot.frame);
+      if (!cal.closure.ok() || !nom.closure.ok()) {
+        ++unanswered;
+        continue;
+      }
+      measured_at.push_back(p.rig_T_target.translation());
+      calibrated_at.push_back(cal.pose.translation());
+      nominal_at.push_back(nom.pose.translation());
+    }
+    const auto cal = calib::position_error_stats(calibrated_at, measured_at);
+    const auto nom = calib::position_error_stats(nominal_at, measured_at);
+    nlohmann::json j = {
+        {"held_out_every", every},
+        {"held_out_poses", std::vector<std::string>(held.begin(), held.end())},
+        {"unanswered", unanswered},
+        {"calibrated", {{"rms_m", cal.rms}, {"max_m", cal.max}, {"poses", cal.n}}},
+        {"nominal_base_fitted", {{"rms_m", nom.rms}, {"max_m", nom.max}, {"poses", nom.n}}}};
+    write_json(j, (ctx.state.folder / "validation" / "validation.json").string());
+    fmt::print(ctx.out,
+               "On {} held-out poses, measured by the cameras:\n"
+               "  calibrated model: {:.1f} um RMS, {:.1f} um max\n"
+               "  nominal model (base frame fitted): {:.1f} um RMS, {:.1f} um max\n",
+               cal.n, cal.rms * 1e6, cal.max * 1e6, nom.rms * 1e6, nom.max * 1e6);
+    const bool better = cal.n > 0 && cal.rms < nom.rms;
+    say_check(ctx, better,
+              better ? "the calibration predicts poses it never saw better than the nominal model"
+                     : "the calibration does not predict the held-out poses better than the "
+                       "nominal model",
+              "record more poses (a larger plan), check that the board is rigidly fixed, and "
+              "run the wizard again");
+    if (!better && ctx.ask.choose("validate.problem", "Export anyway, or stop here",
+                                  {"continue", "quit"}, "quit") == "quit")
+      return StepOutcome::stopped("the validation on held-out poses failed");
     return StepOutcome::done();
   }
 };

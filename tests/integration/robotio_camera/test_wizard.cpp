@@ -10,16 +10,21 @@
 #include "sim_camera_cell.hpp"
 
 #include "robocal/vision/pose.hpp"
+#include "robocal/vision/renderer.hpp"
+
+#include <opencv2/imgcodecs.hpp>
 
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
 #include <set>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -59,6 +64,23 @@ BoardMounting mounting() {
   return m;
 }
 
+// The operator's robot file: the library's linear delta with its tool frame where the board
+// sits on the effector (the board's frame), as the robot file format describes a tool.
+std::string robot_yaml() {
+  std::ifstream in(testing::testdata("robots/linear_delta.yaml"));
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string s = text.str();
+  const std::string tool = "params: {z: 0}}";
+  const auto at = s.find("{name: tool,");
+  const auto p = s.find(tool, at);
+  if (at == std::string::npos || p == std::string::npos) return {};
+  s.replace(p, tool.size(),
+            fmt::format("params: {{x: {:.6f}, y: {:.6f}, z: {:.6f}, roll: deg(180)}}}}",
+                        kBoardOnTool.x(), kBoardOnTool.y(), kBoardOnTool.z()));
+  return s;
+}
+
 // The cell as the operator describes it: the cameras where the simulation has them, a safe
 // workspace box, the board on the tool.
 std::string cell_yaml(const fs::path& board, const Eigen::Vector3d& ws_min,
@@ -76,8 +98,67 @@ std::string cell_yaml(const fs::path& board, const Eigen::Vector3d& ws_min,
   return fmt::format(
       "cell: wizard_test\nunits: m\ncameras:\n{}workspace: {{min: {}, max: {}}}\n"
       "margins: {{clearance: 0.005, self_clearance: 0.0005}}\n"
-      "target:\n  file: {}\n  position: {}\n  rpy: [{:.12f}, 0, 0]\n",
-      cams, vec(ws_min), vec(ws_max), board.string(), vec(kBoardOnTool), kPi);
+      "target:\n  file: {}\n  position: [0, 0, 0]\n  rpy: [0, 0, 0]\n",
+      cams, vec(ws_min), vec(ws_max), board.string());
+}
+
+// A board pose in a camera's frame: the board centre on the ray through pixel (u, v) at `depth`,
+// the board tilted by `tilt` (rad) about an axis at `azimuth` in its plane.
+Eigen::Isometry3d board_in_view(const vision::CameraModel& cam, double u, double v, double depth,
+                                double tilt, double azimuth) {
+  const Eigen::Vector3d eye =
+      kBoardCentre + depth * Eigen::Vector3d(std::sin(tilt) * std::cos(azimuth),
+                                             std::sin(tilt) * std::sin(azimuth), -std::cos(tilt));
+  const Eigen::Isometry3d centred =
+      vision::camera_T_board_look_at(eye, kBoardCentre, Eigen::Vector3d(0, -1, 0));
+  const Eigen::Vector3d ray((u - cam.params[2]) / cam.params[0],
+                            (v - cam.params[3]) / cam.params[1], 1.0);
+  Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+  turn.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), ray.normalized())
+                      .toRotationMatrix();
+  return turn * centred;
+}
+
+// Calibration views as an operator would record them with the board held in front of the
+// cameras (rendered like the simulated cameras' frames): per camera 24 views at 7-11 cm, tilted,
+// over the whole image, for its intrinsics; 8 views both cameras share, for the rig. Laid out
+// as app/SESSION.md's calibration/ folder.
+void render_calibration_views(const fs::path& out, const vision::TargetBoard& board) {
+  for (int c = 0; c < 2; ++c) {
+    const auto spec = camera_spec(c);
+    const auto rays = vision::precompute_rays(spec.model);
+    fs::create_directories(out / "intrinsics" / fmt::format("cam{}", c));
+    for (int k = 0; k < 24; ++k) {
+      const double u = 110.0 + 140.0 * (k % 4);
+      const double v = 100.0 + 140.0 * ((k / 4) % 3);
+      const double tilt = (20.0 + 10.0 * (k % 3)) * kPi / 180.0;
+      const double azimuth = (45.0 * k) * kPi / 180.0;
+      vision::RenderOptions o = spec.render;
+      o.seed = 50U + static_cast<unsigned>(k);
+      const auto r = vision::render(
+          rays, {{board, board_in_view(spec.model, u, v, 0.07 + 0.02 * (k % 3), tilt, azimuth)}},
+          o);
+      cv::imwrite((out / "intrinsics" / fmt::format("cam{}", c) / fmt::format("view_{:03}.png", k))
+                      .string(),
+                  r.image);
+    }
+  }
+  const auto spec0 = camera_spec(0);
+  for (int k = 0; k < 8; ++k) {
+    const fs::path view = out / "rig" / fmt::format("view_{:03}", k);
+    fs::create_directories(view);
+    const Eigen::Isometry3d cam0_T_board = board_in_view(
+        spec0.model, 300.0 + 20.0 * (k % 3), 220.0 + 20.0 * (k % 2), 0.2 + 0.02 * (k % 4),
+        (15.0 + 5.0 * (k % 3)) * kPi / 180.0, 60.0 * k * kPi / 180.0);
+    for (int c = 0; c < 2; ++c) {
+      const auto spec = camera_spec(c);
+      vision::RenderOptions o = spec.render;
+      o.seed = 500U + static_cast<unsigned>(10 * k + c);
+      const auto r = vision::render(vision::precompute_rays(spec.model),
+                                    {{board, spec.camera_T_world * cam0_T_board}}, o);
+      cv::imwrite((view / fmt::format("cam{}.png", c)).string(), r.image);
+    }
+  }
 }
 
 void write(const fs::path& path, const std::string& text) {
@@ -119,6 +200,9 @@ class Wizard : public ::testing::Test {
       cameras_.push_back(std::make_unique<SimulatedGigECamera>(camera_spec(c), board, *truth_));
     const SafetyLimits l = test::delta_limits();
     write(dir_ / "cell.yaml", cell_yaml(board_, l.workspace_min, l.workspace_max));
+    robot_ = dir_ / "linear_delta_board.yaml";
+    write(robot_, robot_yaml());
+    ASSERT_NE(robot_yaml().find("roll: deg(180)"), std::string::npos);
     // The operator has jogged the robot so that the board is in both cameras' view.
     {
       const calib::Mechanism model = test::linear_delta();
@@ -137,7 +221,7 @@ class Wizard : public ::testing::Test {
   std::map<std::string, std::string> answers(
       const std::map<std::string, std::string>& changes = {}) const {
     std::map<std::string, std::string> a = {
-        {"robot.model", "linear_delta"},
+        {"robot.model", robot_.string()},
         {"controller.steps_per_mm", "80"},
         {"controller.steps_per_degree", "100"},
         {"controller.link", sim_->tcp()},
@@ -155,6 +239,7 @@ class Wizard : public ::testing::Test {
         {"safety.acceleration", "4"},
         {"safety.confirm", "yes"},
         {"collection.continue", "yes"},
+        {"identify.views", "quit"},
     };
     for (const auto& [k, v] : changes) a[k] = v;
     return a;
@@ -181,6 +266,7 @@ class Wizard : public ::testing::Test {
 
   fs::path dir_;
   fs::path board_;
+  fs::path robot_;
   std::string log_;
   std::unique_ptr<SimControllerProcess> sim_;
   std::unique_ptr<SimControllerTruth> truth_;
@@ -223,6 +309,26 @@ TEST_F(Wizard, AnswersFileDrivesTheFlowWithoutATerminal) {
   EXPECT_EQ(again, 1) << out;
   EXPECT_NE(out.find("done before"), std::string::npos) << out;
   EXPECT_EQ(moves_received(log_) - moves_before_, planned);
+
+  // With the calibration views, the flow finishes: measure, identify, held-out validation,
+  // export; still nothing moves.
+  render_calibration_views(dir_ / "views", vision::load_target_file(board_));
+  const int finish =
+      run_answers(folder,
+                  write_answers("a1b.txt", answers({{"identify.views", (dir_ / "views").string()},
+                                                    {"validate.holdout_every", "3"},
+                                                    {"export.format", "marlin"}})),
+                  &out, true);
+  EXPECT_EQ(finish, 0) << out;
+  EXPECT_NE(out.find("All steps done"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(folder / "export" / "calibrated.marlin")) << out;
+  // The held-out poses were predicted by a fit that did not see them, better than nominal.
+  std::ifstream vjson(folder / "validation" / "validation.json");
+  const auto v = nlohmann::json::parse(vjson);
+  EXPECT_GE(v["calibrated"]["poses"].get<int>(), 1) << v.dump();
+  EXPECT_LT(v["calibrated"]["rms_m"].get<double>(), v["nominal_base_fitted"]["rms_m"].get<double>())
+      << v.dump();
+  EXPECT_EQ(moves_received(log_) - moves_before_, planned);
 }
 
 // Types `line` once `prompt` shows; fails the test (with what the wizard printed) otherwise.
@@ -242,7 +348,7 @@ TEST_F(Wizard, KeystrokesOnATerminalCtrlCDuringCollectionAndResumeLoseNoPose) {
     // A robot the library does not have: the step says so and asks again.
     TYPE_AT(w, "Robot (library name or robot file)", "no_such_robot");
     ASSERT_TRUE(w.expect("neither a file nor a library robot", 30s)) << w.output();
-    TYPE_AT(w, "Robot (library name or robot file)", "linear_delta");
+    TYPE_AT(w, "Robot (library name or robot file)", robot_.string());
     TYPE_AT(w, "Steps per mm", "");  // the default, 80
     TYPE_AT(w, "Steps per degree", "");
     TYPE_AT(w, "Controller address", sim_->tcp());
@@ -282,6 +388,7 @@ TEST_F(Wizard, KeystrokesOnATerminalCtrlCDuringCollectionAndResumeLoseNoPose) {
     test::PtyProcess w(ROBOCAL_BINARY, {"wizard", "--resume", folder.string()});
     TYPE_AT(w, "Continue the interrupted collection", "yes");
     ASSERT_TRUE(w.expect("every planned pose is recorded", 240s)) << w.output();
+    TYPE_AT(w, "Folder with the calibration views", "");  // default: quit
     EXPECT_EQ(w.wait(60s), 1) << w.output();  // identify: no calibration views (explained)
   }
   EXPECT_EQ(pose_folders(folder / "session").size(), static_cast<std::size_t>(planned));
