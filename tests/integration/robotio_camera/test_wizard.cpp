@@ -245,9 +245,9 @@ class Wizard : public ::testing::Test {
     return a;
   }
   fs::path write_answers(const std::string& name, const std::map<std::string, std::string>& a) {
-    const fs::path p = dir_ / name;
+    fs::path p = dir_ / name;
     std::string text = "# answers by key\n";
-    for (const auto& [k, v] : a) text += k + "=" + v + "\n";
+    for (const auto& [k, v] : a) text += fmt::format("{}={}\n", k, v);
     write(p, text);
     return p;
   }
