@@ -255,9 +255,9 @@ class ValidateStep final : public Step {
         ++unanswered;
         continue;
       }
-      measured_at.push_back(p.rig_T_target.translation());
-      calibrated_at.push_back(cal.pose.translation());
-      nominal_at.push_back(nom.pose.translation());
+      measured_at.emplace_back(p.rig_T_target.translation());
+      calibrated_at.emplace_back(cal.pose.translation());
+      nominal_at.emplace_back(nom.pose.translation());
     }
     const auto cal = calib::position_error_stats(calibrated_at, measured_at);
     const auto nom = calib::position_error_stats(nominal_at, measured_at);
