@@ -2,6 +2,7 @@
 
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
+#include "cli/pause_key.hpp"
 #include "cli/progress.hpp"
 #include "live/cell_clearance.hpp"
 #include "robocal/calib/robot_file.hpp"
@@ -38,8 +39,8 @@ namespace {
 namespace fs = std::filesystem;
 using robotio::SafetyGuard;
 
-// Waits between poses while paused (SIGUSR1); a stop request ends the wait (the guard then
-// refuses the next move, and capture stops with the reason).
+// Waits between poses while paused (the p key or SIGUSR1); a stop request ends the wait (the guard
+// then refuses the next move, and capture stops with the reason).
 class PausableRobot final : public robotio::CaptureRobot {
  public:
   PausableRobot(robotio::CaptureRobot& inner, const SafetyGuard& guard, std::FILE* out)
@@ -57,8 +58,8 @@ class PausableRobot final : public robotio::CaptureRobot {
     while (robotio::StopSignals::paused() && !guard_->stop_requested()) {
       if (!said && out_ != nullptr) {
         fmt::print(out_,
-                   "\ncollect: paused (robot standing still). Send SIGUSR1 again to go on "
-                   "(kill -USR1 {}), Ctrl-C to stop.\n",
+                   "\ncollect: paused (robot standing still). Press p again (or send SIGUSR1: "
+                   "kill -USR1 {}) to go on, Ctrl-C to stop.\n",
                    ::getpid());
         std::fflush(out_);
       }
@@ -428,6 +429,9 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   guard.arm(o.yes ? "--yes on the command line" : "typed yes at the prompt");
 
   const robotio::StopSignals signals(guard);
+  const PauseKey pause_key;
+  if (out != nullptr && pause_key.active())
+    fmt::print(out, "press p to pause between poses, Ctrl-C to stop the robot\n");
   nlohmann::json summary_poses = nlohmann::json::array();
   robotio::CaptureResult result;
   try {
