@@ -18,6 +18,8 @@ packages=(
   liburdfdom-dev
   # file formats, command line, logging
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
+  # the wizard's line editing
+  libreadline-dev
   # tests and benchmarks; chromium renders the HTML report headless in its test
   libgtest-dev libgmock-dev libbenchmark-dev chromium
 )

@@ -73,6 +73,7 @@ CommandSpec compensate_command();
 CommandSpec report_command();
 CommandSpec export_command();
 CommandSpec collect_command();
+CommandSpec wizard_command();
 
 // In the order of a calibration: the demo first, then the steps a user runs on real data.
 const std::vector<CommandSpec>& all_commands() {
@@ -81,7 +82,7 @@ const std::vector<CommandSpec>& all_commands() {
       demo_command(), kin_command(), target_command(), render_command(), intrinsics_command(),
       rig_command(), measure_command(), identify_command(), simulate_command(),
       validate_command(), batch_command(), batch_merge_command(), plan_command(),
-      collect_command(), sim_controller_command(), version_command(), compensate_command(),
+      wizard_command(), collect_command(), sim_controller_command(), version_command(), compensate_command(),
       report_command(), export_command(),
       // clang-format on
   };

@@ -1,0 +1,339 @@
+// Safety confirmation (every planned motion checked by the guard first: collect's dry run),
+// collection (collect_session: progress, pause, Ctrl-C, resume), identify (measure + identify
+// stages), validation on held-out poses and the export.
+#include "cli/cli_common.hpp"
+#include "live/collect.hpp"
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/held_out_errors.hpp"
+#include "session/results_files.hpp"
+#include "session/results_layout.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+#include "stages/export_stage.hpp"
+#include "stages/stages.hpp"
+#include "wizard/step.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace robocal::app::wizard {
+namespace {
+
+namespace fs = std::filesystem;
+
+CollectOptions collect_options(const WizardState& s) {
+  CollectOptions o;
+  o.session = s.session();
+  o.robot = s.get("robot.file");
+  o.cell = (s.folder / "cell.yaml").string();
+  o.plan = s.get("plan.file");
+  o.link = s.get("controller.link");
+  o.steps_per_mm = std::stod(s.get("controller.steps_per_mm", "80"));
+  o.steps_per_degree = std::stod(s.get("controller.steps_per_degree", "100"));
+  o.speed = std::stod(s.get("safety.speed", "0.02"));
+  o.acceleration = std::stod(s.get("safety.acceleration", "0.5"));
+  std::istringstream in(s.get("cameras.list"));
+  std::string item;
+  while (in >> item) {
+    const auto eq = item.find('=');
+    o.cameras.push_back({item.substr(0, eq), item.substr(eq + 1)});
+  }
+  o.yes = true;  // the wizard asked (safety step, and again before a resumed collection)
+  return o;
+}
+
+class SafetyStep final : public Step {
+ public:
+  std::string key() const override { return "safety"; }
+  std::string title() const override { return "Safety check and confirmation"; }
+  std::string what() const override {
+    return "Every motion of the plan is checked first, without moving: inside the safe "
+           "workspace, clear of obstacles along the whole path, within the actuator limits and "
+           "the speed you set. Then you confirm that the cell is clear and the robot may move.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    for (;;) {
+      ctx.state.set("safety.speed",
+                    ctx.ask.ask("safety.speed", "Axis speed limit (m/s, or rad/s for rotary axes)",
+                                ctx.state.get("safety.speed", "0.02")));
+      ctx.state.set("safety.acceleration",
+                    ctx.ask.ask("safety.acceleration", "Axis acceleration limit (per s^2)",
+                                ctx.state.get("safety.acceleration", "0.5")));
+      CollectOptions o = collect_options(ctx.state);
+      o.dry_run = true;
+      PipelineLog log;
+      log.out = ctx.out;
+      const CollectOutcome dry = collect_session(o, log);
+      if (dry.status != "dry_run_ok") {
+        say_check(ctx, false, "the safety guard refuses a motion of the plan: " + dry.message,
+                  "plan again with a larger safe workspace or fewer obstacles in the way, or "
+                  "lower the speed");
+        if (ctx.ask.choose("safety.problem", "Retry with other limits, or stop here",
+                           {"retry", "quit"}, "quit") == "quit")
+          return StepOutcome::stopped("the plan has motions the safety guard refuses");
+        continue;
+      }
+      say_check(ctx, true, "every planned motion passes the safety guard");
+      fmt::print(ctx.out,
+                 "Before the robot moves: is the cell clear of people and loose objects, is the "
+                 "emergency stop in reach? During the collection Ctrl-C stops the robot at once "
+                 "(resume later with `robocal wizard --resume {}`); kill -USR1 pauses.\n",
+                 ctx.state.folder.string());
+      if (!ctx.ask.confirm("safety.confirm", "The cell is clear: may the robot move", false))
+        return StepOutcome::stopped("not confirmed: nothing moved");
+      return StepOutcome::done();
+    }
+  }
+};
+
+class CollectionStep final : public Step {
+ public:
+  std::string key() const override { return "collection"; }
+  std::string title() const override { return "Collection"; }
+  std::string what() const override {
+    return "The robot is homed, then driven to each planned pose; at each, every camera takes "
+           "its frames and the controller's axis readings are recorded. Each pose is written "
+           "whole or not at all, so an interruption loses nothing.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    CollectOptions o = collect_options(ctx.state);
+    o.resume = fs::exists(o.session / "session.yaml");
+    if (o.resume &&
+        !ctx.ask.confirm("collection.continue",
+                         "Continue the interrupted collection (the robot moves again)", false))
+      return StepOutcome::stopped("not confirmed: nothing moved");
+    PipelineLog log;
+    log.out = ctx.out;
+    const CollectOutcome r = collect_session(o, log);
+    if (r.status == "ok") {
+      say_check(ctx, true, fmt::format("every planned pose is recorded in {}", o.session.string()));
+      return StepOutcome::done();
+    }
+    if (r.status == "interrupted") return {StepOutcome::Kind::kInterrupted, r.message, r.signal};
+    return StepOutcome::stopped("collection " + r.status + ": " + r.message);
+  }
+};
+
+bool has_images(const fs::path& dir) {
+  if (!fs::is_directory(dir)) return false;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.path().extension() == ".png") return true;
+  return false;
+}
+
+class IdentifyStep final : public Step {
+ public:
+  std::string key() const override { return "identify"; }
+  std::string title() const override { return "Identify the geometry"; }
+  std::string what() const override {
+    return "The board's pose is measured in every recorded pose (the cameras' intrinsics and "
+           "their relative placement come from the session's calibration views), then the "
+           "robot's geometry is fitted to the measurements.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    const Session s = load_session(ctx.state.session());
+    std::vector<std::string> missing;
+    for (const auto& c : s.cameras)
+      if (!has_images(s.path(s.intrinsics_views) / c.name))
+        missing.push_back((s.path(s.intrinsics_views) / c.name).string());
+    if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
+      missing.push_back(s.path(s.rig_views).string());
+    while (!missing.empty()) {
+      std::string list;
+      for (const auto& m : missing) list += "\n    " + m;
+      say_check(
+          ctx, false,
+          "the measurement needs calibration views that the session does not have yet:" + list,
+          "the wizard does not record calibration views live yet: give a folder that "
+          "holds them as app/SESSION.md lays them out (intrinsics/<camera>/*.png, "
+          "rig/view_NNN/<camera>.png, of the board on the end-effector) and the wizard "
+          "copies them into the session, or stop and resume later");
+      const std::string views = ctx.ask.ask(
+          "identify.views", "Folder with the calibration views ('quit' to stop here)", "quit");
+      if (views == "quit")
+        return StepOutcome::stopped("calibration views missing; the recorded poses are kept");
+      if (!fs::is_directory(fs::path(views) / "intrinsics")) {
+        fmt::print(ctx.out, "  {}: no intrinsics/ folder in it\n", views);
+        continue;
+      }
+      // Recorded data is written once: only what the session does not have is copied.
+      const fs::path into = ctx.state.session() / "calibration";
+      fs::create_directories(into);
+      for (const char* sub : {"intrinsics", "rig"})
+        if (fs::is_directory(fs::path(views) / sub) && !fs::exists(into / sub))
+          fs::copy(fs::path(views) / sub, into / sub, fs::copy_options::recursive);
+      missing.clear();
+      for (const auto& c : s.cameras)
+        if (!has_images(s.path(s.intrinsics_views) / c.name))
+          missing.push_back((s.path(s.intrinsics_views) / c.name).string());
+      if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
+        missing.push_back(s.path(s.rig_views).string());
+    }
+    PipelineLog log;
+    log.out = ctx.out;
+    const auto measured = measure_session(ctx.state.session(), "", log);
+    if (measured.value("status", "") != "ok")
+      return StepOutcome::stopped("measure: " + measured.value("message", std::string("failed")));
+    const auto ident = identify_session(ctx.state.session(), "", log, "pose", true);
+    if (ident.value("status", "") != "ok")
+      return StepOutcome::stopped("identify: " + ident.value("message", std::string("failed")));
+    say_check(ctx, true, "the geometry is identified (session/results/identification.json)");
+    return StepOutcome::done();
+  }
+};
+
+// The session without its held-out poses (every K-th used pose): the recorded files, shared by
+// copy (the fit session is the wizard's own scratch, never a recording).
+std::set<std::string> make_fit_session(const fs::path& session, const fs::path& fit,
+                                       const std::vector<MeasuredPose>& used, int every) {
+  std::set<std::string> held;
+  for (std::size_t k = 0; k < used.size(); ++k)
+    if ((k + 1) % static_cast<std::size_t>(every) == 0) held.insert(used[k].pose);
+  fs::remove_all(fit);
+  fs::create_directories(fit / "poses");
+  for (const auto& e : fs::directory_iterator(session)) {
+    const std::string name = e.path().filename().string();
+    if (name == "poses" || name == "results") continue;
+    fs::copy(e.path(), fit / name, fs::copy_options::recursive);
+  }
+  for (const auto& e : fs::directory_iterator(session / "poses"))
+    if (held.count(e.path().filename().string()) == 0)
+      fs::copy(e.path(), fit / "poses" / e.path().filename(), fs::copy_options::recursive);
+  return held;
+}
+
+class ValidateStep final : public Step {
+ public:
+  std::string key() const override { return "validate"; }
+  std::string title() const override { return "Validate on held-out poses"; }
+  std::string what() const override {
+    return "Every K-th measured pose is left out of a second identification; the model fitted "
+           "without them predicts where the board was at those poses, and the cameras say "
+           "where it really was. That error, on poses the fit never saw, is what to expect in "
+           "use.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    const std::string every_text =
+        ctx.ask.ask("validate.holdout_every", "Hold out every K-th measured pose", "4");
+    const int every = std::max(2, std::atoi(every_text.c_str()));
+    const ResultsLayout results{ctx.state.session()};
+    const auto used = read_used_measured_poses(results, "run the identify step first");
+    const fs::path fit = ctx.state.folder / "validation" / "fit_session";
+    const auto held = make_fit_session(ctx.state.session(), fit, used, every);
+    if (held.empty())
+      return StepOutcome::stopped(
+          fmt::format("{} measured poses: too few to hold every {}th out; record more poses",
+                      used.size(), every));
+    fmt::print(ctx.out, "Fitting without {} of the {} measured poses...\n", held.size(),
+               used.size());
+    PipelineLog log;
+    log.out = nullptr;  // the same stages as the identify step, quietly
+    const auto measured = measure_session(fit, "", log);
+    const auto ident = measured.value("status", "") == "ok"
+                           ? identify_session(fit, "", log, "pose", true)
+                           : measured;
+    if (ident.value("status", "") != "ok")
+      return StepOutcome::stopped(
+          "the fit without the held-out poses failed: " + ident.value("message", std::string("?")) +
+          "; record more poses (a larger plan)");
+    const SessionRobot robot = session_robot(load_session(fit), "");
+    const IdentificationFile id = read_identification(ResultsLayout{fit}, robot.model, "");
+    std::vector<Eigen::Vector3d> measured_at, calibrated_at, nominal_at;
+    int unanswered = 0;
+    for (const auto& p : used) {
+      if (held.count(p.pose) == 0) continue;
+      const auto cal =
+          calib::forward_kinematics(robot.model, id.estimate, p.actuators, robot.frame);
+      const auto nom = calib::forward_kinematics(robot.model, id.start, p.actuators, robot.frame);
+      if (!cal.closure.ok() || !nom.closure.ok()) {
+        ++unanswered;
+        continue;
+      }
+      measured_at.emplace_back(p.rig_T_target.translation());
+      calibrated_at.emplace_back(cal.pose.translation());
+      nominal_at.emplace_back(nom.pose.translation());
+    }
+    const auto cal = calib::position_error_stats(calibrated_at, measured_at);
+    const auto nom = calib::position_error_stats(nominal_at, measured_at);
+    nlohmann::json j = {
+        {"held_out_every", every},
+        {"held_out_poses", std::vector<std::string>(held.begin(), held.end())},
+        {"unanswered", unanswered},
+        {"calibrated", {{"rms_m", cal.rms}, {"max_m", cal.max}, {"poses", cal.n}}},
+        {"nominal_base_fitted", {{"rms_m", nom.rms}, {"max_m", nom.max}, {"poses", nom.n}}}};
+    write_json(j, (ctx.state.folder / "validation" / "validation.json").string());
+    fmt::print(ctx.out,
+               "On {} held-out poses, measured by the cameras:\n"
+               "  calibrated model: {:.1f} um RMS, {:.1f} um max\n"
+               "  nominal model (base frame fitted): {:.1f} um RMS, {:.1f} um max\n",
+               cal.n, cal.rms * 1e6, cal.max * 1e6, nom.rms * 1e6, nom.max * 1e6);
+    const bool better = cal.n > 0 && cal.rms < nom.rms;
+    say_check(ctx, better,
+              better ? "the calibration predicts poses it never saw better than the nominal model"
+                     : "the calibration does not predict the held-out poses better than the "
+                       "nominal model",
+              "record more poses (a larger plan), check that the board is rigidly fixed, and "
+              "run the wizard again");
+    if (!better && ctx.ask.choose("validate.problem", "Export anyway, or stop here",
+                                  {"continue", "quit"}, "quit") == "quit")
+      return StepOutcome::stopped("the validation on held-out poses failed");
+    return StepOutcome::done();
+  }
+};
+
+class ExportStep final : public Step {
+ public:
+  std::string key() const override { return "export"; }
+  std::string title() const override { return "Export"; }
+  std::string what() const override {
+    return "The calibrated robot written for the controller or another tool.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    std::string formats;
+    for (const auto& f : export_formats()) {
+      if (!formats.empty()) formats += ", ";
+      formats += f;
+    }
+    for (;;) {
+      const std::string format = ctx.ask.ask("export.format", "Format (" + formats + ")", "urdf");
+      const fs::path out = ctx.state.folder / "export" / ("calibrated." + format);
+      fs::create_directories(out.parent_path());
+      try {
+        export_robot({ctx.state.session().string(), format, out.string()});
+        say_check(ctx, true, "written to " + out.string());
+        return StepOutcome::done();
+      } catch (const InputError& e) {
+        say_check(ctx, false, e.what(), "choose a format that can describe this robot");
+        if (ctx.ask.choose("export.problem", "Another format, or stop here", {"retry", "quit"},
+                           "retry") == "quit")
+          return StepOutcome::stopped(e.what());
+      }
+    }
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Step> safety_step() {
+  return std::make_unique<SafetyStep>();
+}
+std::unique_ptr<Step> collection_step() {
+  return std::make_unique<CollectionStep>();
+}
+std::unique_ptr<Step> identify_step() {
+  return std::make_unique<IdentifyStep>();
+}
+std::unique_ptr<Step> validate_step() {
+  return std::make_unique<ValidateStep>();
+}
+std::unique_ptr<Step> export_step() {
+  return std::make_unique<ExportStep>();
+}
+
+}  // namespace robocal::app::wizard

@@ -1,0 +1,333 @@
+// The first three steps: the robot model (and what can be identified, before anything moves),
+// the controller (connected, firmware identified, optionally homed), the cameras (opened, one
+// frame checked for the target, sharpness and exposure).
+#include "cli/cli_common.hpp"
+#include "robocal/calib/identifiability.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/robotio/camera_aravis.hpp"
+#include "robocal/robotio/camera_checks.hpp"
+#include "robocal/robotio/camera_open.hpp"
+#include "robocal/robotio/gcode_link.hpp"
+#include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/safety_guard.hpp"
+#include "robocal/vision/apriltag_detector.hpp"
+#include "session/session_robot.hpp"
+#include "wizard/step.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <sstream>
+
+namespace robocal::app::wizard {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string library_robots() {
+  std::vector<std::string> names;
+  const fs::path dir(ROBOCAL_ROBOT_LIBRARY_DIR);
+  if (fs::is_directory(dir))
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.path().extension() == ".yaml") names.push_back(e.path().stem().string());
+  std::sort(names.begin(), names.end());
+  std::string s;
+  for (const auto& n : names) {
+    if (!s.empty()) s += ", ";
+    s += n;
+  }
+  return s;
+}
+
+// Which of the robot file's free parameters 6-D board poses (what the cameras measure) can
+// separate, from poses spread over the reachable workspace at the nominal geometry.
+void explain_identifiability(const WizardContext& ctx, const calib::Mechanism& model) {
+  const calib::MechanismPredictor predictor(model);
+  const Eigen::VectorXd nominal = model.nominal_parameters();
+  std::mt19937 rng(1);
+  const auto poses = calib::sample_actuators(predictor, {nominal}, 30, rng);
+  const calib::SolveOptions solve = calib::solve_options_from_model(model, false);
+  std::vector<std::size_t> cand = solve.candidates;
+  if (cand.empty())
+    for (std::size_t i = 0; i < predictor.parameter_count(); ++i) cand.push_back(i);
+  const auto all_names = predictor.parameter_labels();
+  std::vector<std::string> names;
+  std::vector<int> preference;
+  for (const std::size_t c : cand) {
+    names.push_back(all_names[c]);
+    if (!solve.preference.empty()) preference.push_back(solve.preference[c]);
+  }
+  Eigen::MatrixXd J(static_cast<Eigen::Index>(6 * poses.size()),
+                    static_cast<Eigen::Index>(cand.size()));
+  Eigen::Index rows = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    calib::FramePrediction fp;
+    std::string why;
+    if (!predictor.predict(nominal, poses[i], static_cast<int>(i), true, fp, why)) continue;
+    for (std::size_t k = 0; k < cand.size(); ++k)
+      J.block(rows, static_cast<Eigen::Index>(k), 6, 1) =
+          fp.jacobian.col(static_cast<Eigen::Index>(cand[k]));
+    rows += 6;
+  }
+  if (rows == 0) {
+    say_check(ctx, false, "the model reaches none of 30 sampled poses",
+              "check the robot file's joint limits");
+    return;
+  }
+  const auto report = calib::analyze_identifiability(J.topRows(rows), names, {}, preference);
+  fmt::print(ctx.out,
+             "What a calibration with this model can find (6-D board poses seen by the cameras, "
+             "{} poses spread over the workspace):\n"
+             "  {} of the {} free geometric parameters can be identified;\n"
+             "  {} have no effect on what the cameras see or cannot be told apart from others:\n"
+             "  they stay at their nominal values (only their combinations are identified).\n",
+             poses.size(), report.rank, cand.size(), report.redundant.size());
+  std::size_t shown = 0;
+  for (const auto& r : report.redundancies) {
+    if (shown++ == 6) {
+      fmt::print(ctx.out, "  ... and {} more (robocal identify explains each)\n",
+                 report.redundancies.size() - 6);
+      break;
+    }
+    fmt::print(ctx.out, "  - {}\n", r.explanation);
+  }
+  ctx.state.set("robot.identifiable", std::to_string(report.rank));
+  ctx.state.set("robot.held", std::to_string(report.redundant.size()));
+  say_check(ctx, report.rank > 0,
+            fmt::format("{} parameters identifiable before anything moves", report.rank),
+            "the model has nothing the cameras can measure: check its free parameters");
+}
+
+class RobotStep final : public Step {
+ public:
+  std::string key() const override { return "robot"; }
+  std::string title() const override { return "The robot model"; }
+  std::string what() const override {
+    return "Which robot is this? Give a library name or the path of a robot file. The wizard "
+           "then says what the calibration can and cannot find with this model.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    fmt::print(ctx.out, "Library robots: {}\n", library_robots());
+    for (;;) {
+      const std::string name = ctx.ask.ask("robot.model", "Robot (library name or robot file)",
+                                           ctx.state.get("robot.model"));
+      try {
+        const std::string file = resolve_robot(name);
+        const calib::Mechanism model = load_robot(file);
+        ctx.state.set("robot.model", name);
+        ctx.state.set("robot.file", fs::absolute(file).string());
+        fmt::print(ctx.out, "Robot: {} ({} actuators), from {}\n", model.name,
+                   model.actuated.size(), file);
+        explain_identifiability(ctx, model);
+        return StepOutcome::done();
+      } catch (const InputError& e) {
+        say_check(ctx, false, e.what(),
+                  "type one of the library names above, or the path of your robot file "
+                  "(robot files: calib/README.md)");
+      }
+    }
+  }
+};
+
+class ControllerStep final : public Step {
+ public:
+  std::string key() const override { return "controller"; }
+  std::string title() const override { return "Connect the controller"; }
+  std::string what() const override {
+    return "The wizard talks G-code to the robot's controller (Marlin or RepRapFirmware) over a "
+           "serial port or TCP. It identifies the firmware and reads where the axes are; nothing "
+           "moves unless you ask for homing.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    const calib::Mechanism model = load_robot(ctx.state.get("robot.file"));
+    const double steps_mm = std::stod(ctx.ask.ask("controller.steps_per_mm",
+                                                  "Steps per mm of the axes (the firmware's M92)",
+                                                  ctx.state.get("controller.steps_per_mm", "80")));
+    const double steps_deg =
+        std::stod(ctx.ask.ask("controller.steps_per_degree", "Steps per degree (rotary axes)",
+                              ctx.state.get("controller.steps_per_degree", "100")));
+    ctx.state.set("controller.steps_per_mm", fmt::format("{}", steps_mm));
+    ctx.state.set("controller.steps_per_degree", fmt::format("{}", steps_deg));
+    for (;;) {
+      const std::string link =
+          ctx.ask.ask("controller.link",
+                      "Controller address (a serial device such as /dev/ttyACM0, or tcp:HOST:PORT)",
+                      ctx.state.get("controller.link", "/dev/ttyACM0"));
+      robotio::SafetyGuard guard(model, model.nominal_parameters(), robotio::SafetyLimits{});
+      robotio::GcodeLinkOptions lo;
+      lo.address = link;
+      lo.axes = robotio::axes_for_robot(model, steps_mm, steps_deg);
+      lo.reply_timeout = std::chrono::milliseconds(2000);
+      lo.reconnect_attempts = 2;
+      try {
+        robotio::GcodeLink robot(guard, lo);
+        const auto fw = robot.connect();
+        fmt::print(ctx.out, "Controller at {}: {}\n", link, fw.name);
+        const auto readings = robot.read_actuators();
+        std::string q;
+        for (Eigen::Index i = 0; i < readings.values.size(); ++i)
+          q += fmt::format("{}{:.4f}", i == 0 ? "" : ", ", readings.values[i]);
+        fmt::print(ctx.out, "Axes now at: [{}] (robot units: m or rad)\n", q);
+        ctx.state.set("controller.link", link);
+        ctx.state.set("controller.firmware", fw.name);
+        say_check(ctx, true, "the controller answers and reports its axes");
+        if (ctx.ask.confirm("controller.home",
+                            "Home the robot now? Every axis moves to its endstop (collection "
+                            "homes anyway, after the safety confirmation)",
+                            false)) {
+          guard.arm("the operator confirmed homing in the wizard");
+          robot.home();
+          fmt::print(ctx.out, "Homed.\n");
+        }
+        robot.disconnect();
+        return StepOutcome::done();
+      } catch (const robotio::LinkError& e) {
+        say_check(ctx, false, fmt::format("no controller at {}: {}", link, e.what()),
+                  "is the controller switched on and its cable plugged in? Is the address right "
+                  "(serial: ls /dev/ttyACM* /dev/ttyUSB*; network: its IP and port)? A firmware "
+                  "other than Marlin or RepRapFirmware is not supported yet");
+        if (ctx.ask.choose("controller.problem", "Try another address, or stop here",
+                           {"retry", "quit"}, "retry") == "quit")
+          return StepOutcome::stopped(fmt::format(
+              "no controller at {} ({}); fix the connection and resume", link, e.what()));
+      }
+    }
+  }
+};
+
+struct CameraEntry {
+  std::string name, source;
+};
+
+std::vector<CameraEntry> parse_cameras(const std::string& text) {
+  std::vector<CameraEntry> out;
+  std::istringstream in(text);
+  std::string item;
+  while (in >> item) {
+    const auto eq = item.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
+      throw InputError(fmt::format("'{}': expected NAME=SOURCE, e.g. cam0=aravis:SERIAL", item));
+    out.push_back({item.substr(0, eq), item.substr(eq + 1)});
+  }
+  if (out.empty()) throw InputError("no camera given");
+  return out;
+}
+
+// Opens each camera, checks one frame; true when every check passed.
+bool check_cameras(const WizardContext& ctx, const std::vector<CameraEntry>& cams,
+                   const vision::TargetBoard& board, int width, int height) {
+  bool all_ok = true;
+  vision::AprilTagDetectorOptions dopt;
+  dopt.family = board.spec.family;
+  vision::AprilTagDetector detector(dopt);
+  for (const auto& c : cams) {
+    try {
+      auto cam = robotio::open_camera_source(c.source, c.name);
+      const auto info = cam->info();
+      if (width > 0) cam->set_region({0, 0, width, height});
+      cam->start(robotio::TriggerMode::kSoftware);
+      const robotio::Frame frame = cam->grab(std::chrono::milliseconds(5000));
+      cam->stop();
+      std::string exposure = "?";
+      try {
+        exposure = fmt::format("{:.0f} us", cam->exposure_us());
+      } catch (const std::exception&) {
+      }
+      cam->close();
+      fmt::print(ctx.out, "{} ({} {} {}x{}; exposure {}):\n", c.name, info.vendor, info.model,
+                 frame.image.cols, frame.image.rows, exposure);
+      const auto report = robotio::check_live_frame(frame.image, board, detector);
+      for (const auto& k : report.checks) {
+        fmt::print(ctx.out, "  {:<10} {}  {}\n", k.name, k.ok ? "ok     " : "PROBLEM", k.summary);
+        if (!k.ok && !k.advice.empty()) fmt::print(ctx.out, "             advice: {}\n", k.advice);
+      }
+      all_ok = all_ok && report.ok();
+    } catch (const std::exception& e) {
+      fmt::print(ctx.out, "{}: cannot open {}: {}\n", c.name, c.source, e.what());
+      all_ok = false;
+    }
+  }
+  return all_ok;
+}
+
+class CamerasStep final : public Step {
+ public:
+  std::string key() const override { return "cameras"; }
+  std::string title() const override { return "The cameras"; }
+  std::string what() const override {
+    return "Name each camera and say where it is (aravis:ID for GigE / USB3 Vision, "
+           "v4l2:/dev/videoN for USB). The wizard takes a frame from each and checks that the "
+           "board on the robot is seen whole, sharp and well exposed.";
+  }
+  StepOutcome run(WizardContext& ctx) override {
+    std::string found;
+    int k = 0;
+    for (const auto& c : robotio::discover_aravis_cameras())
+      found += fmt::format("{}cam{}=aravis:{}", found.empty() ? "" : " ", k++, c.id);
+    fmt::print(ctx.out, "Cameras found: {}\n", found.empty() ? "(none through Aravis)" : found);
+    for (;;) {
+      const std::string list =
+          ctx.ask.ask("cameras.list", "Cameras as NAME=SOURCE, separated by spaces",
+                      ctx.state.get("cameras.list", found));
+      const std::string target = ctx.ask.ask(
+          "cameras.target", "Target file of the board on the end-effector (vision/README.md)",
+          ctx.state.get("cameras.target"));
+      const std::string size = ctx.ask.ask(
+          "cameras.size",
+          "Image size the cameras deliver, WIDTHxHEIGHT as their intrinsics ('keep': as set now)",
+          ctx.state.get("cameras.size", "keep"));
+      std::vector<CameraEntry> cams;
+      vision::TargetBoard board;
+      int width = 0;
+      int height = 0;
+      try {
+        cams = parse_cameras(list);
+        board = load_board(target);
+        if (size != "keep" &&
+            (std::sscanf(size.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0))
+          throw InputError(fmt::format("'{}': give the size as WIDTHxHEIGHT, e.g. 1280x960", size));
+      } catch (const InputError& e) {
+        say_check(ctx, false, e.what(),
+                  "give the cameras as NAME=SOURCE and an existing target file");
+        continue;
+      }
+      ctx.state.set("cameras.list", list);
+      ctx.state.set("cameras.size", size);
+      ctx.state.set("cameras.target", fs::absolute(target).string());
+      for (;;) {
+        const bool ok = check_cameras(ctx, cams, board, width, height);
+        say_check(ctx, ok,
+                  ok ? "every camera sees the whole board, sharp and well exposed"
+                     : "a camera is not ready (above)",
+                  "move the robot or the camera until the board is in view, focus, adjust the "
+                  "exposure or the light, then retry");
+        if (ok) return StepOutcome::done();
+        const std::string c =
+            ctx.ask.choose("cameras.problem", "Retry the check, continue anyway, or stop here",
+                           {"retry", "continue", "quit"}, "retry");
+        if (c == "continue") return StepOutcome::done();
+        if (c == "quit")
+          return StepOutcome::stopped(
+              "the cameras are not ready (see the checks above); resume "
+              "when they are");
+      }
+    }
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Step> robot_step() {
+  return std::make_unique<RobotStep>();
+}
+std::unique_ptr<Step> controller_step() {
+  return std::make_unique<ControllerStep>();
+}
+std::unique_ptr<Step> cameras_step() {
+  return std::make_unique<CamerasStep>();
+}
+
+}  // namespace robocal::app::wizard
