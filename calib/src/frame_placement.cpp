@@ -49,4 +49,43 @@ double set_fixed_frame_pose(const Mechanism& model, Eigen::VectorXd& params, int
   return e.norm();
 }
 
+std::vector<std::pair<std::string, double>> mounted_frame_parameters(
+    const Mechanism& model, const Eigen::VectorXd& params, int body,
+    const Eigen::Isometry3d& frame_T_offset) {
+  const Body& b = model.bodies.at(static_cast<std::size_t>(body));
+  bool in_loop = false;
+  for (const Closure& c : model.closures)
+    in_loop = in_loop || (c.body_a >= body && c.body_a < b.subtree_end) ||
+              (c.body_b >= body && c.body_b < b.subtree_end);
+  if (b.joint != JointType::kFixed || in_loop)
+    throw std::invalid_argument("'" + b.name + "' is " +
+                                (in_loop ? "part of a closed loop" : "a moving joint") +
+                                ": a target offset cannot be expressed by its parameters; mount "
+                                "the target on a fixed tool frame outside every loop");
+  Eigen::VectorXd home_q(static_cast<Eigen::Index>(model.actuated.size()));
+  for (std::size_t i = 0; i < model.actuated.size(); ++i)
+    home_q[static_cast<Eigen::Index>(i)] = model.bodies[model.actuated[i]].home;
+  const Eigen::VectorXd readings = readings_from_joint_values(model, params, home_q);
+  const auto fk = forward_kinematics(model, params, readings, body);
+  if (!fk.closure.ok())
+    throw std::invalid_argument("'" + b.name + "': the home configuration does not close");
+  Eigen::VectorXd placed = params;
+  double residual = 0.0;
+  try {
+    residual = set_fixed_frame_pose(model, placed, body, readings, fk.pose * frame_T_offset);
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument("'" + b.name + "': " + e.what());
+  }
+  if (!(residual <= 1e-9))
+    throw std::invalid_argument("'" + b.name +
+                                "': its parameters cannot reach the target's offset "
+                                "(remaining error " +
+                                std::to_string(residual) + ")");
+  std::vector<std::pair<std::string, double>> values;
+  for (std::size_t i = 0; i < model.parameters.size(); ++i)
+    if (model.parameters[i].body == body)
+      values.emplace_back(model.parameters[i].name, placed[static_cast<Eigen::Index>(i)]);
+  return values;
+}
+
 }  // namespace robocal::calib

@@ -5,6 +5,7 @@
 #include "cli/pause_key.hpp"
 #include "cli/progress.hpp"
 #include "live/cell_clearance.hpp"
+#include "robocal/calib/frame_placement.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/planner/cell.hpp"
@@ -83,7 +84,27 @@ struct CollectInputs {
   std::vector<Eigen::VectorXd> targets;
   std::string plan_text;
   std::vector<int> camera_of;  // per cell camera: index into options.cameras
+  // The board's offset on the measured frame (the cell's target pose) as that frame's parameter
+  // values for session.yaml (app/SESSION.md, target_mount); empty when the board sits on the frame.
+  std::vector<std::pair<std::string, double>> target_mount;
 };
+
+// The cell's target pose on its frame, as the frame's parameters (what measure and identify read).
+std::vector<std::pair<std::string, double>> target_mount(const CollectInputs& in) {
+  const planner::TargetMount& t = in.cell.target;
+  if (t.frame_T_board.isApprox(Eigen::Isometry3d::Identity(), 1e-12)) return {};
+  const int body = t.frame.empty() ? in.model.tool : in.model.body_index(t.frame);
+  if (body < 0)
+    throw InputError(fmt::format("{}:{}: the target's frame '{}' is not a body of robot '{}'",
+                                 in.cell.source, t.line, t.frame, in.model.name));
+  try {
+    return calib::mounted_frame_parameters(in.model, in.model.nominal_parameters(), body,
+                                           t.frame_T_board);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(
+        fmt::format("{}:{}: the target's pose on its frame: {}", in.cell.source, t.line, e.what()));
+  }
+}
 
 CollectInputs read_inputs(const CollectOptions& o) {
   CollectInputs in;
@@ -100,6 +121,7 @@ CollectInputs read_inputs(const CollectOptions& o) {
   } catch (const calib::RobotFileError& e) {
     throw InputError(e.what());
   }
+  in.target_mount = target_mount(in);
   in.plan_text = core::read_text_file(o.plan);
   in.targets = planner::read_plan_actuators(o.plan);
   if (in.targets.empty()) throw InputError(o.plan + ": the plan has no poses");
@@ -187,6 +209,7 @@ std::int64_t start_session(const CollectOptions& o, const CollectInputs& in) {
                          ? in.model.bodies[static_cast<std::size_t>(in.model.tool)].name
                          : in.cell.target.frame;
   s.calibration_target = s.ee_target;  // the same board, until calibration views say otherwise
+  s.target_mount = in.target_mount;
   for (const auto& c : in.cell.cameras)
     s.cameras.push_back({c.name, c.model.width, c.model.height});
   core::write_file_atomic(s.path(s.robot_file), core::read_text_file(in.robot_file),

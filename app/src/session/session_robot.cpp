@@ -6,17 +6,29 @@
 #include "robocal/vision/target_io.hpp"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
 
 namespace robocal::app {
 
 namespace fs = std::filesystem;
 
+std::vector<std::string> library_robot_names() {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(ROBOCAL_ROBOT_LIBRARY_DIR, ec))
+    if (e.path().extension() == ".yaml") names.push_back(e.path().stem().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
 std::string resolve_robot(const std::string& robot) {
   if (fs::exists(robot)) return robot;
   const auto library = fs::path(ROBOCAL_ROBOT_LIBRARY_DIR) / (robot + ".yaml");
   if (fs::exists(library)) return library.string();
-  throw InputError(fmt::format("robot '{}' is neither a file nor a library robot in {}", robot,
-                               ROBOCAL_ROBOT_LIBRARY_DIR));
+  throw InputError(fmt::format("robot '{}' is neither a file nor a library robot (library: {})",
+                               robot, fmt::join(library_robot_names(), ", ")));
 }
 
 calib::Mechanism load_robot(const std::string& path) {

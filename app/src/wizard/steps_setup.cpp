@@ -15,6 +15,7 @@
 #include "wizard/step.hpp"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -26,21 +27,6 @@ namespace robocal::app::wizard {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string library_robots() {
-  std::vector<std::string> names;
-  const fs::path dir(ROBOCAL_ROBOT_LIBRARY_DIR);
-  if (fs::is_directory(dir))
-    for (const auto& e : fs::directory_iterator(dir))
-      if (e.path().extension() == ".yaml") names.push_back(e.path().stem().string());
-  std::sort(names.begin(), names.end());
-  std::string s;
-  for (const auto& n : names) {
-    if (!s.empty()) s += ", ";
-    s += n;
-  }
-  return s;
-}
 
 // Which of the robot file's free parameters 6-D board poses (what the cameras measure) can
 // separate, from poses spread over the reachable workspace at the nominal geometry.
@@ -110,7 +96,7 @@ class RobotStep final : public Step {
            "then says what the calibration can and cannot find with this model.";
   }
   StepOutcome run(WizardContext& ctx) override {
-    fmt::print(ctx.out, "Library robots: {}\n", library_robots());
+    fmt::print(ctx.out, "Library robots: {}\n", fmt::join(library_robot_names(), ", "));
     for (;;) {
       const std::string name = ctx.ask.ask("robot.model", "Robot (library name or robot file)",
                                            ctx.state.get("robot.model"));

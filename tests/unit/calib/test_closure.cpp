@@ -3,11 +3,16 @@
 #include "calib_test_support.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/frame_placement.hpp"
 #include "robocal/calib/kinematics.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
 
 namespace robocal::calib {
 namespace {
@@ -112,6 +117,51 @@ TEST(Closure, FourBarOutputFollowsCrank) {
     ASSERT_TRUE(r.ok());
     const JointState s = make_joint_state(m, p, Eigen::VectorXd::Constant(1, a), r.passive);
     EXPECT_NEAR(s.q[m.body_index("body3")], a, 1e-12);
+  }
+}
+
+// A board mounted with an offset on the tool (a cell file's target pose): with the tool frame's
+// parameters from mounted_frame_parameters, the frame is where the board is at every reachable
+// configuration, not only at home where it was placed (reference: the nominal frame times the
+// offset, by forward kinematics); a frame inside a loop is refused by name.
+TEST(Closure, MountedFrameParametersCarryTheTargetOffsetEverywhere) {
+  for (const char* file : {"rotary_delta.yaml", "ur5.yaml", "linear_delta.yaml"}) {
+    const Mechanism m = load(file);
+    const Eigen::VectorXd p = m.nominal_parameters();
+    Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+    offset.translate(Eigen::Vector3d(0.012, -0.034, -0.021));
+    offset.rotate(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.3, -0.5, 0.8).normalized()));
+    const auto values = mounted_frame_parameters(m, p, m.tool, offset);
+    ASSERT_FALSE(values.empty()) << file;
+    Eigen::VectorXd mounted = p;
+    for (const auto& [name, value] : values) mounted[m.parameter_index(name)] = value;
+    std::mt19937 rng(5);
+    const auto robot = std::find_if(library().begin(), library().end(),
+                                    [&](const auto& r) { return r.file == file; });
+    ASSERT_NE(robot, library().end()) << file;
+    int checked = 0;
+    for (int k = 0; k < 20; ++k) {
+      const Eigen::VectorXd q = testing::random_readings(*robot, rng);
+      const auto nominal = forward_kinematics(m, p, q, m.tool);
+      const auto board = forward_kinematics(m, mounted, q, m.tool);
+      if (!nominal.closure.ok() || !board.closure.ok()) continue;
+      const Eigen::Isometry3d want = nominal.pose * offset;
+      EXPECT_LT((board.pose.translation() - want.translation()).norm(), 1e-9) << file;
+      EXPECT_LT(Eigen::AngleAxisd(board.pose.linear().transpose() * want.linear()).angle(), 1e-9)
+          << file;
+      ++checked;
+    }
+    EXPECT_GE(checked, 10) << file;
+  }
+  // A moving joint (the Delta's first arm) cannot carry a mount.
+  const Mechanism delta = load("rotary_delta.yaml");
+  const int arm = delta.actuated.front();
+  try {
+    (void)mounted_frame_parameters(delta, delta.nominal_parameters(), arm,
+                                   Eigen::Isometry3d::Identity());
+    ADD_FAILURE() << "a mount on the moving joint " << delta.bodies[arm].name << " was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(delta.bodies[arm].name), std::string::npos) << e.what();
   }
 }
 
