@@ -187,7 +187,7 @@ CollectInputs read_inputs(const CollectOptions& o) {
     }
     if (!seen.insert(c.name).second) throw InputError("--camera " + c.name + " is given twice");
     try {
-      (void)robotio::parse_camera_source(c.source);
+      if (!o.open_camera) (void)robotio::parse_camera_source(c.source);
     } catch (const std::invalid_argument& e) {
       throw InputError(std::string("--camera ") + c.name + ": " + e.what());
     }
@@ -371,7 +371,8 @@ OpenCameras open_cameras(const CollectOptions& o, const CollectInputs& in, std::
   for (std::size_t i = 0; i < in.cell.cameras.size(); ++i) {
     const planner::CellCamera& cell_camera = in.cell.cameras[i];
     const CollectCamera& given = o.cameras[static_cast<std::size_t>(in.camera_of[i])];
-    auto source = robotio::open_camera_source(given.source, cell_camera.name);
+    auto source = o.open_camera ? o.open_camera(given)
+                                : robotio::open_camera_source(given.source, cell_camera.name);
     const robotio::Region region = source->region();
     if (region.width != cell_camera.model.width || region.height != cell_camera.model.height)
       source->set_region({0, 0, cell_camera.model.width, cell_camera.model.height});
@@ -502,7 +503,10 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
     co_capture.shots_per_pose = o.shots;
     co_capture.session_start_ns = start_ns;
     StageProgress progress(out, "collect", in.targets.size() - already);
-    co_capture.on_pose_recorded = [&](const robotio::PoseCaptureReport&) { progress.advance(); };
+    co_capture.on_pose_recorded = [&](const robotio::PoseCaptureReport& p) {
+      if (o.on_pose_recorded) o.on_pose_recorded(p);
+      progress.advance();
+    };
     result = robotio::capture_poses(o.session, in.targets, robot, cameras.capture,
                                     in.cell.target.board, co_capture);
     progress.finish(fmt::format("{} poses recorded", result.recorded()));
