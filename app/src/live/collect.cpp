@@ -103,11 +103,14 @@ class StopSignals {
 // refuses the next move, and capture stops with the reason).
 class PausableRobot final : public robotio::CaptureRobot {
  public:
-  PausableRobot(robotio::CaptureRobot& inner, const SafetyGuard& guard, std::FILE* out)
-      : inner_(&inner), guard_(&guard), out_(out) {}
+  PausableRobot(robotio::CaptureRobot& inner, const SafetyGuard& guard, std::FILE* out,
+                std::function<void(const Eigen::VectorXd&)> on_settled)
+      : inner_(&inner), guard_(&guard), out_(out), on_settled_(std::move(on_settled)) {}
   Eigen::VectorXd move_and_settle(const Eigen::VectorXd& target) override {
     wait_while_paused();
-    return inner_->move_and_settle(target);
+    Eigen::VectorXd readings = inner_->move_and_settle(target);
+    if (on_settled_) on_settled_(readings);
+    return readings;
   }
   Eigen::VectorXd read_actuators() override { return inner_->read_actuators(); }
   void stop(const std::string& reason) override { inner_->stop(reason); }
@@ -132,6 +135,7 @@ class PausableRobot final : public robotio::CaptureRobot {
   robotio::CaptureRobot* inner_;
   const SafetyGuard* guard_;
   std::FILE* out_;
+  std::function<void(const Eigen::VectorXd&)> on_settled_;
 };
 
 // ---- inputs ------------------------------------------------------------------------------------
@@ -498,15 +502,12 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
       link.home();
     }
     robotio::LinkCaptureRobot link_robot(link, {o.speed, o.acceleration});
-    PausableRobot robot(link_robot, guard, out);
+    PausableRobot robot(link_robot, guard, out, o.on_settled);
     robotio::CaptureOptions co_capture;
     co_capture.shots_per_pose = o.shots;
     co_capture.session_start_ns = start_ns;
     StageProgress progress(out, "collect", in.targets.size() - already);
-    co_capture.on_pose_recorded = [&](const robotio::PoseCaptureReport& p) {
-      if (o.on_pose_recorded) o.on_pose_recorded(p);
-      progress.advance();
-    };
+    co_capture.on_pose_recorded = [&](const robotio::PoseCaptureReport&) { progress.advance(); };
     result = robotio::capture_poses(o.session, in.targets, robot, cameras.capture,
                                     in.cell.target.board, co_capture);
     progress.finish(fmt::format("{} poses recorded", result.recorded()));

@@ -14,6 +14,7 @@
 #include "robocal/robotio/capture.hpp"
 #include "stages/stages.hpp"
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
@@ -51,8 +52,9 @@ struct CollectOptions {
   // Opens a camera's source instead of robotio::open_camera_source (the live demo's cameras
   // rendered in-process where no GigE address is left for them); empty: open_camera_source.
   std::function<std::unique_ptr<robotio::CameraSource>(const CollectCamera&)> open_camera;
-  // Called once per pose recorded, its folder in place and the robot still there.
-  std::function<void(const robotio::PoseCaptureReport&)> on_pose_recorded;
+  // Called after every motion, once the controller reports the robot settled, with its readings
+  // (a pose's pose.yaml keeps the same readings of the motion its shots were taken after).
+  std::function<void(const Eigen::VectorXd& readings)> on_settled;
 };
 
 struct CollectOutcome {

@@ -124,34 +124,53 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
   report["calibration_views"] = total;
 }
 
-// The truth of each recorded pose, as the simulator's truth channel gave it (kept beside the
-// session while collecting, so a resumed collection keeps the poses recorded before).
+// The truth after every motion, as the simulator's truth channel gives it, with the readings the
+// controller reported then (kept beside the session while collecting, so a resumed collection
+// keeps what was seen before). A recorded pose is matched to it by its readings.
 struct TruthLog {
   fs::path path;
-  void append(const std::string& pose, const robotio::TruePoseReading& r, double sag) const {
+  void append(const Eigen::VectorXd& readings, const robotio::TruePoseReading& r,
+              double sag) const {
     const Eigen::Isometry3d p = elastic_deflection(r.base_T_task, sag);
     const Eigen::Quaterniond q(p.linear());
-    nlohmann::json j = {{"pose", pose},
-                        {"t", {p.translation().x(), p.translation().y(), p.translation().z()}},
-                        {"q", {q.w(), q.x(), q.y(), q.z()}},
-                        {"actuators", r.actuators_true}};
+    const std::vector<double> read(readings.data(), readings.data() + readings.size());
+    const nlohmann::json j = {
+        {"readings", read},
+        {"t", {p.translation().x(), p.translation().y(), p.translation().z()}},
+        {"q", {q.w(), q.x(), q.y(), q.z()}},
+        {"actuators_true", r.actuators_true}};
     std::ofstream(path, std::ios::app) << j.dump() << "\n";
   }
-  [[nodiscard]] std::vector<TruthPose> read() const {
-    std::vector<TruthPose> out;
+  // The truth of each recorded pose: the last motion that ended at its readings.
+  [[nodiscard]] std::vector<TruthPose> match(const fs::path& session) const {
+    std::vector<std::pair<Eigen::VectorXd, TruthPose>> seen;
     std::ifstream in(path);
     std::string line;
     while (std::getline(in, line)) {
       const auto j = nlohmann::json::parse(line, nullptr, false);
       if (j.is_discarded()) continue;
+      const auto read = j.at("readings").get<std::vector<double>>();
+      const auto a = j.at("actuators_true").get<std::vector<double>>();
       TruthPose t;
-      t.pose = j.at("pose").get<std::string>();
-      const auto a = j.at("actuators").get<std::vector<double>>();
-      t.true_actuators = Eigen::Map<const Eigen::VectorXd>(a.data(), static_cast<Eigen::Index>(a.size()));
+      t.true_actuators =
+          Eigen::Map<const Eigen::VectorXd>(a.data(), static_cast<Eigen::Index>(a.size()));
       t.world_T_board.linear() =
           Eigen::Quaterniond(j["q"][0], j["q"][1], j["q"][2], j["q"][3]).toRotationMatrix();
       t.world_T_board.translation() = Eigen::Vector3d(j["t"][0], j["t"][1], j["t"][2]);
-      out.push_back(t);
+      seen.emplace_back(
+          Eigen::Map<const Eigen::VectorXd>(read.data(), static_cast<Eigen::Index>(read.size())),
+          t);
+    }
+    std::vector<TruthPose> out;
+    for (const PoseRecord& p : load_pose_records(load_session(session))) {
+      if (!p.problem.empty()) continue;
+      for (auto it = seen.rbegin(); it != seen.rend(); ++it)
+        if (it->first.size() == p.actuators.size() &&
+            (it->first - p.actuators).norm() <= 1e-12 * (1.0 + p.actuators.norm())) {
+          out.push_back(it->second);
+          out.back().pose = p.name;
+          break;
+        }
     }
     return out;
   }
@@ -210,7 +229,7 @@ void complete_session(const LiveCell& lc, const LiveDemoOptions& o, const fs::pa
   for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
     truth.cameras.push_back({fmt::format("cam{}", c), lc.cell.cameras[c].model,
                              lc.cell.cameras[c].camera_T_world});
-  truth.poses = truth_log.read();
+  truth.poses = truth_log.match(session);
   truth.perturbation = {{"length_sigma_m", lc.cell.options.length_sigma},
                         {"angle_sigma_rad", lc.cell.options.angle_sigma},
                         {"source", "robocal sim-controller (live demo), truth channel"}};
@@ -334,8 +353,8 @@ int run_live_demo(const LiveDemoOptions& o) {
   co.resume = o.resume && fs::exists(session / "session.yaml");
   co.yes = o.yes;
   co.open_camera = [&cams](const CollectCamera& c) { return cams.open(c.name); };
-  co.on_pose_recorded = [&](const robotio::PoseCaptureReport& p) {
-    truth_log.append(p.name, truth.read(), lc.cell.options.elastic_sag);
+  co.on_settled = [&](const Eigen::VectorXd& readings) {
+    truth_log.append(readings, truth.read(), lc.cell.options.elastic_sag);
   };
   const double render_before = cams.render_seconds_max();
   const CollectOutcome collected = collect_session(co, log);
