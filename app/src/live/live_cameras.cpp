@@ -138,10 +138,12 @@ std::string live_camera_address(std::size_t camera) {
 }
 
 LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs,
-                         const vision::TargetBoard& board, robotio::TruePoseSource& truth,
-                         bool gige, const std::string& serial_prefix)
-    : specs_(specs), board_(&board), truth_(&truth), prefix_(serial_prefix) {
+                         const vision::TargetBoard& board,
+                         const std::vector<robotio::TruePoseSource*>& truths, bool gige,
+                         const std::string& serial_prefix)
+    : specs_(specs), board_(&board), prefix_(serial_prefix) {
   for (std::size_t i = 0; i < specs_.size(); ++i) {
+    truths_.push_back(truths.size() == 1 ? truths.front() : truths.at(i));
     in_process_ns_.push_back(std::make_shared<std::atomic<std::int64_t>>(0));
     gige_.emplace_back();
     if (!gige) continue;
@@ -152,7 +154,7 @@ LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs,
     s.camera_T_world = specs_[i].camera_T_world;
     s.render = specs_[i].render;
     try {
-      gige_[i] = std::make_unique<robotio::SimulatedGigECamera>(s, board, truth);
+      gige_[i] = std::make_unique<robotio::SimulatedGigECamera>(s, board, *truths_[i]);
       gige_[i]->set_history(1);
     } catch (const std::exception& e) {
       notes_.push_back(fmt::format("{}: no fake GigE camera on {} ({}); rendered in-process",
@@ -177,7 +179,7 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(std::size_t camera) {
       gige_[camera].reset();
     }
   }
-  return std::make_unique<InProcessCamera>(specs_[camera], *board_, *truth_,
+  return std::make_unique<InProcessCamera>(specs_[camera], *board_, *truths_[camera],
                                            in_process_ns_[camera]);
 }
 

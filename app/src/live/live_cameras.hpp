@@ -104,10 +104,15 @@ class InProcessCamera final : public robotio::CameraSource {
 // The cameras of the cell showing one board, served as GigE where possible.
 class LiveCameras {
  public:
-  // Tries GigE for camera i on addresses[i] (none when `gige` is false); a camera that cannot be
-  // served there is rendered in-process, and `notes` says why.
+  // Tries GigE for camera i on live_camera_address(i) (none when `gige` is false), serial
+  // `serial_prefix` + i (unique per process: another program's fake camera on the same address
+  // must not be taken for ours); a camera that cannot be served there is rendered in-process,
+  // and `notes` says why.
+  // `truths`: one source for every camera (the board on the robot), or one per camera (each
+  // camera shown its own calibration board).
   LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision::TargetBoard& board,
-              robotio::TruePoseSource& truth, bool gige, const std::string& serial_prefix);
+              const std::vector<robotio::TruePoseSource*>& truths, bool gige,
+              const std::string& serial_prefix);
   // The source string for collect (aravis:SERIAL, or inprocess:NAME).
   [[nodiscard]] std::string source(std::size_t camera) const;
   // Opens camera `camera`'s source: Aravis for a served camera (when Aravis cannot open it, the
@@ -123,7 +128,7 @@ class LiveCameras {
  private:
   std::vector<LiveCameraSpec> specs_;
   const vision::TargetBoard* board_;
-  robotio::TruePoseSource* truth_;
+  std::vector<robotio::TruePoseSource*> truths_;  // per camera
   std::vector<std::unique_ptr<robotio::SimulatedGigECamera>> gige_;
   std::vector<std::shared_ptr<std::atomic<std::int64_t>>> in_process_ns_;  // per camera
   std::vector<std::string> notes_;

@@ -1,6 +1,9 @@
 #include "live/live_cell.hpp"
 
 #include "cli/cli_common.hpp"
+#include "live/cell_clearance.hpp"
+#include "robocal/planner/collision_scene.hpp"
+#include "robocal/robotio/safety_guard.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
@@ -106,13 +109,38 @@ LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robo
 
 namespace {
 
-// The fallback: poses of the nominal robot where both cameras see the whole board.
-std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell, int count, unsigned seed) {
+// The fallback: poses of the nominal robot where both cameras see the whole board, chained so
+// that the safety guard (the same one collect builds: limits, workspace, the cell's collision
+// scene) lets every motion through, starting from the controller's home.
+std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
+                                           const calib::Mechanism& library,
+                                           const planner::Cell& pcell, int count, unsigned seed,
+                                           const robotio::MoveSpeed& speed) {
+  const Eigen::VectorXd params = library.nominal_parameters();
+  robotio::SafetyLimits limits;
+  if (pcell.workspace.declared) {
+    limits.workspace_min = pcell.workspace.min;
+    limits.workspace_max = pcell.workspace.max;
+  }
+  limits.max_speed = speed.speed;
+  limits.max_acceleration = speed.acceleration;
+  robotio::SafetyGuard guard(library, params, limits);
+  planner::CollisionOptions co;
+  co.clearance = pcell.margins.clearance;
+  co.self_clearance = pcell.margins.self_clearance;
+  const planner::CollisionScene scene(library, pcell, co);
+  guard.set_clearance_check(cell_clearance_check(library, params, scene));
+  guard.set_dry_run(true);
+  Eigen::VectorXd home_q(static_cast<Eigen::Index>(library.actuated.size()));
+  for (std::size_t i = 0; i < library.actuated.size(); ++i)
+    home_q[static_cast<Eigen::Index>(i)] = library.bodies[library.actuated[i]].home;
+  Eigen::VectorXd from = calib::readings_from_joint_values(library, params, home_q);
+
   std::mt19937 rng(seed + 101);
   const calib::MechanismPredictor predictor(cell.model, cell.target_frame);
   std::vector<Eigen::VectorXd> out;
   for (const auto& q : calib::sample_actuators(predictor, {cell.nominal},
-                                               static_cast<std::size_t>(count) * 4, rng)) {
+                                               static_cast<std::size_t>(count) * 20, rng)) {
     if (static_cast<int>(out.size()) == count) break;
     const auto fk = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
     if (!fk.closure.ok()) continue;
@@ -121,7 +149,9 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell, int count,
       for (const auto& t : vision::corner_truth(
                cam.model, {{cell.ee_board, cam.camera_T_world * fk.pose}}, cell.options.render))
         seen = seen && t.visible;
-    if (seen) out.push_back(q);
+    if (!seen || !guard.check_move(from, q, speed).allowed) continue;
+    out.push_back(q);
+    from = q;
   }
   return out;
 }
@@ -130,19 +160,22 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell, int count,
 
 LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
                          const LiveCellFiles& files, int count, unsigned seed, bool quick,
-                         const fs::path& plan_file, std::FILE* out) {
+                         const fs::path& plan_file, const robotio::MoveSpeed& speed,
+                         std::FILE* out) {
   LivePlan plan;
   const calib::Mechanism library = calib::load_robot_file(robot_file);
   std::string why;
   try {
     const planner::Cell pcell = planner::load_cell_file(files.cell.string());
-    // First with the planner's collision-checked tour; where no tour joins the chosen poses
-    // (a straight motion would cross another assembly mode), the same selection unordered: the
-    // guard then checks every motion before it is sent.
-    for (const bool order : {true, false}) {
+    // With the planner's collision-checked tour: where no tour joins the chosen poses (a
+    // straight motion would pass a singular configuration, where the true robot may change its
+    // assembly mode), another candidate pool; after three, the selection unordered (the guard
+    // then checks every motion before it is sent, but not the assembly mode).
+    for (int attempt = 0; attempt < 4; ++attempt) {
+      const bool order = attempt < 3;
       planner::PlanOptions po;
       po.pool = quick ? 1500 : 3000;
-      po.seed = seed;
+      po.seed = seed + 7919U * static_cast<unsigned>(attempt % 3);
       po.order = order;
       po.selection.count = static_cast<std::size_t>(count);
       const planner::PlanResult r =
@@ -175,10 +208,16 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
   }
   // Planning is not possible for this robot in this cell: the cell's own poses, said so.
   plan.planner = false;
-  plan.readings = sampled_poses(cell, count, seed);
+  try {
+    plan.readings = sampled_poses(cell, library, planner::load_cell_file(files.cell.string()), count,
+                                  seed, speed);
+  } catch (const std::exception& e) {
+    throw InputError(fmt::format("{}: no poses to collect: {}", library.name, e.what()));
+  }
   plan.how = fmt::format(
       "NOT planned: the planner could not plan for {} ({}); using {} poses sampled on the "
-      "nominal robot where both cameras see the board (the offline demo's way)",
+      "nominal robot where both cameras see the board (the offline demo's way), chained so "
+      "that the safety guard allows every motion",
       library.name, why, plan.readings.size());
   if (out) fmt::print(out, "  {}\n", plan.how);
   std::string text = "# live demo: poses sampled on the nominal robot (no planner)\nposes:\n";

@@ -4,6 +4,7 @@
 // robot's tool), the simulator's true robot (a perturbation file of NAME=VALUE lines for
 // `robocal sim-controller --perturbation`), and the plan. Built from the offline demo's
 // SimulatedCell for the same seed, so the live and the offline demo calibrate the same robot.
+#include "robocal/robotio/safety_guard.hpp"
 #include "simcell/simulated_cell.hpp"
 
 #include <Eigen/Core>
@@ -36,9 +37,11 @@ struct LivePlan {
 
 // Plans `count` measurement poses with the planner on the cell file (nominal robot) and writes
 // the plan file; where the planner cannot plan for this robot, falls back to poses sampled on
-// the nominal robot where both cameras see the board, and says so. Deterministic in `seed`.
+// the nominal robot where both cameras see the board whose motions the safety guard allows (at
+// `speed`), and says so. Deterministic in `seed`.
 LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
                          const LiveCellFiles& files, int count, unsigned seed, bool quick,
-                         const std::filesystem::path& plan_file, std::FILE* out);
+                         const std::filesystem::path& plan_file, const robotio::MoveSpeed& speed,
+                         std::FILE* out);
 
 }  // namespace robocal::app

@@ -90,8 +90,16 @@ std::vector<LiveCameraSpec> camera_specs(const SimulatedCell& cell, unsigned see
 void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec>& specs,
                             bool gige, const fs::path& dir, const PipelineLog& log,
                             nlohmann::json& report) {
-  ScriptedBoard board;
-  LiveCameras cams(specs, lc.cell.calibration_board, board, gige, "RCAL-CAM");
+  // Each camera shown its own board for its intrinsic views (both at once), then one board shown
+  // to both for the rig views.
+  std::vector<std::unique_ptr<ScriptedBoard>> boards;
+  std::vector<robotio::TruePoseSource*> truths;
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    boards.push_back(std::make_unique<ScriptedBoard>());
+    truths.push_back(boards.back().get());
+  }
+  LiveCameras cams(specs, lc.cell.calibration_board, truths, gige,
+                   fmt::format("C{}-", ::getpid()));
   for (const auto& n : cams.notes()) say(log, "  {}\n", n);
   std::vector<std::unique_ptr<robotio::CameraSource>> src;
   for (std::size_t c = 0; c < specs.size(); ++c) {
@@ -102,17 +110,28 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
   }
   const std::chrono::milliseconds timeout(5000);
   std::size_t total = lc.rig_views.size();
-  for (const auto& v : lc.intrinsic_views) total += v.size();
+  std::size_t rounds = 0;
+  for (const auto& v : lc.intrinsic_views) {
+    total += v.size();
+    rounds = std::max(rounds, v.size());
+  }
   StageProgress bar(log.out, "calibration views", total);
-  for (std::size_t c = 0; c < specs.size(); ++c)
-    for (std::size_t v = 0; v < lc.intrinsic_views[c].size(); ++v) {
-      board.set(specs[c].camera_T_world.inverse() * lc.intrinsic_views[c][v]);
+  for (std::size_t v = 0; v < rounds; ++v) {
+    std::vector<std::size_t> shown;
+    for (std::size_t c = 0; c < specs.size(); ++c)
+      if (v < lc.intrinsic_views[c].size()) {
+        boards[c]->set(specs[c].camera_T_world.inverse() * lc.intrinsic_views[c][v]);
+        src[c]->trigger();
+        shown.push_back(c);
+      }
+    for (const std::size_t c : shown) {
       write_image_atomic(dir / "intrinsics" / specs[c].name / fmt::format("view_{:03d}.png", v),
-                         src[c]->grab(timeout).image);
+                         src[c]->receive(timeout).image);
       bar.advance();
     }
+  }
   for (std::size_t v = 0; v < lc.rig_views.size(); ++v) {
-    board.set(lc.rig_views[v]);
+    for (auto& b : boards) b->set(lc.rig_views[v]);
     for (auto& s : src) s->trigger();
     for (std::size_t c = 0; c < specs.size(); ++c)
       write_image_atomic(dir / "rig" / fmt::format("view_{:03d}", v) / (specs[c].name + ".png"),
@@ -317,8 +336,9 @@ int run_live_demo(const LiveDemoOptions& o) {
   stage(log, "live: plan");
   const fs::path plan_file = setup / "plan.yaml";
   if (!(o.resume && fs::exists(plan_file))) {
+    const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
     const LivePlan plan = plan_live_poses(lc.cell, robot_file, files, o.poses, o.seed, o.quick,
-                                          plan_file, out);
+                                          plan_file, {speed, 10.0 * speed}, out);
     say(log, "plan: {}\n", plan.how);
     report["plan"] = {{"poses", plan.readings.size()},
                       {"planner", plan.planner},
@@ -330,7 +350,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   stage(log, "live: collect");
   robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
   SaggingBoard seen(truth, lc.cell.options.elastic_sag);
-  LiveCameras cams(specs, lc.cell.ee_board, seen, o.gige, "RLIVE-CAM");
+  LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("L{}-", ::getpid()));
   std::string camera_note;
   for (std::size_t c = 0; c < specs.size(); ++c)
     camera_note += fmt::format("{}{}: {}", c ? ", " : "", specs[c].name,
