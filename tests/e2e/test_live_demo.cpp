@@ -46,18 +46,19 @@ TEST(LiveDemo, QuickRunCalibratesTheSimulatedRobotAgainstTheSimulatorsTruth) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const fs::path out = dir / "demo";
-  robocal::test::ChildProcess run(ROBOCAL_BINARY,
-                                  {"demo", "--live", "--quick", "--poses", "20", "--seed", "1",
-                                   "--yes", "--out", out.string(), "--json",
-                                   (dir / "demo.json").string()},
-                                  (dir / "demo.out").string());
+  robocal::test::ChildProcess run(
+      ROBOCAL_BINARY,
+      {"demo", "--live", "--quick", "--poses", "20", "--seed", "1", "--yes", "--out", out.string(),
+       "--json", (dir / "demo.json").string()},
+      (dir / "demo.out").string());
   ASSERT_EQ(run.wait(std::chrono::seconds(420)), 0) << run.output();
   const nlohmann::json report = read_json(dir / "demo.json");
 
   // Every planned pose was driven and recorded; the simulator received the moves (its own log).
   EXPECT_EQ(report["collect"].value("status", ""), "ok");
   EXPECT_EQ(report["collect"].value("recorded_total", -1), 20);
-  const auto sim_log = robocal::test::read_sim_log((out / "setup" / "sim-controller.jsonl").string());
+  const auto sim_log =
+      robocal::test::read_sim_log((out / "setup" / "sim-controller.jsonl").string());
   EXPECT_GE(robocal::test::received(sim_log, "G1") + robocal::test::received(sim_log, "G0"), 20);
   EXPECT_GE(robocal::test::received(sim_log, "G28"), 1);  // homed before the first pose
 

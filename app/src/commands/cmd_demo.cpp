@@ -163,10 +163,10 @@ CommandSpec demo_command() {
                          "Identify by maximum likelihood from the measurements alone (default: "
                          "the robot file's tolerances as priors, base frame free)");
             cmd.add_flag("--live", o->live,
-                          "The live loop: sim-controller as a separate process (the true robot), "
-                          "the cameras served as GigE Vision cameras where this machine allows "
-                          "it, calibration views, plan, collect (as `robocal collect`), then "
-                          "measure, identify, validate; --out is then the demo folder");
+                         "The live loop: sim-controller as a separate process (the true robot), "
+                         "the cameras served as GigE Vision cameras where this machine allows "
+                         "it, calibration views, plan, collect (as `robocal collect`), then "
+                         "measure, identify, validate; --out is then the demo folder");
             cmd.add_flag("--in-process", o->in_process,
                          "--live: render the cameras in-process instead of serving them through "
                          "Aravis' fake GigE camera");

@@ -137,8 +137,7 @@ std::string live_camera_address(std::size_t camera) {
   return fmt::format("127.0.0.{}", camera + 1);
 }
 
-LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs,
-                         const vision::TargetBoard& board,
+LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision::TargetBoard& board,
                          const std::vector<robotio::TruePoseSource*>& truths, bool gige,
                          const std::string& serial_prefix)
     : specs_(specs), board_(&board), prefix_(serial_prefix) {
@@ -173,9 +172,10 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(std::size_t camera) {
     try {
       return robotio::open_camera_source(source(camera), specs_[camera].name);
     } catch (const std::exception& e) {
-      notes_.push_back(fmt::format("{}: served on {} but Aravis cannot open it ({}); rendered "
-                                   "in-process",
-                                   specs_[camera].name, live_camera_address(camera), e.what()));
+      notes_.push_back(
+          fmt::format("{}: served on {} but Aravis cannot open it ({}); rendered "
+                      "in-process",
+                      specs_[camera].name, live_camera_address(camera), e.what()));
       gige_[camera].reset();
     }
   }
@@ -193,8 +193,8 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(const std::string& name
 double LiveCameras::render_seconds_max() const {
   double most = 0.0;
   for (std::size_t i = 0; i < specs_.size(); ++i) {
-    const double s =
-        gige_[i] ? gige_[i]->render_seconds() : static_cast<double>(in_process_ns_[i]->load()) * 1e-9;
+    const double s = gige_[i] ? gige_[i]->render_seconds()
+                              : static_cast<double>(in_process_ns_[i]->load()) * 1e-9;
     most = std::max(most, s);
   }
   return most;

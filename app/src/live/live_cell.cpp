@@ -2,15 +2,15 @@
 
 #include "cli/cli_common.hpp"
 #include "live/cell_clearance.hpp"
-#include "robocal/planner/collision_scene.hpp"
-#include "robocal/robotio/safety_guard.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/planner/cell.hpp"
+#include "robocal/planner/collision_scene.hpp"
 #include "robocal/planner/plan.hpp"
 #include "robocal/planner/plan_output.hpp"
+#include "robocal/robotio/safety_guard.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/target_io.hpp"
 
@@ -180,12 +180,11 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
       po.selection.count = static_cast<std::size_t>(count);
       const planner::PlanResult r =
           planner::plan_measurements(library, library.nominal_parameters(), pcell, po);
-      if ((r.status != planner::PlanStatus::kOk &&
-           r.status != planner::PlanStatus::kNotAccepted) ||
+      if ((r.status != planner::PlanStatus::kOk && r.status != planner::PlanStatus::kNotAccepted) ||
           static_cast<int>(r.poses.size()) != count) {
-        why += (why.empty() ? "" : "; then ") +
-               (r.message.empty() ? fmt::format("{} of {} poses", r.poses.size(), count)
-                                  : r.message);
+        why +=
+            (why.empty() ? "" : "; then ") +
+            (r.message.empty() ? fmt::format("{} of {} poses", r.poses.size(), count) : r.message);
         continue;
       }
       for (const auto& p : r.poses) plan.readings.push_back(p.readings);
@@ -209,8 +208,8 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
   // Planning is not possible for this robot in this cell: the cell's own poses, said so.
   plan.planner = false;
   try {
-    plan.readings = sampled_poses(cell, library, planner::load_cell_file(files.cell.string()), count,
-                                  seed, speed);
+    plan.readings = sampled_poses(cell, library, planner::load_cell_file(files.cell.string()),
+                                  count, seed, speed);
   } catch (const std::exception& e) {
     throw InputError(fmt::format("{}: no poses to collect: {}", library.name, e.what()));
   }

@@ -87,9 +87,8 @@ std::vector<LiveCameraSpec> camera_specs(const SimulatedCell& cell, unsigned see
 
 // The operator waves the calibration board: held where the script says, each view taken by the
 // cameras that should see it, written where app/SESSION.md keeps calibration views.
-void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec>& specs,
-                            bool gige, const fs::path& dir, const PipelineLog& log,
-                            nlohmann::json& report) {
+void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec>& specs, bool gige,
+                            const fs::path& dir, const PipelineLog& log, nlohmann::json& report) {
   // Each camera shown its own board for its intrinsic views (both at once), then one board shown
   // to both for the rig views.
   std::vector<std::unique_ptr<ScriptedBoard>> boards;
@@ -98,8 +97,7 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
     boards.push_back(std::make_unique<ScriptedBoard>());
     truths.push_back(boards.back().get());
   }
-  LiveCameras cams(specs, lc.cell.calibration_board, truths, gige,
-                   fmt::format("C{}-", ::getpid()));
+  LiveCameras cams(specs, lc.cell.calibration_board, truths, gige, fmt::format("C{}-", ::getpid()));
   for (const auto& n : cams.notes()) say(log, "  {}\n", n);
   std::vector<std::unique_ptr<robotio::CameraSource>> src;
   for (std::size_t c = 0; c < specs.size(); ++c) {
@@ -203,9 +201,9 @@ bool calibrate_cameras(const std::vector<LiveCameraSpec>& specs, const LiveCell&
                        nlohmann::json& report) {
   nlohmann::json cams = nlohmann::json::array();
   for (const auto& spec : specs) {
-    const IntrinsicsStep step = calibrate_camera(
-        spec.name, spec.model.width, spec.model.height,
-        vision::list_image_files(views / spec.name), lc.cell.calibration_board, step_log(log));
+    const IntrinsicsStep step = calibrate_camera(spec.name, spec.model.width, spec.model.height,
+                                                 vision::list_image_files(views / spec.name),
+                                                 lc.cell.calibration_board, step_log(log));
     if (step.result.status == vision::CalibrationStatus::kFailed ||
         step.result.status == vision::CalibrationStatus::kRefused) {
       say(log, "camera {} cannot be calibrated: {}\n", spec.name, step.result.reason);
@@ -246,8 +244,8 @@ void complete_session(const LiveCell& lc, const LiveDemoOptions& o, const fs::pa
   truth.nominal = lc.cell.nominal;
   truth.truth = lc.cell.truth;
   for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
-    truth.cameras.push_back({fmt::format("cam{}", c), lc.cell.cameras[c].model,
-                             lc.cell.cameras[c].camera_T_world});
+    truth.cameras.push_back(
+        {fmt::format("cam{}", c), lc.cell.cameras[c].model, lc.cell.cameras[c].camera_T_world});
   truth.poses = truth_log.match(session);
   truth.perturbation = {{"length_sigma_m", lc.cell.options.length_sigma},
                         {"angle_sigma_rad", lc.cell.options.angle_sigma},
@@ -296,8 +294,9 @@ int run_live_demo(const LiveDemoOptions& o) {
   const fs::path setup = dir / "setup";
   const fs::path session = dir / "session";
   if (!o.resume && fs::exists(session))
-    throw InputError(dir.string() + ": already holds a live demo; --resume continues it, or "
-                                    "give another --out");
+    throw InputError(dir.string() +
+                     ": already holds a live demo; --resume continues it, or "
+                     "give another --out");
   const std::string robot_file = resolve_robot(o.robot);
   fmt::print(out,
              "robocal demo --live: calibrating a simulated {} through the live loop (seed {})\n"
@@ -329,8 +328,9 @@ int run_live_demo(const LiveDemoOptions& o) {
     core::write_file_atomic(setup / "calibration" / "done", "ok\n");
   }
   stage(log, "live: intrinsics");
-  const fs::path views = fs::exists(session / "calibration") ? session / "calibration" / "intrinsics"
-                                                             : setup / "calibration" / "intrinsics";
+  const fs::path views = fs::exists(session / "calibration")
+                             ? session / "calibration" / "intrinsics"
+                             : setup / "calibration" / "intrinsics";
   if (!calibrate_cameras(specs, lc, views, setup, log, report)) return kExitFailure;
 
   stage(log, "live: plan");
@@ -353,10 +353,10 @@ int run_live_demo(const LiveDemoOptions& o) {
   LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("L{}-", ::getpid()));
   std::string camera_note;
   for (std::size_t c = 0; c < specs.size(); ++c)
-    camera_note += fmt::format("{}{}: {}", c ? ", " : "", specs[c].name,
-                               cams.served(c) ? "GigE Vision (Aravis fake camera on " +
-                                                    live_camera_address(c) + ")"
-                                              : std::string("rendered in-process"));
+    camera_note += fmt::format(
+        "{}{}: {}", c ? ", " : "", specs[c].name,
+        cams.served(c) ? "GigE Vision (Aravis fake camera on " + live_camera_address(c) + ")"
+                       : std::string("rendered in-process"));
   say(log, "cameras: {}\n", camera_note);
   for (const auto& n : cams.notes()) say(log, "  {}\n", n);
   report["cameras"] = {{"how", camera_note}, {"notes", cams.notes()}};
@@ -367,7 +367,8 @@ int run_live_demo(const LiveDemoOptions& o) {
   co.cell = files.cell.string();
   co.plan = plan_file.string();
   co.link = sim.tcp();
-  for (std::size_t c = 0; c < specs.size(); ++c) co.cameras.push_back({specs[c].name, cams.source(c)});
+  for (std::size_t c = 0; c < specs.size(); ++c)
+    co.cameras.push_back({specs[c].name, cams.source(c)});
   co.speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
   co.acceleration = 10.0 * co.speed;
   co.resume = o.resume && fs::exists(session / "session.yaml");
