@@ -190,6 +190,14 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(const std::string& name
                              "not a camera of the live cell");
 }
 
+void LiveCameras::fall_back(std::size_t camera, const std::string& why) {
+  if (!gige_[camera]) return;
+  in_process_ns_[camera]->fetch_add(
+      static_cast<std::int64_t>(gige_[camera]->render_seconds() * 1e9));  // keep the total
+  gige_[camera].reset();
+  notes_.push_back(fmt::format("{}: {}; rendered in-process from now on", specs_[camera].name, why));
+}
+
 double LiveCameras::render_seconds_max() const {
   double most = 0.0;
   for (std::size_t i = 0; i < specs_.size(); ++i) {

@@ -121,6 +121,9 @@ class LiveCameras {
   // The same, by the camera's name.
   [[nodiscard]] std::unique_ptr<robotio::CameraSource> open(const std::string& name);
   [[nodiscard]] bool served(std::size_t camera) const { return gige_[camera] != nullptr; }
+  // Stops serving camera `camera` (e.g. Aravis lost it: on a busy machine a render longer than
+  // the GigE heartbeat window looks like a lost camera); it is rendered in-process from then on.
+  void fall_back(std::size_t camera, const std::string& why);
   [[nodiscard]] const std::vector<std::string>& notes() const { return notes_; }
   // Rendering time so far over every camera, and the largest of one camera (s).
   [[nodiscard]] double render_seconds_max() const;

@@ -114,6 +114,24 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
     rounds = std::max(rounds, v.size());
   }
   StageProgress bar(log.out, "calibration views", total);
+  // A frame of camera c: a camera lost on a busy machine (a render beyond the GigE heartbeat)
+  // is rendered in-process from then on, and the frame taken again.
+  const auto take = [&](std::size_t c, bool triggered) {
+    for (int attempt = 0;; ++attempt) {
+      try {
+        if (!triggered) src[c]->trigger();
+        return src[c]->receive(timeout).image;
+      } catch (const robotio::CameraError& e) {
+        if (attempt > 0 || !cams.served(c)) throw;
+        cams.fall_back(c, e.what());
+        say(log, "\n  {}\n", cams.notes().back());
+        src[c]->close();
+        src[c] = cams.open(c);
+        src[c]->start(robotio::TriggerMode::kSoftware);
+        triggered = false;
+      }
+    }
+  };
   for (std::size_t v = 0; v < rounds; ++v) {
     std::vector<std::size_t> shown;
     for (std::size_t c = 0; c < specs.size(); ++c)
@@ -124,7 +142,7 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
       }
     for (const std::size_t c : shown) {
       write_image_atomic(dir / "intrinsics" / specs[c].name / fmt::format("view_{:03d}.png", v),
-                         src[c]->receive(timeout).image);
+                         take(c, true));
       bar.advance();
     }
   }
@@ -133,7 +151,7 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
     for (auto& s : src) s->trigger();
     for (std::size_t c = 0; c < specs.size(); ++c)
       write_image_atomic(dir / "rig" / fmt::format("view_{:03d}", v) / (specs[c].name + ".png"),
-                         src[c]->receive(timeout).image);
+                         take(c, true));
     bar.advance();
   }
   bar.finish(fmt::format("{} views", total));
@@ -378,7 +396,24 @@ int run_live_demo(const LiveDemoOptions& o) {
     truth_log.append(readings, truth.read(), lc.cell.options.elastic_sag);
   };
   const double render_before = cams.render_seconds_max();
-  const CollectOutcome collected = collect_session(co, log);
+  CollectOutcome collected = collect_session(co, log);
+  // A camera lost on a busy machine (a render beyond the GigE heartbeat window): the served
+  // cameras are rendered in-process from then on and the collection resumed (`--resume`).
+  const auto served = [&] {
+    bool any = false;
+    for (std::size_t c = 0; c < specs.size(); ++c) any = any || cams.served(c);
+    return any;
+  };
+  if ((collected.status == "incomplete" || collected.status == "failed") && served() &&
+      collected.message.find("camera") != std::string::npos) {
+    for (std::size_t c = 0; c < specs.size(); ++c)
+      cams.fall_back(c, "collection stopped (" + collected.message + ")");
+    say(log, "resuming the collection with the cameras rendered in-process\n");
+    report["collect_first_attempt"] = collected.summary;
+    co.resume = fs::exists(session / "session.yaml");
+    collected = collect_session(co, log);
+  }
+  report["cameras"]["notes"] = cams.notes();
   report["collect"] = collected.summary;
   report["collect"]["overhead"] =
       collection_overhead(collected.summary, cams.render_seconds_max() - render_before);
