@@ -8,8 +8,8 @@
 // robot file's actuator limits, the cell's declared workspace and obstacles (the planner's FCL
 // scene as the guard's clearance check) and the speed limits given here. Nothing moves before the
 // operator confirms (a typed "yes" on a terminal, or --yes for scripts); Ctrl-C or SIGTERM stops
-// the robot through the guard and keeps every recorded pose; SIGUSR1 pauses between poses and a
-// second SIGUSR1 resumes.
+// the robot through the guard and keeps every recorded pose; the p key or SIGUSR1 pauses between
+// poses and pressing it again resumes.
 #include "robocal/robotio/camera_source.hpp"
 #include "robocal/robotio/capture.hpp"
 #include "stages/stages.hpp"
