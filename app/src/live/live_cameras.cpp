@@ -195,7 +195,8 @@ void LiveCameras::fall_back(std::size_t camera, const std::string& why) {
   in_process_ns_[camera]->fetch_add(
       static_cast<std::int64_t>(gige_[camera]->render_seconds() * 1e9));  // keep the total
   gige_[camera].reset();
-  notes_.push_back(fmt::format("{}: {}; rendered in-process from now on", specs_[camera].name, why));
+  notes_.push_back(
+      fmt::format("{}: {}; rendered in-process from now on", specs_[camera].name, why));
 }
 
 double LiveCameras::render_seconds_max() const {
