@@ -10,6 +10,7 @@
 // measurement stages never read truth/.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
+#include "live/live_demo.hpp"
 #include "session/results_layout.hpp"
 #include "stages/stages.hpp"
 #include "summary/validation_summary.hpp"
@@ -33,7 +34,34 @@ struct DemoOptions {
   std::string json;
   std::string route = "both";  // pose | pixel | both (identification routes reported)
   bool no_priors = false;
+  bool live = false;  // the live loop (live/live_demo.hpp)
+  bool in_process = false;
+  bool yes = false;
+  bool resume = false;
+  double speed = 0.0;
 };
+
+int run_live(const DemoOptions& o) {
+  if (o.no_priors) throw InputError("--no-priors is not available with --live");
+  LiveDemoOptions l;
+  l.robot = o.simulate.robot;
+  l.seed = o.simulate.seed;
+  l.poses = o.simulate.poses;
+  l.held_out = o.held_out;
+  l.intrinsic_views = o.simulate.intrinsic_views;
+  l.rig_views = o.simulate.rig_views;
+  l.threads = o.threads;
+  l.quick = o.simulate.quick;
+  l.idealised_truth = o.simulate.idealised_truth;
+  l.gige = !o.in_process;
+  l.yes = o.yes;
+  l.resume = o.resume;
+  l.speed = o.speed;
+  l.route = o.route;
+  l.out = o.out;
+  l.json = o.json;
+  return run_live_demo(l);
+}
 
 // A fresh folder for the session when --out is not given.
 std::filesystem::path fresh_folder(unsigned seed) {
@@ -134,6 +162,21 @@ CommandSpec demo_command() {
             cmd.add_flag("--no-priors", o->no_priors,
                          "Identify by maximum likelihood from the measurements alone (default: "
                          "the robot file's tolerances as priors, base frame free)");
+            cmd.add_flag("--live", o->live,
+                         "The live loop: sim-controller as a separate process (the true robot), "
+                         "the cameras served as GigE Vision cameras where this machine allows "
+                         "it, calibration views, plan, collect (as `robocal collect`), then "
+                         "measure, identify, validate; --out is then the demo folder");
+            cmd.add_flag("--in-process", o->in_process,
+                         "--live: render the cameras in-process instead of serving them through "
+                         "Aravis' fake GigE camera");
+            cmd.add_flag("--yes", o->yes,
+                         "--live: the operator's confirmation before the first motion");
+            cmd.add_flag("--resume", o->resume,
+                         "--live: continue an interrupted live demo in --out");
+            cmd.add_option("--speed", o->speed,
+                           "--live: actuator speed, m/s or rad/s (default 0.25 m/s prismatic, "
+                           "2 rad/s revolute)");
             cmd.add_option("--json", o->json,
                            "Write the JSON report here ('-' = stdout; default: "
                            "<session>/results/demo.json)");
@@ -142,7 +185,7 @@ CommandSpec demo_command() {
                 o->simulate.intrinsic_views = 12;
                 o->simulate.rig_views = 6;
               }
-              return run_demo(*o);
+              return o->live ? run_live(*o) : run_demo(*o);
             };
           }};
 }

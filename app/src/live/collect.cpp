@@ -44,11 +44,14 @@ using robotio::SafetyGuard;
 // then refuses the next move, and capture stops with the reason).
 class PausableRobot final : public robotio::CaptureRobot {
  public:
-  PausableRobot(robotio::CaptureRobot& inner, const SafetyGuard& guard, std::FILE* out)
-      : inner_(&inner), guard_(&guard), out_(out) {}
+  PausableRobot(robotio::CaptureRobot& inner, const SafetyGuard& guard, std::FILE* out,
+                std::function<void(const Eigen::VectorXd&)> on_settled)
+      : inner_(&inner), guard_(&guard), out_(out), on_settled_(std::move(on_settled)) {}
   Eigen::VectorXd move_and_settle(const Eigen::VectorXd& target) override {
     wait_while_paused();
-    return inner_->move_and_settle(target);
+    Eigen::VectorXd readings = inner_->move_and_settle(target);
+    if (on_settled_) on_settled_(readings);
+    return readings;
   }
   Eigen::VectorXd read_actuators() override { return inner_->read_actuators(); }
   void stop(const std::string& reason) override { inner_->stop(reason); }
@@ -73,6 +76,7 @@ class PausableRobot final : public robotio::CaptureRobot {
   robotio::CaptureRobot* inner_;
   const SafetyGuard* guard_;
   std::FILE* out_;
+  std::function<void(const Eigen::VectorXd&)> on_settled_;
 };
 
 // ---- inputs ------------------------------------------------------------------------------------
@@ -149,7 +153,7 @@ CollectInputs read_inputs(const CollectOptions& o) {
     }
     if (!seen.insert(c.name).second) throw InputError("--camera " + c.name + " is given twice");
     try {
-      (void)robotio::parse_camera_source(c.source);
+      if (!o.open_camera) (void)robotio::parse_camera_source(c.source);
     } catch (const std::invalid_argument& e) {
       throw InputError(std::string("--camera ") + c.name + ": " + e.what());
     }
@@ -334,7 +338,8 @@ OpenCameras open_cameras(const CollectOptions& o, const CollectInputs& in, std::
   for (std::size_t i = 0; i < in.cell.cameras.size(); ++i) {
     const planner::CellCamera& cell_camera = in.cell.cameras[i];
     const CollectCamera& given = o.cameras[static_cast<std::size_t>(in.camera_of[i])];
-    auto source = robotio::open_camera_source(given.source, cell_camera.name);
+    auto source = o.open_camera ? o.open_camera(given)
+                                : robotio::open_camera_source(given.source, cell_camera.name);
     const robotio::Region region = source->region();
     if (region.width != cell_camera.model.width || region.height != cell_camera.model.height)
       source->set_region({0, 0, cell_camera.model.width, cell_camera.model.height});
@@ -463,7 +468,7 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
       link.home();
     }
     robotio::LinkCaptureRobot link_robot(link, {o.speed, o.acceleration});
-    PausableRobot robot(link_robot, guard, out);
+    PausableRobot robot(link_robot, guard, out, o.on_settled);
     robotio::CaptureOptions co_capture;
     co_capture.shots_per_pose = o.shots;
     co_capture.session_start_ns = start_ns;

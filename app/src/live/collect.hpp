@@ -10,11 +10,16 @@
 // operator confirms (a typed "yes" on a terminal, or --yes for scripts); Ctrl-C or SIGTERM stops
 // the robot through the guard and keeps every recorded pose; the p key or SIGUSR1 pauses between
 // poses and pressing it again resumes.
+#include "robocal/robotio/camera_source.hpp"
+#include "robocal/robotio/capture.hpp"
 #include "stages/stages.hpp"
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -44,6 +49,12 @@ struct CollectOptions {
   bool dry_run = false;       // check every motion through the guard; move nothing
   bool resume = false;        // continue an interrupted session at the next unrecorded pose
   bool yes = false;           // the operator's confirmation given on the command line
+  // Opens a camera's source instead of robotio::open_camera_source (the live demo's cameras
+  // rendered in-process where no GigE address is left for them); empty: open_camera_source.
+  std::function<std::unique_ptr<robotio::CameraSource>(const CollectCamera&)> open_camera;
+  // Called after every motion, once the controller reports the robot settled, with its readings
+  // (a pose's pose.yaml keeps the same readings of the motion its shots were taken after).
+  std::function<void(const Eigen::VectorXd& readings)> on_settled;
 };
 
 struct CollectOutcome {

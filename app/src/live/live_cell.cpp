@@ -1,0 +1,233 @@
+#include "live/live_cell.hpp"
+
+#include "cli/cli_common.hpp"
+#include "live/cell_clearance.hpp"
+#include "robocal/calib/kinematics.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal/planner/cell.hpp"
+#include "robocal/planner/collision_scene.hpp"
+#include "robocal/planner/plan.hpp"
+#include "robocal/planner/plan_output.hpp"
+#include "robocal/robotio/safety_guard.hpp"
+#include "robocal/vision/camera_io.hpp"
+#include "robocal/vision/target_io.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <random>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string vec(const Eigen::Vector3d& v) {
+  return fmt::format("[{:.9f}, {:.9f}, {:.9f}]", v.x(), v.y(), v.z());
+}
+
+// The lens as its datasheet gives it: the designed focal length, the principal point in the
+// image centre, no distortion (the true camera differs; the calibration views measure it).
+vision::CameraModel datasheet_camera(const CellOptions& o) {
+  return vision::make_camera(vision::CameraKind::kPinholeRadtan, o.image_width, o.image_height,
+                             o.focal_px, o.focal_px, 0.5 * (o.image_width - 1),
+                             0.5 * (o.image_height - 1), {0.0, 0.0, 0.0, 0.0, 0.0});
+}
+
+// The board's pose on the library robot's tool frame: the cell moved the tool frame's
+// parameters to the board (set_fixed_frame_pose); both frames compared at one configuration.
+Eigen::Isometry3d tool_T_board(const SimulatedCell& cell, const calib::Mechanism& library) {
+  const Eigen::VectorXd original = library.nominal_parameters();
+  std::mt19937 rng(1);
+  const calib::MechanismPredictor predictor(library);
+  for (const auto& q : calib::sample_actuators(predictor, {original}, 8, rng)) {
+    const auto tool = calib::forward_kinematics(library, original, q, library.tool);
+    const auto board = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
+    if (tool.closure.ok() && board.closure.ok()) return tool.pose.inverse() * board.pose;
+  }
+  throw InputError(library.name + ": no configuration to place the board on the tool");
+}
+
+}  // namespace
+
+LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robot_file,
+                              const fs::path& dir) {
+  fs::create_directories(dir);
+  LiveCellFiles f;
+  f.cell = dir / "cell.yaml";
+  f.perturbation = dir / "truth.txt";
+  f.ee_target = dir / "end_effector.yaml";
+  f.calibration_target = dir / "calibration.yaml";
+  core::write_file_atomic(f.ee_target, vision::target_to_yaml(cell.ee_board.spec));
+  core::write_file_atomic(f.calibration_target,
+                          vision::target_to_yaml(cell.calibration_board.spec));
+
+  // The simulator's true robot: every parameter, so its true geometry is exactly the cell's.
+  std::string truth = fmt::format(
+      "# true parameters of the live demo's robot ({}), for robocal sim-controller "
+      "--perturbation\n",
+      cell.model.name);
+  for (std::size_t i = 0; i < cell.model.parameters.size(); ++i)
+    truth += fmt::format("{}={:.17g}\n", cell.model.parameters[i].name,
+                         cell.truth[static_cast<Eigen::Index>(i)]);
+  core::write_file_atomic(f.perturbation, truth);
+
+  const calib::Mechanism library = calib::load_robot_file(robot_file);
+  const vision::CameraModel datasheet = datasheet_camera(cell.options);
+  std::string cams;
+  for (std::size_t c = 0; c < cell.cameras.size(); ++c) {
+    const std::string name = fmt::format("cam{}", c);
+    core::write_file_atomic(dir / (name + ".yaml"), vision::camera_to_yaml(datasheet, name));
+    const Eigen::Isometry3d world_T_cam = cell.cameras[c].camera_T_world.inverse();
+    const Eigen::Vector3d p = world_T_cam.translation();
+    cams += fmt::format(
+        "  - name: {}\n    file: {}.yaml\n    pose: {{position: {}, look_at: {}, up: {}}}\n", name,
+        name, vec(p), vec(p + world_T_cam.linear().col(2)), vec(-world_T_cam.linear().col(1)));
+  }
+  // The declared workspace: where the nominal robot reaches, grown by the board's size (the
+  // measured frame and the board stay inside).
+  const Eigen::Vector3d grow = Eigen::Vector3d::Constant(
+      0.05 + std::max(cell.ee_board.extent_max.x() - cell.ee_board.extent_min.x(),
+                      cell.ee_board.extent_max.y() - cell.ee_board.extent_min.y()));
+  const Eigen::Isometry3d mount = tool_T_board(cell, library);
+  const Eigen::Vector3d ypr = mount.linear().eulerAngles(2, 1, 0);
+  const std::string text = fmt::format(
+      "cell: live_demo_{}\nunits: m\ncameras:\n{}workspace: {{min: {}, max: {}}}\n"
+      "margins: {{clearance: 0.005, self_clearance: 0.0005}}\n"
+      "target:\n  file: end_effector.yaml\n  frame: {}\n  position: {}\n"
+      "  rpy: [{:.12f}, {:.12f}, {:.12f}]\n",
+      cell.model.name, cams, vec(cell.volume_centre - cell.volume_extent - grow),
+      vec(cell.volume_centre + cell.volume_extent + grow),
+      library.bodies.at(static_cast<std::size_t>(library.tool)).name, vec(mount.translation()),
+      ypr[2], ypr[1], ypr[0]);
+  core::write_file_atomic(f.cell, text);
+  return f;
+}
+
+namespace {
+
+// The fallback: poses of the nominal robot where both cameras see the whole board, chained so
+// that the safety guard (the same one collect builds: limits, workspace, the cell's collision
+// scene) lets every motion through, starting from the controller's home.
+std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
+                                           const calib::Mechanism& library,
+                                           const planner::Cell& pcell, int count, unsigned seed,
+                                           const robotio::MoveSpeed& speed) {
+  const Eigen::VectorXd params = library.nominal_parameters();
+  robotio::SafetyLimits limits;
+  if (pcell.workspace.declared) {
+    limits.workspace_min = pcell.workspace.min;
+    limits.workspace_max = pcell.workspace.max;
+  }
+  limits.max_speed = speed.speed;
+  limits.max_acceleration = speed.acceleration;
+  robotio::SafetyGuard guard(library, params, limits);
+  planner::CollisionOptions co;
+  co.clearance = pcell.margins.clearance;
+  co.self_clearance = pcell.margins.self_clearance;
+  const planner::CollisionScene scene(library, pcell, co);
+  guard.set_clearance_check(cell_clearance_check(library, params, scene));
+  guard.set_dry_run(true);
+  Eigen::VectorXd home_q(static_cast<Eigen::Index>(library.actuated.size()));
+  for (std::size_t i = 0; i < library.actuated.size(); ++i)
+    home_q[static_cast<Eigen::Index>(i)] = library.bodies[library.actuated[i]].home;
+  Eigen::VectorXd from = calib::readings_from_joint_values(library, params, home_q);
+
+  std::mt19937 rng(seed + 101);
+  const calib::MechanismPredictor predictor(cell.model, cell.target_frame);
+  std::vector<Eigen::VectorXd> out;
+  for (const auto& q : calib::sample_actuators(predictor, {cell.nominal},
+                                               static_cast<std::size_t>(count) * 20, rng)) {
+    if (static_cast<int>(out.size()) == count) break;
+    const auto fk = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
+    if (!fk.closure.ok()) continue;
+    bool seen = true;
+    for (const auto& cam : cell.cameras)
+      for (const auto& t : vision::corner_truth(
+               cam.model, {{cell.ee_board, cam.camera_T_world * fk.pose}}, cell.options.render))
+        seen = seen && t.visible;
+    if (!seen || !guard.check_move(from, q, speed).allowed) continue;
+    out.push_back(q);
+    from = q;
+  }
+  return out;
+}
+
+}  // namespace
+
+LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
+                         const LiveCellFiles& files, int count, unsigned seed, bool quick,
+                         const fs::path& plan_file, const robotio::MoveSpeed& speed,
+                         std::FILE* out) {
+  LivePlan plan;
+  const calib::Mechanism library = calib::load_robot_file(robot_file);
+  std::string why;
+  try {
+    const planner::Cell pcell = planner::load_cell_file(files.cell.string());
+    // With the planner's collision-checked tour: where no tour joins the chosen poses (a
+    // straight motion would pass a singular configuration, where the true robot may change its
+    // assembly mode), another candidate pool; after three, the selection unordered (the guard
+    // then checks every motion before it is sent, but not the assembly mode).
+    for (int attempt = 0; attempt < 4; ++attempt) {
+      const bool order = attempt < 3;
+      planner::PlanOptions po;
+      po.pool = quick ? 1500 : 3000;
+      po.seed = seed + 7919U * static_cast<unsigned>(attempt % 3);
+      po.order = order;
+      po.selection.count = static_cast<std::size_t>(count);
+      const planner::PlanResult r =
+          planner::plan_measurements(library, library.nominal_parameters(), pcell, po);
+      if ((r.status != planner::PlanStatus::kOk && r.status != planner::PlanStatus::kNotAccepted) ||
+          static_cast<int>(r.poses.size()) != count) {
+        why +=
+            (why.empty() ? "" : "; then ") +
+            (r.message.empty() ? fmt::format("{} of {} poses", r.poses.size(), count) : r.message);
+        continue;
+      }
+      for (const auto& p : r.poses) plan.readings.push_back(p.readings);
+      plan.predicted_rms_m = r.selection.predicted_rms;
+      plan.how = fmt::format(
+          "planner: {} poses chosen by observability from {} feasible candidates, {} "
+          "(predicted {:.1f} µm RMS{})",
+          r.poses.size(), r.pool.size(),
+          order ? "in a collision-checked tour"
+                : fmt::format("not ordered into a tour ({}); the guard checks each motion", why),
+          r.selection.predicted_rms * 1e6,
+          r.selection.accepted ? "" : "; the acceptance test is not met");
+      core::write_file_atomic(plan_file, planner::plan_to_yaml(library, pcell, r, po));
+      core::write_file_atomic(fs::path(plan_file).replace_extension(".svg"),
+                              planner::plan_to_svg(pcell, r));
+      return plan;
+    }
+  } catch (const std::exception& e) {
+    why += (why.empty() ? "" : "; then ") + std::string(e.what());
+  }
+  // Planning is not possible for this robot in this cell: the cell's own poses, said so.
+  plan.planner = false;
+  try {
+    plan.readings = sampled_poses(cell, library, planner::load_cell_file(files.cell.string()),
+                                  count, seed, speed);
+  } catch (const std::exception& e) {
+    throw InputError(fmt::format("{}: no poses to collect: {}", library.name, e.what()));
+  }
+  plan.how = fmt::format(
+      "NOT planned: the planner could not plan for {} ({}); using {} poses sampled on the "
+      "nominal robot where both cameras see the board (the offline demo's way), chained so "
+      "that the safety guard allows every motion",
+      library.name, why, plan.readings.size());
+  if (out) fmt::print(out, "  {}\n", plan.how);
+  std::string text = "# live demo: poses sampled on the nominal robot (no planner)\nposes:\n";
+  for (const auto& q : plan.readings) {
+    std::string values;
+    for (Eigen::Index i = 0; i < q.size(); ++i)
+      values += fmt::format("{}{:.12g}", i == 0 ? "" : ", ", q[i]);
+    text += fmt::format("  - {{actuators: [{}]}}\n", values);
+  }
+  core::write_file_atomic(plan_file, text);
+  return plan;
+}
+
+}  // namespace robocal::app

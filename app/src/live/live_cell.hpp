@@ -1,0 +1,47 @@
+#pragma once
+// The live demo's cell as files an operator would have: the planner's cell file (cameras where
+// they were placed, with the lens's datasheet intrinsics; the declared workspace; the board on the
+// robot's tool), the simulator's true robot (a perturbation file of NAME=VALUE lines for
+// `robocal sim-controller --perturbation`), and the plan. Built from the offline demo's
+// SimulatedCell for the same seed, so the live and the offline demo calibrate the same robot.
+#include "robocal/robotio/safety_guard.hpp"
+#include "simcell/simulated_cell.hpp"
+
+#include <Eigen/Core>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace robocal::app {
+
+struct LiveCellFiles {
+  std::filesystem::path cell;          // cell.yaml (planner/README.md)
+  std::filesystem::path perturbation;  // truth.txt: every true parameter, NAME=VALUE
+  std::filesystem::path ee_target;     // the end-effector board's target file
+  std::filesystem::path calibration_target;
+};
+
+// Writes the cell's files into `dir` (created). `robot_file` = the library robot's file (whose
+// tool frame the cell's target position refers to).
+LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robot_file,
+                              const std::filesystem::path& dir);
+
+// The planned poses: actuator readings in motion order, and how they were chosen.
+struct LivePlan {
+  std::vector<Eigen::VectorXd> readings;
+  std::string how;      // a sentence for the operator
+  bool planner = true;  // false: the fallback (the cell's own sampled poses)
+  double predicted_rms_m = 0.0;
+};
+
+// Plans `count` measurement poses with the planner on the cell file (nominal robot) and writes
+// the plan file; where the planner cannot plan for this robot, falls back to poses sampled on
+// the nominal robot where both cameras see the board whose motions the safety guard allows (at
+// `speed`), and says so. Deterministic in `seed`.
+LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
+                         const LiveCellFiles& files, int count, unsigned seed, bool quick,
+                         const std::filesystem::path& plan_file, const robotio::MoveSpeed& speed,
+                         std::FILE* out);
+
+}  // namespace robocal::app

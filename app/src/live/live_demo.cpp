@@ -1,0 +1,471 @@
+#include "live/live_demo.hpp"
+
+#include "cli/cli_common.hpp"
+#include "live/collect.hpp"
+#include "live/live_cameras.hpp"
+#include "live/live_cell.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal/robotio/sim_process.hpp"
+#include "robocal/robotio/sim_truth.hpp"
+#include "robocal/vision/camera_io.hpp"
+#include "robocal/vision/intrinsics_pipeline.hpp"
+#include "robocal/vision/target_io.hpp"
+#include "session/results_files.hpp"
+#include "session/results_layout.hpp"
+#include "session/session.hpp"
+#include "session/session_robot.hpp"
+#include "simcell/simulated_cell.hpp"
+#include "stages/stage_log.hpp"
+#include "summary/validation_summary.hpp"
+
+#include <fmt/core.h>
+#include <unistd.h>
+
+#include <array>
+#include <fstream>
+#include <random>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kElasticSag = 1e-4;  // as stages/simulate.cpp: the realistic truth's sag
+
+std::string robocal_binary() {
+  std::array<char, 4096> buf{};
+  const ssize_t n = ::readlink("/proc/self/exe", buf.data(), buf.size() - 1);
+  if (n <= 0) throw InputError("cannot find the robocal program (/proc/self/exe)");
+  return {buf.data(), static_cast<std::size_t>(n)};
+}
+
+fs::path fresh_folder(unsigned seed) {
+  const auto base = fs::temp_directory_path();
+  std::string pattern = (base / fmt::format("robocal-live-seed{}-XXXXXX", seed)).string();
+  if (mkdtemp(pattern.data()) == nullptr)
+    throw InputError("cannot create a folder in " + base.string());
+  return pattern;
+}
+
+// The offline demo's cell and calibration board poses for the same seed (stages/simulate.cpp
+// draws them from its random stream in this order).
+struct LiveCell {
+  SimulatedCell cell;
+  std::vector<std::vector<Eigen::Isometry3d>> intrinsic_views;  // camera_T_board per camera
+  std::vector<Eigen::Isometry3d> rig_views;                     // world_T_board
+};
+
+LiveCell make_live_cell(const LiveDemoOptions& o, const std::string& robot_file) {
+  std::mt19937 rng(o.seed);
+  CellOptions co;
+  if (o.quick) {
+    co.image_width = 1280;
+    co.image_height = 960;
+    co.focal_px = 1300;
+  }
+  co.unmodelled_seed = o.idealised_truth ? 0U : 7919U * o.seed + 17U;
+  co.elastic_sag = o.idealised_truth ? 0.0 : kElasticSag;
+  LiveCell c{make_simulated_cell(robot_file, co, rng), {}, {}};
+  for (std::size_t k = 0; k < c.cell.cameras.size(); ++k)
+    c.intrinsic_views.push_back(
+        intrinsic_view_poses(c.cell, static_cast<int>(k), o.intrinsic_views, rng));
+  c.rig_views = rig_view_poses(c.cell, o.rig_views, rng);
+  return c;
+}
+
+std::vector<LiveCameraSpec> camera_specs(const SimulatedCell& cell, unsigned seed) {
+  std::vector<LiveCameraSpec> specs;
+  for (std::size_t c = 0; c < cell.cameras.size(); ++c) {
+    LiveCameraSpec s{fmt::format("cam{}", c), cell.cameras[c].model, cell.cameras[c].camera_T_world,
+                     cell.options.render};
+    s.render.seed = 1000003ULL * (seed + 1) + 7919ULL * c;
+    specs.push_back(s);
+  }
+  return specs;
+}
+
+// The operator waves the calibration board: held where the script says, each view taken by the
+// cameras that should see it, written where app/SESSION.md keeps calibration views.
+void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec>& specs, bool gige,
+                            const fs::path& dir, const PipelineLog& log, nlohmann::json& report) {
+  // Each camera shown its own board for its intrinsic views (both at once), then one board shown
+  // to both for the rig views.
+  std::vector<std::unique_ptr<ScriptedBoard>> boards;
+  std::vector<robotio::TruePoseSource*> truths;
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    boards.push_back(std::make_unique<ScriptedBoard>());
+    truths.push_back(boards.back().get());
+  }
+  LiveCameras cams(specs, lc.cell.calibration_board, truths, gige, fmt::format("C{}-", ::getpid()));
+  for (const auto& n : cams.notes()) say(log, "  {}\n", n);
+  std::vector<std::unique_ptr<robotio::CameraSource>> src;
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    src.push_back(cams.open(c));
+    const robotio::Region full{0, 0, specs[c].model.width, specs[c].model.height};
+    if (src.back()->region() != full) src.back()->set_region(full);
+    src.back()->start(robotio::TriggerMode::kSoftware);
+  }
+  const std::chrono::milliseconds timeout(5000);
+  std::size_t total = lc.rig_views.size();
+  std::size_t rounds = 0;
+  for (const auto& v : lc.intrinsic_views) {
+    total += v.size();
+    rounds = std::max(rounds, v.size());
+  }
+  StageProgress bar(log.out, "calibration views", total);
+  // A frame of camera c: a camera lost on a busy machine (a render beyond the GigE heartbeat)
+  // is rendered in-process from then on, and the frame taken again.
+  const auto take = [&](std::size_t c, bool triggered) {
+    for (int attempt = 0;; ++attempt) {
+      try {
+        if (!triggered) src[c]->trigger();
+        return src[c]->receive(timeout).image;
+      } catch (const robotio::CameraError& e) {
+        if (attempt > 0 || !cams.served(c)) throw;
+        cams.fall_back(c, e.what());
+        say(log, "\n  {}\n", cams.notes().back());
+        src[c]->close();
+        src[c] = cams.open(c);
+        src[c]->start(robotio::TriggerMode::kSoftware);
+        triggered = false;
+      }
+    }
+  };
+  for (std::size_t v = 0; v < rounds; ++v) {
+    std::vector<std::size_t> shown;
+    for (std::size_t c = 0; c < specs.size(); ++c)
+      if (v < lc.intrinsic_views[c].size()) {
+        boards[c]->set(specs[c].camera_T_world.inverse() * lc.intrinsic_views[c][v]);
+        src[c]->trigger();
+        shown.push_back(c);
+      }
+    for (const std::size_t c : shown) {
+      write_image_atomic(dir / "intrinsics" / specs[c].name / fmt::format("view_{:03d}.png", v),
+                         take(c, true));
+      bar.advance();
+    }
+  }
+  for (std::size_t v = 0; v < lc.rig_views.size(); ++v) {
+    for (auto& b : boards) b->set(lc.rig_views[v]);
+    for (auto& s : src) s->trigger();
+    for (std::size_t c = 0; c < specs.size(); ++c)
+      write_image_atomic(dir / "rig" / fmt::format("view_{:03d}", v) / (specs[c].name + ".png"),
+                         take(c, true));
+    bar.advance();
+  }
+  bar.finish(fmt::format("{} views", total));
+  for (auto& s : src) s->close();
+  report["calibration_views"] = total;
+}
+
+// The truth after every motion, as the simulator's truth channel gives it, with the readings the
+// controller reported then (kept beside the session while collecting, so a resumed collection
+// keeps what was seen before). A recorded pose is matched to it by its readings.
+struct TruthLog {
+  fs::path path;
+  void append(const Eigen::VectorXd& readings, const robotio::TruePoseReading& r,
+              double sag) const {
+    const Eigen::Isometry3d p = elastic_deflection(r.base_T_task, sag);
+    const Eigen::Quaterniond q(p.linear());
+    const std::vector<double> read(readings.data(), readings.data() + readings.size());
+    const nlohmann::json j = {
+        {"readings", read},
+        {"t", {p.translation().x(), p.translation().y(), p.translation().z()}},
+        {"q", {q.w(), q.x(), q.y(), q.z()}},
+        {"actuators_true", r.actuators_true}};
+    std::ofstream(path, std::ios::app) << j.dump() << "\n";
+  }
+  // The truth of each recorded pose: the last motion that ended at its readings.
+  [[nodiscard]] std::vector<TruthPose> match(const fs::path& session) const {
+    std::vector<std::pair<Eigen::VectorXd, TruthPose>> seen;
+    std::ifstream in(path);
+    std::string line;
+    while (std::getline(in, line)) {
+      const auto j = nlohmann::json::parse(line, nullptr, false);
+      if (j.is_discarded()) continue;
+      const auto read = j.at("readings").get<std::vector<double>>();
+      const auto a = j.at("actuators_true").get<std::vector<double>>();
+      TruthPose t;
+      t.true_actuators =
+          Eigen::Map<const Eigen::VectorXd>(a.data(), static_cast<Eigen::Index>(a.size()));
+      t.world_T_board.linear() =
+          Eigen::Quaterniond(j["q"][0], j["q"][1], j["q"][2], j["q"][3]).toRotationMatrix();
+      t.world_T_board.translation() = Eigen::Vector3d(j["t"][0], j["t"][1], j["t"][2]);
+      seen.emplace_back(
+          Eigen::Map<const Eigen::VectorXd>(read.data(), static_cast<Eigen::Index>(read.size())),
+          t);
+    }
+    std::vector<TruthPose> out;
+    for (const PoseRecord& p : load_pose_records(load_session(session))) {
+      if (!p.problem.empty()) continue;
+      for (auto it = seen.rbegin(); it != seen.rend(); ++it)
+        if (it->first.size() == p.actuators.size() &&
+            (it->first - p.actuators).norm() <= 1e-12 * (1.0 + p.actuators.norm())) {
+          out.push_back(it->second);
+          out.back().pose = p.name;
+          break;
+        }
+    }
+    return out;
+  }
+};
+
+// The intrinsics from the calibration views, before anything moves (the planner and the
+// settled-frame test use them): the cell's camera files get the calibrated models in place of
+// the datasheet's. Returns false (and says why) when a camera cannot be calibrated.
+bool calibrate_cameras(const std::vector<LiveCameraSpec>& specs, const LiveCell& lc,
+                       const fs::path& views, const fs::path& cell_dir, const PipelineLog& log,
+                       nlohmann::json& report) {
+  nlohmann::json cams = nlohmann::json::array();
+  for (const auto& spec : specs) {
+    const IntrinsicsStep step = calibrate_camera(spec.name, spec.model.width, spec.model.height,
+                                                 vision::list_image_files(views / spec.name),
+                                                 lc.cell.calibration_board, step_log(log));
+    if (step.result.status == vision::CalibrationStatus::kFailed ||
+        step.result.status == vision::CalibrationStatus::kRefused) {
+      say(log, "camera {} cannot be calibrated: {}\n", spec.name, step.result.reason);
+      return false;
+    }
+    say(log, "  {}: fx {:.2f} px, RMS {:.3f} px from {} views\n", spec.name,
+        step.result.camera.params[0], step.result.rms_px, step.views.size());
+    core::write_file_atomic(cell_dir / (spec.name + ".yaml"),
+                            vision::camera_to_yaml(step.result.camera, spec.name));
+    cams.push_back({{"camera", spec.name}, {"rms_px", step.result.rms_px}});
+  }
+  report["intrinsics_before_collection"] = cams;
+  return true;
+}
+
+// After collection: the calibration views and board join the session, session.yaml names them
+// with the board's designed mount, and truth/ holds what validate compares with.
+void complete_session(const LiveCell& lc, const LiveDemoOptions& o, const fs::path& setup,
+                      const fs::path& session, const TruthLog& truth_log) {
+  Session s = load_session(session);
+  const fs::path cal = session / "calibration";
+  if (!fs::exists(cal)) fs::rename(setup / "calibration", cal);
+  s.calibration_target = "targets/calibration.yaml";
+  core::write_file_atomic(s.path(s.calibration_target),
+                          vision::target_to_yaml(lc.cell.calibration_board.spec));
+  s.intrinsics_views = "calibration/intrinsics";
+  s.rig_views = "calibration/rig";
+  s.seed = o.seed;
+  s.target_mount.clear();
+  for (std::size_t i = 0; i < lc.cell.model.parameters.size(); ++i)
+    if (lc.cell.model.parameters[i].body == lc.cell.target_frame)
+      s.target_mount.emplace_back(lc.cell.model.parameters[i].name,
+                                  lc.cell.nominal[static_cast<Eigen::Index>(i)]);
+  core::write_file_atomic(session / "session.yaml", session_to_yaml(s));
+
+  TruthFile truth;
+  truth.elastic_sag = lc.cell.options.elastic_sag;
+  truth.nominal = lc.cell.nominal;
+  truth.truth = lc.cell.truth;
+  for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
+    truth.cameras.push_back(
+        {fmt::format("cam{}", c), lc.cell.cameras[c].model, lc.cell.cameras[c].camera_T_world});
+  truth.poses = truth_log.match(session);
+  truth.perturbation = {{"length_sigma_m", lc.cell.options.length_sigma},
+                        {"angle_sigma_rad", lc.cell.options.angle_sigma},
+                        {"source", "robocal sim-controller (live demo), truth channel"}};
+  write_truth(ResultsLayout{session}, lc.cell.model, truth);
+}
+
+// Robocal's own time per pose in collection: waiting for frames minus the rendering (the
+// simulated exposure), plus detection / settled-frame test and writing; the motion excluded.
+nlohmann::json collection_overhead(const nlohmann::json& summary, double render_s) {
+  double grab = 0, check = 0, write = 0, move = 0;
+  int n = 0;
+  for (const auto& p : summary.value("poses", nlohmann::json::array())) {
+    grab += p.value("grab_s", 0.0);
+    check += p.value("check_s", 0.0);
+    write += p.value("write_s", 0.0);
+    move += p.value("move_s", 0.0);
+    ++n;
+  }
+  if (n == 0) return {};
+  const double per = 1.0 / n;
+  const double frames = std::max(0.0, grab - render_s) * per;
+  return {{"poses", n},
+          {"move_s_per_pose", move * per},
+          {"render_s_per_pose", render_s * per},
+          {"frame_wait_minus_render_s_per_pose", frames},
+          {"detect_and_check_s_per_pose", check * per},
+          {"write_s_per_pose", write * per},
+          {"overhead_s_per_pose", frames + (check + write) * per}};
+}
+
+double default_speed(const calib::Mechanism& model) {
+  for (int a : model.actuated)
+    if (model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic)
+      return 0.25;  // m/s
+  return 2.0;       // rad/s
+}
+
+}  // namespace
+
+int run_live_demo(const LiveDemoOptions& o) {
+  std::FILE* out = human_stream(o.json);
+  StageClock clock;
+  const PipelineLog log{out, &clock, o.threads};
+  const fs::path dir = o.out.empty() ? fresh_folder(o.seed) : fs::path(o.out);
+  const fs::path setup = dir / "setup";
+  const fs::path session = dir / "session";
+  if (!o.resume && fs::exists(session))
+    throw InputError(dir.string() +
+                     ": already holds a live demo; --resume continues it, or "
+                     "give another --out");
+  const std::string robot_file = resolve_robot(o.robot);
+  fmt::print(out,
+             "robocal demo --live: calibrating a simulated {} through the live loop (seed {})\n"
+             "  folder: {}\n\n",
+             o.robot, o.seed, dir.string());
+  nlohmann::json report;
+
+  stage(log, "live: cell");
+  const LiveCell lc = make_live_cell(o, robot_file);
+  const LiveCellFiles files = write_live_cell(lc.cell, robot_file, setup);
+  const auto specs = camera_specs(lc.cell, o.seed);
+
+  // The true robot in its own process: every true parameter given, so its geometry is the
+  // offline demo's (its elastic sag is added where the cameras look: SaggingBoard).
+  stage(log, "live: start sim-controller");
+  robotio::SimControllerProcess sim(
+      robocal_binary(),
+      {"--robot", robot_file, "--seed", std::to_string(o.seed), "--perturbation",
+       files.perturbation.string(), "--no-pty", "--log", (setup / "sim-controller.jsonl").string(),
+       "--busy-interval", "1", "--max-seconds", "3600"});
+  say(log, "sim-controller (pid {}): G-code at {}, truth channel at {}\n", sim.pid(), sim.tcp(),
+      sim.pose());
+  report["controller"] = {{"link", sim.tcp()}, {"pid", sim.pid()}};
+
+  stage(log, "live: calibration views");
+  if (!fs::exists(session / "calibration") && !fs::exists(setup / "calibration" / "done")) {
+    say(log, "calibration views: the operator shows the calibration board to the cameras\n");
+    take_calibration_views(lc, specs, o.gige, setup / "calibration", log, report);
+    core::write_file_atomic(setup / "calibration" / "done", "ok\n");
+  }
+  stage(log, "live: intrinsics");
+  const fs::path views = fs::exists(session / "calibration")
+                             ? session / "calibration" / "intrinsics"
+                             : setup / "calibration" / "intrinsics";
+  if (!calibrate_cameras(specs, lc, views, setup, log, report)) return kExitFailure;
+
+  stage(log, "live: plan");
+  const fs::path plan_file = setup / "plan.yaml";
+  if (!(o.resume && fs::exists(plan_file))) {
+    const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
+    const LivePlan plan = plan_live_poses(lc.cell, robot_file, files, o.poses, o.seed, o.quick,
+                                          plan_file, {speed, 10.0 * speed}, out);
+    say(log, "plan: {}\n", plan.how);
+    report["plan"] = {{"poses", plan.readings.size()},
+                      {"planner", plan.planner},
+                      {"how", plan.how},
+                      {"predicted_rms_um", plan.predicted_rms_m * 1e6}};
+  }
+
+  // Collection through `robocal collect`'s own code: guard, confirmation, progress, resume.
+  stage(log, "live: collect");
+  robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
+  SaggingBoard seen(truth, lc.cell.options.elastic_sag);
+  LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("L{}-", ::getpid()));
+  std::string camera_note;
+  for (std::size_t c = 0; c < specs.size(); ++c)
+    camera_note += fmt::format(
+        "{}{}: {}", c ? ", " : "", specs[c].name,
+        cams.served(c) ? "GigE Vision (Aravis fake camera on " + live_camera_address(c) + ")"
+                       : std::string("rendered in-process"));
+  say(log, "cameras: {}\n", camera_note);
+  for (const auto& n : cams.notes()) say(log, "  {}\n", n);
+  report["cameras"] = {{"how", camera_note}, {"notes", cams.notes()}};
+  const TruthLog truth_log{setup / "truth_poses.jsonl"};
+  CollectOptions co;
+  co.session = session;
+  co.robot = robot_file;
+  co.cell = files.cell.string();
+  co.plan = plan_file.string();
+  co.link = sim.tcp();
+  for (std::size_t c = 0; c < specs.size(); ++c)
+    co.cameras.push_back({specs[c].name, cams.source(c)});
+  co.speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
+  co.acceleration = 10.0 * co.speed;
+  co.resume = o.resume && fs::exists(session / "session.yaml");
+  co.yes = o.yes;
+  co.open_camera = [&cams](const CollectCamera& c) { return cams.open(c.name); };
+  co.on_settled = [&](const Eigen::VectorXd& readings) {
+    truth_log.append(readings, truth.read(), lc.cell.options.elastic_sag);
+  };
+  const double render_before = cams.render_seconds_max();
+  CollectOutcome collected = collect_session(co, log);
+  // A camera lost on a busy machine (a render beyond the GigE heartbeat window): the served
+  // cameras are rendered in-process from then on and the collection resumed (`--resume`).
+  const auto served = [&] {
+    bool any = false;
+    for (std::size_t c = 0; c < specs.size(); ++c) any = any || cams.served(c);
+    return any;
+  };
+  if ((collected.status == "incomplete" || collected.status == "failed") && served() &&
+      collected.message.find("camera") != std::string::npos) {
+    for (std::size_t c = 0; c < specs.size(); ++c)
+      cams.fall_back(c, "collection stopped (" + collected.message + ")");
+    say(log, "resuming the collection with the cameras rendered in-process\n");
+    report["collect_first_attempt"] = collected.summary;
+    co.resume = fs::exists(session / "session.yaml");
+    collected = collect_session(co, log);
+  }
+  report["cameras"]["notes"] = cams.notes();
+  report["collect"] = collected.summary;
+  report["collect"]["overhead"] =
+      collection_overhead(collected.summary, cams.render_seconds_max() - render_before);
+  if (collected.status != "ok") {
+    clock.stop();
+    fmt::print(out, "collection: {}{}\n", collected.status,
+               collected.message.empty() ? "" : ": " + collected.message);
+    return collect_exit_code(collected);
+  }
+  complete_session(lc, o, setup, session, truth_log);
+  sim.stop();
+
+  fmt::print(out, "\nmeasure: cameras, rig and end-effector poses from the recorded images\n");
+  report["measure"] = measure_session(session, "", log);
+  if (report["measure"]["status"] != "ok") return kExitFailure;
+  fmt::print(out, "\nidentify\n");
+  report["identify"] = identify_session(session, "", log, o.route, true);
+  if (report["identify"]["status"] != "ok") return kExitFailure;
+  fmt::print(out, "\nvalidate (against the simulator's truth, which only this stage reads)\n");
+  report["validate"] = validate_session(session, o.held_out, log);
+  clock.stop();
+
+  print_validation_summary(out, report["validate"], report["identify"]);
+  const nlohmann::json& ov = report["collect"]["overhead"];
+  if (!ov.empty())
+    fmt::print(out,
+               "\n  collection, per pose: robot motion {:.0f} ms, rendering {:.0f} ms; robocal's "
+               "own {:.0f} ms (frame transfer {:.0f}, detection and settled check {:.0f}, "
+               "writing {:.0f})\n",
+               ov.value("move_s_per_pose", 0.0) * 1e3, ov.value("render_s_per_pose", 0.0) * 1e3,
+               ov.value("overhead_s_per_pose", 0.0) * 1e3,
+               ov.value("frame_wait_minus_render_s_per_pose", 0.0) * 1e3,
+               ov.value("detect_and_check_s_per_pose", 0.0) * 1e3,
+               ov.value("write_s_per_pose", 0.0) * 1e3);
+  fmt::print(out, "\n  time per stage:\n{}", clock.table());
+  nlohmann::json stages = nlohmann::json::object();
+  for (const auto& s : clock.stages()) stages[s.name] = s.seconds;
+  report["seconds"] = stages;
+  report["total_seconds"] = clock.total_seconds();
+  report["seed"] = o.seed;
+  report["robot"] = o.robot;
+  report["session"] = session.string();
+  std::vector<std::pair<std::string, double>> seconds;
+  for (const auto& s : clock.stages()) seconds.emplace_back(s.name, s.seconds);
+  report["report"] = report_session(session, PipelineLog{nullptr}, seconds);
+  const std::string json_path =
+      !o.json.empty() ? o.json : ResultsLayout{session}.report("demo").string();
+  write_json(report, json_path);
+  fmt::print(out, "  session: {}\n  report: {}\n", session.string(), json_path);
+  const bool improved = report["validate"].value("improved", false);
+  if (!improved) fmt::print(stderr, "calibration did not improve the model\n");
+  return improved ? kExitOk : kExitFailure;
+}
+
+}  // namespace robocal::app

@@ -1,0 +1,39 @@
+#pragma once
+// `robocal demo --live`: the whole live loop on one machine. `robocal sim-controller` runs as a
+// separate process on loopback holding the true, perturbed robot (the offline demo's true robot
+// for the same seed); the cell's two cameras are served as GigE Vision cameras through Aravis'
+// fake camera where this machine allows it (otherwise rendered in-process, said so); the operator
+// shows the calibration board to the cameras (a scripted board pose sequence); the planner plans
+// the measurement poses; `robocal collect`'s collect_session drives them (guard, confirmation,
+// progress, resume); then measure -> identify -> validate against the simulator's truth ->
+// report. Orchestration only.
+#include "stages/stages.hpp"
+
+#include <filesystem>
+#include <string>
+
+namespace robocal::app {
+
+struct LiveDemoOptions {
+  std::string robot = "rotary_delta";
+  unsigned seed = 1;
+  int poses = 60;
+  int held_out = 500;
+  int intrinsic_views = 48;  // per camera
+  int rig_views = 12;
+  int threads = 2;
+  bool quick = false;
+  bool idealised_truth = false;
+  bool gige = true;  // try the fake GigE cameras (false: in-process rendering)
+  bool yes = false;  // the operator's confirmation before the first motion
+  bool resume = false;
+  double speed = 0.0;  // actuator units/s; 0: 2 rad/s revolute, 0.25 m/s prismatic
+  std::string route = "both";
+  std::string out;   // demo folder: session/ and setup/ inside
+  std::string json;  // report path ('-' stdout)
+};
+
+// Runs the live demo; returns the process exit code (0: calibrated and improved).
+int run_live_demo(const LiveDemoOptions& options);
+
+}  // namespace robocal::app
