@@ -6,6 +6,7 @@
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "robocal/planner/plan.hpp"
 #include "robocal/vision/pose.hpp"
 
 #include <algorithm>
@@ -177,19 +178,71 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
     cell.truth = calib::perturb_parameters(cell.truth, held, unmodelled_rng);
   }
 
-  // Two cameras below the volume, looking up at its centre, toed in.
+  // Two cameras placed by the planner to see the board over the working volume (the nominal
+  // robot and intrinsics: what is known before calibration).
+  cell.plan_cell.name = "simulated";
+  cell.plan_cell.source = "simulated cell";
+  for (int i = 0; i < 2; ++i) {
+    planner::CellCamera cam;
+    cam.name = "cam" + std::to_string(i);
+    cam.file = "(simulated)";
+    cam.model = vision::make_camera(vision::CameraKind::kPinholeRadtan, options.image_width,
+                                    options.image_height, options.focal_px, options.focal_px,
+                                    0.5 * (options.image_width - 1),
+                                    0.5 * (options.image_height - 1), {0.0, 0.0, 0.0, 0.0, 0.0});
+    cell.plan_cell.cameras.push_back(cam);
+  }
+  cell.plan_cell.target.board = cell.ee_board;
+  cell.plan_cell.target.frame =
+      cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame)).name;
+  cell.plan_cell.target.file = "(simulated)";
+  cell.plan_cell.visibility.min_image_size = options.min_board_image;
+  planner::PlacementOptions placement;
+  placement.cameras = 2;
+  placement.triangulation_angle = options.triangulation_angle;
+  try {
+    cell.placement = planner::propose_cameras(cell.model, cell.nominal, cell.plan_cell, placement);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(robot_file + ": no camera placement: " + e.what());
+  }
+  cell.plan_cell = planner::with_cameras(cell.plan_cell, cell.placement);
   for (int i = 0; i < 2; ++i) {
     SimulatedCamera cam;
     cam.model = true_camera(options, rng);
-    const Eigen::Vector3d eye =
-        cell.volume_centre +
-        Eigen::Vector3d((i == 0 ? -0.5 : 0.5) * options.baseline, 0.0, -options.camera_distance);
-    cam.camera_T_world =
-        vision::camera_T_board_look_at(eye, cell.volume_centre, Eigen::Vector3d::UnitY());
+    cam.camera_T_world = cell.placement.world_T_camera[static_cast<std::size_t>(i)].inverse();
     cam.rays = vision::precompute_rays(cam.model);
     cell.cameras.push_back(std::move(cam));
   }
   return cell;
+}
+
+std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int count,
+                                             std::mt19937& rng, std::string* summary) {
+  planner::PlanOptions po;
+  po.selection.count = static_cast<std::size_t>(std::max(count, 1));
+  // Joint-space samples: enough for a pool of many times `count` feasible poses on the robots
+  // whose cells see a small part of their range.
+  po.pool = std::max<std::size_t>(4000, 60 * po.selection.count);
+  po.seed = static_cast<unsigned>(rng());
+  // No tour: a simulated robot moves between poses instantly, and the order changes nothing.
+  po.order = false;
+  planner::PlanResult res;
+  try {
+    res = planner::plan_measurements(cell.model, cell.nominal, cell.plan_cell, po);
+  } catch (const std::exception& e) {
+    *summary = e.what();
+    return {};
+  }
+  std::vector<Eigen::VectorXd> out;
+  for (const planner::PlannedPose& p : res.poses) out.push_back(p.readings);
+  if (out.empty()) {
+    *summary = res.message;
+    return out;
+  }
+  *summary = "planned " + std::to_string(out.size()) + " poses from " +
+             std::to_string(res.pool.size()) + " feasible of " +
+             std::to_string(res.counts.evaluated) + " sampled: " + res.selection.message;
+  return out;
 }
 
 std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, int camera,
@@ -229,14 +282,21 @@ std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int cou
                                               std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector2d c = board_centre(cell.calibration_board);
+  // Rotation taking the board's z to the direction away from the cameras (identity when they
+  // look straight up, as for the Delta).
+  const Eigen::Matrix3d facing =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -cell.placement.view_direction)
+          .toRotationMatrix();
   std::vector<Eigen::Isometry3d> views;
   for (int v = 0; v < count; ++v) {
     for (int attempt = 0; attempt < 200; ++attempt) {
       Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
+      // Printed face (board -z) towards the cameras, then tilted.
       world_T_board.linear() =
-          random_tilt(std::abs(u(rng)) * 35.0 * kPi / 180.0, u(rng) * kPi, rng);
+          facing * random_tilt(std::abs(u(rng)) * 35.0 * kPi / 180.0, u(rng) * kPi, rng);
       const Eigen::Vector3d centre =
-          cell.volume_centre + Eigen::Vector3d(u(rng) * 0.15, u(rng) * 0.15, u(rng) * 0.1);
+          cell.placement.look_at +
+          facing * Eigen::Vector3d(u(rng) * 0.15, u(rng) * 0.15, u(rng) * 0.1);
       world_T_board.translation() =
           centre - world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0);
       bool all_see = true;
