@@ -133,8 +133,9 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     directions[0] = mean_n.normalized();
   for (std::size_t k = 1; k < directions.size(); ++k)
     directions[k] = normals[(k - 1) * normals.size() / 16].normalized();
-  CameraPlacement best;
-  best.coverage = -1;
+  // Every placement tried, with its quick coverage; the best few are measured in full below.
+  std::vector<CameraPlacement> tried;
+  double best_quick = -1.0;
   for (const Eigen::Vector3d& n : directions) {
     std::vector<Eigen::Vector3d> facing;
     facing.reserve(centres.size());
@@ -192,21 +193,35 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
                 ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
                 : 0.0;
         pl.coverage = quick_coverage(pl.world_T_camera);
-        if (pl.coverage > best.coverage + 1e-9) best = pl;
+        best_quick = std::max(best_quick, pl.coverage);
+        tried.push_back(pl);
         if (distance >= top) break;
       }
     }
-    if (best.coverage >= 0.999) break;
+    if (best_quick >= 0.999) break;
   }
-  // The chosen placement under the full test (occlusion by links and obstacles included).
-  {
-    const Cell placed = with_cameras(cell, best);
+  // The 6 best by quick coverage (the nearer first on ties: bigger images) under the full test
+  // (all corners, occlusion by links and obstacles): the best of them wins.
+  std::stable_sort(tried.begin(), tried.end(),
+                   [](const CameraPlacement& a, const CameraPlacement& b) {
+                     return a.coverage > b.coverage + 1e-9 ||
+                            (std::abs(a.coverage - b.coverage) <= 1e-9 && a.distance < b.distance);
+                   });
+  CameraPlacement best;
+  best.coverage = -1;
+  for (std::size_t k = 0; k < std::min<std::size_t>(6, tried.size()); ++k) {
+    CameraPlacement pl = tried[k];
+    const Cell placed = with_cameras(cell, pl);
     const FeasibilityChecker checker(model, params, placed, frame,
                                      feasibility_options_from_cell(placed));
     std::size_t seen = 0;
     for (const Eigen::VectorXd& x : configs) seen += checker.evaluate(x).feasible() ? 1 : 0;
-    best.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
+    pl.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
+    if (pl.coverage > best.coverage + 1e-9) best = pl;
   }
+  if (tried.empty())
+    throw std::invalid_argument("no viewing direction sees enough of robot '" + model.name +
+                                "'s reachable poses");
   const Eigen::Vector3d c = best.look_at, n = best.view_direction;
   const int ncam_out = ncam;
   CameraPlacement out = best;

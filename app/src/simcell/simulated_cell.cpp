@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace robocal::app {
@@ -54,6 +55,39 @@ double visible_fraction(const vision::CameraModel& camera, const vision::TargetB
   const auto seen =
       std::count_if(truth.begin(), truth.end(), [](const auto& c) { return c.visible; });
   return static_cast<double>(seen) / static_cast<double>(truth.size());
+}
+
+// Lowest world z of the collision shapes rigidly attached to `frame` (its body, the fixed
+// bodies above it and the first moving body they hang from) at readings `q`; +inf when none.
+double lowest_rigid_shape_point(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                                const Eigen::VectorXd& q, int frame) {
+  double lowest = std::numeric_limits<double>::infinity();
+  for (int b = frame; b >= 0;) {
+    const calib::Body& body = model.bodies.at(static_cast<std::size_t>(b));
+    if (!body.collision.empty()) {
+      const auto fk = calib::forward_kinematics(model, params, q, b);
+      if (fk.closure.ok()) {
+        for (const calib::CollisionShape& shape : body.collision) {
+          if (shape.kind == calib::ShapeKind::kCapsule) {
+            lowest = std::min(
+                lowest, std::min((fk.pose * shape.a).z(), (fk.pose * shape.b).z()) - shape.radius);
+          } else {
+            for (int k = 0; k < 8; ++k) {
+              const Eigen::Vector3d corner(k & 1 ? 1.0 : -1.0, k & 2 ? 1.0 : -1.0,
+                                           k & 4 ? 1.0 : -1.0);
+              lowest = std::min(
+                  lowest,
+                  (fk.pose * (shape.a + shape.rotation * corner.cwiseProduct(shape.half_size)))
+                      .z());
+            }
+          }
+        }
+      }
+    }
+    if (body.joint != calib::JointType::kFixed) break;
+    b = body.parent;
+  }
+  return lowest;
 }
 
 }  // namespace
@@ -159,10 +193,17 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
 
   // The board is mounted 1 cm below the tool point, level, facing down at the cameras (its z
   // axis points up, away from them), centred on the tool point. Designed mount = nominal tool.
+  // On a body whose collision shapes reach lower than that (the Gantry-Tau's 10 cm platform
+  // box around its tool point), the board goes on the shapes' underside instead, where a camera
+  // can see it (the planner's lines of sight are blocked by the robot's own shapes).
   Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
   const Eigen::Vector2d c = board_centre(cell.ee_board);
+  const double board_z = std::min(
+      tool_poses.front().translation().z() - 0.01,
+      lowest_rigid_shape_point(cell.model, cell.nominal, configs.front(), cell.target_frame));
   world_T_board.translation() =
-      tool_poses.front().translation() + Eigen::Vector3d(-c.x(), -c.y(), -0.01);
+      Eigen::Vector3d(tool_poses.front().translation().x() - c.x(),
+                      tool_poses.front().translation().y() - c.y(), board_z);
   calib::set_fixed_frame_pose(cell.model, cell.nominal, cell.target_frame, configs.front(),
                               world_T_board);
 
@@ -229,6 +270,19 @@ std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int coun
   planner::PlanResult res;
   try {
     res = planner::plan_measurements(cell.model, cell.nominal, cell.plan_cell, po);
+    // A cell that sees a small part of the robot's range: sample again, enough for a pool of
+    // about ten times `count` feasible poses (at most 40 000 samples).
+    const std::size_t want = 10 * po.selection.count;
+    if (res.pool.size() < want && res.status != planner::PlanStatus::kBadCell) {
+      const double rate = static_cast<double>(std::max<std::size_t>(res.pool.size(), 1)) /
+                          static_cast<double>(std::max<std::size_t>(res.counts.evaluated, 1));
+      const auto more =
+          static_cast<std::size_t>(std::min(40000.0, static_cast<double>(want) / rate));
+      if (more > po.pool) {
+        po.pool = more;
+        res = planner::plan_measurements(cell.model, cell.nominal, cell.plan_cell, po);
+      }
+    }
   } catch (const std::exception& e) {
     *summary = e.what();
     return {};
