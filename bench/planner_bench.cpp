@@ -14,7 +14,13 @@
 //    same noise seed per trial) and identified (robot-file free set, automatic base set);
 //  - held-out error: RMS position error of the identified model against the truth over 300
 //    feasible poses of another pool (noise-free).
-// Reported: median over trials of each design's held-out RMS, ratio planned/random per index.
+//  - also the 'task' criterion (mean predicted position variance over the pool, I-optimal).
+// Reported: median over trials of each design's held-out RMS, ratio planned/random per index;
+// per trial the identification status with the number of estimated parameters ("est=") and
+// those its relinearisation added ("relin+").
+// Diagnosis: ROBOCAL_PLANNER_NOISE=0 (no noise: the model's own error), =k (k x the noise);
+// ROBOCAL_PLANNER_FEASIBLE=N (pool = N feasible candidates, sampled until reached);
+// ROBOCAL_PLANNER_SKIP_SPEED=1 (no speed part).
 // Speed (CPU time of the one thread): a pool of 5000 FEASIBLE candidates, N = 60: Jacobian model
 // build, plain greedy pass, greedy + DETMAX (O1), each timed.
 #include "robocal/calib/identification.hpp"
