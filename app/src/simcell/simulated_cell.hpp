@@ -31,11 +31,11 @@ struct CellOptions {
   double focal_px = 1600.0;
   // Camera placement (planner::propose_cameras): angle between the two lines of sight, and the
   // smallest image of the end-effector board's pattern (shortest side, px) a pose must give to
-  // be planned, which also bounds the cameras' distance: 160 px puts 22 px on each 40 mm tag of
-  // the default board, well inside the detector's range (the 1.25 m the Delta's cameras stood at
-  // before placement gave ~300 px).
+  // be planned, which also bounds the cameras' distance. 250 px puts ~35 px on each 40 mm tag of
+  // the default board; at 160 px (quick images, Delta cameras 2.1 m away) a quarter of the
+  // poses' board fits failed the measure stage's consistency gate (chi2/dof 60-150).
   double triangulation_angle = 0.6;  // rad
-  double min_board_image = 160.0;    // px
+  double min_board_image = 250.0;    // px
   // The end-effector board: ee_tags x ee_tags AprilTags (tag36h11, ids from 0); default 6x6 tags
   // of 40 mm with 10 mm gaps, a 290 mm pattern on the Delta's ~0.4 m plate. The board's tilt is
   // its least well measured quantity (depth across the board from 1-2 m away), and it grows
