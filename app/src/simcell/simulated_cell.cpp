@@ -233,7 +233,7 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
                                     0.5 * (options.image_height - 1), {0.0, 0.0, 0.0, 0.0, 0.0});
     cell.plan_cell.cameras.push_back(cam);
   }
-  cell.plan_cell.target.board = cell.ee_board;
+  cell.plan_cell.target.board = vision::TargetBoard(cell.ee_board);  // (a copy, moved in)
   cell.plan_cell.target.frame =
       cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame)).name;
   cell.plan_cell.target.file = "(simulated)";
