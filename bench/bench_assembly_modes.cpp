@@ -6,7 +6,10 @@
 // ambiguous, refused (other mode), not closing, silent wrong-mode answers (must be 0), the largest
 // disagreement with the reference, and where refusals / ambiguous verdicts lie (the reference's
 // distance to the nearest mode boundary).
-// Run: build/release/bench/bench_assembly_modes [values_per_actuator] [draws] [robot file...]
+// Run: build/release/bench/bench_assembly_modes [--warm] [values_per_actuator] [draws] [robot
+// file...]
+// --warm: the perturbed models are solved warm-started from the design's answer (the seed
+// compensation and tracking callers pass) instead of cold.
 // (default: all five; the rotary Delta alone takes ~25 min on a loaded 2-core machine)
 #include "mode_sweep.hpp"
 
@@ -20,12 +23,18 @@
 
 int main(int argc, char** argv) {
   using namespace robocal::calib;
+  const bool warm = argc > 1 && std::string(argv[1]) == "--warm";
+  if (warm) {
+    --argc;
+    ++argv;
+  }
   const int values = argc > 1 ? std::atoi(argv[1]) : 20;
   const int draws = argc > 2 ? std::atoi(argv[2]) : 20;
   nlohmann::json doc = {{"values_per_actuator", values},
                         {"perturbed_draws", draws},
                         {"tolerance_factor", 5.0},
-                        {"agreement_m", 1e-9}};
+                        {"agreement_m", 1e-9},
+                        {"perturbed_seed", warm ? "warm, from the design's answer" : "cold"}};
   nlohmann::json robots = nlohmann::json::array();
   std::vector<std::string> files = {"rotary_delta.yaml", "linear_delta.yaml", "gantry_tau.yaml",
                                     "four_bar.yaml", "wire_robot_branch.yaml"};
@@ -33,7 +42,7 @@ int main(int argc, char** argv) {
   for (const std::string& file : files) {
     const Mechanism m = load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/" + file);
     const auto t0 = std::chrono::steady_clock::now();
-    const sweep::Counts c = sweep::sweep_robot(m, values, draws, 5.0);
+    const sweep::Counts c = sweep::sweep_robot(m, values, draws, 5.0, 1e-9, 15, warm);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     robots.push_back({{"robot", m.name},

@@ -17,7 +17,12 @@
 //   answer as seed), on one core; in the robot file's frame as `robocal compensate` solves it:
 //   cold, warm from the previous held-out target, seeded from the nearest target already solved
 //   (compensate_targets), along a path of targets 0.5 mm apart, and the whole compensate_targets
-//   (IK + the nominal model's FK) per target. Times are this thread's CPU time.
+//   (IK + the nominal model's FK) per target; the same compensation per target (IK + nominal FK)
+//   by the reusable calib::Compensator and by the general solvers (solve_ik + forward_kinematics,
+//   the implementation before it), cold and warm from the previous target, with the
+//   compensator's fallbacks to the general solvers and its agreement with them (verdicts,
+//   commands, calibrated FK of its readings against the target). Times are this thread's CPU
+//   time.
 // --printer: the library linear delta with its printer parameters perturbed (σ 0.3 mm, as the
 // printer tests), a 2006-move spiral program (5 layers, 2 mm moves) rewritten at 10 µm: time per
 // move, and the calibrated IK per point along it.
@@ -323,6 +328,95 @@ int main(int argc, char** argv) {
   const double tool_full_us =
       seconds_since(t0) / static_cast<double>(std::max<std::size_t>(tool_targets.size(), 1)) * 1e6;
 
+  // The reusable calib::Compensator (what compensate_targets runs on a list): calibrated IK with
+  // its verdict plus the nominal model's FK, per target. Cold: each target from the closed form of
+  // its own position; warm: from the previous target's answer. Built inside the timed region.
+  calib::Compensator::Counts cold_counts, warm_counts;
+  const auto time_compensator = [&](bool warm, int& usable, double& iterations) {
+    usable = 0;
+    iterations = 0.0;
+    const double start = thread_cpu_seconds();
+    calib::Compensator compensator(tool_models);
+    calib::IkSeed previous;
+    for (const auto& t : tool_targets) {
+      const calib::CompensatedTarget c =
+          compensator.compensate(t, warm ? previous : calib::IkSeed{});
+      iterations += c.ik.iterations / static_cast<double>(tool_targets.size());
+      if (c.usable()) {
+        ++usable;
+        previous = {c.ik.actuator_q, c.ik.passive};
+      }
+    }
+    const double us = seconds_since(start) /
+                      static_cast<double>(std::max<std::size_t>(tool_targets.size(), 1)) * 1e6;
+    (warm ? warm_counts : cold_counts) = compensator.counts();
+    return us;
+  };
+  int compensator_cold_usable = 0, compensator_warm_usable = 0;
+  double compensator_cold_iterations = 0.0, compensator_warm_iterations = 0.0;
+  const double compensator_cold_us =
+      time_compensator(false, compensator_cold_usable, compensator_cold_iterations);
+  const double compensator_warm_us =
+      time_compensator(true, compensator_warm_usable, compensator_warm_iterations);
+
+  // The same work by the general solvers (compensate_target before calib::Compensator): solve_ik
+  // then the nominal forward_kinematics, per target, cold and warm from the previous answer.
+  const auto time_general = [&](bool warm, int& usable) {
+    usable = 0;
+    calib::IkSeed previous;
+    const double start = thread_cpu_seconds();
+    for (const auto& t : tool_targets) {
+      const calib::IkResult ik =
+          calib::solve_ik(file_model, local, t, warm ? previous : calib::IkSeed{}, ik_options);
+      if (!ik.ok() || !ik.mode.acceptable()) continue;
+      const auto fk = calib::forward_kinematics(file_model, file_nominal, ik.actuator_readings,
+                                                file_model.task.frame, ik.passive);
+      if (fk.closure.ok() && fk.closure.mode.verdict != calib::ModeVerdict::kOther) {
+        ++usable;
+        previous = {ik.actuator_q, ik.passive};
+      }
+    }
+    return seconds_since(start) /
+           static_cast<double>(std::max<std::size_t>(tool_targets.size(), 1)) * 1e6;
+  };
+  int general_cold_usable = 0, general_warm_usable = 0;
+  const double general_cold_us = time_general(false, general_cold_usable);
+  const double general_warm_us = time_general(true, general_warm_usable);
+
+  // Agreement with the general solvers: verdicts and commands, cold, per target; and the
+  // calibrated FK of the compensator's readings against the target.
+  int verdict_mismatches = 0;
+  double max_commanded_difference = 0.0, max_reached_error = 0.0;
+  {
+    calib::Compensator compensator(tool_models);
+    for (const auto& t : tool_targets) {
+      const calib::CompensatedTarget c = compensator.compensate(t);
+      const calib::IkResult ik = calib::solve_ik(file_model, local, t, {}, ik_options);
+      bool reference_usable = ik.ok() && ik.mode.acceptable();
+      Eigen::Vector3d reference_commanded = Eigen::Vector3d::Zero();
+      if (reference_usable) {
+        const auto fk = calib::forward_kinematics(file_model, file_nominal, ik.actuator_readings,
+                                                  file_model.task.frame, ik.passive);
+        reference_usable = fk.closure.ok() && fk.closure.mode.verdict != calib::ModeVerdict::kOther;
+        reference_commanded = fk.pose.translation();
+      }
+      if (reference_usable != c.usable() ||
+          (reference_usable && ik.mode.verdict != c.ik.mode.verdict)) {
+        ++verdict_mismatches;
+        continue;
+      }
+      if (!c.usable()) continue;
+      max_commanded_difference = std::max(max_commanded_difference,
+                                          (c.commanded.translation() - reference_commanded).norm());
+      const auto reached = calib::forward_kinematics(file_model, local, c.ik.actuator_readings,
+                                                     file_model.task.frame);
+      max_reached_error =
+          std::max(max_reached_error,
+                   reached.closure.ok() ? (reached.pose.translation() - t.pose.translation()).norm()
+                                        : std::numeric_limits<double>::infinity());
+    }
+  }
+
   const nlohmann::json out = {
       {"session", dir.string()},
       {"robot", model.name},
@@ -354,7 +448,24 @@ int main(int argc, char** argv) {
       {"robot_frame_calibrated_ik_path_us_per_target", path_us},
       {"robot_frame_calibrated_ik_path_iterations", path_iterations},
       {"robot_frame_calibrated_ik_path_converged", path_ok},
-      {"robot_frame_compensate_targets_us_per_target", tool_full_us}};
+      {"robot_frame_compensate_targets_us_per_target", tool_full_us},
+      {"robot_frame_general_solvers_cold_us_per_target", general_cold_us},
+      {"robot_frame_general_solvers_cold_usable", general_cold_usable},
+      {"robot_frame_general_solvers_warm_us_per_target", general_warm_us},
+      {"robot_frame_general_solvers_warm_usable", general_warm_usable},
+      {"robot_frame_compensator_cold_us_per_target", compensator_cold_us},
+      {"robot_frame_compensator_cold_usable", compensator_cold_usable},
+      {"robot_frame_compensator_cold_iterations", compensator_cold_iterations},
+      {"robot_frame_compensator_cold_general_ik", cold_counts.general_ik},
+      {"robot_frame_compensator_cold_general_fk", cold_counts.general_fk},
+      {"robot_frame_compensator_warm_us_per_target", compensator_warm_us},
+      {"robot_frame_compensator_warm_general_ik", warm_counts.general_ik},
+      {"robot_frame_compensator_warm_general_fk", warm_counts.general_fk},
+      {"robot_frame_compensator_warm_usable", compensator_warm_usable},
+      {"robot_frame_compensator_warm_iterations", compensator_warm_iterations},
+      {"robot_frame_compensator_vs_general_verdict_mismatches", verdict_mismatches},
+      {"robot_frame_compensator_vs_general_max_commanded_difference_m", max_commanded_difference},
+      {"robot_frame_compensator_max_calibrated_fk_error_m", max_reached_error}};
   std::cout << out.dump(2) << "\n";
   return comp_stats.rms <= 1.1 * cal_stats.rms ? 0 : 1;
 }

@@ -5,16 +5,24 @@
 // On the library linear delta, per draw: a truth with the nine printer parameters perturbed
 // (printer_scenario.hpp), then
 //  - "heights": the firmwares' 7-point probe pattern (radius 80 mm, σ 10 µm), the nine printer
-//    parameters as candidates; the rank analysis keeps the identifiable subset. Held-out bed
+//    parameters as candidates; the rank analysis finds the identifiable subset and identify's
+//    gauge choice (gauge_choice.hpp) which confounded ones are held at nominal. Held-out bed
 //    heights on a 5 × 5 grid inside the probed circle: |predicted − true| against the Cramér–Rao
 //    prediction sqrt(J_h Σ J_hᵀ) of the identified subset (Σ: the fit's covariance at the stated,
 //    here true, noise; J_h by central differences at the estimate). The ratio of the mean-square
-//    errors over all draws is the figure (1 = the estimator reaches the bound).
+//    errors over all draws is the figure (1 = the estimator reaches the bound). The bound assumes
+//    the parameters held at nominal are exact; the truth perturbs them too, so the same draws
+//    without noise give the gauge's bias (gauge_bias_rms_um), and the error is also compared with
+//    bound² + bias² (ratio_to_bound_and_gauge_bias).
+//  - "heights_with_priors": the same 7 heights with the robot file's tolerances as priors (MAP,
+//    identify --priors): all nine estimated; held-out error against the posterior's prediction.
 //  - "heights_and_distances": the same plus twelve caliper distances on a printed part (σ 10 µm):
 //    identified count and held-out 3-D error at the layer above the bed, before and after.
 //  - "designed_probe_points": seven probe points chosen by calib's advice (advise_measurements
-//    from no data over a bed grid, at the nominal model) against the firmwares' fixed 7-point
-//    pattern, same draws and noise: held-out bed height error of each, and the ratio.
+//    from no data over a 15 mm bed grid within 90 mm, at the nominal model; I-optimal for the bed
+//    height over the printed square ±60 mm, the robot file's tolerances as the design's prior)
+//    against the firmwares' fixed 7-point pattern, same draws and noise: held-out bed height error
+//    of each, and the ratio; also the advice's rank/conditioning rule alone (design off).
 #include "printer_scenario.hpp"
 #include "robocal/calib/measurement_advice.hpp"
 
@@ -52,15 +60,23 @@ struct HeightFigures {
   std::size_t identified = 0;
 };
 
+// `noise` false: the same draw's truth measured without noise (σ still stated as 10 µm): what is
+// left of the held-out error is the bias of the parameters held at nominal (the gauge).
+// `priors`: the robot file's tolerances as priors (identify --priors, MAP): every parameter is
+// estimated and Σ is the posterior covariance.
 void heights_draw(const calib::Mechanism& model, unsigned seed, HeightFigures& f,
-                  const std::vector<Eigen::Vector2d>& pattern) {
+                  const std::vector<Eigen::Vector2d>& pattern, bool noise = true,
+                  bool priors = false) {
   const calib::MechanismPredictor pred(model);
   const Eigen::VectorXd nominal = model.nominal_parameters();
   std::mt19937 rng(seed);
   const Eigen::VectorXd truth = test::printer_truth(model, rng);
   test::PrinterData data;
-  test::add_probe_heights(model, truth, pattern, 10e-6, rng, data);
-  auto opt = calib::solve_options_from_model(model, false);
+  test::add_probe_heights(model, truth, pattern, noise ? 10e-6 : 0.0, rng, data);
+  if (!noise)
+    for (auto& pose : data.measurements.poses)
+      for (auto& o : pose.observations) std::get<calib::ProbeHeightObservation>(o).sigma = 10e-6;
+  auto opt = calib::solve_options_from_model(model, priors);
   opt.candidates = test::printer_candidates(model);
   opt.keep_stated_noise = true;  // the stated σ is the true one: Σ is the bound itself
   const auto res = calib::identify(pred, nominal, data.measurements, opt);
@@ -90,8 +106,10 @@ void heights_draw(const calib::Mechanism& model, unsigned seed, HeightFigures& f
 }
 
 // Seven probe points by the advice: from no data, over a 15 mm bed grid within 90 mm of the
-// centre, the points that make the printer parameters identifiable and best conditioned.
-std::vector<Eigen::Vector2d> designed_pattern(const calib::Mechanism& model) {
+// centre, the points with the least expected height error over the printed square for identify's
+// estimator (noise through the estimated parameters plus the bias of those it holds at nominal,
+// at the robot file's tolerances); `design` false: the rank and conditioning rule alone.
+std::vector<Eigen::Vector2d> designed_pattern(const calib::Mechanism& model, bool design) {
   const calib::MechanismPredictor pred(model);
   std::vector<Eigen::VectorXd> bed;
   for (double x = -0.09; x <= 0.0901; x += 0.015)
@@ -101,6 +119,14 @@ std::vector<Eigen::Vector2d> designed_pattern(const calib::Mechanism& model) {
   o.distances = false;
   o.redundancy = 0;
   o.max_suggestions = 7;
+  o.design = design;
+  // The working area: the printed square (±60 mm) on a 10 mm grid (the held-out grid is every
+  // third of these); the design's prior: the robot file's tolerances.
+  for (double x = -0.06; x <= 0.0601; x += 0.01)
+    for (double y = -0.06; y <= 0.0601; y += 0.01)
+      o.working_area.push_back(test::commanded_readings(model, {x, y, 0.0}));
+  for (const auto& prm : model.parameters) o.prior_sigma.push_back(prm.sigma);
+  o.preference = calib::solve_options_from_model(model, false).preference;
   const auto advice = calib::advise_measurements(pred, model.nominal_parameters(), {},
                                                  test::printer_candidates(model), bed, {}, o);
   std::vector<Eigen::Vector2d> out;
@@ -152,37 +178,65 @@ int main(int argc, char** argv) {
         calib::load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
     HeightFigures h;
     HeightFigures designed;
+    HeightFigures ranked;
+    HeightFigures h_bias;
+    HeightFigures designed_bias;
+    HeightFigures map;
     DistanceFigures d;
-    const auto pattern = designed_pattern(model);
+    const auto pattern = designed_pattern(model, true);
+    const auto rank_pattern = designed_pattern(model, false);
     for (int k = 0; k < draws; ++k) {
       heights_draw(model, static_cast<unsigned>(100 + k), h, test::probe_pattern(0.08));
       heights_draw(model, static_cast<unsigned>(100 + k), designed, pattern);
+      heights_draw(model, static_cast<unsigned>(100 + k), ranked, rank_pattern);
+      heights_draw(model, static_cast<unsigned>(100 + k), h_bias, test::probe_pattern(0.08), false);
+      heights_draw(model, static_cast<unsigned>(100 + k), designed_bias, pattern, false);
+      heights_draw(model, static_cast<unsigned>(100 + k), map, test::probe_pattern(0.08), true,
+                   true);
       distances_draw(model, static_cast<unsigned>(200 + k), d);
     }
     nlohmann::json out;
     out["robot"] = "linear_delta";
     out["draws"] = draws;
-    out["heights"] = {{"probe_points", 7},
-                      {"sigma_um", 10},
-                      {"identified_parameters", h.identified},
-                      {"heldout_points", h.points},
-                      {"heldout_height_rms_before_um", 1e6 * std::sqrt(h.before_ms / h.points)},
-                      {"heldout_height_rms_um", 1e6 * std::sqrt(h.error_ms / h.points)},
-                      {"cramer_rao_rms_um", 1e6 * std::sqrt(h.bound_ms / h.points)},
-                      {"ratio_to_bound", std::sqrt(h.error_ms / h.bound_ms)}};
+    out["heights"] = {
+        {"probe_points", 7},
+        {"sigma_um", 10},
+        {"identified_parameters", h.identified},
+        {"heldout_points", h.points},
+        {"heldout_height_rms_before_um", 1e6 * std::sqrt(h.before_ms / h.points)},
+        {"heldout_height_rms_um", 1e6 * std::sqrt(h.error_ms / h.points)},
+        {"cramer_rao_rms_um", 1e6 * std::sqrt(h.bound_ms / h.points)},
+        {"ratio_to_bound", std::sqrt(h.error_ms / h.bound_ms)},
+        {"gauge_bias_rms_um", 1e6 * std::sqrt(h_bias.error_ms / h_bias.points)},
+        {"ratio_to_bound_and_gauge_bias", std::sqrt(h.error_ms / (h.bound_ms + h_bias.error_ms))}};
+    out["heights_with_priors"] = {
+        {"identified_parameters", map.identified},
+        {"heldout_height_rms_um", 1e6 * std::sqrt(map.error_ms / map.points)},
+        {"posterior_rms_um", 1e6 * std::sqrt(map.bound_ms / map.points)},
+        {"ratio_to_bound", std::sqrt(map.error_ms / map.bound_ms)}};
     out["heights_and_distances"] = {
         {"distances", 12},
         {"draws_with_all_nine_identified", d.nine_identified},
         {"heldout_3d_rms_before_um", 1e6 * std::sqrt(d.before_ms / d.points)},
         {"heldout_3d_rms_after_um", 1e6 * std::sqrt(d.after_ms / d.points)}};
-    nlohmann::json points = nlohmann::json::array();
-    for (const auto& p : pattern) points.push_back({1e3 * p.x(), 1e3 * p.y()});
+    auto mm = [](const std::vector<Eigen::Vector2d>& pts) {
+      nlohmann::json a = nlohmann::json::array();
+      for (const auto& p : pts)
+        a.push_back({std::round(1e4 * p.x()) / 10.0, std::round(1e4 * p.y()) / 10.0});
+      return a;
+    };
     out["designed_probe_points"] = {
-        {"points_mm", points},
+        {"points_mm", mm(pattern)},
         {"identified_parameters", designed.identified},
         {"heldout_height_rms_um", 1e6 * std::sqrt(designed.error_ms / designed.points)},
         {"fixed_pattern_heldout_height_rms_um", 1e6 * std::sqrt(h.error_ms / h.points)},
-        {"ratio_designed_to_fixed", std::sqrt(designed.error_ms / h.error_ms)}};
+        {"ratio_designed_to_fixed", std::sqrt(designed.error_ms / h.error_ms)},
+        {"cramer_rao_rms_um", 1e6 * std::sqrt(designed.bound_ms / designed.points)},
+        {"ratio_to_bound", std::sqrt(designed.error_ms / designed.bound_ms)},
+        {"gauge_bias_rms_um", 1e6 * std::sqrt(designed_bias.error_ms / designed_bias.points)},
+        {"rank_rule_points_mm", mm(rank_pattern)},
+        {"rank_rule_heldout_height_rms_um", 1e6 * std::sqrt(ranked.error_ms / ranked.points)},
+        {"ratio_rank_rule_to_fixed", std::sqrt(ranked.error_ms / h.error_ms)}};
     std::cout << out.dump(2) << "\n";
   } catch (const std::exception& e) {
     std::cerr << "printer_identify_bench: " << e.what() << "\n";

@@ -1,6 +1,7 @@
 #include "robocal/calib/identification.hpp"
 
 #include "robocal/calib/conventions.hpp"
+#include "robocal/calib/gauge_choice.hpp"
 
 #include <ceres/ceres.h>
 #include <fmt/core.h>
@@ -264,6 +265,61 @@ std::optional<Eigen::Vector3d> observed_position(const Observation& obs) {
   return std::nullopt;
 }
 
+// Fit residuals per observation type at `params` (ResidualDiagnostics::by_type), in the order
+// point, pose position, pose rotation, probe height, distance; types without data left out.
+std::vector<TypeResiduals> residuals_by_type(const FramePredictor& model,
+                                             const Eigen::VectorXd& params,
+                                             const std::vector<const PoseMeasurement*>& poses,
+                                             const std::map<std::string, int>& slot_of,
+                                             const std::vector<DistanceMeasurement>& distances) {
+  std::vector<TypeResiduals> out = {{"point", "m"},
+                                    {"pose position", "m"},
+                                    {"pose rotation", "rad"},
+                                    {"probe height", "m"},
+                                    {"distance", "m"}};
+  auto add = [&](std::size_t type, double e) {
+    auto& t = out[type];
+    ++t.count;
+    t.rms += e * e;
+    t.max = std::max(t.max, e);
+  };
+  std::map<std::string, Eigen::Vector3d> at;
+  for (const auto* pose : poses) {
+    FramePrediction pred;
+    std::string why;
+    const auto slot = slot_of.find(pose->id);
+    if (!model.predict(params, pose->actuators, slot == slot_of.end() ? -1 : slot->second, false,
+                       pred, why))
+      continue;
+    at[pose->id] = pred.pose.translation();
+    for (const auto& obs : pose->observations) {
+      if (const auto* p = std::get_if<PointObservation>(&obs))
+        add(0, (pred.pose.translation() - p->measured).norm());
+      if (const auto* p = std::get_if<PoseObservation>(&obs)) {
+        add(1, (pred.pose.translation() - p->measured_position).norm());
+        add(2, Eigen::AngleAxisd(pred.pose.linear() * p->measured_rotation.transpose()).angle());
+      }
+      if (const auto* h = std::get_if<ProbeHeightObservation>(&obs)) {
+        double r = 0.0;  // whitened, against the estimated bed plane when there is one
+        if (model.probe_residual(*h, params, pred, r, nullptr, why)) add(3, std::abs(r) * h->sigma);
+      }
+    }
+  }
+  for (const auto& d : distances) {
+    const auto a = at.find(d.first);
+    const auto b = at.find(d.second);
+    if (a != at.end() && b != at.end())
+      add(4, std::abs((a->second - b->second).norm() - d.observation.measured_distance));
+  }
+  std::vector<TypeResiduals> present;
+  for (auto& t : out)
+    if (t.count > 0) {
+      t.rms = std::sqrt(t.rms / static_cast<double>(t.count));
+      present.push_back(t);
+    }
+  return present;
+}
+
 double spread(const std::vector<Eigen::Vector3d>& pts) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for (const auto& p : pts) c += p;
@@ -477,6 +533,98 @@ ErrorStatistics finish(const std::vector<double>& pos, const std::vector<double>
 
 namespace {
 
+// Predicted quantities over the measured area, as whitened rows (candidate columns): every
+// observation of each measured pose, at that pose and at the quarter points between every two of
+// them in actuator space (at most 16 poses spread over the list; pixel poses are skipped).
+Eigen::MatrixXd measured_area_rows(const FramePredictor& model, const Eigen::VectorXd& params,
+                                   const std::vector<const PoseMeasurement*>& poses,
+                                   const std::vector<std::size_t>& candidates) {
+  std::vector<const PoseMeasurement*> used;
+  for (const auto* pose : poses)
+    if (!pose->observations.empty() && pose->pixel_groups.empty()) used.push_back(pose);
+  constexpr std::size_t kMaxPoses = 16;
+  if (used.size() > kMaxPoses) {
+    std::vector<const PoseMeasurement*> spread_out;
+    for (std::size_t k = 0; k < kMaxPoses; ++k)
+      spread_out.push_back(used[k * (used.size() - 1) / (kMaxPoses - 1)]);
+    used = std::move(spread_out);
+  }
+  Measurements area;
+  for (std::size_t i = 0; i < used.size(); ++i) {
+    area.poses.push_back({"area", used[i]->actuators, used[i]->observations});
+    for (std::size_t j = i + 1; j < used.size(); ++j)
+      for (const double t : {0.25, 0.5, 0.75})
+        area.poses.push_back({"area", (1.0 - t) * used[i]->actuators + t * used[j]->actuators,
+                              used[i]->observations});
+  }
+  Eigen::MatrixXd rows(0, static_cast<Eigen::Index>(candidates.size()));
+  for (const auto& pose : area.poses) {
+    Measurements one;
+    one.poses.push_back(pose);
+    Eigen::MatrixXd J;
+    std::string why;
+    if (!identification_jacobian(model, params, one, J, why)) continue;  // outside the workspace
+    const Eigen::Index n = rows.rows();
+    rows.conservativeResize(n + J.rows(), Eigen::NoChange);
+    for (std::size_t k = 0; k < candidates.size(); ++k)
+      rows.col(static_cast<Eigen::Index>(k)).segment(n, J.rows()) =
+          J.col(static_cast<Eigen::Index>(candidates[k]));
+  }
+  return rows;
+}
+
+// Little data: which of the confounded candidates are held at nominal (gauge_choice.hpp). The
+// rank analysis' pivot order gives one base set; among the sets of the same size the data
+// separate as well, the one whose held parameters, off nominal by their tolerances, move the
+// predictions over the measured area least. `report` is redone with that set first, so its
+// redundancies explain the held parameters; returns the sentence for the gauge ("" = unchanged
+// or not decidable).
+std::string choose_little_data_gauge(const FramePredictor& model, const Eigen::VectorXd& params,
+                                     const std::vector<const PoseMeasurement*>& poses,
+                                     const Eigen::MatrixXd& Jc,
+                                     const std::vector<std::size_t>& candidates,
+                                     const std::vector<std::string>& cand_names,
+                                     const SolveOptions& options, IdentifiabilityReport& report) {
+  const Eigen::MatrixXd targets = measured_area_rows(model, params, poses, candidates);
+  if (targets.rows() == 0) return "";
+  Eigen::VectorXd sigma(static_cast<Eigen::Index>(candidates.size()));
+  for (std::size_t k = 0; k < candidates.size(); ++k) {
+    const double s =
+        candidates[k] < options.gauge_sigma.size() ? options.gauge_sigma[candidates[k]] : 0.0;
+    if (!(s > 0.0)) return "";  // no tolerance for a candidate: nothing to weigh
+    sigma(static_cast<Eigen::Index>(k)) = s;
+  }
+  GaugeOptions gauge_options;
+  gauge_options.rank_tolerance = options.identifiability.ill_conditioning_ratio;
+  const GaugeChoice choice =
+      choose_gauge(Jc, targets, sigma, report.identifiable, {}, report.no_effect, gauge_options);
+  if (!std::isfinite(choice.expected_error)) return "";
+  if (choice.changed) {
+    // The analysis again with the chosen set visited first: it keeps exactly that set and
+    // explains the others through it.
+    IdentifiabilityOptions strict = options.identifiability;
+    strict.rank_tolerance = gauge_options.rank_tolerance;
+    strict.stable_tie_break = true;
+    std::vector<int> preference(candidates.size(), 1);
+    for (std::size_t k : choice.estimated) preference[k] = 0;
+    IdentifiabilityReport redone = analyze_identifiability(Jc, cand_names, strict, preference);
+    if (redone.identifiable != choice.estimated) return "";
+    report = std::move(redone);
+  }
+  return fmt::format(
+      "; they are the ones held because, off nominal by the robot file's tolerances, they move "
+      "the predictions over the measured area least (expected prediction error {:.3g} x the "
+      "measurement noise, of which their bias {:.3g}; the rank analysis' pivot order would hold "
+      "{}: {:.3g}, bias {:.3g})",
+      std::sqrt(choice.expected_error), std::sqrt(choice.bias),
+      choice.changed ? "others" : "the same", std::sqrt(choice.initial_expected_error),
+      std::sqrt(choice.initial_bias));
+}
+
+}  // namespace
+
+namespace {
+
 // One solve. The identifiability analysis is done at `linearisation` (the nominal model for the
 // first solve, the first estimate for the relinearised one); the parameters in `keep` are
 // estimated whatever the analysis says (they are visited first, so the analysis only adds to
@@ -684,6 +832,11 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     strict.rank_tolerance = options.identifiability.ill_conditioning_ratio;
     result.identifiability = analyze_identifiability(Jc, cand_names, strict, cand_pref);
   }
+  std::string gauge_why;
+  if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything && keep.empty() &&
+      !options.gauge_sigma.empty() && !result.identifiability.redundancies.empty())
+    gauge_why = choose_little_data_gauge(model, linearisation, as.poses, Jc, candidates, cand_names,
+                                         options, result.identifiability);
   if (static_cast<std::size_t>(as.rows) < with_effect) {
     result.limited_data = true;
     std::string held;
@@ -704,9 +857,10 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
                   "combinations, so {} parameters are estimated and {} are held at their "
                   "nominal values (the gauge, chosen for this robot and this data: each "
                   "held parameter moves the measurements like a combination of estimated "
-                  "ones, see the redundancies){}{}",
+                  "ones, see the redundancies){}{}{}",
                   as.rows, with_effect, result.identifiability.rank, result.identifiability.rank,
-                  with_effect - result.identifiability.rank, held.empty() ? "" : ": ", held);
+                  with_effect - result.identifiability.rank, held.empty() ? "" : ": ", held,
+                  gauge_why);
   }
   if (map_everything) {
     // Every candidate that has an effect is estimated; the prior makes the problem well posed.
@@ -1033,6 +1187,8 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     }
     result.residuals = diagnose_residuals(per_pose, options.outliers);
   }
+  result.residuals.by_type =
+      residuals_by_type(model, best, as.poses, slot_of, measurements.distances);
   if (result.uncertainty.ok) {
     std::vector<Eigen::MatrixXd> frame_jacobians;
     for (const auto* pose : as.poses) {

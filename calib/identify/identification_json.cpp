@@ -132,6 +132,13 @@ nlohmann::json to_json(const IdentificationResult& r) {
                      {"orientation_rms_rad", num(r.residuals.orientation_rms)},
                      {"orientation_max_rad", num(r.residuals.orientation_max)},
                      {"outliers", r.residuals.outliers}};
+  res["by_type"] = nlohmann::json::array();
+  for (const auto& t : r.residuals.by_type)
+    res["by_type"].push_back({{"type", t.type},
+                              {"unit", t.unit},
+                              {"count", t.count},
+                              {"rms", num(t.rms)},
+                              {"max", num(t.max)}});
   res["poses"] = nlohmann::json::array();
   for (const auto& p : r.residuals.poses)
     res["poses"].push_back({{"id", p.id},

@@ -126,11 +126,21 @@ std::string summary_text(const IdentificationResult& r) {
   if (!r.robust_loss_noise_scale.empty())
     s += "Robust loss: threshold counted in the noise estimated from the data, not the stated "
          "noise\n";
-  s += fmt::format("Fit residuals: position RMS {}, max {}", length(r.residuals.position_rms),
-                   length(r.residuals.position_max));
-  if (r.residuals.orientation_max > 0)
-    s += fmt::format("; orientation RMS {:.3g} mrad", r.residuals.orientation_rms * 1e3);
-  s += fmt::format("; {} outlier pose(s)\n", r.residuals.outliers);
+  // Per observation type, each in its own terms (a fit of heights and distances has no position
+  // residual); the pose-level figures when the fit did not fill them (pixel observations only).
+  std::string fit;
+  for (const auto& t : r.residuals.by_type)
+    fit += fmt::format("{}{} RMS {}, max {} ({})", fit.empty() ? "" : "; ", t.type,
+                       t.unit == "rad" ? fmt::format("{:.3g} mrad", 1e3 * t.rms) : length(t.rms),
+                       t.unit == "rad" ? fmt::format("{:.3g} mrad", 1e3 * t.max) : length(t.max),
+                       t.count);
+  if (fit.empty()) {
+    fit = fmt::format("position RMS {}, max {}", length(r.residuals.position_rms),
+                      length(r.residuals.position_max));
+    if (r.residuals.orientation_max > 0)
+      fit += fmt::format("; orientation RMS {:.3g} mrad", r.residuals.orientation_rms * 1e3);
+  }
+  s += fmt::format("Fit residuals: {}; {} outlier pose(s)\n", fit, r.residuals.outliers);
   for (const auto& p : r.residuals.poses)
     if (p.outlier)
       s += fmt::format("  outlier {}: chi-square {:.3g} > {:.3g} ({} dof), error {}\n", p.id,
@@ -143,10 +153,14 @@ std::string summary_text(const IdentificationResult& r) {
 }
 
 std::string validation_line(const std::string& label, const ValidationReport& v) {
-  std::string s =
-      fmt::format("{}: {} poses, position RMS {} -> {} (max {} -> {})", label, v.after.poses,
-                  length(v.before.position_rms), length(v.after.position_rms),
-                  length(v.before.position_max), length(v.after.position_max));
+  return validation_line(label, v, "position");
+}
+
+std::string validation_line(const std::string& label, const ValidationReport& v,
+                            const std::string& what) {
+  std::string s = fmt::format("{}: {} poses, {} RMS {} -> {} (max {} -> {})", label, v.after.poses,
+                              what, length(v.before.position_rms), length(v.after.position_rms),
+                              length(v.before.position_max), length(v.after.position_max));
   if (v.after.orientation_max > 0)
     s += fmt::format(", orientation RMS {:.3g} -> {:.3g} mrad", v.before.orientation_rms * 1e3,
                      v.after.orientation_rms * 1e3);

@@ -3,6 +3,7 @@
 #include "robocal/calib/identifiability.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/probe_design.hpp"
 
 #include <fmt/core.h>
 
@@ -56,6 +57,96 @@ SuggestedMeasurement suggestion(const std::string& kind, const Eigen::VectorXd& 
 
 std::string where(const Eigen::Vector3d& p) {
   return fmt::format("({:.1f}, {:.1f}, {:.1f}) mm", 1e3 * p.x(), 1e3 * p.y(), 1e3 * p.z());
+}
+
+// Rows (candidate columns) of the predicted quantity at `readings`: the bed height (unit σ) when
+// `heights`, else the three position coordinates. Readings the model cannot predict are skipped.
+Eigen::MatrixXd prediction_rows(const FramePredictor& model, const Eigen::VectorXd& params,
+                                const std::vector<std::size_t>& cols,
+                                const std::vector<Eigen::VectorXd>& readings, bool heights) {
+  Eigen::MatrixXd out(0, static_cast<Eigen::Index>(cols.size()));
+  for (const auto& q : readings) {
+    Measurements m;
+    if (heights) {
+      ProbeHeightObservation h;
+      h.sigma = 1.0;
+      m.poses.push_back({"area", q, {h}});
+    } else {
+      m.poses.push_back({"area", q, {PointObservation::with_sigma(Eigen::Vector3d::Zero(), 1.0)}});
+    }
+    Eigen::MatrixXd rows;
+    std::string why;
+    if (identification_jacobian(model, params, m, rows, why))
+      out = stacked(out, columns_of(rows, cols));
+  }
+  return out;
+}
+
+// The held-parameter criterion runs identify's analysis for every design it weighs: affordable
+// for a printer's parameter set (9: ~0.5 s for the identify command's advice), not for every
+// parameter of a robot file (49 on the linear delta: 20 s); those get the variance criterion.
+constexpr std::size_t kHeldModelMaxParameters = 16;
+
+// As many suggestions as the rank rule chose, chosen again I-optimally for the predictions over
+// the working area (probe_design.hpp); kept unless they separate fewer parameters.
+void redesign(const FramePredictor& model, const Eigen::VectorXd& params,
+              const std::vector<std::size_t>& cols, const std::vector<std::string>& names,
+              const Eigen::MatrixXd& J_now, const std::vector<Candidate>& pool_rows,
+              const std::vector<Eigen::VectorXd>& height_pool,
+              const std::vector<Eigen::VectorXd>& pool, const AdviceOptions& options,
+              MeasurementAdvice& advice) {
+  const bool heights = !height_pool.empty();
+  const auto& area = !options.working_area.empty() ? options.working_area
+                     : heights                     ? height_pool
+                                                   : pool;
+  const Eigen::MatrixXd targets = prediction_rows(model, params, cols, area, heights);
+  if (targets.rows() == 0) return;
+  const auto n = static_cast<Eigen::Index>(cols.size());
+  Eigen::MatrixXd M0 = Eigen::MatrixXd::Zero(n, n);
+  if (J_now.rows() > 0) M0 = J_now.transpose() * J_now;
+  Eigen::VectorXd sigma = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const std::size_t i = cols[static_cast<std::size_t>(k)];
+    if (i < options.prior_sigma.size()) sigma(k) = options.prior_sigma[i];
+  }
+  const bool priors = n > 0 && sigma.minCoeff() > 0.0;
+  std::vector<Eigen::MatrixXd> rows;
+  rows.reserve(pool_rows.size());
+  std::size_t design_rows = static_cast<std::size_t>(J_now.rows());
+  for (const auto& c : pool_rows) rows.push_back(c.rows);
+  for (const auto& s : advice.suggestions) design_rows += s.kind == "3-D point" ? 3 : 1;
+  DesignOptions design_options;
+  if (priors && options.map_estimator) {
+    for (Eigen::Index k = 0; k < n; ++k) M0(k, k) += 1.0 / (sigma(k) * sigma(k));
+  } else if (priors && cols.size() <= kHeldModelMaxParameters) {
+    // What identify will hold at nominal with these rows: its analysis, with the little-data
+    // rule's stricter tolerance when the equations are fewer than the parameters.
+    IdentifiabilityOptions analysis;
+    if (design_rows < cols.size()) analysis.rank_tolerance = analysis.ill_conditioning_ratio;
+    std::vector<int> preference;
+    if (!options.preference.empty())
+      for (std::size_t i : cols)
+        preference.push_back(i < options.preference.size() ? options.preference[i] : 0);
+    design_options.held = [names, analysis, preference, &J_now](const Eigen::MatrixXd& chosen) {
+      return analyze_identifiability(stacked(J_now, chosen), names, analysis, preference).redundant;
+    };
+    design_options.held_sigma = sigma;
+  }
+  const auto design =
+      i_optimal_design(rows, targets, M0, advice.suggestions.size(), design_options);
+  if (design.chosen.size() != advice.suggestions.size()) return;
+  std::vector<SuggestedMeasurement> chosen;
+  Eigen::MatrixXd J = J_now;
+  std::size_t rank = 0;
+  for (std::size_t c : design.chosen) {
+    J = stacked(J, pool_rows[c].rows);
+    rank = strength(J, names).first;
+    chosen.push_back(pool_rows[c].what);
+    chosen.back().rank_after = rank;
+  }
+  if (rank < advice.rank_after) return;
+  advice.suggestions = std::move(chosen);
+  advice.rank_after = rank;
 }
 
 }  // namespace
@@ -130,6 +221,7 @@ MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::
       }
   }
 
+  const Eigen::MatrixXd J_now = J;
   const auto start = strength(J, names);
   std::size_t rank = start.first;
   double weakest = start.second;
@@ -180,6 +272,8 @@ MeasurementAdvice advise_measurements(const FramePredictor& model, const Eigen::
     advice.suggestions.push_back(pool_rows[best].what);
   }
   advice.rank_after = rank;
+  if (options.design && !advice.suggestions.empty())
+    redesign(model, params, cols, names, J_now, pool_rows, height_pool, pool, options, advice);
   if (advice.suggestions.empty()) return advice;
   advice.text = fmt::format(
       "To separate {} more of the {} parameters (identifiable now: {}) with equations to spare, "
@@ -273,6 +367,18 @@ MeasurementAdvice advise_like_the_data(const MechanismPredictor& robot, const Fr
   std::vector<Eigen::VectorXd> pool = grid_like(robot, robot_params, distance_at);
   options.distances = !distance_at.empty();
   options.points = points;
+  // The design weighs what stays held at nominal by the robot file's tolerances.
+  if (options.prior_sigma.empty())
+    for (const auto& prm : robot.model().parameters) options.prior_sigma.push_back(prm.sigma);
+  if (options.preference.empty()) {
+    // identify's base-set preference (what it holds); a wrapper's own parameters (the bed
+    // plane) after the robot's, as BedPlanePredictor orders them.
+    options.preference = solve_options_from_model(robot.model(), false).preference;
+    const int last = options.preference.empty()
+                         ? 0
+                         : *std::max_element(options.preference.begin(), options.preference.end());
+    options.preference.resize(model.parameter_count(), last + 1);
+  }
   auto add_sampled = [&] {
     std::mt19937 rng(1);
     for (auto& q : sample_actuators(robot, {robot_params}, 40, rng)) pool.push_back(std::move(q));

@@ -90,6 +90,7 @@ SolveOptions solve_options_from_model(const Mechanism& model, bool use_priors) {
   const auto P = model.parameters.size();
   opt.preference.assign(P, 0);
   if (use_priors) opt.prior_sigma.assign(P, 0.0);
+  opt.gauge_sigma.assign(P, 0.0);
   // Bodies on the chain from the tool up to the first moving joint form the tool frame.
   std::vector<bool> tool_chain(model.bodies.size(), false);
   for (int b = model.tool;
@@ -100,6 +101,7 @@ SolveOptions solve_options_from_model(const Mechanism& model, bool use_priors) {
     const Parameter& prm = model.parameters[i];
     if (prm.free) opt.candidates.push_back(i);
     if (use_priors && prm.free) opt.prior_sigma[i] = prm.sigma;
+    if (prm.free) opt.gauge_sigma[i] = prm.sigma;
     // Base frame first: world <-> robot is always a real unknown and the natural carrier of a
     // combination it shares with the geometry or the tool.
     int pref = 1;

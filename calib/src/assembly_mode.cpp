@@ -34,6 +34,12 @@ std::string ModeCheck::describe() const {
       s << "intended assembly mode (distance to the nearest mode boundary " << distance << ")";
       break;
     case ModeVerdict::kOther:
+      if (invariant == "design_branch") {
+        s << "another configuration of the loops than the one forward kinematics gives for "
+             "these joint values (near a singular configuration of the design, where the loops "
+             "close in several configurations that all satisfy the declared invariants)";
+        break;
+      }
       s << "another assembly mode: invariant " << invariant
         << " has the opposite sign to the robot file's declaration (margin " << margin << ")";
       break;

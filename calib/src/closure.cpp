@@ -105,7 +105,7 @@ struct ClosureSolver::Impl {
         params(p),
         options(o),
         ev(m, p),
-        seed_ev(m, seed_params(m, p)),
+        seed_ev(m, detail::loop_parameters(m, p)),
         q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))) {
     ws.resize(m.constraint_rows(), static_cast<Eigen::Index>(m.passive.size()));
   }
@@ -113,25 +113,10 @@ struct ClosureSolver::Impl {
   bool differs_from_design_loops() {
     if (differs_from_design < 0) {
       design = model->nominal_parameters();
-      differs_from_design = params.size() == design.size() &&
-                            (seed_params(*model, params) - design).cwiseAbs().maxCoeff() > 0.0;
+      differs_from_design = detail::loops_differ_from_design(*model, params) ? 1 : 0;
       if (differs_from_design) design_ev = detail::TreeEvaluator(*model, design);
     }
     return differs_from_design == 1;
-  }
-
-  static Eigen::VectorXd seed_params(const Mechanism& m, const Eigen::VectorXd& p) {
-    Eigen::VectorXd out = p;
-    if (p.size() != static_cast<Eigen::Index>(m.parameters.size())) return out;
-    for (std::size_t i = 0; i < m.parameters.size(); ++i) {
-      const int b = m.parameters[i].body;
-      if (b < 0) continue;
-      const Body& body = m.bodies[static_cast<std::size_t>(b)];
-      const bool base_frame = body.parent < 0 && body.joint == JointType::kFixed;
-      const bool task_frame = b == m.task.frame && body.joint == JointType::kFixed;
-      if (base_frame || task_frame) out[static_cast<Eigen::Index>(i)] = m.parameters[i].value;
-    }
-    return out;
   }
 
   bool set_actuators(const Eigen::VectorXd& readings) { return set_actuators(readings, params); }
@@ -264,6 +249,33 @@ struct ClosureSolver::Impl {
     return true;
   }
 
+  // A warm answer of a model whose loops differ from the design, close to a singularity of its
+  // loops (detail::kDesignCheckMargin): a warm seed may settle on any of the nearby configurations
+  // that satisfy the declared invariants, and the answer that counts is the cold one (the
+  // design's answer followed to `params`, from_design). So the warm answer is compared with it
+  // and replaced when they differ; when they agree the cold verdict is kept (ambiguous where the
+  // design is).
+  void check_warm_against_design(const Eigen::VectorXd& readings, ClosureResult& r) {
+    if (!options.enforce_mode || !r.ok() || !r.mode.acceptable() || r.mode.conditioning < 0.0 ||
+        r.mode.conditioning >= detail::kDesignCheckMargin * model->assembly_mode.min_conditioning ||
+        !differs_from_design_loops())
+      return;
+    ClosureResult cold = r;
+    cold.iterations = 0;
+    const bool found = from_design(readings, cold) && cold.mode.acceptable();
+    set_actuators(readings);
+    r.iterations += cold.iterations;
+    if (!found) return;
+    if ((cold.passive - r.passive).cwiseAbs().maxCoeff() > kSameAnswer) {
+      cold.iterations = r.iterations;
+      cold.seed_used = "design";
+      r = cold;
+    } else {
+      r.mode = cold.mode;
+    }
+  }
+  static constexpr double kSameAnswer = 1e-6;  // rad or m: the same configuration
+
   // Continuation from the home configuration to `readings` (closure.hpp, step 2).
   template <class System>
   bool continuation(System& sys, const Eigen::VectorXd& readings, ClosureResult& r) {
@@ -357,6 +369,7 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
     result.seed_used =
         warm ? "warm" : (m.closed_form.kind != ClosedFormKind::kNone ? "closed_form" : "home");
     s.attempt(sys, result);
+    if (warm) s.check_warm_against_design(actuator_readings, result);
   }
   // Serial chains (no passive joint) have one answer per reading: the verdict is reported, there is
   // nothing to re-seed.

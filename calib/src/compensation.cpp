@@ -1,14 +1,20 @@
 #include "robocal/calib/compensation.hpp"
 
+#include "mode_check.hpp"
 #include "robocal/calib/assembly_mode.hpp"
+#include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/closure.hpp"
+#include "tree_evaluator.hpp"
 
 #include <fmt/core.h>
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
+#include <utility>
 
 namespace robocal::calib {
 
@@ -43,15 +49,418 @@ TaskTarget position_target(const Eigen::Vector3d& p) {
 
 }  // namespace
 
-CompensatedTarget compensate_target(const CompensationModels& models, const TaskTarget& target,
-                                    const IkSeed& seed) {
-  check_models(models);
-  const Mechanism& model = *models.model;
+namespace {
+
+// LU factorisation with partial pivoting of a small square matrix, in storage kept between calls
+// (Eigen's blocked LU spends most of its time in packing and dispatch at these sizes, ~18 x 18).
+class SmallLu {
+ public:
+  // false when a pivot is zero or not finite (singular Jacobian: the caller falls back).
+  template <class Matrix>
+  bool factor(const Matrix& a) {
+    lu_ = a;
+    const int n = static_cast<int>(lu_.rows());
+    pivots_.resize(n);
+    double* m = lu_.data();
+    for (int k = 0; k < n; ++k) {
+      double* __restrict col_k = m + static_cast<std::ptrdiff_t>(k) * n;
+      int p = k;
+      double best = std::abs(col_k[k]);
+      for (int i = k + 1; i < n; ++i)
+        if (const double v = std::abs(col_k[i]); v > best) {
+          best = v;
+          p = i;
+        }
+      if (!(best > 0.0) || !std::isfinite(best)) return false;
+      pivots_[k] = p;
+      if (p != k)
+        for (int j = 0; j < n; ++j)
+          std::swap(m[k + static_cast<std::ptrdiff_t>(j) * n],
+                    m[p + static_cast<std::ptrdiff_t>(j) * n]);
+      const double inv = 1.0 / col_k[k];
+      for (int i = k + 1; i < n; ++i) col_k[i] *= inv;
+      for (int j = k + 1; j < n; ++j) {
+        double* __restrict col_j = m + static_cast<std::ptrdiff_t>(j) * n;
+        const double f = col_j[k];
+        if (f == 0.0) continue;
+        for (int i = k + 1; i < n; ++i) col_j[i] -= col_k[i] * f;
+      }
+    }
+    return true;
+  }
+
+  // b <- A^-1 b with the last factors.
+  void solve(Eigen::VectorXd& b) const {
+    const int n = static_cast<int>(lu_.rows());
+    const double* m = lu_.data();
+    double* __restrict v = b.data();
+    for (int k = 0; k < n; ++k)
+      if (pivots_[k] != k) std::swap(v[k], v[pivots_[k]]);
+    for (int j = 0; j < n; ++j) {
+      const double f = v[j];
+      if (f == 0.0) continue;
+      const double* col = m + static_cast<std::ptrdiff_t>(j) * n;
+      for (int i = j + 1; i < n; ++i) v[i] -= col[i] * f;
+    }
+    for (int j = n - 1; j >= 0; --j) {
+      const double* col = m + static_cast<std::ptrdiff_t>(j) * n;
+      v[j] /= col[j];
+      const double f = v[j];
+      if (f == 0.0) continue;
+      for (int i = 0; i < j; ++i) v[i] -= col[i] * f;
+    }
+  }
+
+ private:
+  Eigen::MatrixXd lu_;
+  std::vector<int> pivots_;
+};
+
+// Storage of the Newton iterations on one system (sized on first use).
+struct NewtonWorkspace {
+  Eigen::MatrixXd J;
+  Eigen::VectorXd r, dx;
+  SmallLu lu;
+};
+
+// A square system of closure rows (and, for inverse kinematics, task rows) in the joint values of
+// `unknowns` (body indices), the other joint values fixed in q: the calibrated IK system (actuated
+// and passive joints against the closures and the target) or a closure at given readings (passive
+// joints only). Same residual rows and exact Jacobian columns as the general solvers'.
+struct SquareSystem {
+  const Mechanism* m = nullptr;
+  detail::TreeEvaluator ev;
+  Eigen::VectorXd q;          // per-body joint values
+  std::vector<int> unknowns;  // bodies whose joint values are the unknowns
+  bool with_task = false;     // append the task rows
+  TaskTarget target;
+  NewtonWorkspace ws;
+
+  SquareSystem(const Mechanism& model, const Eigen::VectorXd& params, std::vector<int> bodies,
+               bool task)
+      : m(&model),
+        ev(model, params),
+        q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.bodies.size()))),
+        unknowns(std::move(bodies)),
+        with_task(task) {}
+
+  [[nodiscard]] Eigen::Index rows() const {
+    return ev.rows() + (with_task ? detail::task_rows(m->task.type) : 0);
+  }
+  [[nodiscard]] bool square() const { return rows() == static_cast<Eigen::Index>(unknowns.size()); }
+
+  void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
+    for (std::size_t j = 0; j < unknowns.size(); ++j)
+      q[unknowns[j]] = x[static_cast<Eigen::Index>(j)];
+    ev.update(q);
+    ev.closure_residual(r.data());
+    if (!with_task) return;
+    const int mc = ev.rows();
+    const detail::Rigid& F = ev.pose(m->task.frame);
+    switch (m->task.type) {
+      case TaskType::kPosition:
+        r.segment<3>(mc) = F.p - target.pose.translation();
+        break;
+      case TaskType::kPose:
+        r.segment<3>(mc) = F.p - target.pose.translation();
+        r.segment<3>(mc + 3) = detail::rotation_residual(F.R, target.pose.linear());
+        break;
+      case TaskType::kJoint:
+        r[mc] = q[m->task.joint] - target.joint_value;
+        break;
+    }
+  }
+
+  // At the last evaluated x.
+  void jacobian(Eigen::MatrixXd& J) const {
+    const int mc = ev.rows();
+    const int f = m->task.frame;
+    for (std::size_t j = 0; j < unknowns.size(); ++j) {
+      const int b = unknowns[j];
+      auto col = J.col(static_cast<Eigen::Index>(j));
+      ev.closure_column(b, 1.0, col.data());
+      if (!with_task) continue;
+      if (m->task.type == TaskType::kJoint) {
+        col[mc] = b == m->task.joint ? 1.0 : 0.0;
+        continue;
+      }
+      if (!detail::in_subtree(*m, b, f)) {
+        col.segment(mc, detail::task_rows(m->task.type)).setZero();
+        continue;
+      }
+      const detail::Rigid& F = ev.pose(f);
+      Eigen::Vector3d w, v;
+      ev.joint_twist(b, w, v);
+      col.segment<3>(mc) = w.cross(F.p) + v;
+      if (m->task.type == TaskType::kPose)
+        col.segment<3>(mc + 3) = detail::rotation_residual_derivative(F.R, target.pose.linear(), w,
+                                                                      Eigen::Vector3d::Zero());
+    }
+  }
+
+  [[nodiscard]] ModeCheck mode() const {
+    return detail::check_mode(
+        *m, q, [&](int b) -> const Eigen::Vector3d& { return ev.pose(b).p; },
+        [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; });
+  }
+};
+
+// Newton's method on a square system from x (steps limited to 0.5 per unknown, as the general
+// solver's), in the system's preallocated storage. The factors of a Jacobian are kept while the
+// contraction they gave (residual ratio of the last step) promises the tolerance within two more
+// steps: such a chord step costs one evaluation, a new Jacobian and its factors several.
+// `given_factors`: sys.ws.lu already holds factors of a nearby Jacobian (tried first). Converged:
+// max |r| <= tolerance, and the system is left evaluated at the returned x. Gives up (false) when
+// the Jacobian is singular, the residual is not finite or the iterations run out: the caller then
+// uses the general solver.
+bool newton(SquareSystem& sys, Eigen::VectorXd& x, double tolerance, int max_iterations,
+            double& residual, int& iterations, bool given_factors = false) {
+  NewtonWorkspace& ws = sys.ws;
+  const Eigen::Index n = x.size();
+  ws.J.resize(n, n);
+  ws.r.resize(n);
+  ws.dx.resize(n);
+  sys.evaluate(x, ws.r);
+  residual = detail::max_abs(ws.r);
+  bool factored = given_factors;
+  double rate = given_factors ? 0.0 : 1.0;  // residual ratio of the last step
+  for (iterations = 0; iterations < max_iterations; ++iterations) {
+    if (!std::isfinite(residual)) return false;
+    if (residual <= tolerance) return true;
+    if (!factored || rate > 0.1 || residual * rate * rate > tolerance) {
+      sys.jacobian(ws.J);
+      if (!ws.lu.factor(ws.J)) return false;
+      factored = true;
+    }
+    const double previous = residual;
+    ws.dx = ws.r;
+    ws.lu.solve(ws.dx);
+    const double step = detail::max_abs(ws.dx);
+    if (!std::isfinite(step)) return false;
+    if (step > 0.5) ws.dx *= 0.5 / step;
+    x -= ws.dx;
+    sys.evaluate(x, ws.r);
+    residual = detail::max_abs(ws.r);
+    rate = residual / previous;
+  }
+  return std::isfinite(residual) && residual <= tolerance;
+}
+
+}  // namespace
+
+struct Compensator::Impl {
+  CompensationModels models;
+  const Mechanism* m;
+  IkOptions ik_options;
+  SquareSystem ik;           // calibrated: closures + task in [actuated; passive]
+  SquareSystem closure;      // nominal: closures in the passive joints at given readings
+  SquareSystem cal_closure;  // calibrated: the same
+  bool fast_ik = false, fast_fk = false;
+  // Cold starts: passive ~ home_passive + passive_slope * (qa - home_q), the calibrated
+  // closure's first-order solution at the home configuration (empty when it does not close).
+  Eigen::VectorXd home_q, home_passive;
+  Eigen::MatrixXd passive_slope;
+  bool predictor_tried = false;
+  Counts counts;
+  Eigen::VectorXd x;        // unknowns of the IK system
+  Eigen::VectorXd passive;  // passive joints of a cold start, then of the nominal closure
+
+  static std::vector<int> ik_unknowns(const Mechanism& model) {
+    std::vector<int> out(model.actuated);
+    out.insert(out.end(), model.passive.begin(), model.passive.end());
+    return out;
+  }
+
+  explicit Impl(const CompensationModels& mod)
+      : models(mod),
+        m(mod.model),
+        ik(*mod.model, mod.calibrated, ik_unknowns(*mod.model), true),
+        closure(*mod.model, mod.nominal, mod.model->passive, false),
+        cal_closure(*mod.model, mod.calibrated, mod.model->passive, false) {
+    // A command outside the joint limits is not a command the robot can execute.
+    ik_options.respect_limits = true;
+    fast_ik = ik.square() && !ik.unknowns.empty();
+    fast_fk = closure.square();
+    const auto na = static_cast<Eigen::Index>(m->actuated.size());
+    const auto np = static_cast<Eigen::Index>(m->passive.size());
+    home_q.resize(na);
+    for (Eigen::Index i = 0; i < na; ++i)
+      home_q[i] =
+          m->bodies[static_cast<std::size_t>(m->actuated[static_cast<std::size_t>(i)])].home;
+    x.resize(na + np);
+  }
+
+  // The passive-joint prediction for cold starts, made on the first cold start (warm-started
+  // uses never pay for it). false when there is none (the general solver takes cold starts).
+  bool passive_predictor() {
+    const auto np = static_cast<Eigen::Index>(m->passive.size());
+    if (predictor_tried) return home_passive.size() == np;
+    predictor_tried = true;
+    make_passive_predictor();
+    return home_passive.size() == np;
+  }
+
+  void make_passive_predictor() {
+    const auto na = static_cast<Eigen::Index>(m->actuated.size());
+    const auto np = static_cast<Eigen::Index>(m->passive.size());
+    if (np == 0) {
+      home_passive.resize(0);
+      passive_slope.resize(0, na);
+      return;
+    }
+    if (m->constraint_rows() != np) return;
+    const ClosureResult home = solve_closure(
+        *m, models.calibrated, readings_from_joint_values(*m, models.calibrated, home_q));
+    if (!home.ok()) return;
+    // d(passive)/d(qa) = -Jp^-1 Ja at the home configuration.
+    SquareSystem at_home(*m, models.calibrated, m->passive, false);
+    for (Eigen::Index i = 0; i < na; ++i)
+      at_home.q[m->actuated[static_cast<std::size_t>(i)]] = home_q[i];
+    Eigen::VectorXd r(np);
+    at_home.evaluate(home.passive, r);
+    Eigen::MatrixXd jp(np, np);
+    at_home.jacobian(jp);
+    SmallLu lu;
+    if (!lu.factor(jp)) return;
+    passive_slope.resize(np, na);
+    Eigen::VectorXd col(np);
+    for (Eigen::Index i = 0; i < na; ++i) {
+      at_home.ev.closure_column(m->actuated[static_cast<std::size_t>(i)], -1.0, col.data());
+      lu.solve(col);
+      passive_slope.col(i) = col;
+    }
+    home_passive = home.passive;
+  }
+
+  // The calibrated IK by Newton from the caller's seed, or (none given, or it fails) from the
+  // closed-form / predicted cold seed; false when the general solver must decide.
+  bool fast_solve_ik(const TaskTarget& target, const IkSeed& seed, IkResult& out) {
+    if (!fast_ik || !target.pose.matrix().allFinite() || !std::isfinite(target.joint_value))
+      return false;
+    ik.target = target;
+    int iterations = 0;
+    const bool warm = seed.actuator_q.size() == static_cast<Eigen::Index>(m->actuated.size());
+    if (warm && solve_from(&seed, iterations, out)) return true;
+    return solve_from(nullptr, iterations, out);
+  }
+
+  // One attempt (seed == nullptr: cold); `iterations` accumulates the Newton steps.
+  bool solve_from(const IkSeed* seed, int& iterations, IkResult& out) {
+    const auto na = static_cast<Eigen::Index>(m->actuated.size());
+    const auto np = static_cast<Eigen::Index>(m->passive.size());
+    const Eigen::VectorXd& params = models.calibrated;
+    if (seed != nullptr) {
+      if (!seed->actuator_q.allFinite()) return false;
+      x.head(na) = seed->actuator_q;
+    } else {
+      // As solve_ik's cold start: the closed form of the file's geometry, else home.
+      x.head(na) = home_q;
+      const auto total =
+          m->closed_form.kind != ClosedFormKind::kNone && m->task.type == TaskType::kPosition
+              ? closed_form_inverse(m->closed_form, ik.target.pose.translation())
+              : std::nullopt;
+      for (Eigen::Index i = 0; total && i < na; ++i) {
+        const Body& b =
+            m->bodies[static_cast<std::size_t>(m->actuated[static_cast<std::size_t>(i)])];
+        const ElementaryOp& op = b.ops[static_cast<std::size_t>(b.joint_op)];
+        x[i] = ((*total)[i] - (op.param >= 0 ? params[op.param] : 0.0)) / op.sign;
+      }
+    }
+    if (seed != nullptr && seed->passive.size() == np) {
+      if (!seed->passive.allFinite()) return false;
+      x.tail(np) = seed->passive;
+    } else if (np > 0) {
+      // Predicted passive joints, then the loops closed at the seeded actuators (roughly, to
+      // 1e-2: the IK finishes), so that its first steps do not carry the actuators to another
+      // branch (from the prediction alone they do, on a Delta, for ~2 % of the targets).
+      if (!passive_predictor()) return false;
+      passive = home_passive + passive_slope * (x.head(na) - home_q);
+      for (Eigen::Index i = 0; i < na; ++i)
+        cal_closure.q[m->actuated[static_cast<std::size_t>(i)]] = x[i];
+      double residual = 0.0;
+      int steps = 0;
+      const bool closed = newton(cal_closure, passive, 1e-2, 12, residual, steps);
+      iterations += steps;
+      if (!closed) return false;
+      x.tail(np) = passive;
+    }
+    double residual = 0.0;
+    int steps = 0;
+    const bool converged = newton(ik, x, ik_options.tolerance, 12, residual, steps);
+    iterations += steps;
+    if (!converged) return false;
+    for (Eigen::Index i = 0; i < na + np; ++i) {
+      const Body& b = m->bodies[static_cast<std::size_t>(ik.unknowns[static_cast<std::size_t>(i)])];
+      if (x[i] < b.limits.lower || x[i] > b.limits.upper) return false;
+    }
+    const ModeCheck mode = ik.mode();
+    if (!m->assembly_mode.invariants.empty() && !mode.acceptable()) return false;
+    out.status = SolveStatus::kConverged;
+    out.residual = residual;
+    out.iterations = iterations;
+    out.mode = mode;
+    out.actuator_q = x.head(na);
+    out.passive = x.tail(np);
+    out.actuator_readings = readings_from_joint_values(*m, params, out.actuator_q);
+    return true;
+  }
+
+  // The nominal model's closure at the calibrated readings, from the calibrated passive joints:
+  // the commanded pose, or false when the general solver must decide.
+  bool fast_nominal_pose(const IkResult& ik_answer, bool from_fast_ik, Eigen::Isometry3d& pose) {
+    if (!fast_fk) return false;
+    const Eigen::VectorXd& params = models.nominal;
+    for (std::size_t i = 0; i < m->actuated.size(); ++i) {
+      const Body& b = m->bodies[static_cast<std::size_t>(m->actuated[i])];
+      closure.q[m->actuated[i]] = params[b.encoder_scale_param] *
+                                      ik_answer.actuator_readings[static_cast<Eigen::Index>(i)] +
+                                  params[b.encoder_offset_param];
+    }
+    passive = ik_answer.passive;
+    // First step with the factors of the calibrated closure's Jacobian in the passive joints (a
+    // block of the IK's last Jacobian, taken close to this state) instead of a new Jacobian: it
+    // costs one small factorisation, and the chord rule decides when a new Jacobian is due.
+    const auto na = static_cast<Eigen::Index>(m->actuated.size());
+    const auto np = static_cast<Eigen::Index>(m->passive.size());
+    const bool given = from_fast_ik && np > 0 && closure.ws.lu.factor(ik.ws.J.block(0, na, np, np));
+    double residual = 0.0;
+    int iterations = 0;
+    if (!newton(closure, passive, ClosureOptions{}.tolerance, 12, residual, iterations, given))
+      return false;
+    if (closure.mode().verdict == ModeVerdict::kOther) return false;
+    const detail::Rigid& F = closure.ev.pose(m->task.frame);
+    pose = Eigen::Isometry3d::Identity();
+    pose.linear() = F.R;
+    pose.translation() = F.p;
+    return true;
+  }
+};
+
+Compensator::Compensator(const CompensationModels& models)
+    : impl_((check_models(models), std::make_unique<Impl>(models))) {}
+Compensator::Compensator(Compensator&&) noexcept = default;
+Compensator& Compensator::operator=(Compensator&&) noexcept = default;
+Compensator::~Compensator() = default;
+
+const CompensationModels& Compensator::models() const {
+  return impl_->models;
+}
+const Compensator::Counts& Compensator::counts() const {
+  return impl_->counts;
+}
+
+CompensatedTarget Compensator::compensate(const TaskTarget& target, const IkSeed& seed) {
+  Impl& s = *impl_;
+  const CompensationModels& models = s.models;
+  const Mechanism& model = *s.m;
   CompensatedTarget out;
-  IkOptions options;
-  // A command outside the joint limits is not a command the robot can execute.
-  options.respect_limits = true;
-  out.ik = solve_ik(model, models.calibrated, target, seed, options);
+  const bool fast = s.fast_solve_ik(target, seed, out.ik);
+  if (fast) {
+    ++s.counts.fast_ik;
+  } else {
+    ++s.counts.general_ik;
+    out.ik = solve_ik(model, models.calibrated, target, seed, s.ik_options);
+  }
   if (out.ik.status == SolveStatus::kOtherMode) {
     out.verdict = TargetVerdict::kOtherMode;
     out.problem = "the calibrated robot reaches it only on " + out.ik.mode.describe();
@@ -71,18 +480,23 @@ CompensatedTarget compensate_target(const CompensationModels& models, const Task
     return out;
   }
   // What a controller running the nominal model believes these readings do.
-  const ForwardResult fk = forward_kinematics(model, models.nominal, out.ik.actuator_readings,
-                                              model.task.frame, out.ik.passive);
-  if (!fk.closure.ok() || fk.closure.mode.verdict == ModeVerdict::kOther) {
-    out.verdict = TargetVerdict::kUnreachable;
-    out.problem = fmt::format(
-        "the nominal model cannot assemble at the calibrated readings (closure: {}{}), so no "
-        "task-space command for the nominal controller produces them",
-        to_string(fk.closure.status),
-        fk.closure.mode.verdict == ModeVerdict::kOther ? "; " + fk.closure.mode.describe() : "");
-    return out;
+  if (s.fast_nominal_pose(out.ik, fast, out.commanded)) {
+    ++s.counts.fast_fk;
+  } else {
+    ++s.counts.general_fk;
+    const ForwardResult fk = forward_kinematics(model, models.nominal, out.ik.actuator_readings,
+                                                model.task.frame, out.ik.passive);
+    if (!fk.closure.ok() || fk.closure.mode.verdict == ModeVerdict::kOther) {
+      out.verdict = TargetVerdict::kUnreachable;
+      out.problem = fmt::format(
+          "the nominal model cannot assemble at the calibrated readings (closure: {}{}), so no "
+          "task-space command for the nominal controller produces them",
+          to_string(fk.closure.status),
+          fk.closure.mode.verdict == ModeVerdict::kOther ? "; " + fk.closure.mode.describe() : "");
+      return out;
+    }
+    out.commanded = fk.pose;
   }
-  out.commanded = fk.pose;
   if (out.ik.mode.verdict == ModeVerdict::kAmbiguous) {
     out.verdict = TargetVerdict::kAmbiguous;
     out.problem = "near a configuration where assembly modes meet: " + out.ik.mode.describe();
@@ -92,8 +506,14 @@ CompensatedTarget compensate_target(const CompensationModels& models, const Task
   return out;
 }
 
+CompensatedTarget compensate_target(const CompensationModels& models, const TaskTarget& target,
+                                    const IkSeed& seed) {
+  return Compensator(models).compensate(target, seed);
+}
+
 std::vector<CompensatedTarget> compensate_targets(const CompensationModels& models,
                                                   const std::vector<TaskTarget>& targets) {
+  Compensator compensator(models);
   std::vector<CompensatedTarget> out;
   out.reserve(targets.size());
   std::vector<std::size_t> solved;  // indices of usable answers (seed candidates)
@@ -107,9 +527,12 @@ std::vector<CompensatedTarget> compensate_targets(const CompensationModels& mode
                       .squaredNorm();
     return d;
   };
+  // Farther than this (1 cm, or its equivalent), a cold start (closed form, a few Newton steps)
+  // costs less than a warm one from the nearest answer.
+  constexpr double kWarmDistance2 = 1e-4;
   for (std::size_t k = 0; k < targets.size(); ++k) {
     IkSeed seed;
-    double best = std::numeric_limits<double>::infinity();
+    double best = kWarmDistance2;
     for (const std::size_t j : solved) {
       const double d = distance(targets[k], targets[j]);
       if (d < best) {
@@ -117,9 +540,9 @@ std::vector<CompensatedTarget> compensate_targets(const CompensationModels& mode
         seed = {out[j].ik.actuator_q, out[j].ik.passive};
       }
     }
-    out.push_back(compensate_target(models, targets[k], seed));
+    out.push_back(compensator.compensate(targets[k], seed));
     // A warm start may land on another mode or fail where a cold start would not: retry cold.
-    if (!out.back().usable() && !solved.empty()) out.back() = compensate_target(models, targets[k]);
+    if (!out.back().usable() && !solved.empty()) out.back() = compensator.compensate(targets[k]);
     if (out.back().usable()) solved.push_back(k);
   }
   return out;
@@ -153,6 +576,7 @@ namespace {
 
 struct SegmentRefiner {
   const CompensationModels& models;
+  Compensator& compensator;
   const Eigen::Vector3d& from;
   const Eigen::Vector3d& to;
   const SegmentOptions& options;
@@ -197,7 +621,7 @@ struct SegmentRefiner {
       return false;
     }
     const double sm = 0.5 * (s0 + s1);
-    const CompensatedTarget mid = compensate_target(models, position_target(meant(sm)), seed);
+    const CompensatedTarget mid = compensator.compensate(position_target(meant(sm)), seed);
     if (!mid.usable()) {
       const Eigen::Vector3d p = meant(sm);
       out.problem = fmt::format("the point ({:.6f}, {:.6f}, {:.6f}) m on the move: {}", p.x(),
@@ -220,16 +644,17 @@ CompensatedSegment compensate_segment(const CompensationModels& models, const Ei
   if (models.model->task.type != TaskType::kPosition)
     throw std::invalid_argument("compensate_segment: the robot's task is not a position");
   CompensatedSegment out;
-  CompensatedTarget end = compensate_target(models, position_target(to), from_seed);
+  Compensator compensator(models);
+  CompensatedTarget end = compensator.compensate(position_target(to), from_seed);
   // A warm start may fail where a cold one would not (a long move): retry cold.
   if (!end.usable() && from_seed.actuator_q.size() > 0)
-    end = compensate_target(models, position_target(to));
+    end = compensator.compensate(position_target(to));
   if (!end.usable()) {
     out.problem = fmt::format("the end point ({:.6f}, {:.6f}, {:.6f}) m: {}", to.x(), to.y(),
                               to.z(), end.problem);
     return out;
   }
-  SegmentRefiner refiner{models, from, to, options, out};
+  SegmentRefiner refiner{models, compensator, from, to, options, out};
   out.end_seed = {end.ik.actuator_q, end.ik.passive};
   out.ok = refiner.refine(0.0, from_commanded, 1.0, end.commanded.translation(), from_seed, 0);
   return out;

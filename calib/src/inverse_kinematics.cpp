@@ -5,23 +5,14 @@
 #include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
 
+#include <Eigen/LU>
+#include <Eigen/SVD>
+
 #include <cmath>
 #include <random>
 
 namespace robocal::calib {
 namespace {
-
-int task_rows(TaskType t) {
-  switch (t) {
-    case TaskType::kPosition:
-      return 3;
-    case TaskType::kPose:
-      return 6;
-    case TaskType::kJoint:
-      return 1;
-  }
-  return 0;
-}
 
 // Closure rows + task rows as a function of [actuated q; passive].
 struct IkSystem {
@@ -31,7 +22,7 @@ struct IkSystem {
   std::vector<int> unknown_bodies;
   TaskTarget target;
 
-  Eigen::Index rows() const { return ev->rows() + task_rows(m->task.type); }
+  Eigen::Index rows() const { return ev->rows() + detail::task_rows(m->task.type); }
 
   void evaluate(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
     for (std::size_t j = 0; j < unknown_bodies.size(); ++j)
@@ -70,7 +61,7 @@ struct IkSystem {
         continue;
       }
       if (!detail::in_subtree(*m, b, f)) {
-        col.segment(mc, task_rows(m->task.type)).setZero();
+        col.segment(mc, detail::task_rows(m->task.type)).setZero();
         continue;
       }
       Eigen::Vector3d w, v;
@@ -86,6 +77,9 @@ struct IkSystem {
 }  // namespace
 
 namespace {
+
+// Task-frame poses closer than this (m, rad) are the same answer.
+constexpr double kSamePose = 1e-9;
 
 // Passive joints closing the loops at actuator joint values qa (any mode; the final IK solve
 // checks the mode of the whole state).
@@ -269,6 +263,74 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
     if (!found && other_mode.verdict == ModeVerdict::kOther) {
       out.status = SolveStatus::kOtherMode;
       out.mode = other_mode;
+    }
+  }
+  // sigma_min / sigma_max of the closure Jacobian (passive columns) at x, < 0 where not square.
+  const auto closure_conditioning = [&](const Eigen::VectorXd& xs) {
+    const int mc = ev.rows();
+    if (mc != np) return -1.0;
+    Eigen::VectorXd r(mc + detail::task_rows(model.task.type));
+    sys.evaluate(xs, r);
+    Eigen::MatrixXd J(mc, np);
+    for (Eigen::Index j = 0; j < np; ++j)
+      ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(J);
+    Eigen::VectorXd v(np), w(np);
+    const double estimate = detail::sigma_ratio_estimate(lu, J, v, w);
+    // The estimate only overstates the ratio: near the gate the exact values decide.
+    if (estimate >= 2.0 * detail::kDesignCheckMargin * model.assembly_mode.min_conditioning)
+      return estimate;
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
+    const Eigen::VectorXd& sv = svd.singularValues();
+    return sv[0] > 0.0 ? sv[np - 1] / sv[0] : 0.0;
+  };
+  const auto near_design_singularity = [&] {
+    const double c = closure_conditioning(x);
+    return c >= 0.0 && c < detail::kDesignCheckMargin * model.assembly_mode.min_conditioning;
+  };
+  if (check && np > 0 && out.ok() && out.mode.acceptable() &&
+      detail::loops_differ_from_design(model, params) && near_design_singularity()) {
+    // A perturbed model's loops can close in several configurations near a singularity of the
+    // design (detail::kDesignCheckMargin), all satisfying the declared invariants, and the IK may
+    // have settled on one that forward kinematics (the design's answer followed to these
+    // parameters) does not give for its readings: a controller commanded these readings would put
+    // the tool elsewhere. So the answer must be what FK gives for its readings; if not, Newton
+    // again from FK's configuration, and failing that, refused as another mode.
+    auto fk_agrees = [&](const Eigen::VectorXd& xs, ClosureResult& fk) {
+      fk = solve_closure(model, params, readings_from_joint_values(model, params, xs.head(na)),
+                         xs.tail(np));
+      if (!fk.ok() || !fk.mode.acceptable()) return false;
+      // The same task-frame pose (not the same passive values: idle rotations of a rod about its
+      // own axis, or a turn of 2 pi, change those and nothing else).
+      const Eigen::VectorXd readings = readings_from_joint_values(model, params, xs.head(na));
+      const Eigen::Isometry3d by_fk = frame_pose(
+          model, params, make_joint_state(model, params, readings, fk.passive), model.task.frame);
+      const Eigen::Isometry3d by_ik = frame_pose(
+          model, params, make_joint_state(model, params, readings, xs.tail(np)), model.task.frame);
+      return (by_fk.translation() - by_ik.translation()).norm() <= kSamePose &&
+             rotation_log(by_fk.linear().transpose() * by_ik.linear()).norm() <= kSamePose;
+    };
+    ClosureResult fk;
+    bool agrees = fk_agrees(x, fk);
+    if (!agrees && fk.ok() && fk.mode.acceptable()) {
+      Eigen::VectorXd xs = x;
+      xs.tail(np) = fk.passive;
+      IkResult r;
+      r.iterations = out.iterations;
+      run(xs, r);
+      out.iterations = r.iterations;
+      if (r.ok() && r.mode.acceptable() && fk_agrees(xs, fk)) {
+        agrees = true;
+        x = xs;
+        out.residual = r.residual;
+      }
+    }
+    if (agrees) {
+      out.mode = fk.mode;  // with the closure's conditioning and the design's verdict
+    } else {
+      out.status = SolveStatus::kOtherMode;
+      out.mode.verdict = ModeVerdict::kOther;
+      out.mode.invariant = "design_branch";
     }
   }
   out.actuator_q = x.head(na);

@@ -237,4 +237,17 @@ LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, 
   return out;
 }
 
+// Task-space residual rows of an IK target (position 3, pose 6, joint 1).
+inline int task_rows(TaskType t) {
+  switch (t) {
+    case TaskType::kPosition:
+      return 3;
+    case TaskType::kPose:
+      return 6;
+    case TaskType::kJoint:
+      return 1;
+  }
+  return 0;
+}
+
 }  // namespace robocal::calib::detail

@@ -225,8 +225,10 @@ inline Eigen::VectorXd perturbed(const Mechanism& m, double factor, std::mt19937
 }
 
 // Sweeps one robot: `values` per actuator, the nominal model and `draws` perturbed ones.
+// warm: each perturbed model is solved warm-started from the design's intended answer at the same
+// readings (as compensation and tracking callers seed), instead of cold.
 inline Counts sweep_robot(const Mechanism& m, int values, int draws, double tolerance_factor,
-                          double agreement = 1e-9, unsigned seed = 15) {
+                          double agreement = 1e-9, unsigned seed = 15, bool warm = false) {
   Counts total;
   const Eigen::VectorXd nominal = m.nominal_parameters();
   const std::vector<Eigen::VectorXd> configs = grid(m, nominal, values);
@@ -291,7 +293,8 @@ inline Counts sweep_robot(const Mechanism& m, int values, int draws, double tole
           }
         }
       }
-      const ClosureResult r = solver.solve(q);
+      const ClosureResult r =
+          warm && k > 0 && nominal_state[c] ? solver.solve(q, *nominal_state[c]) : solver.solve(q);
       if (r.status == SolveStatus::kOtherMode) {
         ++total.refused_other;
         ++total.refused_by_distance[distance_bin(ref_distance)];

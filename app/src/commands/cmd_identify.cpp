@@ -29,6 +29,21 @@ namespace {
 
 using namespace robocal::calib;
 
+// What the validation errors of `poses` are of: positions (points, poses), probe heights, or both.
+std::string errors_of(const std::vector<PoseMeasurement>& poses) {
+  bool position = false;
+  bool height = false;
+  for (const auto& p : poses)
+    for (const auto& o : p.observations) {
+      position = position || std::holds_alternative<PointObservation>(o) ||
+                 std::holds_alternative<PoseObservation>(o);
+      height = height || std::holds_alternative<ProbeHeightObservation>(o);
+    }
+  if (height && !position) return "probe height";
+  if (height) return "position and probe height";
+  return "position";
+}
+
 struct IdentifyOptions {
   std::string session;
   std::string robot;
@@ -310,8 +325,15 @@ int run_identify(const IdentifyOptions& o) {
   if (res.limited_data || res.status == IdentificationStatus::kNotIdentifiable) {
     const bool solved = res.status == IdentificationStatus::kConverged ||
                         res.status == IdentificationStatus::kNotConverged;
+    // Suggested points are designed for this fit: its base-set preference decides what it
+    // holds at nominal; with priors it estimates everything (MAP).
+    AdviceOptions advice_options;
+    advice_options.preference = opt.preference;
+    advice_options.map_estimator = !opt.prior_sigma.empty();
+    if (advice_options.map_estimator) advice_options.prior_sigma = opt.prior_sigma;
     advice = advise_like_the_data(robot_pred, pred, solved ? res.estimate : nominal,
-                                  fit.poses.empty() ? file.measurements : fit, opt.candidates);
+                                  fit.poses.empty() ? file.measurements : fit, opt.candidates,
+                                  advice_options);
     doc["advice"] = advice_json(advice);
   }
 
@@ -345,9 +367,11 @@ int run_identify(const IdentifyOptions& o) {
     // The plain-words summary always (JSON only where asked); stderr when JSON takes stdout.
     std::FILE* out = human_stream(o.json);
     std::string text = summary_text(res);
-    text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit.poses));
+    text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit.poses),
+                            errors_of(fit.poses));
     if (!held.empty())
-      text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held));
+      text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held),
+                              errors_of(held));
     if (doc.contains("calibrated_robot"))
       text += fmt::format("calibrated robot file: {}\n", o.out_robot);
     text += advice.text;

@@ -76,10 +76,18 @@ TEST_F(PrinterCli, HeightsAndDistanceOnlyPosesIdentifyWithASummary) {
   const std::string out = testing::internal::GetCapturedStdout();
   EXPECT_NE(out.find("Estimated 9 parameter(s)"), std::string::npos) << out;
   EXPECT_NE(out.find("Noise (stated -> estimated"), std::string::npos) << out;
+  // Fit residuals in the data's own terms: heights and distances, not a position figure.
+  EXPECT_NE(out.find("probe height RMS"), std::string::npos) << out;
+  EXPECT_NE(out.find("distance RMS"), std::string::npos) << out;
+  EXPECT_EQ(out.find("Fit residuals: position"), std::string::npos) << out;
   const auto doc = nlohmann::json::parse(read_text(file("r.json")));
   EXPECT_EQ(doc["status"], "converged");
   EXPECT_EQ(doc["excluded_poses"].size(), 0u);
   EXPECT_TRUE(doc.contains("noise"));
+  ASSERT_EQ(doc["residuals"]["by_type"].size(), 2u) << doc["residuals"].dump(2);
+  EXPECT_EQ(doc["residuals"]["by_type"][0]["type"], "probe height");
+  EXPECT_EQ(doc["residuals"]["by_type"][1]["type"], "distance");
+  EXPECT_EQ(doc["residuals"]["by_type"][1]["count"], 12);
   // --quiet: nothing on the terminal.
   args.push_back("--quiet");
   testing::internal::CaptureStdout();
@@ -131,6 +139,17 @@ TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableI
   ASSERT_TRUE(doc.contains("advice"));
   EXPECT_EQ(doc["advice"]["identifiable_with_suggestions"].get<int>(), 9) << doc["advice"].dump(2);
   EXPECT_LT(doc["advice"]["identifiable_now"].get<int>(), 9);
+  // --priors: the robot file's tolerances are information, all nine are estimated (MAP).
+  std::vector<std::string> with_priors = {"identify", "--robot",  robot,    "--measurements",
+                                          m,          "--priors", "--json", file("priors.json"),
+                                          "--quiet"};
+  for (const auto& a : printer_free()) with_priors.push_back(a);
+  ASSERT_EQ(run(with_priors), 0);
+  const auto pj = nlohmann::json::parse(read_text(file("priors.json")));
+  int estimated = 0;
+  for (const auto& p : pj["parameters"]) estimated += p["estimated"].get<bool>() ? 1 : 0;
+  EXPECT_EQ(estimated, 9) << pj["gauge"];
+  EXPECT_TRUE(pj["limited_data"].get<bool>());
   // Horizontal tool offsets do not move bed heights: nothing identifiable, exit 1, said so.
   testing::internal::CaptureStderr();
   EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", m, "--free", "tool.z", "--fix",

@@ -208,6 +208,100 @@ TEST(Compensation, CalibratedModelInTheRobotFrameIsTheSameRobotMovedRigidly) {
   EXPECT_GT((world.pose.translation() - own.pose.translation()).norm(), 0.1);  // it did move
 }
 
+// The previous implementation of compensate_target, written out: the general IK (joint limits
+// respected, the file's assembly mode enforced), then the nominal model's FK of its readings.
+struct Reference {
+  TargetVerdict verdict = TargetVerdict::kUnreachable;
+  Eigen::Vector3d commanded = Eigen::Vector3d::Zero();
+};
+Reference general_solvers(const CompensationModels& models, const TaskTarget& target) {
+  IkOptions options;
+  options.respect_limits = true;
+  const IkResult ik = solve_ik(*models.model, models.calibrated, target, {}, options);
+  Reference out;
+  if (ik.status == SolveStatus::kOtherMode || (ik.ok() && ik.mode.verdict == ModeVerdict::kOther)) {
+    out.verdict = TargetVerdict::kOtherMode;
+    return out;
+  }
+  if (!ik.ok()) return out;
+  const ForwardResult fk = forward_kinematics(*models.model, models.nominal, ik.actuator_readings,
+                                              models.model->task.frame, ik.passive);
+  if (!fk.closure.ok() || fk.closure.mode.verdict == ModeVerdict::kOther) return out;
+  out.commanded = fk.pose.translation();
+  out.verdict =
+      ik.mode.verdict == ModeVerdict::kAmbiguous ? TargetVerdict::kAmbiguous : TargetVerdict::kOk;
+  return out;
+}
+
+// The reusable Compensator (Newton fast path, general solvers as fallback) against the general
+// solvers on a perturbed Delta and a perturbed linear delta: the same verdict for every target
+// (reachable ones sampled in the workspace, and points only another mode or nothing reaches),
+// cold, warm from the previous target and through compensate_targets; its readings put the
+// calibrated robot on the target (FK solved afresh) and its command is the nominal FK of them,
+// both to 1e-9 m; and most answers come from the fast path (else this tests only the fallback).
+TEST(Compensation, CompensatorAgreesWithTheGeneralSolvers) {
+  for (const char* robot : {"rotary_delta", "linear_delta"}) {
+    SCOPED_TRACE(robot);
+    const Mechanism model =
+        load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/" + robot + ".yaml");
+    const Eigen::VectorXd nominal = model.nominal_parameters();
+    std::mt19937 rng(23);
+    const Eigen::VectorXd calibrated =
+        perturb_parameters(nominal, tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
+    const CompensationModels models{&model, nominal, calibrated};
+    const MechanismPredictor predictor(model);
+    std::vector<TaskTarget> targets;
+    for (const auto& q : sample_actuators(predictor, {nominal, calibrated}, 120, rng)) {
+      TaskTarget t;
+      t.pose.translation() =
+          forward_kinematics(model, calibrated, q, model.task.frame).pose.translation();
+      targets.push_back(t);
+    }
+    ASSERT_GE(targets.size(), 100U);
+    // Far outside, and above the base (a Delta reaches that only with the plate flipped up).
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(3.0, 0.0, -0.5), Eigen::Vector3d(0, 0, 0.5),
+                                     Eigen::Vector3d(0.0, 0.0, 5.0)}) {
+      TaskTarget t;
+      t.pose.translation() = p;
+      targets.push_back(t);
+    }
+    Compensator cold(models), warm(models);
+    const std::vector<CompensatedTarget> listed = compensate_targets(models, targets);
+    ASSERT_EQ(listed.size(), targets.size());
+    IkSeed previous;
+    int usable = 0;
+    for (std::size_t k = 0; k < targets.size(); ++k) {
+      SCOPED_TRACE(k);
+      const TaskTarget& t = targets[k];
+      const Reference reference = general_solvers(models, t);
+      const CompensatedTarget c = cold.compensate(t);
+      const CompensatedTarget w = warm.compensate(t, previous);
+      EXPECT_EQ(c.verdict, reference.verdict) << c.problem;
+      EXPECT_EQ(w.verdict, reference.verdict) << w.problem;
+      EXPECT_EQ(listed[k].verdict, reference.verdict) << listed[k].problem;
+      if (w.usable()) previous = {w.ik.actuator_q, w.ik.passive};
+      for (const CompensatedTarget* a : {&c, &w, &listed[k]}) {
+        if (!a->usable()) continue;
+        const ForwardResult reached =
+            forward_kinematics(model, calibrated, a->ik.actuator_readings, model.task.frame);
+        ASSERT_TRUE(reached.closure.ok());
+        EXPECT_LE((reached.pose.translation() - t.pose.translation()).norm(), 1e-9);
+        const ForwardResult told =
+            forward_kinematics(model, nominal, a->ik.actuator_readings, model.task.frame);
+        ASSERT_TRUE(told.closure.ok());
+        EXPECT_LE((told.pose.translation() - a->commanded.translation()).norm(), 1e-9);
+        EXPECT_LE((reference.commanded - a->commanded.translation()).norm(), 1e-9);
+      }
+      usable += c.usable() ? 1 : 0;
+    }
+    EXPECT_GE(usable, 100);
+    // Most answers from the fast path (the general solver remains the fallback).
+    EXPECT_GE(cold.counts().fast_ik, usable * 9 / 10);
+    EXPECT_GE(cold.counts().fast_fk, usable * 9 / 10);
+    EXPECT_GE(warm.counts().fast_ik, usable * 9 / 10);
+  }
+}
+
 // Held-out targets: identify the perturbed printer from simulated 3-D point measurements, then
 // command each held-out target through the nominal controller with compensation and measure where
 // the true robot puts the tool.

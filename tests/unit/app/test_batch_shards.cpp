@@ -5,6 +5,7 @@
 // shard, shards of another N or another folder list, malformed files (exit 3, naming the file).
 #include "batch/batch_shard.hpp"
 #include "cli/command_registry.hpp"
+#include "run_robocal.hpp"
 #include "scratch_dir.hpp"
 
 #include <gtest/gtest.h>
@@ -23,21 +24,8 @@ namespace {
 using robocal::app::Shard;
 using robocal::app::shard_positions;
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-CliRun run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  argv.reserve(args.size());
-  for (const auto& a : args) argv.push_back(a.c_str());
-  testing::internal::CaptureStdout();
-  testing::internal::CaptureStderr();
-  const int code = robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-  return {code, testing::internal::GetCapturedStdout(), testing::internal::GetCapturedStderr()};
-}
+using robocal::test::CliRun;
+constexpr auto& run = robocal::test::run_robocal_captured;
 
 nlohmann::json load(const std::string& path) {
   return nlohmann::json::parse(robocal::test::read_text(path));

@@ -2,6 +2,7 @@
 // calibrated robot, URDF to a file, and bad input (a session without identification results, a
 // robot the format cannot describe, an unknown format): the reason, the exit code, nothing written.
 #include "cli/command_registry.hpp"
+#include "run_robocal.hpp"
 
 #include "robocal/core/files.hpp"
 
@@ -15,20 +16,8 @@
 namespace {
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-CliRun run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  testing::internal::CaptureStdout();
-  testing::internal::CaptureStderr();
-  const int code = robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-  return {code, testing::internal::GetCapturedStdout(), testing::internal::GetCapturedStderr()};
-}
+using robocal::test::CliRun;
+constexpr auto& run = robocal::test::run_robocal_captured;
 
 std::string robot(const std::string& file) {
   return std::string(ROBOCAL_TESTDATA_DIR) + "/robots/" + file;

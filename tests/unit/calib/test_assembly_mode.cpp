@@ -359,5 +359,51 @@ TEST(AssemblyMode, EveryLibraryRobotDeclaresAModeItsHomeSatisfies) {
   }
 }
 
+TEST(AssemblyMode, PerturbedDeltaWarmAndInverseAnswersAreWhatColdForwardKinematicsGives) {
+  // Near the design's singular set a perturbed Delta's loops close in several configurations that
+  // all satisfy the declared invariants; the one that counts is the cold FK answer (the design's,
+  // followed to the perturbed parameters). A warm solve seeded from the design's configuration and
+  // the IK of the cold answer's tool position must come back to that same configuration (or say
+  // they cannot, as ambiguous or refused): the IK's readings, sent to the robot, must put the tool
+  // on the target by FK.
+  const Mechanism m = load("rotary_delta.yaml");
+  const Eigen::VectorXd nominal = m.nominal_parameters();
+  std::mt19937 rng(15);
+  int warm_compared = 0, warm_wrong = 0, ik_compared = 0, ik_wrong = 0;
+  for (int draw = 0; draw < 3; ++draw) {
+    const Eigen::VectorXd p = sweep::perturbed(m, 5.0, rng);
+    for (const Eigen::VectorXd& q : sweep::grid(m, nominal, 8)) {
+      const ClosureResult cold = solve_closure(m, p, q);
+      if (!cold.ok() || !cold.mode.acceptable()) continue;
+      const ClosureResult design = solve_closure(m, nominal, q);
+      if (design.ok()) {
+        const ClosureResult warm = solve_closure(m, p, q, design.passive);
+        if (warm.ok() && warm.mode.intended()) {
+          ++warm_compared;
+          if ((tool_position(m, p, q, warm.passive) - tool_position(m, p, q, cold.passive)).norm() >
+              1e-9)
+            ++warm_wrong;
+        }
+      }
+      TaskTarget target;
+      target.pose.translation() = tool_position(m, p, q, cold.passive);
+      const IkResult ik = solve_ik(m, p, target);
+      if (!ik.ok() || !ik.mode.intended()) continue;
+      ++ik_compared;
+      const ClosureResult fk = solve_closure(m, p, ik.actuator_readings);
+      if (!fk.ok() ||
+          (tool_position(m, p, ik.actuator_readings, fk.passive) - target.pose.translation())
+                  .norm() > 1e-9)
+        ++ik_wrong;
+    }
+  }
+  std::printf("warm: %d compared, %d elsewhere; IK: %d compared, %d off the target by FK\n",
+              warm_compared, warm_wrong, ik_compared, ik_wrong);
+  EXPECT_GT(warm_compared, 400);
+  EXPECT_GT(ik_compared, 400);
+  EXPECT_EQ(warm_wrong, 0);
+  EXPECT_EQ(ik_wrong, 0);
+}
+
 }  // namespace
 }  // namespace robocal::calib

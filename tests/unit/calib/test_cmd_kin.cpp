@@ -2,6 +2,7 @@
 #include "cli/command_registry.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "run_robocal.hpp"
 
 #include <fmt/core.h>
 #include <gtest/gtest.h>
@@ -15,21 +16,8 @@
 
 namespace {
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-CliRun run(std::vector<std::string> args) {
-  args.insert(args.begin(), "robocal");
-  std::vector<const char*> argv;
-  for (const auto& a : args) argv.push_back(a.c_str());
-  testing::internal::CaptureStdout();
-  testing::internal::CaptureStderr();
-  const int code = robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
-  CliRun r{code, testing::internal::GetCapturedStdout(), testing::internal::GetCapturedStderr()};
-  return r;
-}
+using robocal::test::CliRun;
+constexpr auto& run = robocal::test::run_robocal_captured;
 
 std::string robot(const std::string& file) {
   return std::string(ROBOCAL_TESTDATA_DIR) + "/robots/" + file;

@@ -21,6 +21,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -57,9 +58,44 @@ struct CompensatedTarget {
 CompensatedTarget compensate_target(const CompensationModels& models, const TaskTarget& target,
                                     const IkSeed& seed = {});
 
-// Every target of a list. Each IK starts from the answer of the nearest target already solved
-// (task-space distance): a list of nearby targets (a path, a grid) then costs a few Newton
-// iterations each instead of a cold start (closed-form seed plus a closure solve).
+// Reusable compensation with one pair of models, for many targets (compensate_targets, the G-code
+// rewriter): what depends only on the models is built once (both models' cached transforms, the
+// Newton workspace, a linear prediction of the passive joints from the actuators for cold starts),
+// and each target then costs a few allocation-free Newton steps on the calibrated IK system
+// (closure + task rows) and on the nominal closure. Results are those of compensate_target: an
+// answer is taken from the fast path only when it converges to the IK tolerance on an acceptable
+// assembly mode within the joint limits (and the nominal closure closes on a mode that is not
+// another one); otherwise the target goes through the general solver (solve_ik /
+// forward_kinematics with their re-seeding), as before. Keeps a pointer to `models.model`, which
+// must outlive it; not for use from two threads at once.
+class Compensator {
+ public:
+  explicit Compensator(const CompensationModels& models);
+  // As compensate_target(models, target, seed).
+  CompensatedTarget compensate(const TaskTarget& target, const IkSeed& seed = {});
+  [[nodiscard]] const CompensationModels& models() const;
+  // How many answers each path gave so far (fast Newton paths vs the general solvers).
+  struct Counts {
+    int fast_ik = 0, general_ik = 0, fast_fk = 0, general_fk = 0;
+  };
+  [[nodiscard]] const Counts& counts() const;
+
+  Compensator(const Compensator&) = delete;
+  Compensator& operator=(const Compensator&) = delete;
+  Compensator(Compensator&&) noexcept;
+  Compensator& operator=(Compensator&&) noexcept;
+  ~Compensator();
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Every target of a list, with one Compensator. Each IK starts from the answer of the nearest
+// target already solved when it lies within 1 cm (task-space distance; a path, a fine grid: two or
+// three Newton steps), else cold (closed-form seed: about five); a warm start that does not give
+// a usable answer is retried cold.
 std::vector<CompensatedTarget> compensate_targets(const CompensationModels& models,
                                                   const std::vector<TaskTarget>& targets);
 

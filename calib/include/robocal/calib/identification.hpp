@@ -119,6 +119,11 @@ struct SolveOptions {
   IdentifiabilityOptions identifiability;
   // Priors from tolerances: prior_sigma[i] > 0 adds (a_i − nominal_i)/σ_i (MAP). Empty = none.
   std::vector<double> prior_sigma;
+  // How far each parameter's truth may be from nominal (the robot file's tolerances), used without
+  // priors to choose the gauge with little data: which confounded parameters are held at nominal
+  // (gauge_choice.hpp: those that move the predictions over the measured area least). Empty = the
+  // rank analysis' own choice.
+  std::vector<double> gauge_sigma;
   // Estimate the redundant candidates too (all with an effect), regularised by the priors, instead
   // of holding them at nominal. Redundancies found at the nominal model are often only local
   // (first order): a truth perturbed in "redundant" parameters is then not exactly representable

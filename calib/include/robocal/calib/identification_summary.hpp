@@ -17,5 +17,9 @@ std::string in_plain_words(const std::string& text, const IdentificationResult& 
 
 // One line per validation ("held-out: 12 poses, position RMS 1.23 mm -> 12.5 um").
 std::string validation_line(const std::string& label, const ValidationReport& report);
+// The same, naming what the errors are of (`what`: "position", "probe height", ...): poses
+// measured by probe heights only have height errors, not position errors.
+std::string validation_line(const std::string& label, const ValidationReport& report,
+                            const std::string& what);
 
 }  // namespace robocal::calib

@@ -7,8 +7,12 @@
 // take (probe heights on the bed, 3-D points, distances between two positions), each added where
 // it raises the rank of the identification Jacobian the most (ties: where it raises the weakest
 // separated direction the most), until everything with an effect is identifiable with a few
-// equations to spare (AdviceOptions::redundancy) or the budget is spent. The same selection,
-// started from no data, designs a probe pattern.
+// equations to spare (AdviceOptions::redundancy) or the budget is spent. Then, with as many
+// suggestions, the points are chosen again for the predictions (AdviceOptions::design): an
+// I-optimal design (probe_design.hpp) minimising the average variance, over the working area, of
+// the quantity the user measures (the bed height where heights are probed, else the position),
+// kept unless it separates fewer parameters than the rank rule. The same selection, started from
+// no data, designs a probe pattern.
 #include "robocal/calib/identification.hpp"
 
 #include <Eigen/Core>
@@ -29,6 +33,23 @@ struct AdviceOptions {
   // Equations beyond the identifiable count to aim for once the rank is reached: an exactly
   // determined fit has no check on its noise and is as ill-conditioned as the design allows.
   std::size_t redundancy = 6;
+  // Choose the suggestions I-optimally for the predictions over `working_area` (false: by the rank
+  // and weakest-direction rule alone).
+  bool design = true;
+  // Readings where the predictions matter (the printed area); empty = the height pool when there
+  // is one, else the pool.
+  std::vector<Eigen::VectorXd> working_area;
+  // Per model parameter, how far the truth may be from nominal (the robot file's σ; 0 or empty =
+  // unknown): the design weighs what stays undetermined (held at nominal, a bias over the working
+  // area) against the noise with it. Without it a very weak prior stands in (probe_design.hpp).
+  std::vector<double> prior_sigma;
+  // How the fit will treat what the data do not separate (with prior_sigma on every candidate):
+  // false = identify's default, held at nominal (the design then minimises noise plus the held
+  // parameters' bias, that estimator's expected error); true = estimated with the priors (MAP:
+  // the Bayesian criterion). `preference`: the fit's base-set preference per model parameter
+  // (SolveOptions::preference), which decides what it holds.
+  bool map_estimator = false;
+  std::vector<int> preference;
 };
 
 struct SuggestedMeasurement {

@@ -102,8 +102,21 @@ struct PoseResidualSummary {
   bool outlier = false;
 };
 
+// Fit residuals of one observation type in its own unit, |measured − predicted| per observation
+// (a point's or pose's position: the Euclidean distance; a rotation: the angle).
+struct TypeResiduals {
+  std::string type;  // "point", "pose position", "pose rotation", "probe height", "distance"
+  std::string unit;  // "m" or "rad"
+  std::size_t count = 0;
+  double rms = 0.0;
+  double max = 0.0;
+};
+
 struct ResidualDiagnostics {
   std::vector<PoseResidualSummary> poses;
+  // Per observation type present in the fit (identify fills it; the position figures below
+  // count probe heights as positions and leave distances out).
+  std::vector<TypeResiduals> by_type;
   double scale = 1.0;  // the scale used (1 or robust)
   double position_rms = 0.0;
   double position_max = 0.0;

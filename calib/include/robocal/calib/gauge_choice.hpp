@@ -1,0 +1,61 @@
+#pragma once
+// Which confounded parameters to hold at nominal (the gauge) when the data determine only some
+// combinations of the candidates (issue 21). Pure numerics on linearised, whitened rows.
+//
+// The rank analysis (identifiability.hpp) finds how many parameters the data separate (r) and one
+// base set: the order of a column-pivoted QR. Any other r columns that the data separate as well
+// fit the data equally, but the parameters they leave at nominal are not at nominal in the real
+// robot: their deviation moves the predictions between and around the measured points, and the
+// estimated parameters absorb it only where it was measured. The gauge chosen here is the set of
+// r columns whose estimator has the least expected squared prediction error over target rows
+// (e.g. the predicted heights over the probed area), the held parameters' truths off nominal by
+// their tolerances (probe_design.hpp, average_prediction_error_with_held: noise through the
+// estimated set plus the held set's bias):
+//   E[e²] = mean_i [ g_S M_SS⁻¹ g_Sᵀ + (g_S K − g_H) Σ_H (g_S K − g_H)ᵀ ],  K = M_SS⁻¹ M_SH.
+// Eligible sets: r columns with an effect, containing `must_estimate`, that pass the analysis'
+// test on the column-scaled Jacobian (greedy pivoting keeps every one with a part > tolerance
+// outside the span of the others kept) and leave every other column within the tolerance of
+// their span (so the analysis would hold exactly the rest). Search: every subset when there are
+// at most `max_subsets`, else exchanges (one held for one estimated) from the given set while
+// the error falls. The given set is kept unless another is lower by more than a relative 1e-9.
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <vector>
+
+namespace robocal::calib {
+
+struct GaugeOptions {
+  double rank_tolerance = 1e-7;  // as IdentifiabilityOptions::rank_tolerance of the analysis
+  std::size_t max_subsets = 20000;
+  // The criterion: the held set's bias alone instead of noise plus bias.
+  bool bias_only = false;
+};
+
+struct GaugeChoice {
+  std::vector<std::size_t> estimated;   // ascending column indices
+  std::vector<std::size_t> held;        // ascending: columns with an effect that are not estimated
+  double expected_error = 0.0;          // the criterion at `estimated` (squared target units)
+  double bias = 0.0;                    // its held-parameter part
+  double initial_expected_error = 0.0;  // the criterion at the given set
+  double initial_bias = 0.0;
+  bool changed = false;       // `estimated` differs from the given set
+  std::size_t evaluated = 0;  // eligible sets weighed
+};
+
+// `J`: whitened rows (measurement equations) × candidate columns; `targets`: whitened rows of the
+// predicted quantities (same columns); `sigma`: tolerance per column (how far the truth may be
+// from nominal); `initial`: the analysis' base set; `no_effect`: columns that change no
+// measurement (held, never estimated; their bias is the same for every choice).
+GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets,
+                         const Eigen::VectorXd& sigma, const std::vector<std::size_t>& initial,
+                         const std::vector<std::size_t>& must_estimate,
+                         const std::vector<std::size_t>& no_effect,
+                         const GaugeOptions& options = {});
+
+// The criterion above for one estimated set (every other column held).
+double gauge_expected_error(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets,
+                            const Eigen::VectorXd& sigma, const std::vector<std::size_t>& estimated,
+                            bool bias_only = false);
+
+}  // namespace robocal::calib
