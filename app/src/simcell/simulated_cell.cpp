@@ -8,6 +8,7 @@
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/planner/feasibility.hpp"
 #include "robocal/planner/plan.hpp"
+#include "robocal/planner/task_sampling.hpp"
 #include "robocal/vision/pose.hpp"
 
 #include <algorithm>
@@ -99,6 +100,14 @@ double placement_coverage(const SimulatedCell& cell, const planner::CameraPlacem
   const planner::FeasibilityChecker checker(cell.model, cell.nominal, placed, cell.target_frame,
                                             planner::feasibility_options_from_cell(placed));
   std::mt19937 rng(17);
+  // A serial arm's board faces every way in joint samples: measure with the task-space
+  // candidates the poses will be planned from (plan_cell_poses).
+  if (planner::task_space_sampling_applies(checker)) {
+    const auto cands = planner::sample_facing_cameras(checker, 400, rng, nullptr);
+    const auto seen = std::count_if(cands.begin(), cands.end(),
+                                    [](const planner::Candidate& c) { return c.feasible(); });
+    return static_cast<double>(seen) / static_cast<double>(cands.size());
+  }
   std::size_t reachable = 0, seen = 0;
   for (const planner::Candidate& c : checker.sample(1500, rng, nullptr)) {
     if (c.rejection != planner::Rejection::kNone && c.rejection < planner::Rejection::kFacingAway)
@@ -223,6 +232,18 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   world_T_board.translation() =
       Eigen::Vector3d(tool_poses.front().translation().x() - c.x(),
                       tool_poses.front().translation().y() - c.y(), board_z);
+  // A serial arm (no loops) whose task is the tool's full pose: the board goes on the flange,
+  // its printed face looking out along the tool's z axis, 1 cm in front of it. Level in the
+  // world at one random configuration (the rule above) would leave it at an arbitrary angle to
+  // the flange, edge-on with the wrist's links in front of its face in every orientation (UR5:
+  // no pose of 40 000 the planner sampled was seen whole by a camera pair).
+  if (cell.model.closures.empty() && cell.model.task.type == calib::TaskType::kPose) {
+    const Eigen::Isometry3d& flange = tool_poses.front();
+    world_T_board.linear() =
+        flange.linear() * Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    world_T_board.translation() = flange * Eigen::Vector3d(0.0, 0.0, 0.01) -
+                                  world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0.0);
+  }
   calib::set_fixed_frame_pose(cell.model, cell.nominal, cell.target_frame, configs.front(),
                               world_T_board);
 
@@ -334,6 +355,19 @@ std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int coun
         po.pool = more;
         res = planner::plan_measurements(cell.model, cell.nominal, cell.plan_cell, po);
       }
+    }
+    // A serial arm's board, in a random orientation from joint samples, faces the camera pair
+    // at the cell's incidence and size almost never (UR5: 0 of 40 000): build the candidates in
+    // task space instead (the board turned towards the cameras, IK on the intended mode), and
+    // keep whichever pool is larger. The planner's verdicts stand either way.
+    if (res.pool.size() < want && res.status != planner::PlanStatus::kBadCell &&
+        cell.model.task.type == calib::TaskType::kPose) {
+      planner::PlanOptions task = po;
+      task.task_space = true;
+      task.pool = std::max<std::size_t>(4000, 60 * po.selection.count);
+      planner::PlanResult by_task =
+          planner::plan_measurements(cell.model, cell.nominal, cell.plan_cell, task);
+      if (by_task.pool.size() > res.pool.size()) res = std::move(by_task);
     }
   } catch (const std::exception& e) {
     *summary = e.what();
