@@ -3,9 +3,12 @@
 # Needs a configured release build for compile_commands.json.
 #
 # A file that passed is remembered (ROBOCAL_TIDY_CACHE, default ~/.cache/robocal-tidy) under a
-# key of everything its verdict depends on: its own text, every project header and build file,
-# the generated headers, .clang-tidy and the clang-tidy version. An unchanged file is not checked
-# again; any header or flag change checks everything. ROBOCAL_TIDY_CACHE=off disables it.
+# key of everything its verdict depends on: the clang-tidy version, .clang-tidy, the build files
+# that set the libraries' flags, the file's own text and the text of every project header it
+# includes. The headers a file includes are the compiler's own record (ninja's dependency log of
+# the release build, current after a build); a file the log does not know is keyed on every
+# project header instead. So a header change re-checks only the files that include it.
+# ROBOCAL_TIDY_CACHE=off disables the cache.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 [ -f build/release/compile_commands.json ] || cmake --preset release >/dev/null
@@ -20,19 +23,47 @@ if [ "$cache" = off ]; then
 fi
 mkdir -p "$cache"
 
+# What every file's verdict depends on: the tool, its checks and the flags (the top-level build
+# files and the libraries' own; tests/ and bench/ build files do not reach these sources).
 common=$(
   {
     clang-tidy --version
     cat .clang-tidy
-    git ls-files --cached --others --exclude-standard -z -- '*.hpp' '*.h' '*CMakeLists.txt' \
-      '*.cmake' 'CMakePresets.json' | sort -z | xargs -0 sha256sum
+    git ls-files --cached --others --exclude-standard -z -- CMakeLists.txt CMakePresets.json \
+      'cmake/*' '*/CMakeLists.txt' | grep -zE '^(CMakeLists.txt|CMakePresets.json|cmake/|(app|calib|core|vision|planner|robotio)/)' \
+      | sort -z | xargs -0 sha256sum
+  } | sha256sum | cut -d' ' -f1
+)
+# Fallback for a file without a dependency record: every project and generated header.
+all_headers=$(
+  {
+    git ls-files --cached --others --exclude-standard -z -- '*.hpp' '*.h' | sort -z \
+      | xargs -0 sha256sum
     find build/release/app/generated -type f -print0 2>/dev/null | sort -z | xargs -0 -r cat
   } | sha256sum | cut -d' ' -f1
 )
 
+# source file (relative to the checkout) -> the project headers it includes (relative to the
+# build directory: ../../x for the checkout's, generated ones without ../), one line per source.
+declare -A deps=()
+while IFS=$'\t' read -r src list; do deps[$src]=$list; done < <(
+  ninja -C build/release -t deps 2>/dev/null | awk '
+    /^[^ ].*: #deps/ { if (src != "") print src "\t" list; src = ""; list = ""; first = 1; next }
+    /^    / { p = $1
+              if (first) { first = 0; sub(/^\.\.\/\.\.\//, "", p); src = p; next }
+              if (p !~ /^\//) list = list " " p }
+    END { if (src != "") print src "\t" list }')
+
+header_key() {  # $1: the source; prints the hash of the project headers it includes
+  local list=${deps[$1]-}
+  if [ -z "${deps[$1]+set}" ]; then echo "all $all_headers"; return; fi
+  # shellcheck disable=SC2086  # the list is space-separated paths without spaces
+  (cd build/release && sha256sum $list </dev/null) | sha256sum | cut -d' ' -f1
+}
+
 todo=()
 for f in "${files[@]}"; do
-  key=$( { echo "$common $f"; cat "$f"; } | sha256sum | cut -d' ' -f1)
+  key=$( { echo "$common $f $(header_key "$f")"; cat "$f"; } | sha256sum | cut -d' ' -f1)
   [ -e "$cache/$key" ] || todo+=("$f" "$key")
 done
 echo "tidy: $(( ${#todo[@]} / 2 )) of ${#files[@]} files to check ($(( ${#files[@]} - ${#todo[@]} / 2 )) unchanged since they passed)"

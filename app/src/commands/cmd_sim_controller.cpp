@@ -7,6 +7,7 @@
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "robocal/core/text_lines.hpp"
 #include "robocal/robotio/sim_controller.hpp"
 #include "session/session_robot.hpp"
 
@@ -15,7 +16,6 @@
 #include <atomic>
 #include <csignal>
 #include <cstdio>
-#include <fstream>
 #include <random>
 
 namespace robocal::app {
@@ -71,19 +71,11 @@ robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
         rng);
   }
   if (!o.perturbation.empty()) {
-    std::ifstream in(o.perturbation);
-    if (!in) throw InputError(o.perturbation + ": cannot read the perturbation file");
-    std::string line;
-    int number = 0;
-    while (std::getline(in, line)) {
-      ++number;
-      const std::size_t hash = line.find('#');
-      if (hash != std::string::npos) line.resize(hash);
-      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    for (const core::ContentLine& line : core::read_content_lines(o.perturbation)) {
       try {
-        calib::apply_parameter_override(r.model, r.truth, line);
+        calib::apply_parameter_override(r.model, r.truth, line.text);
       } catch (const std::exception& e) {
-        throw InputError(fmt::format("{}:{}: {}", o.perturbation, number, e.what()));
+        throw InputError(fmt::format("{}:{}: {}", o.perturbation, line.number, e.what()));
       }
     }
   }

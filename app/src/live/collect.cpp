@@ -15,6 +15,7 @@
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/safety_guard.hpp"
+#include "robocal/robotio/stop_signals.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/target_io.hpp"
 #include "robocal_version.hpp"
@@ -24,9 +25,7 @@
 #include <fmt/core.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <chrono>
-#include <csignal>
 #include <ctime>
 #include <iostream>
 #include <memory>
@@ -38,66 +37,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using robotio::SafetyGuard;
-
-// ---- signals: SIGTERM stops like Ctrl-C, SIGUSR1 pauses / resumes between poses ---------------
-
-std::atomic<SafetyGuard*> g_guard{nullptr};
-std::atomic<bool> g_paused{false};
-std::atomic<int> g_stop_signal{0};
-
-extern "C" void on_collect_term(int sig) {
-  g_stop_signal = sig;
-  if (SafetyGuard* guard = g_guard.load()) guard->request_stop_from_signal();
-}
-extern "C" void on_collect_usr1(int /*sig*/) {
-  g_paused = !g_paused.load();
-}
-
-extern "C" void on_collect_int(int sig) {
-  SafetyGuard* guard = g_guard.load();
-  if (guard == nullptr || guard->stop_requested()) {
-    std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C: the operator wants out now
-    std::raise(SIGINT);
-    return;
-  }
-  g_stop_signal = sig;
-  guard->request_stop_from_signal();
-}
-
-// Installed while the guard lives; restores the previous handlers when it goes.
-class StopSignals {
- public:
-  explicit StopSignals(SafetyGuard& guard) {
-    g_guard = &guard;
-    g_stop_signal = 0;
-    g_paused = false;
-    install(SIGINT, on_collect_int, &old_int_);
-    install(SIGTERM, on_collect_term, &old_term_);
-    install(SIGUSR1, on_collect_usr1, &old_usr1_);
-  }
-  ~StopSignals() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-    sigaction(SIGUSR1, &old_usr1_, nullptr);
-    g_guard = nullptr;
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-  StopSignals(StopSignals&&) = delete;
-  StopSignals& operator=(StopSignals&&) = delete;
-
- private:
-  static void install(int sig, void (*handler)(int), struct sigaction* old) {
-    struct sigaction sa {};
-    sa.sa_handler = handler;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = 0;  // no SA_RESTART: blocking reads return EINTR and the link notices the stop
-    sigaction(sig, &sa, old);
-  }
-  struct sigaction old_int_ {};
-  struct sigaction old_term_ {};
-  struct sigaction old_usr1_ {};
-};
 
 // Waits between poses while paused (SIGUSR1); a stop request ends the wait (the guard then
 // refuses the next move, and capture stops with the reason).
@@ -115,7 +54,7 @@ class PausableRobot final : public robotio::CaptureRobot {
  private:
   void wait_while_paused() {
     bool said = false;
-    while (g_paused.load() && !guard_->stop_requested()) {
+    while (robotio::StopSignals::paused() && !guard_->stop_requested()) {
       if (!said && out_ != nullptr) {
         fmt::print(out_,
                    "\ncollect: paused (robot standing still). Send SIGUSR1 again to go on "
@@ -488,7 +427,7 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   const std::int64_t start_ns = o.resume ? continue_session(o, in) : start_session(o, in);
   guard.arm(o.yes ? "--yes on the command line" : "typed yes at the prompt");
 
-  const StopSignals signals(guard);
+  const robotio::StopSignals signals(guard);
   nlohmann::json summary_poses = nlohmann::json::array();
   robotio::CaptureResult result;
   try {
@@ -528,7 +467,7 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   r["retakes"] = retakes;
   r["still_moving"] = still_moving;
   r["poses"] = summary_poses;
-  const int sig = g_stop_signal.load();
+  const int sig = robotio::StopSignals::stop_signal();
   if (result.complete && on_disk == in.targets.size()) {
     res.status = "ok";
   } else {

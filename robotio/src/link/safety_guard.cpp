@@ -8,7 +8,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <csignal>
 #include <utility>
 
 namespace robocal::robotio {
@@ -190,31 +189,6 @@ GuardVerdict SafetyGuard::check_move(const Eigen::VectorXd& from, const Eigen::V
   }
   v.allowed = true;
   return v;
-}
-
-namespace {
-
-std::atomic<SafetyGuard*> g_sigint_guard{nullptr};
-
-extern "C" void on_sigint(int /*signal*/) {
-  SafetyGuard* guard = g_sigint_guard.load();
-  if (guard == nullptr || guard->stop_requested()) {
-    std::signal(SIGINT, SIG_DFL);  // second Ctrl-C: the operator wants out now
-    std::raise(SIGINT);
-    return;
-  }
-  guard->request_stop_from_signal();
-}
-
-}  // namespace
-
-void install_sigint_stop(SafetyGuard* guard) {
-  g_sigint_guard = guard;
-  struct sigaction sa {};
-  sa.sa_handler = guard != nullptr ? on_sigint : SIG_DFL;
-  sigemptyset(&sa.sa_mask);
-  sa.sa_flags = 0;  // no SA_RESTART: blocking reads return EINTR and the link notices the stop
-  sigaction(SIGINT, &sa, nullptr);
 }
 
 }  // namespace robocal::robotio

@@ -1,6 +1,8 @@
 #include "robocal/robotio/sim_controller.hpp"
 
 #include "robocal/calib/closure.hpp"
+#include "robocal/core/input_error.hpp"
+#include "robocal/core/text_lines.hpp"
 #include "robocal/robotio/motion_profile.hpp"
 
 #include <fcntl.h>
@@ -23,7 +25,6 @@
 #include <cstring>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -157,29 +158,23 @@ FaultPlan parse_fault_spec(const std::string& spec) {
 }
 
 void load_fault_script(const std::string& path, FaultPlan& plan) {
-  std::ifstream in(path);
-  if (!in) throw std::invalid_argument(path + ": cannot read the fault script");
-  std::string line;
-  int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    const std::size_t hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
-    std::stringstream ss(line);
+  std::vector<core::ContentLine> lines;
+  try {
+    lines = core::read_content_lines(path);
+  } catch (const core::InputError& e) {
+    throw std::invalid_argument(e.what());
+  }
+  for (const core::ContentLine& line : lines) {
+    std::stringstream ss(line.text);
     long index = 0;
     std::string kind;
-    if (!(ss >> index)) {
-      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (!(ss >> index) || !(ss >> kind) || index < 1)
       throw std::invalid_argument(
-          fmt::format("{}:{}: expected '<command index> <kind>'", path, number));
-    }
-    if (!(ss >> kind) || index < 1)
-      throw std::invalid_argument(
-          fmt::format("{}:{}: expected '<command index> <kind>'", path, number));
+          fmt::format("{}:{}: expected '<command index> <kind>'", path, line.number));
     const auto k = fault_kind_from_string(kind);
     if (!k)
       throw std::invalid_argument(
-          fmt::format("{}:{}: unknown fault kind '{}'", path, number, kind));
+          fmt::format("{}:{}: unknown fault kind '{}'", path, line.number, kind));
     plan.script[index] = *k;
   }
 }

@@ -2,6 +2,7 @@
 // `robocal sim-controller`), over a real loopback TCP socket and a real pseudo-terminal. The
 // simulator's JSONL log is the independent record: what it received and what it executed.
 #include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/stop_signals.hpp"
 #include "robocal/robotio/task_space.hpp"
 #include "robotio_sim.hpp"
 #include "scratch_dir.hpp"
@@ -13,6 +14,7 @@
 #include <unistd.h>
 
 #include <map>
+#include <optional>
 #include <ostream>
 #include <thread>
 
@@ -275,7 +277,7 @@ TEST_F(LinkTest, CtrlCDuringAMoveSendsTheStopAndTheSessionResumes) {
   start();
   auto l = link(Wire::kPty);
   l->connect();
-  robotio::install_sigint_stop(guard_.get());
+  std::optional<robotio::StopSignals> signals(std::in_place, *guard_);
   const std::vector<Eigen::VectorXd> targets = delta_targets(model_, 2, 8);
   // A slow, long move inside the workspace (7 cm of carriage travel at 2 cm/s), so the signal
   // lands mid-motion.
@@ -292,7 +294,7 @@ TEST_F(LinkTest, CtrlCDuringAMoveSendsTheStopAndTheSessionResumes) {
   });
   EXPECT_THROW(l->move_actuators(far, MoveSpeed{0.02, 1.0}), MotionInterrupted);
   ctrl_c.join();
-  robotio::install_sigint_stop(nullptr);
+  signals.reset();
   const auto sim_log = log();
   EXPECT_GE(received(sim_log, "M410"), 1) << "the controller never received the stop";
   ASSERT_FALSE(events(sim_log, "stop").empty());

@@ -5,6 +5,7 @@
 #include "robocal/core/input_error.hpp"
 #include "robocal/core/parallel.hpp"
 #include "robocal/core/pose_covariance.hpp"
+#include "robocal/core/text_lines.hpp"
 #include "robocal/core/yaml.hpp"
 
 #include <gtest/gtest.h>
@@ -60,6 +61,20 @@ TEST(Files, AtomicWriteRefusesToOverwriteRecordedDataAndReplacesResults) {
               (dir / "missing.txt").string() + ": cannot open file (No such file or directory)");
   }
   fs::remove_all(dir);
+}
+
+TEST(TextLines, KeepTheLineNumbersOfLinesWithContentOnly) {
+  const std::string text = "# header\n\n1 drop  # first\n   \t\r\n\nbody.length = 2 # x\r\n#\nlast";
+  const auto lines = rc::content_lines(text);
+  ASSERT_EQ(lines.size(), 3U);
+  EXPECT_EQ(lines[0].number, 3);
+  EXPECT_EQ(lines[0].text, "1 drop  ");
+  EXPECT_EQ(lines[1].number, 6);
+  EXPECT_EQ(lines[1].text, "body.length = 2 ");
+  EXPECT_EQ(lines[2].number, 8);
+  EXPECT_EQ(lines[2].text, "last");
+  EXPECT_TRUE(rc::content_lines("").empty());
+  EXPECT_THROW((void)rc::read_content_lines("/nonexistent/robocal/script.txt"), rc::InputError);
 }
 
 TEST(Yaml, ErrorsNameTheFileAndLine) {

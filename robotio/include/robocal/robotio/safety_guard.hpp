@@ -118,10 +118,4 @@ class SafetyGuard {
   std::string stop_reason_;
 };
 
-// Installs a SIGINT handler that asks `guard` to stop (the running move is stopped with the
-// controller's stop command; the session stays resumable). A second Ctrl-C while the first is
-// being handled restores the default action, so an operator can always kill the process.
-// Call with nullptr to uninstall.
-void install_sigint_stop(SafetyGuard* guard);
-
 }  // namespace robocal::robotio
