@@ -288,11 +288,12 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   }
   // The fixed layout the demo had before placement (a pair 1.25 m below the volume's centre,
   // looking up, 0.5 m apart) is kept only where the planner's proposal sees none of the sampled
-  // reachable poses (UR5, linear Delta: the planner's reach test keeps one assembly mode and
-  // finds no pose, and the random poses the simulation then falls back to need the layout they
-  // were made for). Where the fixed pair merely sees more (the full-size Delta: 83 % against
-  // 73 %), it is NOT taken: with planned poses it made demo --seed 1's identification fail (fit
-  // residual 568 µm, 130x the noise), while the proposal gives 166.5 µm held-out.
+  // reachable poses (the linear Delta: its bed hides the board, which faces down, from every
+  // camera below it, and the random poses the simulation then falls back to need the layout
+  // they were made for; the renderer draws the board alone, so it sees them). Where the fixed pair
+  // merely sees more (the full-size Delta: 83 % against 73 %), it is NOT taken: with planned poses
+  // it made demo --seed 1's identification fail (fit residual 568 µm, 130x the noise), while the
+  // proposal gives 166.5 µm held-out.
   {
     planner::CameraPlacement fixed;
     fixed.look_at = cell.volume_centre;

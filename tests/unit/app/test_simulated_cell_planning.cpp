@@ -1,6 +1,7 @@
 // The simulated cell plans its cameras and poses (planner/): for robots unlike the Delta (a
 // serial arm whose board sweeps a ring, the Gantry-Tau whose tool point sits inside its
-// platform box) the planned poses are seen whole by both TRUE cameras, checked with the
+// platform box, the UR5 whose poses are built in task space with the board on its flange) the
+// planned poses are seen whole by both TRUE cameras, checked with the
 // renderer's own corner visibility on the true robot, and the board is outside the tool's
 // collision shapes (the plan's lines of sight would be blocked otherwise).
 #include "simcell/simulated_cell.hpp"
@@ -71,6 +72,6 @@ TEST_P(SimulatedCellPlanning, PlannedPosesAreSeenWholeByBothTrueCameras) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Robots, SimulatedCellPlanning,
-                         ::testing::Values("rotary_delta", "gantry_tau", "modular_arm"));
+                         ::testing::Values("rotary_delta", "gantry_tau", "modular_arm", "ur5"));
 
 }  // namespace
