@@ -24,8 +24,10 @@ constexpr int kSeedTries = 256;
 
 bool task_space_sampling_applies(const FeasibilityChecker& checker) {
   const calib::Mechanism& model = checker.reach().model();
+  // Six actuators at least: a robot with fewer (the 4-DOF wire robot's branch) cannot turn the
+  // target to an arbitrary orientation, and its least-squares IK answers another pose.
   return model.task.type == calib::TaskType::kPose && model.task.frame == checker.frame() &&
-         !checker.cell().required_cameras().empty();
+         model.actuated.size() >= 6 && !checker.cell().required_cameras().empty();
 }
 
 std::vector<Candidate> sample_facing_cameras(const FeasibilityChecker& checker, std::size_t count,
@@ -41,7 +43,7 @@ std::vector<Candidate> sample_facing_cameras(const FeasibilityChecker& checker, 
   std::vector<const CellCamera*> cams;
   for (const int ci : cell.required_cameras()) {
     cams.push_back(&cell.cameras.at(static_cast<std::size_t>(ci)));
-    eyes.push_back(cams.back()->world_T_camera.translation());
+    eyes.emplace_back(cams.back()->world_T_camera.translation());
   }
   Eigen::Vector3d eye_mean = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& e : eyes) eye_mean += e / static_cast<double>(eyes.size());

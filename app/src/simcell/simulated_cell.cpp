@@ -362,7 +362,7 @@ std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int coun
     // task space instead (the board turned towards the cameras, IK on the intended mode), and
     // keep whichever pool is larger. The planner's verdicts stand either way.
     if (res.pool.size() < want && res.status != planner::PlanStatus::kBadCell &&
-        cell.model.task.type == calib::TaskType::kPose) {
+        cell.model.task.type == calib::TaskType::kPose && cell.model.actuated.size() >= 6) {
       planner::PlanOptions task = po;
       task.task_space = true;
       task.pool = std::max<std::size_t>(4000, 60 * po.selection.count);

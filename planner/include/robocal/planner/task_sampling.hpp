@@ -19,7 +19,8 @@
 namespace robocal::planner {
 
 // True when task-space sampling applies: the model's task is the full pose (6 rows) of the
-// checker's measured frame and the cell has required cameras.
+// checker's measured frame, it has at least six actuators (any orientation can be asked for)
+// and the cell has required cameras.
 bool task_space_sampling_applies(const FeasibilityChecker& checker);
 
 // `count` candidates built as above, each evaluated (every one is counted in `counts`).
