@@ -14,7 +14,13 @@
 //    same noise seed per trial) and identified (robot-file free set, automatic base set);
 //  - held-out error: RMS position error of the identified model against the truth over 300
 //    feasible poses of another pool (noise-free).
-// Reported: median over trials of each design's held-out RMS, ratio planned/random per index.
+//  - also the 'task' criterion (mean predicted position variance over the pool, I-optimal).
+// Reported: median over trials of each design's held-out RMS, ratio planned/random per index;
+// per trial the identification status with the number of estimated parameters ("est=") and
+// those its relinearisation added ("relin+").
+// Diagnosis: ROBOCAL_PLANNER_NOISE=0 (no noise: the model's own error), =k (k x the noise);
+// ROBOCAL_PLANNER_FEASIBLE=N (pool = N feasible candidates, sampled until reached);
+// ROBOCAL_PLANNER_SKIP_SPEED=1 (no speed part).
 // Speed (CPU time of the one thread): a pool of 5000 FEASIBLE candidates, N = 60: Jacobian model
 // build, plain greedy pass, greedy + DETMAX (O1), each timed.
 #include "robocal/calib/identification.hpp"
@@ -89,7 +95,9 @@ double held_out_error(const calib::MechanismPredictor& pred, const Eigen::Vector
   const calib::Measurements meas = calib::simulate_measurements(pred, truth, design, sim, rng);
   const calib::SolveOptions opt = calib::solve_options_from_model(pred.model(), false);
   const calib::IdentificationResult res = calib::identify(pred, nominal, meas, opt);
-  *status = calib::to_string(res.status);
+  *status = std::string(calib::to_string(res.status)) +
+            " est=" + std::to_string(res.estimated.size()) + " relin+" +
+            std::to_string(res.relinearisation.accepted ? res.relinearisation.added.size() : 0);
   return calib::validate(pred, nominal, res.estimate, held.poses).after.position_rms;
 }
 
@@ -125,7 +133,7 @@ int main(int argc, char** argv) {
   if (held_readings.size() > 300) held_readings.resize(300);
   out["held_out_poses"] = held_readings.size();
 
-  const std::vector<std::string> designs = {"random", "O1", "O2", "O3", "O4", "O5"};
+  const std::vector<std::string> designs = {"random", "O1", "O2", "O3", "O4", "O5", "task"};
   std::map<std::string, std::vector<double>> errors;
   std::map<std::string, std::vector<double>> conds;
   std::map<std::string, std::vector<double>> predicted;
@@ -142,8 +150,17 @@ int main(int argc, char** argv) {
     const calib::Measurements held =
         calib::simulate_measurements(pred, truth, held_readings, clean, rng);
     FeasibilityCounts counts;
-    const std::vector<Eigen::VectorXd> pool =
+    std::vector<Eigen::VectorXd> pool =
         feasible_readings(checker, pool_size, 1 + static_cast<unsigned>(t), &counts);
+    if (const char* f = std::getenv("ROBOCAL_PLANNER_FEASIBLE")) {
+      const std::size_t want = std::stoul(f);
+      unsigned s2 = 100000 + 1000 * static_cast<unsigned>(t);
+      while (pool.size() < want) {
+        const auto more = feasible_readings(checker, pool_size, s2++, &counts);
+        pool.insert(pool.end(), more.begin(), more.end());
+      }
+      pool.resize(want);
+    }
     if (t == 0) first_counts = counts;
     feasible_total += pool.size();
     const ObservabilityModel obs = build_observability_model(pred, nominal, pool);
@@ -211,7 +228,7 @@ int main(int argc, char** argv) {
   }
 
   // Speed: 5000 feasible candidates, N = 60, one core.
-  {
+  if (std::getenv("ROBOCAL_PLANNER_SKIP_SPEED") == nullptr) {
     std::vector<Eigen::VectorXd> big;
     FeasibilityCounts counts;
     const auto t0 = thread_seconds();
@@ -240,7 +257,15 @@ int main(int argc, char** argv) {
     t1 = thread_seconds();
     const Selection full5 = select_poses(obs, o5);
     const double full5_s = seconds_since(t1);
+    SelectionOptions ot = so;
+    ot.index = ObservabilityIndex::kTask;
+    t1 = thread_seconds();
+    const Selection full_task = select_poses(obs, ot);
+    const double full_task_s = seconds_since(t1);
     out["speed"] = {
+        {"task_greedy_exchange_seconds", full_task_s},
+        {"task_selection_total_seconds", build_s + full_task_s},
+        {"task_exchanges", full_task.exchanges},
         {"pool", big.size()},
         {"count", 60},
         {"identifiable_parameters", obs.columns()},

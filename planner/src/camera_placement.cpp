@@ -71,6 +71,7 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       std::min((outline[1] - outline[0]).norm(), (outline[3] - outline[0]).norm());
   std::vector<Eigen::VectorXd> configs;
   std::vector<Eigen::Vector3d> centres, normals;
+  std::vector<Eigen::Isometry3d> boards;  // for the quick coverage score below
   for (const Candidate& cand :
        reach.sample(static_cast<std::size_t>(10 * options.samples), rng, nullptr)) {
     if (!cand.feasible()) continue;
@@ -78,77 +79,154 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     configs.push_back(cand.readings);
     centres.emplace_back(cand.world_T_board * board_mid);
     normals.emplace_back(-cand.world_T_board.linear().col(2));
+    boards.push_back(cand.world_T_board);
   }
   if (configs.empty())
     throw std::invalid_argument("robot '" + model.name +
                                 "' reaches no configuration inside the workspace");
-  CameraPlacement out;
-  Eigen::Vector3d c = Eigen::Vector3d::Zero(), n = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < centres.size(); ++i) {
-    c += centres[i];
-    n += normals[i];
-  }
-  c /= static_cast<double>(centres.size());
-  if (n.norm() < 1e-6) n = Eigen::Vector3d::UnitZ();  // faces every way: look from above
-  n.normalize();
-  double radius = 0.0;
-  for (const Eigen::Vector3d& p : centres) radius = std::max(radius, (p - c).norm());
-  radius += half_diag;
-  out.look_at = c;
-  out.view_direction = n;
-  out.volume_radius = radius;
   const vision::CameraModel& cam = cell.cameras.front().model;
   const double fx = cam.params[0], fy = cam.params[1];
   const double half_fov =
       std::min(std::atan(0.5 * cam.width / fx), std::atan(0.5 * cam.height / fy));
-  // Distance: the volume's sphere inside the narrower half field of view (15 % margin), but
-  // no farther than keeps the target's image at min_image_size (10 % margin) on the far side.
-  const double fov_distance = radius / std::sin(0.85 * half_fov);
-  const double size_distance =
-      cell.visibility.min_image_size > 0
-          ? std::min(fx, fy) * short_side / (1.1 * cell.visibility.min_image_size) - radius
-          : 1e300;
-  // Two directions perpendicular to n for spreading the cameras around it.
-  const Eigen::Vector3d e1 = n.unitOrthogonal();
-  const Eigen::Vector3d e2 = n.cross(e1);
-  const Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? e2 : Eigen::Vector3d::UnitZ();
   const int ncam = std::max(1, options.cameras);
-  auto place = [&](double distance) {
-    CameraPlacement pl = out;
-    const double tilt = ncam > 1 ? 0.5 * options.triangulation_angle : 0.0;
-    for (int i = 0; i < ncam; ++i) {
-      const double phi = 2 * M_PI * i / ncam;
-      const Eigen::Vector3d dir =
-          (std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * e1 + std::sin(phi) * e2))
-              .normalized();
-      pl.world_T_camera.push_back(look_at(c + distance * dir, c, up));
+  const double tilt = ncam > 1 ? 0.5 * options.triangulation_angle : 0.0;
+  // Quick coverage of a placement: every camera sees the outline inside the image (border),
+  // within the maximum incidence and at least min_image_size (occlusion is left to the full
+  // test of the chosen placement).
+  auto quick_coverage = [&](const std::vector<Eigen::Isometry3d>& world_T_camera) {
+    std::size_t seen = 0;
+    for (const Eigen::Isometry3d& wb : boards) {
+      bool all = true;
+      for (const Eigen::Isometry3d& wc : world_T_camera) {
+        const Eigen::Isometry3d cb = wc.inverse() * wb;
+        const Eigen::Vector3d centre = cb * board_mid;
+        const Eigen::Vector3d face = -cb.linear().col(2);
+        if (std::acos(std::clamp(face.dot(-centre.normalized()), -1.0, 1.0)) >
+            cell.visibility.max_incidence) {
+          all = false;
+          break;
+        }
+        std::vector<Eigen::Vector2d> px;
+        for (const Eigen::Vector3d& p : outline) {
+          const auto q = vision::project(cam, cb * p);
+          if (!q || !vision::in_image(cam, *q, cell.margins.image_border)) break;
+          px.push_back(*q);
+        }
+        if (px.size() < 4 || std::min((px[1] - px[0]).norm(), (px[3] - px[0]).norm()) <
+                                 cell.visibility.min_image_size) {
+          all = false;
+          break;
+        }
+      }
+      seen += all ? 1 : 0;
     }
-    pl.distance = distance;
-    pl.baseline =
-        ncam > 1 ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
-                 : 0.0;
+    return static_cast<double>(seen) / static_cast<double>(boards.size());
+  };
+  // Candidate viewing directions: the mean face direction (one side for a level board, as on a
+  // Delta), then the face directions of a spread of sampled poses (a serial arm's board faces
+  // every way; a camera pair sees one side of its range). For each, the look-at point and
+  // radius come from the poses whose board faces that way (within 40 deg).
+  Eigen::Vector3d mean_n = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& v : normals) mean_n += v;
+  std::vector<Eigen::Vector3d> directions(17, Eigen::Vector3d::UnitZ());
+  if (mean_n.norm() > 1e-6 * static_cast<double>(normals.size()))
+    directions[0] = mean_n.normalized();
+  for (std::size_t k = 1; k < directions.size(); ++k)
+    directions[k] = normals[(k - 1) * normals.size() / 16].normalized();
+  // Every placement tried, with its quick coverage; the best few are measured in full below.
+  std::vector<CameraPlacement> tried;
+  double best_quick = -1.0;
+  for (const Eigen::Vector3d& n : directions) {
+    std::vector<Eigen::Vector3d> facing;
+    facing.reserve(centres.size());
+    for (std::size_t i = 0; i < centres.size(); ++i)
+      if (normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
+        facing.push_back(centres[i]);
+    if (facing.size() < std::max<std::size_t>(5, centres.size() / 20)) continue;
+    Eigen::Vector3d mean_c = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& p : facing) mean_c += p;
+    mean_c /= static_cast<double>(facing.size());
+    // Look-at points: the facing poses' mean, then 8 of them spread over the list (a working
+    // volume larger than the view, or a ring around an arm's base, is seen in part).
+    std::vector<Eigen::Vector3d> look(9, mean_c);
+    for (std::size_t k = 1; k < look.size(); ++k) look[k] = facing[(k - 1) * facing.size() / 8];
+    const Eigen::Vector3d e1 = n.unitOrthogonal();
+    const Eigen::Vector3d e2 = n.cross(e1);
+    const Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? e2 : Eigen::Vector3d::UnitZ();
+    for (std::size_t li = 0; li < look.size(); ++li) {
+      const Eigen::Vector3d& c = look[li];
+      double radius = half_diag;
+      for (const Eigen::Vector3d& p : facing) radius = std::max(radius, (p - c).norm() + half_diag);
+      // Distance: the volume's sphere inside the narrower half field of view (15 % margin), but
+      // no farther than keeps the target's image at min_image_size (10 % margin) on the far
+      // side; from a look-at point inside a larger volume, up to where the target at that point
+      // keeps min_image_size.
+      const double fov_distance = radius / std::sin(0.85 * half_fov);
+      const double size_at_point =
+          cell.visibility.min_image_size > 0
+              ? std::min(fx, fy) * short_side / (1.1 * cell.visibility.min_image_size)
+              : 1e300;
+      const double size_distance = size_at_point - radius;
+      const double top =
+          li == 0 ? std::min(1.6 * fov_distance, std::max(size_distance, 0.3 * fov_distance))
+                  : std::min(1.6 * fov_distance, size_at_point);
+      // From 60 % of the field-of-view distance (the mean) or 40 % of the top (a point) up to
+      // the top; keep the best coverage, the nearer on ties (bigger images).
+      const double first = li == 0 ? 0.6 * fov_distance : 0.4 * top;
+      for (int k = 0; k <= 6; ++k) {
+        const double distance = li == 0 ? std::min(top, fov_distance * (0.6 + 0.1 * 1.67 * k))
+                                        : std::min(top, first + (top - first) * k / 6.0);
+        CameraPlacement pl;
+        pl.look_at = c;
+        pl.view_direction = n;
+        pl.volume_radius = radius;
+        for (int i = 0; i < ncam; ++i) {
+          const double phi = 2 * M_PI * i / ncam;
+          const Eigen::Vector3d dir =
+              (std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * e1 + std::sin(phi) * e2))
+                  .normalized();
+          pl.world_T_camera.push_back(look_at(c + distance * dir, c, up));
+        }
+        pl.distance = distance;
+        pl.baseline =
+            ncam > 1
+                ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
+                : 0.0;
+        pl.coverage = quick_coverage(pl.world_T_camera);
+        best_quick = std::max(best_quick, pl.coverage);
+        tried.push_back(pl);
+        if (distance >= top) break;
+      }
+    }
+    if (best_quick >= 0.999) break;
+  }
+  // The 6 best by quick coverage (the nearer first on ties: bigger images) under the full test
+  // (all corners, occlusion by links and obstacles): the best of them wins.
+  std::stable_sort(tried.begin(), tried.end(),
+                   [](const CameraPlacement& a, const CameraPlacement& b) {
+                     return a.coverage > b.coverage + 1e-9 ||
+                            (std::abs(a.coverage - b.coverage) <= 1e-9 && a.distance < b.distance);
+                   });
+  CameraPlacement best;
+  best.coverage = -1;
+  for (std::size_t k = 0; k < std::min<std::size_t>(6, tried.size()); ++k) {
+    CameraPlacement pl = tried[k];
     const Cell placed = with_cameras(cell, pl);
     const FeasibilityChecker checker(model, params, placed, frame,
                                      feasibility_options_from_cell(placed));
     std::size_t seen = 0;
     for (const Eigen::VectorXd& x : configs) seen += checker.evaluate(x).feasible() ? 1 : 0;
     pl.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
-    return pl;
-  };
-  // Try distances from 60 % to 160 % of the field-of-view distance (capped by the image-size
-  // limit); keep the best coverage, the nearer on ties (bigger images).
-  const double top = std::min(1.6 * fov_distance, std::max(size_distance, 0.3 * fov_distance));
-  CameraPlacement best;
-  best.coverage = -1;
-  for (int k = 0; k <= 6; ++k) {
-    const double distance = std::min(top, fov_distance * (0.6 + 0.1 * 1.67 * k));
-    const CameraPlacement pl = place(distance);
     if (pl.coverage > best.coverage + 1e-9) best = pl;
-    if (best.coverage >= 0.999) break;
   }
-  out = best;
+  if (tried.empty())
+    throw std::invalid_argument("no viewing direction sees enough of robot '" + model.name +
+                                "'s reachable poses");
+  const Eigen::Vector3d c = best.look_at, n = best.view_direction;
+  const int ncam_out = ncam;
+  CameraPlacement out = best;
   std::ostringstream s;
-  s << ncam << " camera(s) " << out.distance << " m from the working volume's centre ("
+  s << ncam_out << " camera(s) " << out.distance << " m from the point they look at ("
     << c.transpose() << "), looking along " << (-n).transpose() << ", baseline " << out.baseline
     << " m; they see the target at " << std::lround(100 * out.coverage) << " % of "
     << configs.size() << " reachable sampled poses";

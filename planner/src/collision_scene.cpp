@@ -179,6 +179,14 @@ CollisionScene::CollisionScene(const calib::Mechanism& model, const Cell& cell,
     for (std::size_t bi = 0; bi < model.bodies.size(); ++bi) {
       const int p = model.bodies[bi].parent;
       if (p < 0 || has_file_shape[bi] || has_file_shape[static_cast<std::size_t>(p)]) continue;
+      // A passive slide is the model's coordinate of a platform (the linear Delta's effector
+      // translates by passive eff_x/eff_y/eff_z), not a part: a capsule along it stood from the
+      // bed to the effector's centre, through the lines of sight to the board under it.
+      const calib::Body& child = model.bodies[bi];
+      if (child.joint == calib::JointType::kPrismatic &&
+          std::find(model.actuated.begin(), model.actuated.end(), static_cast<int>(bi)) ==
+              model.actuated.end())
+        continue;
       if ((poses[bi].translation() - poses[static_cast<std::size_t>(p)].translation()).norm() <
           0.01)
         continue;

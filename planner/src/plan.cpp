@@ -1,6 +1,8 @@
 // Planning end to end (see plan.hpp).
 #include "robocal/planner/plan.hpp"
 
+#include "robocal/planner/task_sampling.hpp"
+
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 
@@ -124,9 +126,13 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
   res.frame = target_frame(model, cell);
   const FeasibilityChecker checker(model, params, cell, res.frame,
                                    feasibility_options_from_cell(cell));
-  say("sampling " + std::to_string(options.pool) + " candidate poses in joint space");
+  const bool task_space = options.task_space && task_space_sampling_applies(checker);
+  say("sampling " + std::to_string(options.pool) + " candidate poses in " +
+      (task_space ? "task space (target turned towards the cameras)" : "joint space"));
   std::mt19937 rng(options.seed);
-  std::vector<Candidate> sampled = checker.sample(options.pool, rng, &res.counts);
+  std::vector<Candidate> sampled =
+      task_space ? sample_facing_cameras(checker, options.pool, rng, &res.counts)
+                 : checker.sample(options.pool, rng, &res.counts);
   for (Candidate& c : sampled)
     if (c.feasible()) res.pool.push_back(std::move(c));
   say(res.counts.summary());

@@ -30,6 +30,8 @@ const char* to_string(ObservabilityIndex index) {
       return "O4";
     case ObservabilityIndex::kO5:
       return "O5";
+    case ObservabilityIndex::kTask:
+      return "task";
   }
   return "?";
 }
@@ -48,6 +50,8 @@ bool parse_index(const std::string& text, ObservabilityIndex* index) {
     *index = ObservabilityIndex::kO4;
   else if (t == "o5")
     *index = ObservabilityIndex::kO5;
+  else if (t == "task" || t == "i-optimal")
+    *index = ObservabilityIndex::kTask;
   else
     return false;
   return true;
@@ -139,6 +143,8 @@ class DesignState {
   }
   bool in(std::size_t i) const { return in_[i]; }
   const Eigen::MatrixXd& normal() const { return normal_; }
+  const Eigen::MatrixXd& inverse() const { return Minv_; }
+  const Mat6 S(std::size_t i) const { return S_.middleRows<6>(static_cast<Eigen::Index>(6 * i)); }
   // Predicted 1-σ position variance (scaled-whitened units: × σ_p² for m²) at pose i.
   double position_variance(std::size_t i) const {
     return S_.block<3, 3>(static_cast<Eigen::Index>(6 * i), 0).trace();
@@ -192,6 +198,40 @@ std::vector<std::size_t> best_outsiders(const DesignState& st, std::size_t k) {
                     [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<std::size_t> out;
   for (std::size_t j = 0; j < k; ++j) out.push_back(g[j].second);
+  return out;
+}
+
+// Mean position information of the pool, W = (1/n) sum_i Jp_i^T Jp_i (scaled columns): the
+// task criterion tr(W M^-1) is n^-1 sum_i tr(Jp_i M^-1 Jp_i^T), the mean predicted position
+// variance over the pool.
+Eigen::MatrixXd position_information(const ObservabilityModel& model) {
+  const std::size_t n = model.poses();
+  const auto L = static_cast<Eigen::Index>(model.columns());
+  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(L, L);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto Jp = model.rows.middleRows<3>(static_cast<Eigen::Index>(6 * i));
+    W.noalias() += Jp.transpose() * Jp;
+  }
+  return W / static_cast<double>(std::max<std::size_t>(n, 1));
+}
+
+// Change of tr(W M^-1) when pose i joins (sign +1: the decrease, >= 0) or leaves (sign -1: the
+// increase, >= 0) the design, for every pose: with U = M^-1 J_i^T and C = I + sign J_i M^-1
+// J_i^T, M'^-1 = M^-1 - sign U C^-1 U^T, so the change is tr(C^-1 U^T W U).
+std::vector<double> task_changes(const ObservabilityModel& model, const DesignState& st,
+                                 const Eigen::MatrixXd& W, double sign) {
+  const std::size_t n = model.poses();
+  const Eigen::MatrixXd& Minv = st.inverse();
+  const Eigen::MatrixXd G = Minv * W * Minv;
+  const RowMat JG = model.rows * G;
+  std::vector<double> out(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if ((sign > 0) == st.in(i)) continue;  // joining: outsiders; leaving: members
+    const auto r = static_cast<Eigen::Index>(6 * i);
+    const Mat6 T = JG.middleRows<6>(r) * model.rows.middleRows<6>(r).transpose();
+    const Mat6 C = Mat6::Identity() + sign * st.S(i);
+    out[i] = C.ldlt().solve(T).trace();
+  }
   return out;
 }
 
@@ -313,10 +353,20 @@ Selection select_poses(const ObservabilityModel& model, const SelectionOptions& 
   };
   std::vector<std::size_t> members = measured;
   const bool d_opt = options.index == ObservabilityIndex::kO1;
+  const bool task = options.index == ObservabilityIndex::kTask;
+  const Eigen::MatrixXd W = task ? position_information(model) : Eigen::MatrixXd();
   // Greedy.
   for (std::size_t step = 0; step < want; ++step) {
     std::size_t pick = n;
-    if (d_opt || 6 * members.size() < L) {
+    if (task && 6 * members.size() >= L) {
+      const std::vector<double> gain = task_changes(model, st, W, +1.0);
+      double best = -std::numeric_limits<double>::infinity();
+      for (std::size_t i = 0; i < n; ++i)
+        if (!st.in(i) && gain[i] > best) {
+          best = gain[i];
+          pick = i;
+        }
+    } else if (d_opt || task || 6 * members.size() < L) {
       double best = -std::numeric_limits<double>::infinity();
       for (std::size_t i = 0; i < n; ++i) {
         if (st.in(i)) continue;
@@ -355,7 +405,33 @@ Selection select_poses(const ObservabilityModel& model, const SelectionOptions& 
     auto removable = [&](std::size_t i) {
       return std::find(measured.begin(), measured.end(), i) == measured.end();
     };
-    if (d_opt) {
+    if (task) {
+      for (int it = 0; it < limit; ++it) {
+        const std::vector<double> gain = task_changes(model, st, W, +1.0);
+        std::size_t add = n;
+        double best = -std::numeric_limits<double>::infinity();
+        for (std::size_t i = 0; i < n; ++i)
+          if (!st.in(i) && gain[i] > best) {
+            best = gain[i];
+            add = i;
+          }
+        if (add >= n) break;
+        st.add(add);
+        const std::vector<double> cost = task_changes(model, st, W, -1.0);
+        std::size_t drop = add;
+        double least = cost[add];
+        for (const std::size_t i : sel.chosen)
+          if (removable(i) && cost[i] < least - 1e-12 * std::abs(least)) {
+            least = cost[i];
+            drop = i;
+          }
+        st.remove(drop);
+        if (drop == add) break;  // the newcomer is the least useful: converged
+        std::replace(sel.chosen.begin(), sel.chosen.end(), drop, add);
+        ++sel.exchanges;
+        if (sel.exchanges % 20 == 0) st.refresh();
+      }
+    } else if (d_opt) {
       for (int it = 0; it < limit; ++it) {
         const std::vector<std::size_t> top = best_outsiders(st, 1);
         if (top.empty()) break;

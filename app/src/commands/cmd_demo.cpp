@@ -146,6 +146,9 @@ CommandSpec demo_command() {
             cmd.add_option("--threads", o->threads, "Worker threads for rendering and detection")
                 ->check(CLI::Range(1, 64))
                 ->capture_default_str();
+            cmd.add_flag("--random-poses", o->simulate.random_poses,
+                         "Random reachable poses with the board in view (for comparison) "
+                         "instead of poses planned by observability (planner/)");
             cmd.add_flag("--idealised-truth", o->simulate.idealised_truth,
                          "The true robot differs from its drawing only where the model can follow "
                          "(default: also where it cannot, as a real robot does)");

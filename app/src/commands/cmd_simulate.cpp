@@ -18,10 +18,12 @@ CommandSpec simulate_command() {
             cmd.footer(
                 "A library robot gets a hidden \"true\" geometry (its drawing plus random "
                 "tolerances: lengths sigma 0.5 mm, angles 0.2 deg, from --seed). Two cameras "
-                "(1600x1200, or 1280x960 with --quick) sit below the working volume. The folder "
-                "gets what a real cell would record: calibration-board views for each camera's "
-                "intrinsics and for the stereo rig, and --poses robot poses (random reachable "
-                "actuator values where both cameras see the end-effector board) with one image "
+                "(1600x1200, or 1280x960 with --quick) are placed by the planner to see the "
+                "board over the working volume (below it for the Delta). The folder gets what a "
+                "real cell would record: calibration-board views for each camera's intrinsics "
+                "and for the stereo rig, and --poses robot poses (planned by observability among "
+                "those where both cameras see the end-effector board; random ones with "
+                "--random-poses) with one image "
                 "per camera and the actuator readings (noise 2e-6, quantised to 1e-6). The truth "
                 "goes to DIR/truth/, which only `robocal validate` reads.\n\n"
                 "Next: robocal measure DIR && robocal identify DIR && robocal validate DIR "
@@ -39,6 +41,9 @@ CommandSpec simulate_command() {
                            "Calibration-board views per camera (default 48, 12 with --quick)");
             cmd.add_option("--rig-views", o->rig_views,
                            "Board views both cameras see (default 12, 6 with --quick)");
+            cmd.add_flag("--random-poses", o->random_poses,
+                         "Random reachable poses with the board in view (for comparison) "
+                         "instead of poses planned by observability (planner/)");
             cmd.add_flag("--idealised-truth", o->idealised_truth,
                          "The true robot differs from its drawing only where the model can follow "
                          "(default: also where it cannot, as a real robot does)");

@@ -6,9 +6,13 @@
 // report errors (validation).
 //
 // Frames: the cell's truth world is the robot's nominal base frame (z up; the Delta hangs below
-// it). The cameras sit below the working volume looking up; the end-effector board faces down.
-// The pipeline's world is camera 0's frame (the rig's gauge), so it never needs the truth world.
+// it). The cameras are placed by the planner (planner/camera_placement.hpp) on the side the
+// end-effector board faces over the working volume (below it, looking up, for the Delta, whose
+// board faces down). The pipeline's world is camera 0's frame (the rig's gauge), so it never
+// needs the truth world.
 #include "robocal/calib/mechanism.hpp"
+#include "robocal/planner/camera_placement.hpp"
+#include "robocal/planner/cell.hpp"
 #include "robocal/vision/camera_model.hpp"
 #include "robocal/vision/renderer.hpp"
 #include "robocal/vision/target.hpp"
@@ -25,8 +29,13 @@ struct CellOptions {
   int image_width = 1600;
   int image_height = 1200;
   double focal_px = 1600.0;
-  double camera_distance = 1.25;  // m, from the centre of the working volume
-  double baseline = 0.5;          // m, between the two cameras
+  // Camera placement (planner::propose_cameras): angle between the two lines of sight, and the
+  // smallest image of the end-effector board's pattern (shortest side, px) a pose must give to
+  // be planned, which also bounds the cameras' distance. 250 px puts ~35 px on each 40 mm tag of
+  // the default board; at 160 px (quick images, Delta cameras 2.1 m away) a quarter of the
+  // poses' board fits failed the measure stage's consistency gate (chi2/dof 60-150).
+  double triangulation_angle = 0.6;  // rad
+  double min_board_image = 250.0;    // px
   // The end-effector board: ee_tags x ee_tags AprilTags (tag36h11, ids from 0); default 6x6 tags
   // of 40 mm with 10 mm gaps, a 290 mm pattern on the Delta's ~0.4 m plate. The board's tilt is
   // its least well measured quantity (depth across the board from 1-2 m away), and it grows
@@ -69,6 +78,11 @@ struct SimulatedCell {
   std::vector<SimulatedCamera> cameras;
   Eigen::Vector3d volume_centre = Eigen::Vector3d::Zero();  // truth world
   Eigen::Vector3d volume_extent = Eigen::Vector3d::Zero();  // half sizes of the sampled poses
+  // The cell as the planner sees it before calibration: the NOMINAL intrinsics (no distortion),
+  // the cameras where they were placed, the board on the target frame (frame_T_board = identity:
+  // the target frame is the board's frame), no obstacles, no declared workspace.
+  planner::Cell plan_cell;
+  planner::CameraPlacement placement;  // what propose_cameras said
   CellOptions options;
 };
 
@@ -76,6 +90,13 @@ struct SimulatedCell {
 // sampled configuration the cameras could see.
 SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptions& options,
                                   std::mt19937& rng);
+
+// Actuator readings of `count` measurement poses planned on the cell's plan_cell (planner:
+// feasible on the nominal robot and seen whole by both cameras as placed, selected by
+// observability with the planner's default index, in selection order). Empty when nothing could be
+// planned; `summary` says what was planned or why not.
+std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int count,
+                                             std::mt19937& rng, std::string* summary);
 
 // A rendered image with the seed it was rendered with.
 struct RenderedImage {

@@ -136,27 +136,54 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
            s.path(s.rig_views) / fmt::format("view_{:03d}", v) / (s.cameras[c].name + ".png")});
   render_shots(cell, shots, "render calibration views", log);
 
-  // Robot poses where both cameras see the whole end-effector board (a simple spread: random
-  // reachable actuator values, kept when visible).
+  // Robot poses: planned (default) or random. Either way a pose is recorded only when both
+  // (true) cameras see the whole end-effector board on the true robot.
   stage(log, "simulate: robot poses and images");
+  say(log, "cameras: {}\n", cell.placement.summary);
   calib::MechanismPredictor true_predictor(cell.model, cell.target_frame);
   std::vector<Eigen::VectorXd> true_readings;
   std::vector<Eigen::Isometry3d> true_board_poses;
-  for (const auto& q : calib::sample_actuators(true_predictor, {cell.truth, cell.nominal},
-                                               static_cast<std::size_t>(o.poses) * 4, rng)) {
-    if (static_cast<int>(true_readings.size()) == o.poses) break;
-    Eigen::Isometry3d world_T_board;
-    if (!true_frame_pose(cell, q, &world_T_board)) continue;
-    bool seen = true;
+  auto seen_by_all = [&](const Eigen::Isometry3d& world_T_board) {
     for (const auto& cam : cell.cameras) {
-      const auto truth = vision::corner_truth(
+      const auto corners = vision::corner_truth(
           cam.model, {{cell.ee_board, cam.camera_T_world * world_T_board}}, cell.options.render);
-      seen =
-          seen && std::all_of(truth.begin(), truth.end(), [](const auto& t) { return t.visible; });
+      if (!std::all_of(corners.begin(), corners.end(), [](const auto& t) { return t.visible; }))
+        return false;
     }
-    if (!seen) continue;
+    return true;
+  };
+  auto try_pose = [&](const Eigen::VectorXd& q) {
+    Eigen::Isometry3d world_T_board;
+    if (!true_frame_pose(cell, q, &world_T_board) || !seen_by_all(world_T_board)) return false;
     true_readings.push_back(q);
     true_board_poses.push_back(world_T_board);
+    return true;
+  };
+  std::string pose_source = "random";
+  if (!o.random_poses) {
+    std::string why;
+    const std::vector<Eigen::VectorXd> planned = plan_cell_poses(cell, o.poses, rng, &why);
+    if (planned.empty()) {
+      say(log, "  note: no planned poses ({}); random poses instead\n", why);
+    } else {
+      pose_source = "planned";
+      say(log, "  {}\n", why);
+      std::size_t unseen = 0;
+      for (const auto& q : planned) unseen += try_pose(q) ? 0 : 1;
+      if (unseen > 0)
+        say(log,
+            "  {} planned poses not recorded: the board is not wholly in view of both true "
+            "cameras (the plan knows only the nominal robot and intrinsics)\n",
+            unseen);
+    }
+  }
+  if (pose_source == "random") {
+    // A simple spread: random reachable actuator values, kept when visible.
+    for (const auto& q : calib::sample_actuators(true_predictor, {cell.truth, cell.nominal},
+                                                 static_cast<std::size_t>(o.poses) * 4, rng)) {
+      if (static_cast<int>(true_readings.size()) == o.poses) break;
+      try_pose(q);
+    }
   }
   if (static_cast<int>(true_readings.size()) < o.poses)
     say(log, "  note: only {} poses with the board in view of both cameras\n",
@@ -200,6 +227,7 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
           {"seed", o.seed},
           {"truth", o.idealised_truth ? "idealised" : "with unmodelled error"},
           {"poses", true_readings.size()},
+          {"pose_source", pose_source},
           {"images", 2 * true_readings.size() + 2 * rig_poses.size() +
                          static_cast<std::size_t>(o.intrinsic_views) * cell.cameras.size()}};
 }

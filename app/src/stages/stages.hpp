@@ -43,6 +43,9 @@ struct SimulateOptions {
   // The true robot also differs where the model cannot follow (parameters the robot file holds
   // fixed are perturbed too), as every real robot does; true: the idealised truth instead.
   bool idealised_truth = false;
+  // Robot poses drawn at random (reachable, board in view) instead of planned by observability
+  // (planner/): for comparison.
+  bool random_poses = false;
   std::filesystem::path out;
 };
 

@@ -611,3 +611,48 @@ TEST(PlannerCells, ProposedCamerasSeeTheWorkingVolume) {
 
 }  // namespace
 }  // namespace robocal::planner
+
+namespace robocal::planner {
+namespace {
+
+// A serial arm whose board sweeps a ring around its base, larger than one view: the cameras
+// must look at a part of the ring (the mean of the reachable positions is near the base, where
+// the tool never is). Checked by the independent geometry above on fresh samples.
+TEST(PlannerCells, ProposedCamerasSeePartOfAnArmsRing) {
+  const calib::Mechanism arm = calib::load_robot_file(kData + "/robots/modular_arm.yaml");
+  const Cell cell = parse_cell_yaml(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [0, 0, 3], "
+      "look_at: [0, 0, 0]}}\n"
+      "target: {file: ../vision/apriltag_4x3.yaml, position: [0, 0, 0.01]}\n"
+      "visibility: {min_image_size: 150}\n",
+      "arm.yaml", kCells);
+  const CameraPlacement p = propose_cameras(arm, arm.nominal_parameters(), cell);
+  ASSERT_EQ(p.world_T_camera.size(), 2u);
+  // (Looking only at the mean reachable position, the simulated cell of `robocal simulate
+  // --robot modular_arm` saw 0 % of the ring.)
+  EXPECT_GE(p.coverage, 0.05) << p.summary;
+  const Cell placed = with_cameras(cell, p);
+  const FeasibilityChecker reach_only(arm, arm.nominal_parameters(), placed, arm.tool,
+                                      feasibility_options_from_cell(placed));
+  std::mt19937 rng(13);
+  int reachable = 0, seen = 0;
+  for (const Candidate& c : reach_only.sample(1500, rng, nullptr)) {
+    if (c.rejection != Rejection::kNone && c.rejection < Rejection::kFacingAway) continue;
+    ++reachable;
+    const RobotGeometry g = geometry_at(arm, solve_state(arm, c.readings));
+    const Eigen::Isometry3d board =
+        g.poses[static_cast<std::size_t>(arm.tool)] * placed.target.frame_T_board;
+    bool all = true;
+    for (const CellCamera& cam : placed.cameras)
+      all = all && seen_by(placed, cam, board, g).visible;
+    seen += all ? 1 : 0;
+  }
+  ASSERT_GT(reachable, 100);
+  // The independent count agrees with the placement's own (different samples: within 4 %).
+  EXPECT_GE(static_cast<double>(seen) / reachable, 0.05) << seen << " of " << reachable;
+  EXPECT_NEAR(static_cast<double>(seen) / reachable, p.coverage, 0.04)
+      << seen << " of " << reachable;
+}
+
+}  // namespace
+}  // namespace robocal::planner

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <Eigen/SVD>
 
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -79,6 +80,52 @@ TEST(Selection, GreedyDetmaxBeatsRandomAndEveryIndexRuns) {
   SelectionOptions detmax = greedy;
   detmax.exchange = true;
   EXPECT_GE(select_poses(m, detmax).values.o[0], select_poses(m, greedy).values.o[0] * (1 - 1e-12));
+}
+
+// Mean position variance over the pool from the set's normal matrix, computed directly:
+// mean_i tr(Jp_i (J^T J)^-1 Jp_i^T), Jp_i = the pose's first three rows.
+double mean_position_variance(const ObservabilityModel& m, const std::vector<std::size_t>& set) {
+  const Eigen::Index L = m.rows.cols();
+  Eigen::MatrixXd N = Eigen::MatrixXd::Zero(L, L);
+  for (const std::size_t i : set) {
+    const Eigen::MatrixXd Ji = m.rows.middleRows(static_cast<Eigen::Index>(6 * i), 6);
+    N += Ji.transpose() * Ji;
+  }
+  const Eigen::MatrixXd Ninv = N.inverse();
+  double sum = 0;
+  for (std::size_t i = 0; i < m.poses(); ++i) {
+    const Eigen::MatrixXd Jp = m.rows.middleRows(static_cast<Eigen::Index>(6 * i), 3);
+    sum += (Jp * Ninv * Jp.transpose()).trace();
+  }
+  return sum / static_cast<double>(m.poses());
+}
+
+TEST(Selection, TaskCriterionMinimisesTheMeanPredictedPositionVariance) {
+  const ObservabilityModel m = random_model(300, 10, 5);
+  SelectionOptions o;
+  o.count = 12;
+  o.index = ObservabilityIndex::kTask;
+  const Selection task = select_poses(m, o);
+  ASSERT_EQ(task.chosen.size(), 12u);
+  const double v_task = mean_position_variance(m, task.chosen);
+  // Better than every O1-O5 design and than random sets of the same size.
+  for (const ObservabilityIndex idx :
+       {ObservabilityIndex::kO1, ObservabilityIndex::kO2, ObservabilityIndex::kO3,
+        ObservabilityIndex::kO4, ObservabilityIndex::kO5}) {
+    SelectionOptions oi = o;
+    oi.index = idx;
+    EXPECT_LE(v_task, mean_position_variance(m, select_poses(m, oi).chosen)) << to_string(idx);
+  }
+  std::mt19937 rng(6);
+  std::vector<std::size_t> all(m.poses());
+  std::iota(all.begin(), all.end(), 0);
+  for (int t = 0; t < 20; ++t) {
+    std::shuffle(all.begin(), all.end(), rng);
+    const std::vector<std::size_t> random_set(all.begin(), all.begin() + 12);
+    EXPECT_LT(v_task, mean_position_variance(m, random_set));
+  }
+  // The prediction the selection reports is that variance (sigma scaling).
+  EXPECT_NEAR(task.predicted_rms, m.position_sigma * std::sqrt(v_task), 1e-6 * task.predicted_rms);
 }
 
 TEST(Selection, SequentialModeProposesNewPosesAndCountsTheMeasured) {

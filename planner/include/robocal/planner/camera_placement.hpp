@@ -2,14 +2,18 @@
 // Camera placement: where to put cameras so they see the robot's working volume.
 //
 // From the robot's reachable configurations (reach.hpp, within the cell's workspace when it
-// declares one) the target's centre positions and face normals give the working volume (centre,
-// radius incl. the target's half diagonal) and the mean direction the printed face looks to.
-// The cameras look at the volume's centre from that side, on a circle around the mean face
+// declares one) the target's centre positions and face normals give candidate viewing
+// directions: the mean direction the printed face looks to (one side for a Delta's level board),
+// and the face directions of 16 spread samples (a serial arm's board faces every way, and a
+// camera pair can only watch one side of its range). For each direction, the poses whose board
+// faces within 40° of it give the look-at point (their mean) and the volume's radius (incl. the
+// target's half diagonal); the cameras look at it from that side, on a circle around the
 // direction, each tilted by half the triangulation angle (two cameras: the baseline is
-// 2·d·sin(angle/2)). The distance d fits the volume's sphere into the narrower half field of
-// view with a 15 % margin. Each proposal is then checked with the full feasibility test
-// (feasibility.hpp, obstacles and occlusion included): if fewer than `min_coverage` of the
-// reachable poses are visible to all cameras, d grows by 15 % (up to 6 times).
+// 2·d·sin(angle/2)). Distances d from 60 % to 160 % of the one fitting the volume's sphere into
+// the narrower half field of view (15 % margin), capped by the one keeping the target's image at
+// min_image_size. The placement seeing the target whole (outline in the image with the border,
+// incidence, size) at the most sampled poses wins; its coverage is then measured with the full
+// feasibility test (feasibility.hpp, obstacles and occlusion included).
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/planner/cell.hpp"
 

@@ -7,8 +7,9 @@
 //  - every `collision:` shape of the robot file (capsules, boxes in the body's frame);
 //  - for every rod or cable (distance closure) a capsule along it of radius `derived_radius`;
 //  - for every parent -> child link where neither body has a file shape, a capsule along the
-//    segment between their origins (when longer than 1 cm), so a robot file without collision
-//    geometry still gets a link model derived from its mechanism.
+//    segment between their origins (when longer than 1 cm, and not when the child is a passive
+//    prismatic joint: a platform's coordinate slide is no part), so a robot file without
+//    collision geometry still gets a link model derived from its mechanism.
 // Self-collision is tested between shapes that are not joined directly: two shapes are exempt when
 // a path of joints (tree edges and closures) connects their bodies through bodies that carry no
 // shape (a joint's parts touch by design).

@@ -19,7 +19,11 @@
 namespace robocal::planner {
 
 struct PlanOptions {
-  std::size_t pool = 3000;  // joint-space candidates sampled
+  std::size_t pool = 3000;  // candidates sampled
+  // Task-space candidates (task_sampling.hpp: the target turned towards the cameras, then IK on
+  // the intended mode) instead of joint-space ones, where it applies (a robot whose task is the
+  // measured frame's full pose: serial arms); joint space elsewhere.
+  bool task_space = false;
   unsigned seed = 1;
   SelectionOptions selection;
   ObservabilityOptions observability;

@@ -45,9 +45,13 @@
 
 namespace robocal::planner {
 
-enum class ObservabilityIndex : std::uint8_t { kO1, kO2, kO3, kO4, kO5 };
+// kTask: not an index of the Jacobian's singular values but the quantity the calibration is
+// judged by: the mean predicted position variance of the measured frame over the candidate pool
+// (the working volume), tr(W M^-1) with W the pool's mean position information (I-optimality,
+// "predicted accuracy"). Minimised by greedy + exchange with exact rank-6 updates.
+enum class ObservabilityIndex : std::uint8_t { kO1, kO2, kO3, kO4, kO5, kTask };
 const char* to_string(ObservabilityIndex index);
-// "O1".."O5" (case-insensitive) or "d-optimal"; false when unknown.
+// "O1".."O5", "task" (case-insensitive) or "d-optimal"; false when unknown.
 bool parse_index(const std::string& text, ObservabilityIndex* index);
 
 // Whitened, column-scaled identification Jacobian of every pool pose (rows 6i..6i+5 = pose i).
