@@ -165,6 +165,15 @@ GuardVerdict SafetyGuard::check_move(const Eigen::VectorXd& from, const Eigen::V
                       100 * s.fraction, vec_text(s.readings), calib::to_string(closure.status));
       return v;
     }
+    // Near a singular configuration the modes meet: a motion through it may leave the true robot
+    // on another assembly mode than the model's answer (the answer itself is ambiguous there).
+    if (closure.mode.verdict == calib::ModeVerdict::kAmbiguous) {
+      v.reason = fmt::format(
+          "the path passes too near a singular configuration at {:.0f}% (readings {}), where the "
+          "robot could change its assembly mode: {}",
+          100 * s.fraction, vec_text(s.readings), closure.mode.describe());
+      return v;
+    }
     passive = closure.passive;
     s.state = calib::make_joint_state(*model_, params_, s.readings, closure.passive);
     s.tool_pose = calib::frame_pose(*model_, params_, s.state, task_frame);

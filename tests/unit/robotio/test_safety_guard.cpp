@@ -1,5 +1,6 @@
 // The safety guard on its own (pure): every refusal reason, on the linear delta.
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/robot_file.hpp"
 #include "robotio_sim.hpp"
 
 #include <gtest/gtest.h>
@@ -107,6 +108,43 @@ TEST_F(GuardTest, StopRequestsHoldUntilResumedAndReconfirmed) {
   EXPECT_TRUE(guard.check_move(targets[0], targets[1], kOk).allowed);
   guard.request_stop_from_signal();
   EXPECT_NE(guard.check_move(targets[0], targets[1], kOk).reason.find("Ctrl-C"), std::string::npos);
+}
+
+// A path through a configuration where the rotary Delta's assembly modes meet (the closure calls
+// it ambiguous) is refused before anything moves: the true robot could leave there on another
+// mode than the model's answer. The ambiguous reading is found here by scanning the closure along
+// one arm, independently of the guard; the path that stops short of it is allowed.
+TEST(GuardModes, APathThroughASingularConfigurationIsRefused) {
+  const calib::Mechanism m =
+      calib::load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
+  const Eigen::VectorXd p = m.nominal_parameters();
+  robotio::SafetyLimits l;
+  l.max_speed = 10.0;
+  l.max_acceleration = 100.0;
+  SafetyGuard guard(m, p, l);
+  guard.arm("yes");
+  const Eigen::VectorXd start = Eigen::VectorXd::Zero(3);
+  ASSERT_EQ(calib::solve_closure(m, p, start).mode.verdict, calib::ModeVerdict::kIntended);
+  Eigen::VectorXd last_clear = start;
+  Eigen::VectorXd singular;
+  for (double a = 0.0; a <= guard.limits().actuator_upper[0]; a += 1e-3) {
+    Eigen::VectorXd q = start;
+    q[0] = a;
+    const calib::ClosureResult r = calib::solve_closure(m, p, q);
+    if (r.ok() && r.mode.verdict == calib::ModeVerdict::kAmbiguous) {
+      singular = q;
+      break;
+    }
+    if (r.ok() && r.mode.verdict == calib::ModeVerdict::kIntended) last_clear = q;
+  }
+  ASSERT_EQ(singular.size(), 3) << "no ambiguous configuration along the first arm";
+  const MoveSpeed speed{1.0, 10.0};
+  const auto through = guard.check_move(start, singular + 0.01 * (singular - start), speed);
+  EXPECT_FALSE(through.allowed);
+  EXPECT_NE(through.reason.find("singular configuration"), std::string::npos) << through.reason;
+  Eigen::VectorXd short_of = start + 0.5 * (last_clear - start);
+  const auto before = guard.check_move(start, short_of, speed);
+  EXPECT_TRUE(before.allowed) << before.reason;
 }
 
 }  // namespace
