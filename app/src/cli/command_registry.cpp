@@ -1,6 +1,8 @@
 #include "cli/command_registry.hpp"
 
 #include "cli/cli_common.hpp"
+#include "robocal/robotio/camera_source.hpp"
+#include "robocal/robotio/link_error.hpp"
 #include "robocal_version.hpp"
 
 #include <fmt/core.h>
@@ -95,8 +97,8 @@ int run_cli(int argc, const char* const* argv) {
       "geometry (serial arms and parallel robots: Delta, linear delta, Gantry-Tau, cable robots).\n"
       "\n"
       "Run `robocal <command> --help` for what each command does and its options.\n"
-      "Exit codes: 0 ok, 1 result not acceptable, 2 bad command line, 3 bad input file,\n"
-      "4 internal error.",
+      "Exit codes: 0 ok, 1 result not acceptable (or a camera or controller failed), 2 bad\n"
+      "command line, 3 bad input file, 4 internal error.",
       "robocal"};
   cli.set_version_flag("--version", std::string("robocal ") + kVersion);
   cli.require_subcommand(1);
@@ -128,6 +130,13 @@ int run_cli(int argc, const char* const* argv) {
     } catch (const InputError& e) {
       fmt::print(stderr, "error: {}\n", e.what());
       return kExitBadInput;
+    } catch (const robotio::CameraError& e) {
+      // A device that failed (unplugged, lost on a busy network): not a robocal bug.
+      fmt::print(stderr, "error: {}\nEverything written before stays on disk.\n", e.what());
+      return kExitFailure;
+    } catch (const robotio::LinkError& e) {
+      fmt::print(stderr, "error: {}\nEverything written before stays on disk.\n", e.what());
+      return kExitFailure;
     } catch (const std::filesystem::filesystem_error& e) {
       // A folder that cannot be created or read (permissions, a full disk, a file where a folder
       // should be): the operator's environment, not a robocal bug.

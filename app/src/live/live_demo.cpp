@@ -132,26 +132,36 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
       }
     }
   };
+  // Triggers every camera first (they render at once); a camera lost at its trigger is taken
+  // again by `take`, which falls back to in-process rendering.
+  const auto trigger = [&](std::size_t c) {
+    try {
+      src[c]->trigger();
+      return true;
+    } catch (const robotio::CameraError&) {
+      return false;
+    }
+  };
   for (std::size_t v = 0; v < rounds; ++v) {
-    std::vector<std::size_t> shown;
+    std::vector<std::pair<std::size_t, bool>> shown;
     for (std::size_t c = 0; c < specs.size(); ++c)
       if (v < lc.intrinsic_views[c].size()) {
         boards[c]->set(specs[c].camera_T_world.inverse() * lc.intrinsic_views[c][v]);
-        src[c]->trigger();
-        shown.push_back(c);
+        shown.emplace_back(c, trigger(c));
       }
-    for (const std::size_t c : shown) {
+    for (const auto& [c, triggered] : shown) {
       write_image_atomic(dir / "intrinsics" / specs[c].name / fmt::format("view_{:03d}.png", v),
-                         take(c, true));
+                         take(c, triggered));
       bar.advance();
     }
   }
   for (std::size_t v = 0; v < lc.rig_views.size(); ++v) {
     for (auto& b : boards) b->set(lc.rig_views[v]);
-    for (auto& s : src) s->trigger();
+    std::vector<bool> triggered(specs.size());
+    for (std::size_t c = 0; c < specs.size(); ++c) triggered[c] = trigger(c);
     for (std::size_t c = 0; c < specs.size(); ++c)
       write_image_atomic(dir / "rig" / fmt::format("view_{:03d}", v) / (specs[c].name + ".png"),
-                         take(c, true));
+                         take(c, triggered[c]));
     bar.advance();
   }
   bar.finish(fmt::format("{} views", total));
