@@ -3,9 +3,8 @@
 # Needs a configured release build for compile_commands.json.
 #
 # A file that passed is remembered (ROBOCAL_TIDY_CACHE, default ~/.cache/robocal-tidy) under a
-# key of everything its verdict depends on: the clang-tidy version, .clang-tidy, the build files
-# that set the libraries' flags, the file's own text and the text of every project header it
-# includes. The headers a file includes are the compiler's own record (ninja's dependency log of
+# key of everything its verdict depends on: the clang-tidy version, .clang-tidy, the file's own
+# compile command, its own text and the text of every project header it includes. The headers a file includes are the compiler's own record (ninja's dependency log of
 # the release build, current after a build); a file the log does not know is keyed on every
 # project header instead. So a header change re-checks only the files that include it.
 # ROBOCAL_TIDY_CACHE=off disables the cache.
@@ -23,17 +22,16 @@ if [ "$cache" = off ]; then
 fi
 mkdir -p "$cache"
 
-# What every file's verdict depends on: the tool, its checks and the flags (the top-level build
-# files and the libraries' own; tests/ and bench/ build files do not reach these sources).
-common=$(
-  {
-    clang-tidy --version
-    cat .clang-tidy
-    git ls-files --cached --others --exclude-standard -z -- CMakeLists.txt CMakePresets.json \
-      'cmake/*' '*/CMakeLists.txt' | grep -zE '^(CMakeLists.txt|CMakePresets.json|cmake/|(app|calib|core|vision|planner|robotio)/)' \
-      | sort -z | xargs -0 sha256sum
-  } | sha256sum | cut -d' ' -f1
-)
+# What every file's verdict depends on: the tool and its checks. Its flags are its own compile
+# command (compile_commands.json, with this checkout's path taken out so that a clean checkout
+# elsewhere finds the same keys).
+common=$( { clang-tidy --version; cat .clang-tidy; } | sha256sum | cut -d' ' -f1)
+declare -A commands=()
+while IFS=$'\t' read -r src cmd; do commands[$src]=$cmd; done < <(
+  awk -v root="$PWD/" '
+    /^ *"command":/ { cmd = $0; gsub(root, "", cmd) }
+    /^ *"file":/ { f = $0; sub(/^ *"file": *"/, "", f); sub(/",? *$/, "", f); sub(root, "", f)
+                   print f "\t" cmd }' build/release/compile_commands.json)
 # Fallback for a file without a dependency record: every project and generated header.
 all_headers=$(
   {
@@ -63,7 +61,8 @@ header_key() {  # $1: the source; prints the hash of the project headers it incl
 
 todo=()
 for f in "${files[@]}"; do
-  key=$( { echo "$common $f $(header_key "$f")"; cat "$f"; } | sha256sum | cut -d' ' -f1)
+  key=$( { echo "$common $f $(header_key "$f")"; echo "${commands[$f]-all}"; cat "$f"; } \
+    | sha256sum | cut -d' ' -f1)
   [ -e "$cache/$key" ] || todo+=("$f" "$key")
 done
 echo "tidy: $(( ${#todo[@]} / 2 )) of ${#files[@]} files to check ($(( ${#files[@]} - ${#todo[@]} / 2 )) unchanged since they passed)"
