@@ -17,6 +17,8 @@
 
 #include "mode_sweep.hpp"
 
+#include "independent_geometry.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -35,39 +37,10 @@ const std::string kCells = kData + "/cells/";
 
 // ---- independent geometry -------------------------------------------------------------------
 
-// Minimum of a convex function on [0, 1] (golden section; 80 steps -> 1e-16 in t).
-double convex_min(const std::function<double(double)>& f) {
-  const double g = (std::sqrt(5.0) - 1) / 2;
-  double a = 0, b = 1, c = b - g * (b - a), d = a + g * (b - a);
-  double fc = f(c), fd = f(d);
-  for (int i = 0; i < 80; ++i) {
-    if (fc < fd) {
-      b = d;
-      d = c;
-      fd = fc;
-      c = b - g * (b - a);
-      fc = f(c);
-    } else {
-      a = c;
-      c = d;
-      fc = fd;
-      d = a + g * (b - a);
-      fd = f(d);
-    }
-  }
-  return std::min({f(0.0), f(1.0), fc, fd});
-}
+using test::Box;
+using test::convex_min;
+using test::point_box;
 
-struct Box {
-  Eigen::Vector3d centre;
-  Eigen::Matrix3d rotation;
-  Eigen::Vector3d half;
-};
-
-double point_box(const Eigen::Vector3d& p, const Box& b) {
-  const Eigen::Vector3d q = b.rotation.transpose() * (p - b.centre);
-  return (q.cwiseAbs() - b.half).cwiseMax(0.0).norm();
-}
 double segment_box(const Eigen::Vector3d& a, const Eigen::Vector3d& c, const Box& b) {
   return convex_min([&](double t) { return point_box(a + t * (c - a), b); });
 }

@@ -8,6 +8,8 @@
 #include "robocal/planner/collision_scene.hpp"
 #include "robocal/planner/reach.hpp"
 
+#include "independent_geometry.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -20,43 +22,14 @@
 namespace robocal::planner {
 namespace {
 
-// Minimum of a convex function on [0, 1] (golden section).
-double convex_min(const std::function<double(double)>& f) {
-  const double g = (std::sqrt(5.0) - 1) / 2;
-  double a = 0, b = 1, c = b - g * (b - a), d = a + g * (b - a);
-  double fc = f(c), fd = f(d);
-  for (int i = 0; i < 80; ++i) {
-    if (fc < fd) {
-      b = d;
-      d = c;
-      fd = fc;
-      c = b - g * (b - a);
-      fc = f(c);
-    } else {
-      a = c;
-      c = d;
-      fc = fd;
-      d = a + g * (b - a);
-      fd = f(d);
-    }
-  }
-  return std::min({f(0.0), f(1.0), fc, fd});
-}
-
-struct Box {
-  Eigen::Vector3d centre;
-  Eigen::Matrix3d rotation;
-  Eigen::Vector3d half;
-};
+using test::Box;
+using test::convex_min;
+using test::point_box;
 struct Segment {
   Eigen::Vector3d a, b;
   double radius;
 };
 
-double point_box(const Eigen::Vector3d& p, const Box& box) {
-  const Eigen::Vector3d local = box.rotation.transpose() * (p - box.centre);
-  return (local.cwiseAbs() - box.half).cwiseMax(0.0).norm();
-}
 double segment_box(const Segment& s, const Box& box) {
   return convex_min([&](double t) { return point_box(s.a + t * (s.b - s.a), box); }) - s.radius;
 }
