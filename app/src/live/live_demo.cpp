@@ -31,8 +31,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kElasticSag = 1e-4;  // as stages/simulate.cpp: the realistic truth's sag
-
 std::string robocal_binary() {
   std::array<char, 4096> buf{};
   const ssize_t n = ::readlink("/proc/self/exe", buf.data(), buf.size() - 1);
@@ -58,14 +56,7 @@ struct LiveCell {
 
 LiveCell make_live_cell(const LiveDemoOptions& o, const std::string& robot_file) {
   std::mt19937 rng(o.seed);
-  CellOptions co;
-  if (o.quick) {
-    co.image_width = 1280;
-    co.image_height = 960;
-    co.focal_px = 1300;
-  }
-  co.unmodelled_seed = o.idealised_truth ? 0U : 7919U * o.seed + 17U;
-  co.elastic_sag = o.idealised_truth ? 0.0 : kElasticSag;
+  const CellOptions co = demo_cell_options(o.seed, o.quick, o.idealised_truth);
   LiveCell c{make_simulated_cell(robot_file, co, rng), {}, {}};
   for (std::size_t k = 0; k < c.cell.cameras.size(); ++k)
     c.intrinsic_views.push_back(

@@ -149,6 +149,20 @@ Eigen::VectorXd read_actuators(const SimulatedCell& cell, const Eigen::VectorXd&
   return read;
 }
 
+CellOptions demo_cell_options(unsigned seed, bool quick, bool idealised_truth) {
+  CellOptions co;
+  if (quick) {
+    co.image_width = 1280;
+    co.image_height = 960;
+    co.focal_px = 1300;
+  }
+  // Unmodelled error from its own stream: the idealised and the realistic truth share every
+  // other draw (cameras, views, poses).
+  co.unmodelled_seed = idealised_truth ? 0U : 7919U * seed + 17U;
+  co.elastic_sag = idealised_truth ? 0.0 : 1e-4;  // m per m^2
+  return co;
+}
+
 SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptions& options,
                                   std::mt19937& rng) {
   SimulatedCell cell;

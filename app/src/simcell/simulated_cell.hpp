@@ -86,6 +86,11 @@ struct SimulatedCell {
   CellOptions options;
 };
 
+// The demo's cell for a seed (offline `simulate`/`demo` and `demo --live` share it, so the same
+// seed gives the same true robot): quick = smaller images; the realistic truth has unmodelled
+// error from its own stream and an elastic sag of 1e-4 per metre of reach squared.
+CellOptions demo_cell_options(unsigned seed, bool quick, bool idealised_truth);
+
 // Builds the cell around a library robot file. Throws std::runtime_error when the robot has no
 // sampled configuration the cameras could see.
 SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptions& options,

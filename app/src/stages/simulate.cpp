@@ -30,7 +30,6 @@ namespace {
 // The realistic truth's elastic sag (simcell elastic_deflection): 16 µm at the rotary Delta's
 // 0.4 m reach, 64 µm at 0.8 m. Small against the 0.5 mm / 0.2° tolerances, but no kinematic
 // model can represent it, as on a real robot.
-constexpr double kElasticSag = 1e-4;  // m per m^2
 
 // One image to render: a board seen by a camera, written to `file`.
 struct Shot {
@@ -70,16 +69,7 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   // The random stream is consumed in a fixed order (cell, intrinsic views, rig views, poses):
   // the same seed gives the same images.
   std::mt19937 rng(o.seed);
-  CellOptions cell_options;
-  if (o.quick) {
-    cell_options.image_width = 1280;
-    cell_options.image_height = 960;
-    cell_options.focal_px = 1300;
-  }
-  // Unmodelled error from its own stream: the idealised and the realistic truth share every
-  // other draw (cameras, views, poses).
-  cell_options.unmodelled_seed = o.idealised_truth ? 0U : 7919U * o.seed + 17U;
-  cell_options.elastic_sag = o.idealised_truth ? 0.0 : kElasticSag;
+  const CellOptions cell_options = demo_cell_options(o.seed, o.quick, o.idealised_truth);
   stage(log, "simulate: cell");
   const SimulatedCell cell = make_simulated_cell(robot_file, cell_options, rng);
   say(log, "true robot: {}\n",
