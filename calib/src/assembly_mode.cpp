@@ -4,7 +4,6 @@
 #include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
 
-#include <Eigen/SVD>
 
 #include <sstream>
 
@@ -93,9 +92,7 @@ ModeCheck check_assembly_mode(const Mechanism& model, const Eigen::VectorXd& par
     Eigen::MatrixXd J(ev.rows(), n);
     for (Eigen::Index j = 0; j < n; ++j)
       ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
-    const Eigen::VectorXd& sv = svd.singularValues();
-    conditioning = sv.size() >= n && sv[0] > 0.0 ? sv[sv.size() - 1] / sv[0] : 0.0;
+    conditioning = detail::sigma_ratio(J);
   }
   return detail::check_mode(
       model, state.q,

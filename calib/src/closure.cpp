@@ -188,9 +188,7 @@ struct ClosureSolver::Impl {
     // below and sigma_min from above), so a state just inside the ambiguity threshold could pass
     // as intended: near the threshold the exact singular values decide.
     if (estimate >= 4.0 * model->assembly_mode.min_conditioning) return estimate;
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(ws.J);
-    const Eigen::VectorXd& sv = svd.singularValues();
-    return sv.size() == n && sv[0] > 0.0 ? sv[n - 1] / sv[0] : 0.0;
+    return detail::sigma_ratio(ws.J);
   }
 
   // Cold solve of a model whose loops differ from the robot file's design (closure.hpp, step 1):

@@ -6,7 +6,6 @@
 #include "tree_evaluator.hpp"
 
 #include <Eigen/LU>
-#include <Eigen/SVD>
 
 #include <cmath>
 #include <random>
@@ -280,9 +279,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
     // The estimate only overstates the ratio: near the gate the exact values decide.
     if (estimate >= 2.0 * detail::kDesignCheckMargin * model.assembly_mode.min_conditioning)
       return estimate;
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
-    const Eigen::VectorXd& sv = svd.singularValues();
-    return sv[0] > 0.0 ? sv[np - 1] / sv[0] : 0.0;
+    return detail::sigma_ratio(J);
   };
   const auto near_design_singularity = [&] {
     const double c = closure_conditioning(x);
