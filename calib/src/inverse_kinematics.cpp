@@ -281,12 +281,20 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       return estimate;
     return detail::sigma_ratio(J);
   };
-  const auto near_design_singularity = [&] {
-    const double c = closure_conditioning(x);
-    return c >= 0.0 && c < detail::kDesignCheckMargin * model.assembly_mode.min_conditioning;
-  };
-  if (check && np > 0 && out.ok() && out.mode.acceptable() &&
-      detail::loops_differ_from_design(model, params) && near_design_singularity()) {
+  // The verdict with the closure's conditioning, as forward kinematics reports it: an answer whose
+  // loops are nearly singular is ambiguous even where every invariant keeps its sign.
+  double conditioning = -1.0;
+  if (check && np > 0 && out.ok() && out.mode.acceptable()) {
+    conditioning = closure_conditioning(x);  // leaves the evaluator (and q) at x
+    if (conditioning >= 0.0)
+      out.mode = detail::check_mode(
+          model, q, [&](int b) -> const Eigen::Vector3d& { return ev.pose(b).p; },
+          [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; }, conditioning);
+  }
+  const bool near_design_singularity =
+      conditioning >= 0.0 &&
+      conditioning < detail::kDesignCheckMargin * model.assembly_mode.min_conditioning;
+  if (near_design_singularity && detail::loops_differ_from_design(model, params)) {
     // A perturbed model's loops can close in several configurations near a singularity of the
     // design (detail::kDesignCheckMargin), all satisfying the declared invariants, and the IK may
     // have settled on one that forward kinematics (the design's answer followed to these

@@ -245,6 +245,48 @@ TEST(AssemblyMode, PerturbedDeltaNearItsDesignSingularityIsNotCalledIntended) {
       census.size(), spread, r.mode.describe().c_str(), nearest);
 }
 
+TEST(AssemblyMode, InverseKinematicsVerdictCarriesTheClosureConditioning) {
+  // Forward kinematics calls an answer ambiguous where the loops are nearly singular even when
+  // every invariant keeps its sign; inverse kinematics must say the same of the same
+  // configuration (it used to answer `intended` there on the design model). The reference is the
+  // public exact check on the FK state.
+  const Mechanism m = load("rotary_delta.yaml");
+  const Eigen::VectorXd p = m.nominal_parameters();
+  const double gate = m.assembly_mode.min_conditioning;
+  int singular = 0, clear = 0;
+  for (double a = -0.6; a <= 1.5; a += 0.05) {
+    for (double b = -0.6; b <= 1.5; b += 0.3) {
+      const Eigen::VectorXd q = readings_from_joint_values(m, p, Eigen::Vector3d(a, b, 0.2));
+      const ClosureResult fk = solve_closure(m, p, q);
+      if (!fk.ok()) continue;
+      const ModeCheck exact = check_assembly_mode(m, p, make_joint_state(m, p, q, fk.passive));
+      // Only clear cases: conditioning off the gate by 10 %, every invariant clear of its band.
+      const bool by_conditioning =
+          exact.verdict == ModeVerdict::kAmbiguous && exact.invariant == "closure_conditioning";
+      const bool singular_case = by_conditioning && exact.conditioning < 0.9 * gate;
+      const bool clear_case = exact.intended() && exact.conditioning > 1.1 * gate;
+      if (!singular_case && !clear_case) continue;
+      TaskTarget target;
+      target.pose.translation() = tool_position(m, p, q, fk.passive);
+      const IkResult ik = solve_ik(m, p, target);
+      ASSERT_TRUE(ik.ok()) << "readings " << q.transpose() << ": " << to_string(ik.status);
+      ASSERT_LE((ik.actuator_readings - q).cwiseAbs().maxCoeff(), 1e-6) << q.transpose();
+      EXPECT_EQ(ik.mode.verdict, exact.verdict)
+          << "readings " << q.transpose() << ": IK " << ik.mode.describe() << ", exact "
+          << exact.describe();
+      if (singular_case)
+        EXPECT_NEAR(ik.mode.conditioning, exact.conditioning, 1e-3 * exact.conditioning);
+      else
+        EXPECT_GE(ik.mode.conditioning, gate);
+      (singular_case ? singular : clear)++;
+    }
+  }
+  // Both kinds must have been seen, or the test proves nothing.
+  EXPECT_GT(singular, 0);
+  EXPECT_GT(clear, 0);
+  std::printf("%d nearly singular and %d clear configurations agree\n", singular, clear);
+}
+
 TEST(AssemblyMode, SerialJointJustAcrossItsBoundaryFlipsTheVerdict) {
   // Modular arm, elbow_left = sin(q2) > 0: q2 = +0.3 intended, +0.01 ambiguous (within the
   // 0.02 band), -0.03 just across the boundary -> other, naming elbow_left.
