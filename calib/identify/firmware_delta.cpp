@@ -329,7 +329,9 @@ std::vector<std::pair<std::string, double>> firmware_delta_settings(const Firmwa
       break;
     case DeltaFirmware::kMarlin: {
       // Marlin: homed at (0, 0, H) after each carriage moved M666 adj_i (<= 0) from its
-      // endstop, so the carriage height at the endstop is H + sqrt(L² - R²) - adj_i.
+      // endstop, so the carriage height at the endstop is H + sqrt(L² - R²) - adj_i. (Marlin's
+      // homeaxis() for a delta moves a carriage by its adjustment only when that points away from
+      // the endstop and ignores positive values: H is the lowest k, so every adj_i <= 0 counts.)
       const double H = std::min({k[0], k[1], k[2]});
       out.emplace_back("L", m.arm_length[0] * 1e3);
       out.emplace_back("R", R * 1e3);

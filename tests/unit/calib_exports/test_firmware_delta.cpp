@@ -4,9 +4,13 @@
 //     carriage height at the endstop is position_endstop_i + sqrt(arm_length_i² - delta_radius²).
 //   Marlin (M665 L R H X Y Z tower angle trims from 210/330/90, M666 X Y Z <= 0): homed at
 //     (0, 0, H) after each carriage moved adj_i from its endstop: carriage height at the endstop
-//     H + sqrt(L² - R²) - adj_i, one rod length L.
+//     H + sqrt(L² - R²) - adj_i, one rod length L. (Marlin's homeaxis(), delta branch of
+//     src/module/motion.cpp: after the endstop triggers, a carriage whose adjustment points away
+//     from the endstop, adj * Z_HOME_DIR < 0, moves by adj; positive values are ignored. Then all
+//     three are set to the position of (0, 0, delta_height).)
 //   RepRapFirmware (M665 L a:b:c R H X Y Z, M666 X Y Z): homed carriage height
-//     H + sqrt(L_i² - R²) + e_i.
+//     H + sqrt(L_i² - R²) + e_i (its M666 reference: a positive adjustment moves the head closer
+//     to the bed near that tower, i.e. the firmware believes the carriage higher than it is).
 // and for all: carriage height h_i = z + sqrt(L_i² - (x - x_i)² - (y - y_i)²), solved here for
 // the nozzle by Newton's method (the library uses closed-form trilateration).
 #include "../calib/calib_test_support.hpp"
