@@ -188,6 +188,12 @@ struct ClosureSolver::Impl {
     // below and sigma_min from above), so a state just inside the ambiguity threshold could pass
     // as intended: near the threshold the exact singular values decide.
     if (estimate >= 4.0 * model->assembly_mode.min_conditioning) return estimate;
+    // Below that, the highest threshold the answer meets (the design check's for a model whose
+    // loops differ from the design, else the ambiguity gate) is proved cleared when it can be;
+    // only answers near or under it pay for the exact ratio.
+    const double gate = (differs_from_design_loops() ? detail::kDesignCheckMargin : 1.0) *
+                        model->assembly_mode.min_conditioning;
+    if (estimate > gate && detail::sigma_ratio_certainly_above(ws.J, gate)) return estimate;
     return detail::sigma_ratio(ws.J);
   }
 

@@ -264,6 +264,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       out.mode = other_mode;
     }
   }
+  const bool differs_from_design = detail::loops_differ_from_design(model, params);
   // sigma_min / sigma_max of the closure Jacobian (passive columns) at x, < 0 where not square.
   const auto closure_conditioning = [&](const Eigen::VectorXd& xs) {
     const int mc = ev.rows();
@@ -277,8 +278,13 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
     Eigen::VectorXd v(np), w(np);
     const double estimate = detail::sigma_ratio_estimate(lu, J, v, w);
     // The estimate only overstates the ratio: near the gate the exact values decide.
-    if (estimate >= 2.0 * detail::kDesignCheckMargin * model.assembly_mode.min_conditioning)
-      return estimate;
+    const double gate = model.assembly_mode.min_conditioning;
+    if (estimate >= 2.0 * detail::kDesignCheckMargin * gate) return estimate;
+    // Below that, the highest threshold the answer meets is proved cleared when it can be
+    // (closure.cpp, conditioning): the design check's for a model whose loops differ from the
+    // design, else the ambiguity gate.
+    const double threshold = (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate;
+    if (estimate > threshold && detail::sigma_ratio_certainly_above(J, threshold)) return estimate;
     return detail::sigma_ratio(J);
   };
   // The verdict with the closure's conditioning, as forward kinematics reports it: an answer whose
@@ -294,7 +300,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   const bool near_design_singularity =
       conditioning >= 0.0 &&
       conditioning < detail::kDesignCheckMargin * model.assembly_mode.min_conditioning;
-  if (near_design_singularity && detail::loops_differ_from_design(model, params)) {
+  if (near_design_singularity && differs_from_design) {
     // A perturbed model's loops can close in several configurations near a singularity of the
     // design (detail::kDesignCheckMargin), all satisfying the declared invariants, and the IK may
     // have settled on one that forward kinematics (the design's answer followed to these
