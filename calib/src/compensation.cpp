@@ -4,6 +4,7 @@
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/closure.hpp"
+#include "task_rows.hpp"
 #include "tree_evaluator.hpp"
 
 #include <fmt/core.h>
@@ -154,47 +155,16 @@ struct SquareSystem {
       q[unknowns[j]] = x[static_cast<Eigen::Index>(j)];
     ev.update(q);
     ev.closure_residual(r.data());
-    if (!with_task) return;
-    const int mc = ev.rows();
-    const detail::Rigid& F = ev.pose(m->task.frame);
-    switch (m->task.type) {
-      case TaskType::kPosition:
-        r.segment<3>(mc) = F.p - target.pose.translation();
-        break;
-      case TaskType::kPose:
-        r.segment<3>(mc) = F.p - target.pose.translation();
-        r.segment<3>(mc + 3) = detail::rotation_residual(F.R, target.pose.linear());
-        break;
-      case TaskType::kJoint:
-        r[mc] = q[m->task.joint] - target.joint_value;
-        break;
-    }
+    if (with_task) detail::task_residual(ev, *m, q, target, r.data() + ev.rows());
   }
 
   // At the last evaluated x.
   void jacobian(Eigen::MatrixXd& J) const {
-    const int mc = ev.rows();
-    const int f = m->task.frame;
     for (std::size_t j = 0; j < unknowns.size(); ++j) {
       const int b = unknowns[j];
-      auto col = J.col(static_cast<Eigen::Index>(j));
-      ev.closure_column(b, 1.0, col.data());
-      if (!with_task) continue;
-      if (m->task.type == TaskType::kJoint) {
-        col[mc] = b == m->task.joint ? 1.0 : 0.0;
-        continue;
-      }
-      if (!detail::in_subtree(*m, b, f)) {
-        col.segment(mc, detail::task_rows(m->task.type)).setZero();
-        continue;
-      }
-      const detail::Rigid& F = ev.pose(f);
-      Eigen::Vector3d w, v;
-      ev.joint_twist(b, w, v);
-      col.segment<3>(mc) = w.cross(F.p) + v;
-      if (m->task.type == TaskType::kPose)
-        col.segment<3>(mc + 3) = detail::rotation_residual_derivative(F.R, target.pose.linear(), w,
-                                                                      Eigen::Vector3d::Zero());
+      double* col = J.col(static_cast<Eigen::Index>(j)).data();
+      ev.closure_column(b, 1.0, col);
+      if (with_task) detail::task_column(ev, *m, b, target, col + ev.rows());
     }
   }
 

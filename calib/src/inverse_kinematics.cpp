@@ -3,6 +3,7 @@
 #include "mode_check.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/kinematics.hpp"
+#include "task_rows.hpp"
 #include "tree_evaluator.hpp"
 
 #include <Eigen/LU>
@@ -27,48 +28,17 @@ struct IkSystem {
     for (std::size_t j = 0; j < unknown_bodies.size(); ++j)
       (*q)[unknown_bodies[j]] = x[static_cast<Eigen::Index>(j)];
     ev->update(*q);
-    const int mc = ev->rows();
     ev->closure_residual(r.data());
-    const int f = m->task.frame;
-    const detail::Rigid& F = ev->pose(f);
-    switch (m->task.type) {
-      case TaskType::kPosition:
-        r.segment<3>(mc) = F.p - target.pose.translation();
-        break;
-      case TaskType::kPose:
-        r.segment<3>(mc) = F.p - target.pose.translation();
-        r.segment<3>(mc + 3) = detail::rotation_residual(F.R, target.pose.linear());
-        break;
-      case TaskType::kJoint:
-        r[mc] = (*q)[m->task.joint] - target.joint_value;
-        break;
-    }
+    detail::task_residual(*ev, *m, *q, target, r.data() + ev->rows());
   }
 
   // At the last evaluated x.
-  void jacobian(Eigen::MatrixXd& Jm) const {
-    Eigen::MatrixXd* J = &Jm;
-    const int mc = ev->rows();
-    const int f = m->task.frame;
-    const detail::Rigid& F = ev->pose(f);
+  void jacobian(Eigen::MatrixXd& J) const {
     for (std::size_t j = 0; j < unknown_bodies.size(); ++j) {
       const int b = unknown_bodies[j];
-      auto col = J->col(static_cast<Eigen::Index>(j));
-      ev->closure_column(b, 1.0, col.data());
-      if (m->task.type == TaskType::kJoint) {
-        col[mc] = b == m->task.joint ? 1.0 : 0.0;
-        continue;
-      }
-      if (!detail::in_subtree(*m, b, f)) {
-        col.segment(mc, detail::task_rows(m->task.type)).setZero();
-        continue;
-      }
-      Eigen::Vector3d w, v;
-      ev->joint_twist(b, w, v);
-      col.segment<3>(mc) = w.cross(F.p) + v;
-      if (m->task.type == TaskType::kPose)
-        col.segment<3>(mc + 3) = detail::rotation_residual_derivative(F.R, target.pose.linear(), w,
-                                                                      Eigen::Vector3d::Zero());
+      double* col = J.col(static_cast<Eigen::Index>(j)).data();
+      ev->closure_column(b, 1.0, col);
+      detail::task_column(*ev, *m, b, target, col + ev->rows());
     }
   }
 };
