@@ -156,13 +156,15 @@ Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, do
   return s;
 }
 
-double task_conditioning(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
-                         const Eigen::VectorXd& readings) {
-  // Readings → joint values is affine per actuator (q = scale·r + offset); differentiate w.r.t.
-  // the joint value by stepping the reading by h / scale.
+namespace {
+
+// d(task position) / d(actuated joint values) at `readings` by central differences (readings ->
+// joint values is affine per actuator, q = scale r + offset: step the reading by h / scale).
+bool task_position_jacobian(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
+                            const Eigen::VectorXd& readings, Eigen::MatrixXd& J) {
   const Mechanism& m = predictor.model();
   const auto A = readings.size();
-  Eigen::MatrixXd J(3, A);
+  J.resize(3, A);
   const double h = 1e-6;
   for (Eigen::Index i = 0; i < A; ++i) {
     const Body& b = m.bodies[static_cast<std::size_t>(m.actuated[static_cast<std::size_t>(i)])];
@@ -174,15 +176,34 @@ double task_conditioning(const MechanismPredictor& predictor, const Eigen::Vecto
       r(i) += (s == 0 ? step : -step);
       FramePrediction fp;
       std::string why;
-      if (!predictor.predict(params, r, -1, false, fp, why)) return 0.0;
+      if (!predictor.predict(params, r, -1, false, fp, why)) return false;
       x[s] = fp.pose.translation();
     }
     J.col(i) = (x[0] - x[1]) / (2.0 * h);
   }
+  return true;
+}
+
+}  // namespace
+
+double task_conditioning(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
+                         const Eigen::VectorXd& readings) {
+  Eigen::MatrixXd J;
+  if (!task_position_jacobian(predictor, params, readings, J)) return 0.0;
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
   const Eigen::VectorXd& sv = svd.singularValues();
   if (sv.size() == 0 || sv(0) <= 0.0) return 0.0;
   return sv(sv.size() - 1) / sv(0);
+}
+
+bool tool_weight_loads(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
+                       const Eigen::VectorXd& readings, Eigen::VectorXd& loads) {
+  Eigen::MatrixXd J;
+  if (!task_position_jacobian(predictor, params, readings, J)) return false;
+  // Virtual work: the actuator efforts tau balance the weight f = (0, 0, -1) N when
+  // tau . dq = -f . dx for every motion, so tau = -J^T f = J's z row.
+  loads = J.row(2).transpose();
+  return true;
 }
 
 std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predictor,

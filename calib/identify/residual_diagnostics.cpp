@@ -1,8 +1,10 @@
 #include "robocal/calib/residual_diagnostics.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace robocal::calib {
 
@@ -47,53 +49,84 @@ Correlation pearson_correlation(const std::vector<double>& a, const std::vector<
   return c;
 }
 
-bool PositionTrends::unmodelled_error_suspected() const {
+bool ResidualTrends::unmodelled_error_suspected() const {
   return std::any_of(trends.begin(), trends.end(),
                      [](const ResidualTrend& t) { return t.significant; });
 }
 
-PositionTrends residual_position_trends(const std::vector<Eigen::Vector3d>& positions,
-                                        const std::vector<Eigen::Vector3d>& residuals,
-                                        double alpha) {
-  PositionTrends d;
-  d.n = std::min(positions.size(), residuals.size());
+namespace {
+
+double spread(const std::vector<double>& v) {
+  if (v.empty()) return 0.0;
+  const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+  return *hi - *lo;
+}
+
+double stddev(const std::vector<double>& v) {
+  if (v.size() < 2) return 0.0;
+  double mean = 0.0;
+  for (double x : v) mean += x;
+  mean /= static_cast<double>(v.size());
+  double ss = 0.0;
+  for (double x : v) ss += (x - mean) * (x - mean);
+  return std::sqrt(ss / static_cast<double>(v.size() - 1));
+}
+
+}  // namespace
+
+ResidualTrends residual_trends(const std::vector<Eigen::VectorXd>& variables,
+                               const std::vector<std::string>& names,
+                               const std::vector<Eigen::Vector3d>& residuals, double alpha) {
+  ResidualTrends d;
+  d.n = std::min(variables.size(), residuals.size());
   d.alpha = alpha;
-  std::array<std::vector<double>, 3> coordinate, component;
-  for (int i = 0; i < 3; ++i) {
-    coordinate[static_cast<std::size_t>(i)].resize(d.n);
-    component[static_cast<std::size_t>(i)].resize(d.n);
-    for (std::size_t k = 0; k < d.n; ++k) {
-      coordinate[static_cast<std::size_t>(i)][k] = positions[k][i];
-      component[static_cast<std::size_t>(i)][k] = residuals[k][i];
+  d.variables = names;
+  const std::size_t nv = names.size();
+  for (std::size_t k = 0; k < d.n; ++k)
+    if (variables[k].size() != static_cast<Eigen::Index>(nv))
+      throw std::invalid_argument("residual_trends: pose " + std::to_string(k) + " has " +
+                                  std::to_string(variables[k].size()) + " variables, expected " +
+                                  std::to_string(nv));
+  std::vector<std::vector<double>> variable(nv, std::vector<double>(d.n));
+  std::array<std::vector<double>, 3> component;
+  for (std::size_t k = 0; k < d.n; ++k) {
+    for (std::size_t v = 0; v < nv; ++v)
+      variable[v][k] = variables[k][static_cast<Eigen::Index>(v)];
+    for (std::size_t c = 0; c < 3; ++c) {
+      component[c].resize(d.n);
+      component[c][k] = residuals[k][static_cast<Eigen::Index>(c)];
     }
   }
-  const auto spread = [](const std::vector<double>& v) {
-    if (v.empty()) return 0.0;
-    const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
-    return *hi - *lo;
-  };
-  const auto stddev = [](const std::vector<double>& v) {
-    if (v.size() < 2) return 0.0;
-    double mean = 0.0;
-    for (double x : v) mean += x;
-    mean /= static_cast<double>(v.size());
-    double ss = 0.0;
-    for (double x : v) ss += (x - mean) * (x - mean);
-    return std::sqrt(ss / static_cast<double>(v.size() - 1));
-  };
-  const double tests = static_cast<double>(d.trends.size());
+  const double tests = static_cast<double>(3 * nv);
+  d.trends.resize(3 * nv);
   for (std::size_t c = 0; c < 3; ++c)
-    for (std::size_t p = 0; p < 3; ++p) {
-      ResidualTrend& t = d.trends[c * 3 + p];
+    for (std::size_t v = 0; v < nv; ++v) {
+      ResidualTrend& t = d.trends[c * nv + v];
       t.component = static_cast<int>(c);
-      t.coordinate = static_cast<int>(p);
-      t.correlation = pearson_correlation(coordinate[p], component[c]);
-      const double sd_position = stddev(coordinate[p]);
-      t.slope = sd_position > 0.0 ? t.correlation.r * stddev(component[c]) / sd_position : 0.0;
-      t.amplitude = std::abs(t.slope) * spread(coordinate[p]);
+      t.variable = static_cast<int>(v);
+      t.correlation = pearson_correlation(variable[v], component[c]);
+      const double sd = stddev(variable[v]);
+      t.slope = sd > 0.0 ? t.correlation.r * stddev(component[c]) / sd : 0.0;
+      t.amplitude = std::abs(t.slope) * spread(variable[v]);
       t.significant = t.correlation.n >= 4 && t.correlation.p_value * tests < alpha;
     }
   return d;
+}
+
+ResidualTrends residual_position_trends(const std::vector<Eigen::Vector3d>& positions,
+                                        const std::vector<Eigen::Vector3d>& residuals,
+                                        double alpha) {
+  const std::vector<Eigen::VectorXd> variables(positions.begin(), positions.end());
+  return residual_trends(variables, {"x", "y", "z"}, residuals, alpha);
+}
+
+ResidualTrends residual_load_trends(const std::vector<Eigen::VectorXd>& loads,
+                                    const std::vector<Eigen::Vector3d>& residuals, double alpha) {
+  const std::size_t actuators = loads.empty() ? 0 : static_cast<std::size_t>(loads[0].size());
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < actuators; ++i)
+    names.push_back("load on actuator " + std::to_string(i + 1));
+  return residual_trends(loads, names, residuals, alpha);
 }
 
 double ErrorGrid::max_rms() const {

@@ -11,6 +11,7 @@
 #include "summary/report_page.hpp"
 
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/residual_diagnostics.hpp"
 #include "robocal/vision/camera_io.hpp"
 
@@ -266,17 +267,29 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
 
   // The calibrated model's residual at each measured pose (measured board position minus the
   // model's, camera 0's frame): the residual diagnostics, and the error map without truth.
-  std::vector<Eigen::Vector3d> fit_positions, fit_residuals;
+  // The load test uses the poses whose loads the calibrated model gives (a unit weight at the
+  // tool, calib::tool_weight_loads).
+  std::vector<Eigen::Vector3d> fit_positions, fit_residuals, load_residuals;
+  std::vector<Eigen::VectorXd> loads;
+  const calib::MechanismPredictor tool_predictor(robot.model);
   for (const auto& m : measured) {
     const auto fk =
         calib::forward_kinematics(robot.model, ident.estimate, m.actuators, robot.frame);
     if (!fk.closure.ok()) continue;
     fit_positions.emplace_back(m.rig_T_target.translation());
     fit_residuals.emplace_back(m.rig_T_target.translation() - fk.pose.translation());
+    Eigen::VectorXd load;
+    if (calib::tool_weight_loads(tool_predictor, ident.estimate, m.actuators, load)) {
+      loads.push_back(load);
+      load_residuals.push_back(fit_residuals.back());
+    }
   }
   if (fit_positions.size() >= 4)
-    d.diagnostics.push_back({"measured poses: measured minus calibrated model",
+    d.diagnostics.push_back({"measured poses: measured minus calibrated model, vs position",
                              calib::residual_position_trends(fit_positions, fit_residuals)});
+  if (loads.size() >= 4)
+    d.diagnostics.push_back({"measured poses: measured minus calibrated model, vs actuator load",
+                             calib::residual_load_trends(loads, load_residuals)});
 
   // Error maps over the workspace (held-out positions, camera 0's frame).
   if (validation && !validation->points.empty()) {
@@ -346,7 +359,8 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
                 "The calibrated model fits the {} measured poses to {:.3f} mm RMS "
                 "(no held-out validation in this session).",
                 all.poses, all.calibrated_rms * 1e3);
-  d.verdict += unmodelled ? " Warning: the remaining error changes with position, so something "
+  d.verdict += unmodelled ? " Warning: the remaining error changes with position or with the "
+                            "actuators' load, so something "
                             "in the robot or the measurement is not modelled (section 8)."
                           : " The remaining error looks like noise (section 8).";
 
@@ -368,11 +382,12 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     nlohmann::json flagged = nlohmann::json::array();
     for (const auto& t : diag.trends.trends)
       if (t.significant)
-        flagged.push_back({{"residual", std::string(1, "xyz"[t.component])},
-                           {"position", std::string(1, "xyz"[t.coordinate])},
-                           {"correlation", t.correlation.r},
-                           {"p_value", t.correlation.p_value},
-                           {"change_over_workspace_m", t.amplitude}});
+        flagged.push_back(
+            {{"residual", std::string(1, "xyz"[t.component])},
+             {"variable", diag.trends.variables[static_cast<std::size_t>(t.variable)]},
+             {"correlation", t.correlation.r},
+             {"p_value", t.correlation.p_value},
+             {"change_over_workspace_m", t.amplitude}});
     diagnostics.push_back({{"source", diag.source},
                            {"poses", diag.trends.n},
                            {"unmodelled_error_suspected", diag.trends.unmodelled_error_suspected()},
@@ -391,7 +406,8 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     for (const auto& t : diag.trends.trends)
       if (t.significant)
         say(log, "    trend: {} error along {} changes with {} by {:.1f} µm (r {:+.2f})\n",
-            diag.source, "xyz"[t.component], "xyz"[t.coordinate], t.amplitude * 1e6,
+            diag.source, "xyz"[t.component],
+            diag.trends.variables[static_cast<std::size_t>(t.variable)], t.amplitude * 1e6,
             t.correlation.r);
   say(log, "  page: {} ({:.0f} kB)\n", results.report_page().string(),
       static_cast<double>(html.size()) / 1024.0);

@@ -564,11 +564,13 @@ std::string diagnostics_section(const ReportData& d) {
   s += "<p>If the model describes the robot completely, the errors that remain are noise: they "
        "do not depend on where the robot is. An error that grows with position points to "
        "something the model lacks (for example a tilted tool absorbed into arm lengths, a "
-       "sagging arm, or a loose joint). Below, each error direction is compared with each "
-       "position coordinate (camera 0's frame); a trend is flagged when it is statistically "
-       "significant (family-wise 1 % level over the nine pairs). The unmodelled effect may be in "
-       "the robot or in the measurement (for example a camera calibration that scales depth). "
-       "This session records no load, so errors correlated with load cannot be checked.</p>\n";
+       "sagging arm, or a loose joint). Below, each error direction (camera 0's frame) is "
+       "compared with each position coordinate, and with the load each actuator carries at that "
+       "pose (the effort that holds a weight at the tool, from the calibrated model): an error "
+       "that follows the load rather than the position points to flexible joints, gears or belts, "
+       "or a payload the model lacks. A trend is flagged when it is statistically significant "
+       "(family-wise 1 % level over the pairs of each table). The unmodelled effect may be in the "
+       "robot or in the measurement (for example a camera calibration that scales depth).</p>\n";
   if (d.diagnostics.empty()) s += "<p class=\"missing\">No residuals to test.</p>";
   for (const auto& diag : d.diagnostics) {
     const auto& t = diag.trends;
@@ -579,19 +581,20 @@ std::string diagnostics_section(const ReportData& d) {
     s += t.unmodelled_error_suspected()
              ? fmt::format(
                    "<p class=\"warn\">Unmodelled error suspected: the remaining error "
-                   "changes systematically with position, by up to {} across the "
+                   "changes systematically, by up to {} across the "
                    "measured poses (red rows).</p>",
                    escape(length(largest)))
              : "<p class=\"ok\">No trend: the remaining error looks like noise.</p>";
-    s += "<table class=\"num\"><tr><th>error along</th><th>vs position</th><th>correlation</th>"
+    s += "<table class=\"num\"><tr><th>error along</th><th>compared with</th><th>correlation</th>"
          "<th>p-value</th><th>change over the workspace</th><th>verdict</th></tr>\n";
     for (const auto& tr : t.trends)
       s += fmt::format(
           "<tr{}><td>{}</td><td>{}</td><td>{:+.2f}</td><td>{:.2g}</td><td>{}</td>"
           "<td class=\"l\">{}</td></tr>\n",
           tr.significant ? " class=\"flag\"" : "", axis_name(tr.component),
-          axis_name(tr.coordinate), tr.correlation.r, tr.correlation.p_value,
-          escape(length(tr.amplitude)), tr.significant ? "trend: unmodelled error" : "noise");
+          escape(t.variables[static_cast<std::size_t>(tr.variable)]), tr.correlation.r,
+          tr.correlation.p_value, escape(length(tr.amplitude)),
+          tr.significant ? "trend: unmodelled error" : "noise");
     s += "</table>\n";
   }
   return s + "</div>\n";

@@ -47,8 +47,8 @@ struct ReportCamera {
 };
 
 struct ReportDiagnostics {
-  std::string source;  // e.g. "measured poses (fit residuals)"
-  calib::PositionTrends trends;
+  std::string source;  // e.g. "measured poses: measured minus calibrated model, vs position"
+  calib::ResidualTrends trends;
 };
 
 struct ReportData {

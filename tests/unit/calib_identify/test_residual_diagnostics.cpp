@@ -1,5 +1,8 @@
 // The report's statistics (calib/residual_diagnostics.hpp) against closed forms computed here and
 // against residuals with a known position dependence (an unmodelled effect) or none (noise).
+#include "../calib/calib_test_support.hpp"
+#include "robocal/calib/closed_form.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/residual_diagnostics.hpp"
 
 #include <gtest/gtest.h>
@@ -12,6 +15,7 @@ namespace {
 using robocal::calib::error_grid;
 using robocal::calib::histogram;
 using robocal::calib::pearson_correlation;
+using robocal::calib::residual_load_trends;
 using robocal::calib::residual_position_trends;
 
 TEST(ReportHistogram, CountsEveryValueOnceEdgesIntoTheOuterBins) {
@@ -74,7 +78,8 @@ TEST(ReportResidualTrends, AToolTiltLeftInTheResidualsIsFlaggedWithItsSlope) {
   const auto& xz = d.trends[0 * 3 + 2];
   EXPECT_TRUE(xz.significant);
   EXPECT_EQ(xz.component, 0);
-  EXPECT_EQ(xz.coordinate, 2);
+  EXPECT_EQ(xz.variable, 2);
+  EXPECT_EQ(d.variables[2], "z");
   // Least-squares slope: its standard error is noise / (sd(z) sqrt(n)) = 5e-6 / (0.115 * 17.3).
   const double slope_sigma = 5e-6 / (0.4 / std::sqrt(12.0) * std::sqrt(300.0));
   EXPECT_NEAR(xz.slope, tilt, 4.0 * slope_sigma);
@@ -101,6 +106,71 @@ TEST(ReportErrorGrid, RmsPerCellOverTheBoundingBox) {
   EXPECT_DOUBLE_EQ(g.rms[2], 2.0);
   EXPECT_DOUBLE_EQ(g.rms[3], 5.0);
   EXPECT_DOUBLE_EQ(g.max_rms(), 5.0);
+}
+
+// The loads of a unit weight at the tool are the slopes of the tool's height in each actuator
+// (virtual work): checked against the rotary Delta's closed-form forward kinematics,
+// differentiated here with its own step.
+TEST(ToolWeightLoads, AreTheSlopesOfTheClosedFormToolHeight) {
+  using namespace robocal::calib;
+  const Mechanism m = robocal::calib::testing::load("rotary_delta.yaml");
+  const MechanismPredictor predictor(m);
+  const Eigen::VectorXd p = m.nominal_parameters();
+  for (const Eigen::Vector3d& q : {Eigen::Vector3d(0.2, 0.4, 0.1), Eigen::Vector3d(0.5, 0.1, 0.3),
+                                   Eigen::Vector3d(-0.2, 0.3, 0.6)}) {
+    Eigen::VectorXd loads;
+    ASSERT_TRUE(tool_weight_loads(predictor, p, q, loads));
+    ASSERT_EQ(loads.size(), 3);
+    for (int i = 0; i < 3; ++i) {
+      const double h = 1e-5;
+      const auto up = delta_forward(m.closed_form, q + h * Eigen::Vector3d::Unit(i));
+      const auto down = delta_forward(m.closed_form, q - h * Eigen::Vector3d::Unit(i));
+      ASSERT_TRUE(up && down);
+      const double slope = (up->z() - down->z()) / (2 * h);
+      EXPECT_NEAR(loads[i], slope, 1e-6) << "actuator " << i + 1 << " at " << q.transpose();
+    }
+  }
+}
+
+// A compliant second actuator: the residual along x is its load times a compliance (5 mm per
+// unit load, about 0.1 mm over the poses), with 5 um noise. The load test flags that pair and
+// estimates the compliance; with noise alone nothing is flagged.
+TEST(ReportResidualTrends, AnErrorThatFollowsAnActuatorsLoadIsFlagged) {
+  using namespace robocal::calib;
+  const Mechanism m = robocal::calib::testing::load("rotary_delta.yaml");
+  const MechanismPredictor predictor(m);
+  const Eigen::VectorXd p = m.nominal_parameters();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> angle(-0.2, 0.6);
+  std::normal_distribution<double> noise(0.0, 5e-6);
+  std::vector<Eigen::VectorXd> loads;
+  std::vector<Eigen::Vector3d> clean, compliant;
+  while (loads.size() < 120) {
+    const Eigen::Vector3d q(angle(rng), angle(rng), angle(rng));
+    Eigen::VectorXd load;
+    if (!tool_weight_loads(predictor, p, q, load)) continue;
+    loads.push_back(load);
+    const Eigen::Vector3d n(noise(rng), noise(rng), noise(rng));
+    clean.push_back(n);
+    compliant.push_back(n + Eigen::Vector3d(5e-3 * load[1], 0, 0));
+  }
+  EXPECT_FALSE(residual_load_trends(loads, clean).unmodelled_error_suspected());
+  const ResidualTrends d = residual_load_trends(loads, compliant);
+  ASSERT_EQ(d.trends.size(), 9U);
+  EXPECT_EQ(d.variables[1], "load on actuator 2");
+  const ResidualTrend& x2 = d.trends[0 * 3 + 1];
+  EXPECT_TRUE(x2.significant);
+  EXPECT_NEAR(x2.slope, 5e-3, 5e-4);
+  // The x residual follows the second actuator's load more closely than any other's; y and z
+  // carry noise only.
+  for (std::size_t i = 0; i < 9; ++i) {
+    if (i < 3 && i != 1) {
+      EXPECT_LT(std::abs(d.trends[i].correlation.r), std::abs(x2.correlation.r));
+    }
+    if (i >= 3) {
+      EXPECT_FALSE(d.trends[i].significant) << d.variables[i % 3] << " component " << i / 3;
+    }
+  }
 }
 
 }  // namespace

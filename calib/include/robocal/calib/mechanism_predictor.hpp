@@ -81,4 +81,14 @@ std::vector<Eigen::VectorXd> sample_actuators(const MechanismPredictor& predicto
 double task_conditioning(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
                          const Eigen::VectorXd& readings);
 
+// The static load each actuator carries when a unit weight (1 N) hangs at the task frame, by
+// virtual work: load_i = d z_task / d q_i, with z up in the robot file's frame (as every library
+// robot declares it) and q_i the actuated joint value (N m per N for a revolute actuator, N per N
+// for a prismatic one; the links' own weight is not included). Positive: the actuator pushes
+// towards larger joint values to hold the weight up. Residuals that follow it point to
+// compliance (joints, gears, belts) or a payload the model lacks. False where the closure cannot
+// be solved (central differences through it, as task_conditioning).
+bool tool_weight_loads(const MechanismPredictor& predictor, const Eigen::VectorXd& params,
+                       const Eigen::VectorXd& readings, Eigen::VectorXd& loads);
+
 }  // namespace robocal::calib

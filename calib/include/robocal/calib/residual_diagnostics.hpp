@@ -3,12 +3,13 @@
 // histograms of position errors, error maps binned over the workspace, and residual diagnostics
 // that flag unmodelled error — residual components that vary with where the robot is (an
 // effector tilt absorbed into arm lengths leaves residuals that grow with height; a sagging arm
-// leaves residuals that grow with reach). A well-specified model leaves residuals that are noise,
-// uncorrelated with position.
+// leaves residuals that grow with reach) or with the load its actuators carry (joint compliance).
+// A well-specified model leaves residuals that are noise, uncorrelated with position and load.
 #include <Eigen/Core>
 
 #include <array>
 #include <cstddef>
+#include <string>
 #include <vector>
 
 namespace robocal::calib {
@@ -33,30 +34,46 @@ struct Correlation {
 };
 Correlation pearson_correlation(const std::vector<double>& a, const std::vector<double>& b);
 
-// One residual component (x, y or z) against one position coordinate (x, y or z).
+// One residual component (x, y or z) against one explanatory variable (a position coordinate,
+// or the load an actuator carries).
 struct ResidualTrend {
-  int component = 0;   // 0 x, 1 y, 2 z of the residual
-  int coordinate = 0;  // 0 x, 1 y, 2 z of the position
+  int component = 0;  // 0 x, 1 y, 2 z of the residual
+  int variable = 0;   // index into ResidualTrends::variables
   Correlation correlation;
-  double slope = 0.0;      // residual change per unit of position (m per m), least squares
-  double amplitude = 0.0;  // |slope| x the positions' spread (max - min) along the coordinate: m
+  double slope = 0.0;      // residual change per unit of the variable (m per unit), least squares
+  double amplitude = 0.0;  // |slope| x the variable's spread (max - min) over the poses: m
   bool significant = false;
 };
 
-struct PositionTrends {
+struct ResidualTrends {
   std::size_t n = 0;
-  double alpha = 0.01;  // family-wise significance level over the nine pairs (Bonferroni)
-  std::array<ResidualTrend, 9> trends{};  // [component * 3 + coordinate]
+  double alpha = 0.01;                 // family-wise significance level over all pairs (Bonferroni)
+  std::vector<std::string> variables;  // names, e.g. "x" or "load on actuator 2"
+  std::vector<ResidualTrend> trends;   // [component * variables.size() + variable]
   // Any significant trend: the residuals are not noise, something the model lacks is left over.
   [[nodiscard]] bool unmodelled_error_suspected() const;
 };
 
-// Correlates each residual component with each position coordinate (positions[k] is where
-// residual[k] was observed; both in the same frame, metres). A pair is significant when its
-// p-value times 9 is below alpha.
-PositionTrends residual_position_trends(const std::vector<Eigen::Vector3d>& positions,
+// Correlates each residual component with each variable (variables[k] holds the values at the
+// pose of residuals[k]; every vector the size of `names`). A pair is significant when its
+// p-value times the number of pairs is below alpha.
+ResidualTrends residual_trends(const std::vector<Eigen::VectorXd>& variables,
+                               const std::vector<std::string>& names,
+                               const std::vector<Eigen::Vector3d>& residuals, double alpha = 0.01);
+
+// Against the position (positions[k] is where residual[k] was observed; same frame, metres):
+// variables "x", "y", "z".
+ResidualTrends residual_position_trends(const std::vector<Eigen::Vector3d>& positions,
                                         const std::vector<Eigen::Vector3d>& residuals,
                                         double alpha = 0.01);
+
+// Against the load: loads[k][i] is the static load actuator i carries at pose k (for example
+// calib::tool_weight_loads: a unit weight at the tool). Joint or gear compliance, a sagging arm or
+// a payload the model lacks leave residuals that follow the load rather than the position.
+// Variables "load on actuator 1", ...
+ResidualTrends residual_load_trends(const std::vector<Eigen::VectorXd>& loads,
+                                    const std::vector<Eigen::Vector3d>& residuals,
+                                    double alpha = 0.01);
 
 // The RMS of values over a regular grid of a 2-D projection of the workspace (top view: x/y,
 // side view: x/z): the error map. Cells without a value have count 0 and rms 0.
