@@ -21,6 +21,8 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <string>
+#include <vector>
 
 namespace robocal::app::wizard {
 namespace {
@@ -287,32 +289,99 @@ class ValidateStep final : public Step {
   }
 };
 
+// The formats that can describe this session's calibrated robot (a dry run of each writer).
+std::vector<std::string> formats_for(const fs::path& session) {
+  std::vector<std::string> fit;
+  for (const auto& f : export_formats()) {
+    try {
+      export_robot({session.string(), f, ""});
+      fit.push_back(f);
+    } catch (const InputError&) {
+      // The format cannot describe this robot (the export step says which can).
+    }
+  }
+  return fit;
+}
+
 class ExportStep final : public Step {
  public:
   std::string key() const override { return "export"; }
   std::string title() const override { return "Export"; }
   std::string what() const override {
-    return "The calibrated robot written for the controller or another tool.";
+    return "The report page, the calibrated robot written for the controller or another tool, "
+           "and G-code programs rewritten for this robot.";
   }
   StepOutcome run(WizardContext& ctx) override {
-    std::string formats;
-    for (const auto& f : export_formats()) {
-      if (!formats.empty()) formats += ", ";
-      formats += f;
+    const fs::path session = ctx.state.session();
+    try {
+      const auto page = report_session(session, PipelineLog{nullptr});
+      say_check(ctx, true, "report page: " + page.value("page", std::string()));
+    } catch (const InputError& e) {
+      say_check(ctx, false, std::string("no report page: ") + e.what(),
+                "`robocal report " + session.string() + "` says what is missing");
     }
+    if (!export_to_format(ctx, session)) return StepOutcome::stopped("no export was written");
+    return rewrite_programs(ctx, session) ? StepOutcome::done()
+                                          : StepOutcome::stopped("a G-code program was refused");
+  }
+
+ private:
+  static bool export_to_format(WizardContext& ctx, const fs::path& session) {
+    const std::vector<std::string> fit = formats_for(session);
+    const fs::path own = ResultsLayout(session).calibrated_robot();
+    if (fit.empty()) {
+      say_check(ctx, true,
+                "no controller format (Klipper, Marlin, RepRapFirmware, URDF, DH) describes this "
+                "robot; the calibrated robot file is " +
+                    own.string() + ", which `robocal compensate` and `robocal kin` read");
+      return true;
+    }
+    std::string formats;
+    for (const auto& f : fit) formats += (formats.empty() ? "" : ", ") + f;
     for (;;) {
-      const std::string format = ctx.ask.ask("export.format", "Format (" + formats + ")", "urdf");
+      const std::string format =
+          ctx.ask.ask("export.format", "Format (" + formats + ", or none)", fit.front());
+      if (format == "none") return true;
       const fs::path out = ctx.state.folder / "export" / ("calibrated." + format);
       fs::create_directories(out.parent_path());
       try {
-        export_robot({ctx.state.session().string(), format, out.string()});
+        export_robot({session.string(), format, out.string()});
         say_check(ctx, true, "written to " + out.string());
-        return StepOutcome::done();
+        return true;
       } catch (const InputError& e) {
-        say_check(ctx, false, e.what(), "choose a format that can describe this robot");
+        say_check(ctx, false, e.what(), "choose one of: " + formats);
         if (ctx.ask.choose("export.problem", "Another format, or stop here", {"retry", "quit"},
                            "retry") == "quit")
-          return StepOutcome::stopped(e.what());
+          return false;
+      }
+    }
+  }
+
+  // G-code written for the nominal robot, rewritten so that a controller that knows only the
+  // nominal model puts the tool where the program meant (robocal compensate --gcode).
+  static bool rewrite_programs(WizardContext& ctx, const fs::path& session) {
+    for (;;) {
+      const std::string program = ctx.ask.ask(
+          "export.gcode", "A G-code program to rewrite for this robot (empty: none)", "");
+      if (program.empty()) return true;
+      CompensateOptions o;
+      o.session = session;
+      o.gcode = program;
+      o.out =
+          ctx.state.folder / "export" / (fs::path(program).stem().string() + ".compensated.gcode");
+      fs::create_directories(o.out.parent_path());
+      try {
+        const auto r = compensate_session(o, PipelineLog{nullptr});
+        say_check(ctx, true,
+                  fmt::format("{} moves rewritten to {} (largest correction {:.1f} um)",
+                              r.value("moves", 0), o.out.string(),
+                              r.value("max_correction_m", 0.0) * 1e6));
+        return true;
+      } catch (const InputError& e) {
+        say_check(ctx, false, e.what(), "fix the program (the line is named) or give another");
+        if (ctx.ask.choose("export.gcode_problem", "Another program, or stop here",
+                           {"retry", "quit"}, "retry") == "quit")
+          return false;
       }
     }
   }

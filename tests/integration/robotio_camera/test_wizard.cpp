@@ -312,16 +312,30 @@ TEST_F(Wizard, AnswersFileDrivesTheFlowWithoutATerminal) {
 
   // With the calibration views, the flow finishes: measure, identify, held-out validation,
   // export; still nothing moves.
+  // The export step also writes the report page and rewrites a G-code program for this printer.
   render_calibration_views(dir_ / "views", vision::load_target_file(board_));
-  const int finish =
-      run_answers(folder,
-                  write_answers("a1b.txt", answers({{"identify.views", (dir_ / "views").string()},
-                                                    {"validate.holdout_every", "3"},
-                                                    {"export.format", "marlin"}})),
-                  &out, true);
+  write(dir_ / "part.gcode", "G90\nG1 X0 Y0 Z50 F3000\nG1 X20 Y0 Z50\nG1 X20 Y20 Z40\n");
+  const int finish = run_answers(
+      folder,
+      write_answers("a1b.txt", answers({{"identify.views", (dir_ / "views").string()},
+                                        {"validate.holdout_every", "3"},
+                                        {"export.format", "marlin"},
+                                        {"export.gcode", (dir_ / "part.gcode").string()}})),
+      &out, true);
   EXPECT_EQ(finish, 0) << out;
   EXPECT_NE(out.find("All steps done"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(folder / "export" / "calibrated.marlin")) << out;
+  EXPECT_TRUE(fs::exists(folder / "session" / "results" / "report.html")) << out;
+  std::ifstream rewritten(folder / "export" / "part.compensated.gcode");
+  ASSERT_TRUE(rewritten) << out;
+  std::string text, line;
+  int lines = 0;
+  while (std::getline(rewritten, line)) {
+    text += line + "\n";
+    ++lines;
+  }
+  EXPECT_NE(text.find("robocal compensate"), std::string::npos) << text;
+  EXPECT_GE(lines, 4) << text;
   // The held-out poses were predicted by a fit that did not see them, better than nominal.
   std::ifstream vjson(folder / "validation" / "validation.json");
   const auto v = nlohmann::json::parse(vjson);
