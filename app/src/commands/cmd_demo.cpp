@@ -12,6 +12,7 @@
 #include "cli/command_registry.hpp"
 #include "live/live_demo.hpp"
 #include "session/results_layout.hpp"
+#include "session/session_robot.hpp"
 #include "stages/stages.hpp"
 #include "summary/validation_summary.hpp"
 
@@ -76,6 +77,8 @@ int run_demo(DemoOptions o) {
   std::FILE* out = human_stream(o.json);
   StageClock clock;
   PipelineLog log{out, &clock, o.threads};
+  // An unknown robot is refused before a folder is made or anything is announced.
+  resolve_robot(o.simulate.robot);
   o.simulate.out = o.out.empty() ? fresh_folder(o.simulate.seed) : std::filesystem::path(o.out);
   const auto dir = o.simulate.out;
   fmt::print(out,

@@ -13,10 +13,10 @@
 
 namespace robocal::app {
 
-// Library robot name (testdata/robots/NAME.yaml) or a robot file path -> path. InputError when
-// neither exists.
 // The names of the library robots shipped with robocal (testdata/robots), sorted.
 std::vector<std::string> library_robot_names();
+// Library robot name (testdata/robots/NAME.yaml) or a robot file path -> path. InputError when
+// neither exists.
 std::string resolve_robot(const std::string& robot);
 
 // A robot file; its RobotFileError is an InputError.
