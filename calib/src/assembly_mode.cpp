@@ -4,7 +4,6 @@
 #include "robocal/calib/kinematics.hpp"
 #include "tree_evaluator.hpp"
 
-
 #include <sstream>
 
 namespace robocal::calib {
