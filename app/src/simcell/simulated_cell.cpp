@@ -14,9 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <optional>
 #include <stdexcept>
-#include <vector>
 
 namespace robocal::app {
 
@@ -165,51 +163,6 @@ CellOptions demo_cell_options(unsigned seed, bool quick, bool idealised_truth) {
   return co;
 }
 
-namespace {
-
-// A robot whose reach goes all the way around its base axis (a turntable joint: the wire robot's
-// branch) has an empty middle: the mean of its reach is on the axis, where it never goes, and no
-// camera pair sees more than a slice of it. A real cell declares where the robot works; the
-// simulated one takes the slice in front of the robot (azimuth within 45 deg of the file's +x,
-// where its zero configuration points) as its workspace. Nothing when the reach does not
-// surround the axis (the azimuths of the tool positions leave a gap of 90 deg or more) or is not
-// hollow around it.
-std::optional<planner::SafeWorkspace> front_sector(const std::vector<Eigen::Isometry3d>& poses) {
-  std::vector<double> azimuth;
-  for (const auto& p : poses)
-    azimuth.push_back(std::atan2(p.translation().y(), p.translation().x()));
-  if (azimuth.size() < 20) return std::nullopt;
-  std::sort(azimuth.begin(), azimuth.end());
-  double gap = 2.0 * kPi - (azimuth.back() - azimuth.front());
-  for (std::size_t k = 1; k < azimuth.size(); ++k) gap = std::max(gap, azimuth[k] - azimuth[k - 1]);
-  if (gap >= 0.5 * kPi) return std::nullopt;
-  // ... and its middle is empty: fewer than 5 % of the tool positions within 30 % of the largest
-  // distance from the axis (a Delta's reach, centred on its axis, is full there).
-  double reach = 0.0;
-  for (const auto& p : poses) reach = std::max(reach, p.translation().head<2>().norm());
-  const auto near_axis = std::count_if(poses.begin(), poses.end(), [&](const Eigen::Isometry3d& p) {
-    return p.translation().head<2>().norm() < 0.3 * reach;
-  });
-  if (static_cast<double>(near_axis) >= 0.05 * static_cast<double>(poses.size()))
-    return std::nullopt;
-  planner::SafeWorkspace w;
-  w.declared = true;
-  w.min = Eigen::Vector3d::Constant(1e300);
-  w.max = -w.min;
-  int inside = 0;
-  for (const auto& p : poses) {
-    const Eigen::Vector3d t = p.translation();
-    if (std::abs(std::atan2(t.y(), t.x())) > 0.25 * kPi) continue;
-    w.min = w.min.cwiseMin(t);
-    w.max = w.max.cwiseMax(t);
-    ++inside;
-  }
-  if (inside < 10) return std::nullopt;
-  return w;
-}
-
-}  // namespace
-
 SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptions& options,
                                   std::mt19937& rng) {
   SimulatedCell cell;
@@ -279,12 +232,6 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   }
   cell.volume_centre = 0.5 * (lo + hi);
   cell.volume_extent = 0.5 * (hi - lo);
-  const std::optional<planner::SafeWorkspace> sector = front_sector(tool_poses);
-  if (sector) {
-    cell.plan_cell.workspace = *sector;
-    cell.volume_centre = 0.5 * (sector->min + sector->max);
-    cell.volume_extent = 0.5 * (sector->max - sector->min);
-  }
 
   // The board is mounted 1 cm below the tool point, level, facing down at the cameras (its z
   // axis points up, away from them), centred on the tool point. Designed mount = nominal tool.
