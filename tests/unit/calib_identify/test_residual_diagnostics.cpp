@@ -152,7 +152,7 @@ TEST(ReportResidualTrends, AnErrorThatFollowsAnActuatorsLoadIsFlagged) {
     loads.push_back(load);
     const Eigen::Vector3d n(noise(rng), noise(rng), noise(rng));
     clean.push_back(n);
-    compliant.push_back(n + Eigen::Vector3d(5e-3 * load[1], 0, 0));
+    compliant.emplace_back(n + Eigen::Vector3d(5e-3 * load[1], 0, 0));
   }
   EXPECT_FALSE(residual_load_trends(loads, clean).unmodelled_error_suspected());
   const ResidualTrends d = residual_load_trends(loads, compliant);
