@@ -18,7 +18,8 @@
 //   cold, warm from the previous held-out target, seeded from the nearest target already solved
 //   (compensate_targets), along a path of targets 0.5 mm apart, and the whole compensate_targets
 //   (IK + the nominal model's FK) per target; the same compensation per target (IK + nominal FK)
-//   by the reusable calib::Compensator and by the general solvers (solve_ik + forward_kinematics,
+//   by the reusable calib::Compensator (and its calibrated IK alone, Compensator::calibrated_ik)
+//   and by the general solvers (solve_ik + forward_kinematics,
 //   the implementation before it), cold and warm from the previous target, with the
 //   compensator's fallbacks to the general solvers and its agreement with them (verdicts,
 //   commands, calibrated FK of its readings against the target). Times are this thread's CPU
@@ -358,6 +359,27 @@ int main(int argc, char** argv) {
       time_compensator(false, compensator_cold_usable, compensator_cold_iterations);
   const double compensator_warm_us =
       time_compensator(true, compensator_warm_usable, compensator_warm_iterations);
+  // The calibrated IK alone (issue 20's "calibrated IK per target"): Compensator::calibrated_ik,
+  // the first half of compensate(), cold (closed-form seed) and warm from the previous answer;
+  // the Compensator built inside the timed region, as above.
+  const auto time_calibrated_ik = [&](bool warm, int& ok) {
+    ok = 0;
+    const double start = thread_cpu_seconds();
+    calib::Compensator compensator(tool_models);
+    calib::IkSeed previous;
+    for (const auto& t : tool_targets) {
+      const calib::IkResult ik = compensator.calibrated_ik(t, warm ? previous : calib::IkSeed{});
+      if (ik.ok() && ik.mode.acceptable()) {
+        ++ok;
+        previous = {ik.actuator_q, ik.passive};
+      }
+    }
+    return seconds_since(start) /
+           static_cast<double>(std::max<std::size_t>(tool_targets.size(), 1)) * 1e6;
+  };
+  int calibrated_ik_cold_ok = 0, calibrated_ik_warm_ok = 0;
+  const double calibrated_ik_cold_us = time_calibrated_ik(false, calibrated_ik_cold_ok);
+  const double calibrated_ik_warm_us = time_calibrated_ik(true, calibrated_ik_warm_ok);
 
   // The same work by the general solvers (compensate_target before calib::Compensator): solve_ik
   // then the nominal forward_kinematics, per target, cold and warm from the previous answer.
@@ -453,6 +475,10 @@ int main(int argc, char** argv) {
       {"robot_frame_general_solvers_cold_usable", general_cold_usable},
       {"robot_frame_general_solvers_warm_us_per_target", general_warm_us},
       {"robot_frame_general_solvers_warm_usable", general_warm_usable},
+      {"robot_frame_compensator_calibrated_ik_cold_us_per_target", calibrated_ik_cold_us},
+      {"robot_frame_compensator_calibrated_ik_cold_ok", calibrated_ik_cold_ok},
+      {"robot_frame_compensator_calibrated_ik_warm_us_per_target", calibrated_ik_warm_us},
+      {"robot_frame_compensator_calibrated_ik_warm_ok", calibrated_ik_warm_ok},
       {"robot_frame_compensator_cold_us_per_target", compensator_cold_us},
       {"robot_frame_compensator_cold_usable", compensator_cold_usable},
       {"robot_frame_compensator_cold_iterations", compensator_cold_iterations},

@@ -302,6 +302,18 @@ struct Compensator::Impl {
     home_passive = home.passive;
   }
 
+  // The calibrated IK: the fast path, else the general solver; true when the fast path answered
+  // (its last Jacobian is then at hand for the nominal closure).
+  bool calibrated_ik(const TaskTarget& target, const IkSeed& seed, IkResult& out) {
+    if (fast_solve_ik(target, seed, out)) {
+      ++counts.fast_ik;
+      return true;
+    }
+    ++counts.general_ik;
+    out = solve_ik(*m, models.calibrated, target, seed, ik_options);
+    return false;
+  }
+
   // The calibrated IK by Newton from the caller's seed, or (none given, or it fails) from the
   // closed-form / predicted cold seed; false when the general solver must decide.
   bool fast_solve_ik(const TaskTarget& target, const IkSeed& seed, IkResult& out) {
@@ -419,18 +431,18 @@ const Compensator::Counts& Compensator::counts() const {
   return impl_->counts;
 }
 
+IkResult Compensator::calibrated_ik(const TaskTarget& target, const IkSeed& seed) {
+  IkResult out;
+  impl_->calibrated_ik(target, seed, out);
+  return out;
+}
+
 CompensatedTarget Compensator::compensate(const TaskTarget& target, const IkSeed& seed) {
   Impl& s = *impl_;
   const CompensationModels& models = s.models;
   const Mechanism& model = *s.m;
   CompensatedTarget out;
-  const bool fast = s.fast_solve_ik(target, seed, out.ik);
-  if (fast) {
-    ++s.counts.fast_ik;
-  } else {
-    ++s.counts.general_ik;
-    out.ik = solve_ik(model, models.calibrated, target, seed, s.ik_options);
-  }
+  const bool fast = s.calibrated_ik(target, seed, out.ik);
   if (out.ik.status == SolveStatus::kOtherMode) {
     out.verdict = TargetVerdict::kOtherMode;
     out.problem = "the calibrated robot reaches it only on " + out.ik.mode.describe();

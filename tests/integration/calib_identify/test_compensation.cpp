@@ -265,7 +265,7 @@ TEST(Compensation, CompensatorAgreesWithTheGeneralSolvers) {
       t.pose.translation() = p;
       targets.push_back(t);
     }
-    Compensator cold(models), warm(models);
+    Compensator cold(models), warm(models), ik_only(models);
     const std::vector<CompensatedTarget> listed = compensate_targets(models, targets);
     ASSERT_EQ(listed.size(), targets.size());
     IkSeed previous;
@@ -280,6 +280,19 @@ TEST(Compensation, CompensatorAgreesWithTheGeneralSolvers) {
       EXPECT_EQ(w.verdict, reference.verdict) << w.problem;
       EXPECT_EQ(listed[k].verdict, reference.verdict) << listed[k].problem;
       if (w.usable()) previous = {w.ik.actuator_q, w.ik.passive};
+      // The calibrated IK alone reaches the target by the calibrated FK (checked below for the
+      // full compensations), with compensate()'s readings and verdict.
+      const IkResult ik = ik_only.calibrated_ik(t);
+      EXPECT_EQ(ik.status, c.ik.status);
+      EXPECT_EQ(ik.mode.verdict, c.ik.mode.verdict);
+      if (c.usable()) {
+        ASSERT_EQ(ik.actuator_readings.size(), c.ik.actuator_readings.size());
+        EXPECT_LE((ik.actuator_readings - c.ik.actuator_readings).cwiseAbs().maxCoeff(), 1e-12);
+        const ForwardResult by_ik =
+            forward_kinematics(model, calibrated, ik.actuator_readings, model.task.frame);
+        ASSERT_TRUE(by_ik.closure.ok());
+        EXPECT_LE((by_ik.pose.translation() - t.pose.translation()).norm(), 1e-9);
+      }
       for (const CompensatedTarget* a : {&c, &w, &listed[k]}) {
         if (!a->usable()) continue;
         const ForwardResult reached =

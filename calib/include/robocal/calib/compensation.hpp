@@ -73,6 +73,10 @@ class Compensator {
   explicit Compensator(const CompensationModels& models);
   // As compensate_target(models, target, seed).
   CompensatedTarget compensate(const TaskTarget& target, const IkSeed& seed = {});
+  // Its first half alone: the calibrated model's inverse kinematics (the readings that put the
+  // tool on `target`, for a controller that takes actuator commands), with the verdict; the same
+  // answer as compensate(target, seed).ik.
+  IkResult calibrated_ik(const TaskTarget& target, const IkSeed& seed = {});
   [[nodiscard]] const CompensationModels& models() const;
   // How many answers each path gave so far (fast Newton paths vs the general solvers).
   struct Counts {
