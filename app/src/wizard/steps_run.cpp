@@ -328,7 +328,7 @@ class ExportStep final : public Step {
  private:
   static bool export_to_format(WizardContext& ctx, const fs::path& session) {
     const std::vector<std::string> fit = formats_for(session);
-    const fs::path own = ResultsLayout(session).calibrated_robot();
+    const fs::path own = ResultsLayout{session}.calibrated_robot();
     if (fit.empty()) {
       say_check(ctx, true,
                 "no controller format (Klipper, Marlin, RepRapFirmware, URDF, DH) describes this "
