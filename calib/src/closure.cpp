@@ -183,18 +183,15 @@ struct ClosureSolver::Impl {
       sys.jacobian(ws.J);
       ws.lu.compute(ws.J);
     }
-    const double estimate = detail::sigma_ratio_estimate(ws.lu, ws.J, ws.g, ws.dx);
     // The estimate only ever overstates the ratio (its power iterations approach sigma_max from
-    // below and sigma_min from above), so a state just inside the ambiguity threshold could pass
-    // as intended: near the threshold the exact singular values decide.
-    if (estimate >= 4.0 * model->assembly_mode.min_conditioning) return estimate;
-    // Below that, the highest threshold the answer meets (the design check's for a model whose
-    // loops differ from the design, else the ambiguity gate) is proved cleared when it can be;
-    // only answers near or under it pay for the exact ratio.
-    const double gate = (differs_from_design_loops() ? detail::kDesignCheckMargin : 1.0) *
-                        model->assembly_mode.min_conditioning;
-    if (estimate > gate && detail::sigma_ratio_certainly_above(ws.J, gate)) return estimate;
-    return detail::sigma_ratio(ws.J);
+    // below and sigma_min from above), so a state just inside a threshold could pass as clear of
+    // it: trusted from 4x the ambiguity gate; below that, the highest threshold the answer meets
+    // (the design check's for a model whose loops differ from the design, else the gate) is
+    // proved cleared or the exact ratio decides.
+    const double gate = model->assembly_mode.min_conditioning;
+    return detail::gated_sigma_ratio(
+        ws.lu, ws.J, ws.g, ws.dx, 4.0 * gate,
+        (differs_from_design_loops() ? detail::kDesignCheckMargin : 1.0) * gate);
   }
 
   // Cold solve of a model whose loops differ from the robot file's design (closure.hpp, step 1):

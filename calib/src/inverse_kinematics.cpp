@@ -246,16 +246,12 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
     const Eigen::PartialPivLU<Eigen::MatrixXd> lu(J);
     Eigen::VectorXd v(np), w(np);
-    const double estimate = detail::sigma_ratio_estimate(lu, J, v, w);
-    // The estimate only overstates the ratio: near the gate the exact values decide.
+    // As the closure solver's (closure.cpp, conditioning), the estimate trusted from twice the
+    // design check's threshold.
     const double gate = model.assembly_mode.min_conditioning;
-    if (estimate >= 2.0 * detail::kDesignCheckMargin * gate) return estimate;
-    // Below that, the highest threshold the answer meets is proved cleared when it can be
-    // (closure.cpp, conditioning): the design check's for a model whose loops differ from the
-    // design, else the ambiguity gate.
-    const double threshold = (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate;
-    if (estimate > threshold && detail::sigma_ratio_certainly_above(J, threshold)) return estimate;
-    return detail::sigma_ratio(J);
+    return detail::gated_sigma_ratio(
+        lu, J, v, w, 2.0 * detail::kDesignCheckMargin * gate,
+        (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate);
   };
   // The verdict with the closure's conditioning, as forward kinematics reports it: an answer whose
   // loops are nearly singular is ambiguous even where every invariant keeps its sign.

@@ -143,11 +143,11 @@ inline double sigma_ratio(const Eigen::MatrixXd& J) {
 
 // Whether sigma_min / sigma_max of J (rows >= columns) is certainly above t, without its
 // eigenvalues: two Cholesky certificates on B = J^T J. A power iteration gives rho <= lambda_max;
-// c I - B positive definite (c = 1.05 rho) proves lambda_max < c; then B - t^2 c I positive
-// definite proves lambda_min > t^2 c > t^2 lambda_max. Either factorisation failing (rho not yet
-// close to lambda_max, or the ratio near or under t) answers false, and the caller computes the
-// ratio exactly. A quarter of the cost of the eigenvalues, and the common answer away from
-// singular configurations.
+// c I - B positive definite (c = 1.5 rho) proves lambda_max < c; then B - t^2 c I positive
+// definite proves lambda_min > t^2 c > t^2 lambda_max. Either factorisation failing (rho under
+// lambda_max / 1.5 after four steps, or the ratio under about 1.22 t) answers false, and the
+// caller computes the ratio exactly. A quarter of the cost of the eigenvalues, and the common
+// answer away from singular configurations.
 inline bool sigma_ratio_certainly_above(const Eigen::MatrixXd& J, double t) {
   const Eigen::Index n = J.cols();
   if (n == 0 || J.rows() < n) return false;
@@ -204,6 +204,20 @@ inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& l
     small = 1.0 / g;
   }
   return big > 0.0 ? small / big : 0.0;
+}
+
+// sigma_min / sigma_max of a square J for comparisons with `gate` (LU factors of J at hand; v, w
+// n-sized scratch): the estimate where it is at least `trusted_above` (it can only overstate, by
+// less than that margin over every threshold it is compared with), else the estimate where the
+// certificate proves the ratio above `gate`, else the exact ratio. Used by the closure solver
+// and inverse kinematics alike.
+inline double gated_sigma_ratio(const Eigen::PartialPivLU<Eigen::MatrixXd>& lu,
+                                const Eigen::MatrixXd& J, Eigen::VectorXd& v, Eigen::VectorXd& w,
+                                double trusted_above, double gate) {
+  const double estimate = sigma_ratio_estimate(lu, J, v, w);
+  if (estimate >= trusted_above) return estimate;
+  if (estimate > gate && sigma_ratio_certainly_above(J, gate)) return estimate;
+  return sigma_ratio(J);
 }
 
 template <class System>
