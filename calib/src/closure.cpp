@@ -132,11 +132,12 @@ struct ClosureSolver::Impl {
     return true;
   }
 
-  Eigen::VectorXd seed() { return seed(seed_ev, params); }
+  Eigen::VectorXd seed() { return seed(seed_ev, params, model->home_passive()); }
   // Closed-form seed for the actuators in q, with the loops of `loop_ev` (whose parameters are p
-  // but for the base and task frames).
-  Eigen::VectorXd seed(detail::TreeEvaluator& loop_ev, const Eigen::VectorXd& p) {
-    Eigen::VectorXd x = model->home_passive();
+  // but for the base and task frames): the loops closed with the task frame pinned where the
+  // closed form puts it, from `start` (passive values).
+  Eigen::VectorXd seed(detail::TreeEvaluator& loop_ev, const Eigen::VectorXd& p,
+                       Eigen::VectorXd x) {
     if (model->closed_form.kind == ClosedFormKind::kNone || model->passive.empty()) return x;
     Eigen::VectorXd qa(static_cast<Eigen::Index>(model->actuated.size()));
     for (std::size_t i = 0; i < model->actuated.size(); ++i) {
@@ -185,12 +186,12 @@ struct ClosureSolver::Impl {
     }
     // The estimate only ever overstates the ratio (its power iterations approach sigma_max from
     // below and sigma_min from above), so a state just inside a threshold could pass as clear of
-    // it: trusted from 4x the ambiguity gate; below that, the highest threshold the answer meets
-    // (the design check's for a model whose loops differ from the design, else the gate) is
-    // proved cleared or the exact ratio decides.
+    // it: trusted from 4x the ambiguity gate; below that, the highest threshold the estimate
+    // meets (the ambiguity gate, or the design check's for a model whose loops differ from the
+    // design) is proved cleared or the exact ratio decides.
     const double gate = model->assembly_mode.min_conditioning;
     return detail::gated_sigma_ratio(
-        ws.lu, ws.J, ws.g, ws.dx, 4.0 * gate,
+        ws.lu, ws.J, ws.g, ws.dx, 4.0 * gate, gate,
         (differs_from_design_loops() ? detail::kDesignCheckMargin : 1.0) * gate);
   }
 
@@ -205,10 +206,14 @@ struct ClosureSolver::Impl {
   // the answer between those configurations. Returns false (r unspecified) when the design's
   // answer is not on an acceptable mode or a step does not close; the caller then seeds as before.
   static constexpr double kDesignStep = 1.0;  // largest step (fraction of the parameter path)
-  bool from_design(const Eigen::VectorXd& readings, ClosureResult& r) {
+  // `start`: where the seed's pinned solve starts (passive values; the home configuration for a
+  // cold solve). With the task frame pinned, the loops' own chains close in one configuration up
+  // to idle turns (a rod's spin about its axis), so a start near the answer gives the same design
+  // answer in fewer steps; the mode check below judges it either way.
+  bool from_design(const Eigen::VectorXd& readings, ClosureResult& r, Eigen::VectorXd start) {
     ClosureSystem dsys{&design_ev, &q, model};
     set_actuators(readings, design);
-    r.passive = seed(design_ev, design);
+    r.passive = seed(design_ev, design, std::move(start));
     attempt(dsys, r);
     if (!r.ok() || !r.mode.acceptable()) return false;
     const ModeCheck design_mode = r.mode;
@@ -263,7 +268,7 @@ struct ClosureSolver::Impl {
       return;
     ClosureResult cold = r;
     cold.iterations = 0;
-    const bool found = from_design(readings, cold) && cold.mode.acceptable();
+    const bool found = from_design(readings, cold, r.passive) && cold.mode.acceptable();
     set_actuators(readings);
     r.iterations += cold.iterations;
     if (!found) return;
@@ -361,7 +366,7 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   if (!warm && s.options.enforce_mode && n > 0 && !m.assembly_mode.invariants.empty() &&
       s.differs_from_design_loops()) {
     result.seed_used = "design";
-    done = s.from_design(actuator_readings, result);
+    done = s.from_design(actuator_readings, result, m.home_passive());
     s.set_actuators(actuator_readings);
     if (!done) result.iterations = 0;
   }

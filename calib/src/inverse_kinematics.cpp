@@ -124,10 +124,15 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   for (int b : model.actuated) sys.unknown_bodies.push_back(b);
   for (int b : model.passive) sys.unknown_bodies.push_back(b);
   detail::LmWorkspace ws;
+  // The answer of the last run that converged in at least one step: ws.J then holds the system's
+  // Jacobian at its last step (the answer's to within that step, as the closure solver's
+  // conditioning uses it) and the evaluator holds the answer's poses.
+  Eigen::VectorXd jacobian_near;
   // One damped Gauss-Newton run from x; status and verdict of its answer.
   auto run = [&](Eigen::VectorXd& xs, IkResult& r) {
     const detail::LmOutcome lm =
         detail::levenberg_marquardt(sys, xs, ws, options.max_iterations, options.tolerance, 0.5);
+    jacobian_near = lm.converged && lm.iterations > 0 ? xs : Eigen::VectorXd();
     r.iterations += lm.iterations;
     r.residual = lm.residual;
     r.mode = ModeCheck{};
@@ -239,18 +244,22 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   const auto closure_conditioning = [&](const Eigen::VectorXd& xs) {
     const int mc = ev.rows();
     if (mc != np) return -1.0;
-    Eigen::VectorXd r(mc + detail::task_rows(model.task.type));
-    sys.evaluate(xs, r);
     Eigen::MatrixXd J(mc, np);
-    for (Eigen::Index j = 0; j < np; ++j)
-      ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
+    if (jacobian_near.size() == xs.size() && jacobian_near == xs) {
+      J = ws.J.block(0, na, mc, np);  // the closure rows' passive columns
+    } else {
+      Eigen::VectorXd r(mc + detail::task_rows(model.task.type));
+      sys.evaluate(xs, r);
+      for (Eigen::Index j = 0; j < np; ++j)
+        ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
+    }
     const Eigen::PartialPivLU<Eigen::MatrixXd> lu(J);
     Eigen::VectorXd v(np), w(np);
     // As the closure solver's (closure.cpp, conditioning), the estimate trusted from twice the
     // design check's threshold.
     const double gate = model.assembly_mode.min_conditioning;
     return detail::gated_sigma_ratio(
-        lu, J, v, w, 2.0 * detail::kDesignCheckMargin * gate,
+        lu, J, v, w, 2.0 * detail::kDesignCheckMargin * gate, gate,
         (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate);
   };
   // The verdict with the closure's conditioning, as forward kinematics reports it: an answer whose

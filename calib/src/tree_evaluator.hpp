@@ -194,11 +194,16 @@ inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& l
     v.noalias() = J.transpose() * w;
     if (!(v.norm() > 0.0)) return 0.0;
   }
+  // J = P^-1 L U, so (J^T J)^-1 u = U^-1 L^-1 P P^T L^-T U^-T u = U^-1 L^-1 L^-T U^-T u: the
+  // permutation cancels and the four triangular solves run in place (no temporaries).
+  const auto& f = lu.matrixLU();
   v.setOnes();
   for (int k = 0; k < 3; ++k) {
     v /= v.norm();
-    w = lu.transpose().solve(v);
-    v = lu.solve(w);
+    f.triangularView<Eigen::Upper>().transpose().solveInPlace(v);
+    f.triangularView<Eigen::UnitLower>().transpose().solveInPlace(v);
+    f.triangularView<Eigen::UnitLower>().solveInPlace(v);
+    f.triangularView<Eigen::Upper>().solveInPlace(v);
     const double g = std::sqrt(v.norm());  // ||(J^T J)^-1 u|| -> 1 / sigma_min^2
     if (!std::isfinite(g) || g <= 0.0) return 0.0;
     small = 1.0 / g;
@@ -206,17 +211,22 @@ inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& l
   return big > 0.0 ? small / big : 0.0;
 }
 
-// sigma_min / sigma_max of a square J for comparisons with `gate` (LU factors of J at hand; v, w
-// n-sized scratch): the estimate where it is at least `trusted_above` (it can only overstate, by
-// less than that margin over every threshold it is compared with), else the estimate where the
-// certificate proves the ratio above `gate`, else the exact ratio. Used by the closure solver
-// and inverse kinematics alike.
+// sigma_min / sigma_max of a square J for comparisons with the thresholds `gate` <= `upper` (LU
+// factors of J at hand; v, w n-sized scratch). The estimate can only overstate the ratio, so it
+// already places the ratio below every threshold above it; what needs proof is that the ratio
+// clears the highest threshold the estimate meets. Returned: the estimate where it is at least
+// `trusted_above` (it overstates by less than that margin over every threshold), or where the
+// certificate proves the ratio above that threshold (the ratio then lies between the same
+// thresholds as the estimate), else the exact ratio (so below `gate`, the ambiguous verdict
+// reports the true distance to the singularity). Used by the closure solver and inverse
+// kinematics alike.
 inline double gated_sigma_ratio(const Eigen::PartialPivLU<Eigen::MatrixXd>& lu,
                                 const Eigen::MatrixXd& J, Eigen::VectorXd& v, Eigen::VectorXd& w,
-                                double trusted_above, double gate) {
+                                double trusted_above, double gate, double upper) {
   const double estimate = sigma_ratio_estimate(lu, J, v, w);
   if (estimate >= trusted_above) return estimate;
-  if (estimate > gate && sigma_ratio_certainly_above(J, gate)) return estimate;
+  const double met = estimate >= upper ? upper : gate;
+  if (estimate >= met && sigma_ratio_certainly_above(J, met)) return estimate;
   return sigma_ratio(J);
 }
 
