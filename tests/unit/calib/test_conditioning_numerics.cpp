@@ -5,8 +5,8 @@
 // is s_min / s_max by construction.
 #include "tree_evaluator.hpp"
 
-#include <Eigen/QR>
 #include <gtest/gtest.h>
+#include <Eigen/QR>
 
 #include <algorithm>
 #include <cmath>
@@ -39,8 +39,9 @@ Case make_case(double ratio, std::mt19937& rng) {
   s[n - 1] = ratio;
   for (Eigen::Index i = 1; i < n - 1; ++i) s[i] = std::pow(ratio, u(rng));
   if (u(rng) < 0.3) s[n - 2] = ratio * (1.0 + 0.05 * u(rng));
-  return {random_orthogonal(n, rng) * (scale * s).asDiagonal() * random_orthogonal(n, rng).transpose(),
-          ratio};
+  return {
+      random_orthogonal(n, rng) * (scale * s).asDiagonal() * random_orthogonal(n, rng).transpose(),
+      ratio};
 }
 
 double log_uniform(double lo, double hi, std::mt19937& rng) {
