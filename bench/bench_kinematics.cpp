@@ -2,7 +2,8 @@
 //   FK through the generic closure solver, warm-started along a path with 1 mm steps (<= 10 us),
 //   FK cold from the closed-form seed, the closed-form sphere intersection itself (the floor),
 //   FK cold on a perturbed model (from the design's answer by parameter continuation),
-//   IK on a perturbed (non-closed-form) model warm-started along the path (<= 20 us),
+//   IK on a perturbed (non-closed-form) model warm-started along the path (<= 20 us), one-shot
+//   (solve_ik) and through one IkSolver,
 //   the parameter Jacobian of the tool position w.r.t. every parameter (<= 50 us).
 // Run: build/release/bench/bench_kinematics --benchmark_repetitions=5
 //      --benchmark_report_aggregates_only=true
@@ -155,6 +156,36 @@ void BM_DeltaIkWarmPerturbed(benchmark::State& state) {
       benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
 }
 BENCHMARK(BM_DeltaIkWarmPerturbed);
+
+// The same path through one IkSolver (its state kept across the solves, as a planner or a path
+// check uses it).
+void BM_DeltaIkSolverWarmPerturbed(benchmark::State& state) {
+  const Mechanism& m = delta();
+  const Eigen::VectorXd p = perturbed_parameters();
+  const auto pts = path_points();
+  TaskTarget target;
+  target.pose.translation() = pts[0];
+  IkSolver solver(m, p);
+  IkResult first = solver.solve(target);
+  IkSeed seed{first.actuator_q, first.passive};
+  std::size_t k = 1;
+  int iterations = 0;
+  for (auto _ : state) {
+    target.pose.translation() = pts[k];
+    const IkResult r = solver.solve(target, seed);
+    if (!r.ok()) state.SkipWithError("ik failed");
+    seed.actuator_q = r.actuator_q;
+    seed.passive = r.passive;
+    iterations += r.iterations;
+    if (++k == pts.size()) {
+      k = 1;
+      seed = {first.actuator_q, first.passive};
+    }
+  }
+  state.counters["newton_iters"] =
+      benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
+}
+BENCHMARK(BM_DeltaIkSolverWarmPerturbed);
 
 void BM_DeltaParameterJacobian(benchmark::State& state) {
   const Mechanism& m = delta();

@@ -190,10 +190,10 @@ struct ClosureSolver::Impl {
     // meets (the ambiguity gate, or the design check's for a model whose loops differ from the
     // design) is proved cleared or the exact ratio decides.
     const double gate = model->assembly_mode.min_conditioning;
-    return detail::gated_sigma_ratio(
-        ws.lu, ws.J, ws.g, ws.dx, 4.0 * gate, gate,
-        (differs_from_design_loops() ? detail::kDesignCheckMargin : 1.0) * gate);
+    const double upper = (differs_from_design_loops() ? detail::kDesignCheckMargin : 1.0) * gate;
+    return path_conditioning(&ws.lu, ws.J, ws.g, ws.dx, 4.0 * gate, gate, upper);
   }
+  detail::PathConditioning path_conditioning;
 
   // Cold solve of a model whose loops differ from the robot file's design (closure.hpp, step 1):
   // the design's answer at these readings (closed-form seed, design loops), then continuation in
@@ -206,14 +206,13 @@ struct ClosureSolver::Impl {
   // the answer between those configurations. Returns false (r unspecified) when the design's
   // answer is not on an acceptable mode or a step does not close; the caller then seeds as before.
   static constexpr double kDesignStep = 1.0;  // largest step (fraction of the parameter path)
-  // `start`: where the seed's pinned solve starts (passive values; the home configuration for a
-  // cold solve). With the task frame pinned, the loops' own chains close in one configuration up
-  // to idle turns (a rod's spin about its axis), so a start near the answer gives the same design
-  // answer in fewer steps; the mode check below judges it either way.
-  bool from_design(const Eigen::VectorXd& readings, ClosureResult& r, Eigen::VectorXd start) {
+  // The seed's pinned solve starts from the home configuration, always: started from the warm
+  // answer instead (tried: fewer steps), the design's answer followed that answer's branch, and
+  // the compensation test's perturbed Delta got a 4.6 mm different command at one target.
+  bool from_design(const Eigen::VectorXd& readings, ClosureResult& r) {
     ClosureSystem dsys{&design_ev, &q, model};
     set_actuators(readings, design);
-    r.passive = seed(design_ev, design, std::move(start));
+    r.passive = seed(design_ev, design, model->home_passive());
     attempt(dsys, r);
     if (!r.ok() || !r.mode.acceptable()) return false;
     const ModeCheck design_mode = r.mode;
@@ -268,7 +267,7 @@ struct ClosureSolver::Impl {
       return;
     ClosureResult cold = r;
     cold.iterations = 0;
-    const bool found = from_design(readings, cold, r.passive) && cold.mode.acceptable();
+    const bool found = from_design(readings, cold) && cold.mode.acceptable();
     set_actuators(readings);
     r.iterations += cold.iterations;
     if (!found) return;
@@ -366,7 +365,7 @@ ClosureResult ClosureSolver::solve(const Eigen::VectorXd& actuator_readings,
   if (!warm && s.options.enforce_mode && n > 0 && !m.assembly_mode.invariants.empty() &&
       s.differs_from_design_loops()) {
     result.seed_used = "design";
-    done = s.from_design(actuator_readings, result, m.home_passive());
+    done = s.from_design(actuator_readings, result);
     s.set_actuators(actuator_readings);
     if (!done) result.iterations = 0;
   }

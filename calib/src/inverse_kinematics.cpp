@@ -9,6 +9,7 @@
 #include <Eigen/LU>
 
 #include <cmath>
+#include <memory>
 #include <random>
 
 namespace robocal::calib {
@@ -50,17 +51,6 @@ namespace {
 // Task-frame poses closer than this (m, rad) are the same answer.
 constexpr double kSamePose = 1e-9;
 
-// Passive joints closing the loops at actuator joint values qa (any mode; the final IK solve
-// checks the mode of the whole state).
-Eigen::VectorXd passive_for(const Mechanism& model, const Eigen::VectorXd& params,
-                            const Eigen::VectorXd& qa) {
-  const auto np = static_cast<Eigen::Index>(model.passive.size());
-  if (np == 0) return {};
-  const Eigen::VectorXd readings = readings_from_joint_values(model, params, qa);
-  const ClosureResult c = solve_closure(model, params, readings);
-  return c.passive.size() == np ? c.passive : model.home_passive();
-}
-
 // Deterministic multi-start seeds: uniform within the actuated joints' limits (home +- pi where
 // a limit is open).
 Eigen::VectorXd spread_seed(const Mechanism& model, std::mt19937& rng) {
@@ -78,16 +68,75 @@ Eigen::VectorXd spread_seed(const Mechanism& model, std::mt19937& rng) {
 
 }  // namespace
 
+// The solver's state across solves: the evaluator of the model (built once: its constant
+// transforms cost a tenth of a solve), the workspace, the closure solver of the design-branch
+// check, and the conditioning carried along a path of warm solves.
+struct IkSolver::Impl {
+  const Mechanism& model;
+  Eigen::VectorXd params;
+  IkOptions options;
+  bool valid_params;
+  detail::TreeEvaluator ev;
+  Eigen::VectorXd q;
+  IkSystem sys;
+  detail::LmWorkspace ws;
+  bool differs_from_design = false;
+  std::unique_ptr<ClosureSolver> closure;  // built on first use
+  detail::PathConditioning path_conditioning;
+
+  Impl(const Mechanism& m, const Eigen::VectorXd& p, const IkOptions& o)
+      : model(m),
+        params(p),
+        options(o),
+        valid_params(p.size() == static_cast<Eigen::Index>(m.parameters.size()) && p.allFinite()),
+        ev(valid_params ? detail::TreeEvaluator(m, p) : detail::TreeEvaluator()),
+        q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))),
+        sys{&ev, &q, &m, {}, {}} {
+    for (int b : m.actuated) sys.unknown_bodies.push_back(b);
+    for (int b : m.passive) sys.unknown_bodies.push_back(b);
+    differs_from_design = valid_params && detail::loops_differ_from_design(m, p);
+  }
+
+  ClosureSolver& closure_solver() {
+    if (!closure) closure = std::make_unique<ClosureSolver>(model, params);
+    return *closure;
+  }
+
+  // Passive joints closing the loops at actuator joint values qa (any mode; the final IK solve
+  // checks the mode of the whole state).
+  Eigen::VectorXd passive_for(const Eigen::VectorXd& qa) {
+    const auto np = static_cast<Eigen::Index>(model.passive.size());
+    if (np == 0) return {};
+    const ClosureResult c = closure_solver().solve(readings_from_joint_values(model, params, qa));
+    return c.passive.size() == np ? c.passive : model.home_passive();
+  }
+
+  IkResult solve(const TaskTarget& target, const IkSeed& seed);
+};
+
+IkSolver::IkSolver(const Mechanism& model, const Eigen::VectorXd& params, IkOptions options)
+    : impl_(std::make_unique<Impl>(model, params, options)) {}
+IkSolver::~IkSolver() = default;
+IkSolver::IkSolver(IkSolver&&) noexcept = default;
+IkSolver& IkSolver::operator=(IkSolver&&) noexcept = default;
+
+IkResult IkSolver::solve(const TaskTarget& target, const IkSeed& seed) {
+  return impl_->solve(target, seed);
+}
+
 IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const TaskTarget& target,
                   const IkSeed& seed, const IkOptions& options) {
+  return IkSolver(model, params, options).solve(target, seed);
+}
+
+IkResult IkSolver::Impl::solve(const TaskTarget& target, const IkSeed& seed) {
   IkResult out;
   const auto na = static_cast<Eigen::Index>(model.actuated.size());
   const auto np = static_cast<Eigen::Index>(model.passive.size());
-  if (!target.pose.matrix().allFinite() || !std::isfinite(target.joint_value) ||
-      !params.allFinite() || (seed.actuator_q.size() != 0 && seed.actuator_q.size() != na) ||
+  if (!valid_params || !target.pose.matrix().allFinite() || !std::isfinite(target.joint_value) ||
+      (seed.actuator_q.size() != 0 && seed.actuator_q.size() != na) ||
       (seed.passive.size() != 0 && seed.passive.size() != np) || !seed.actuator_q.allFinite() ||
-      !seed.passive.allFinite() ||
-      params.size() != static_cast<Eigen::Index>(model.parameters.size()))
+      !seed.passive.allFinite())
     return out;
 
   Eigen::VectorXd x(na + np);
@@ -115,15 +164,10 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   if (seed.passive.size() == np) {
     x.tail(np) = seed.passive;
   } else if (np > 0) {
-    x.tail(np) = passive_for(model, params, x.head(na));
+    x.tail(np) = passive_for(x.head(na));
   }
 
-  detail::TreeEvaluator ev(model, params);
-  Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.bodies.size()));
-  IkSystem sys{&ev, &q, &model, {}, target};
-  for (int b : model.actuated) sys.unknown_bodies.push_back(b);
-  for (int b : model.passive) sys.unknown_bodies.push_back(b);
-  detail::LmWorkspace ws;
+  sys.target = target;
   // The answer of the last run that converged in at least one step: ws.J then holds the system's
   // Jacobian at its last step (the answer's to within that step, as the closure solver's
   // conditioning uses it) and the evaluator holds the answer's poses.
@@ -184,7 +228,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       // and halved when it fails or lands on another mode.
       Eigen::VectorXd xs(na + np);
       xs.head(na) = home_q;
-      if (np > 0) xs.tail(np) = passive_for(model, params, home_q);
+      if (np > 0) xs.tail(np) = passive_for(home_q);
       const JointState home_state = make_joint_state(
           model, params, readings_from_joint_values(model, params, home_q), xs.tail(np));
       const Eigen::Isometry3d from = frame_pose(model, params, home_state, model.task.frame);
@@ -225,7 +269,7 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
     for (int k = from_home ? 1 : 0; k <= options.multi_start && !found; ++k) {
       Eigen::VectorXd xs(na + np);
       xs.head(na) = k == 0 ? home_q : spread_seed(model, rng);
-      if (np > 0) xs.tail(np) = passive_for(model, params, xs.head(na));
+      if (np > 0) xs.tail(np) = passive_for(xs.head(na));
       IkResult r;
       r.iterations = out.iterations;
       run(xs, r);
@@ -239,7 +283,6 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       out.mode = other_mode;
     }
   }
-  const bool differs_from_design = detail::loops_differ_from_design(model, params);
   // sigma_min / sigma_max of the closure Jacobian (passive columns) at x, < 0 where not square.
   const auto closure_conditioning = [&](const Eigen::VectorXd& xs) {
     const int mc = ev.rows();
@@ -253,14 +296,12 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
       for (Eigen::Index j = 0; j < np; ++j)
         ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
     }
-    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(J);
     Eigen::VectorXd v(np), w(np);
     // As the closure solver's (closure.cpp, conditioning), the estimate trusted from twice the
-    // design check's threshold.
+    // design check's threshold, and bounds carried along a path of warm solves.
     const double gate = model.assembly_mode.min_conditioning;
-    return detail::gated_sigma_ratio(
-        lu, J, v, w, 2.0 * detail::kDesignCheckMargin * gate, gate,
-        (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate);
+    return path_conditioning(nullptr, J, v, w, 2.0 * detail::kDesignCheckMargin * gate, gate,
+                             (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate);
   };
   // The verdict with the closure's conditioning, as forward kinematics reports it: an answer whose
   // loops are nearly singular is ambiguous even where every invariant keeps its sign.
@@ -283,8 +324,8 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
     // the tool elsewhere. So the answer must be what FK gives for its readings; if not, Newton
     // again from FK's configuration, and failing that, refused as another mode.
     auto fk_agrees = [&](const Eigen::VectorXd& xs, ClosureResult& fk) {
-      fk = solve_closure(model, params, readings_from_joint_values(model, params, xs.head(na)),
-                         xs.tail(np));
+      fk = closure_solver().solve(readings_from_joint_values(model, params, xs.head(na)),
+                                  xs.tail(np));
       if (!fk.ok() || !fk.mode.acceptable()) return false;
       // The same task-frame pose (not the same passive values: idle rotations of a rod about its
       // own axis, or a turn of 2 pi, change those and nothing else).

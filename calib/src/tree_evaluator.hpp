@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <vector>
 
 namespace robocal::calib::detail {
@@ -141,20 +142,14 @@ inline double sigma_ratio(const Eigen::MatrixXd& J) {
   return std::sqrt(std::max(ev[0], 0.0) / ev[n - 1]);
 }
 
-// Whether sigma_min / sigma_max of J (rows >= columns) is certainly above t, without its
-// eigenvalues: two Cholesky certificates on B = J^T J. A power iteration gives rho <= lambda_max;
-// c I - B positive definite (c = 1.5 rho) proves lambda_max < c; then B - t^2 c I positive
-// definite proves lambda_min > t^2 c > t^2 lambda_max. Either factorisation failing (rho under
-// lambda_max / 1.5 after four steps, or the ratio under about 1.22 t) answers false, and the
-// caller computes the ratio exactly. A quarter of the cost of the eigenvalues, and the common
-// answer away from singular configurations.
-inline bool sigma_ratio_certainly_above(const Eigen::MatrixXd& J, double t) {
+// B = J^T J and rho, a lower bound of its largest eigenvalue (four power iterations from the
+// all-ones vector; a few per cent under it on these Jacobians). False where J is degenerate.
+inline bool gram_and_rho(const Eigen::MatrixXd& J, Eigen::MatrixXd& B, double& rho) {
   const Eigen::Index n = J.cols();
   if (n == 0 || J.rows() < n) return false;
-  Eigen::MatrixXd B(n, n);
   B.noalias() = J.transpose() * J;
   Eigen::VectorXd v = Eigen::VectorXd::Ones(n), w(n);
-  double rho = 0.0;
+  rho = 0.0;
   for (int k = 0; k < 4; ++k) {
     const double norm = v.norm();
     if (!(norm > 0.0)) return false;
@@ -163,14 +158,62 @@ inline bool sigma_ratio_certainly_above(const Eigen::MatrixXd& J, double t) {
     rho = v.dot(w);
     v.swap(w);
   }
-  if (!(rho > 0.0) || !std::isfinite(rho)) return false;
-  const double c = 1.5 * rho;
-  Eigen::MatrixXd A = -B;
-  A.diagonal().array() += c;
-  if (Eigen::LLT<Eigen::MatrixXd>(A).info() != Eigen::Success) return false;
-  A = B;
-  A.diagonal().array() -= t * t * c;
+  return rho > 0.0 && std::isfinite(rho);
+}
+
+// Whether sign * B + shift I is positive definite (a Cholesky factorisation exists).
+inline bool shifted_positive_definite(const Eigen::MatrixXd& B, double sign, double shift) {
+  Eigen::MatrixXd A = sign * B;
+  A.diagonal().array() += shift;
   return Eigen::LLT<Eigen::MatrixXd>(A).info() == Eigen::Success;
+}
+
+// Whether sigma_min / sigma_max of J is certainly above t, given B = J^T J and rho <= lambda_max
+// (gram_and_rho), without the eigenvalues: c I - B positive definite proves lambda_max < c; then
+// B - t^2 c I positive definite proves lambda_min > t^2 c > t^2 lambda_max. c is the tightest of
+// 1.02, 1.1 and 1.5 rho that proves the bound (the power iteration is a few per cent at most
+// under lambda_max, often under one: the ratio is then proved from about 1.01 t; with 1.5 rho,
+// from about 1.22 t). Failing answers false, and the caller computes the ratio exactly. A quarter
+// of the cost of the eigenvalues, and the common answer away from singular configurations.
+inline bool gram_ratio_certainly_above(const Eigen::MatrixXd& B, double rho, double t) {
+  for (const double f : {1.02, 1.1, 1.5}) {
+    const double c = f * rho;
+    if (shifted_positive_definite(B, -1.0, c)) return shifted_positive_definite(B, 1.0, -t * t * c);
+  }
+  return false;
+}
+inline bool sigma_ratio_certainly_above(const Eigen::MatrixXd& J, double t) {
+  Eigen::MatrixXd B(J.cols(), J.cols());
+  double rho = 0.0;
+  return gram_and_rho(J, B, rho) && gram_ratio_certainly_above(B, rho, t);
+}
+
+// Bounds on the singular values of J: sigma_min >= lo and sigma_max <= hi, proved by Cholesky
+// (hi^2 I - B and B - lo^2 I positive definite) around the guesses rho (sigma_max^2) and `ratio`
+// (an estimate of sigma_min / sigma_max), tight first (hi 1 % over, lo 10 % under the guesses).
+struct SingularBounds {
+  double lo = 0.0;
+  double hi = 0.0;
+};
+inline std::optional<SingularBounds> gram_singular_bounds(const Eigen::MatrixXd& B, double rho,
+                                                          double ratio) {
+  if (!(ratio > 0.0) || !std::isfinite(ratio)) return std::nullopt;
+  SingularBounds out;
+  for (const double f : {1.02, 1.1, 1.5}) {
+    if (shifted_positive_definite(B, -1.0, f * rho)) {
+      out.hi = std::sqrt(f * rho);
+      break;
+    }
+  }
+  if (!(out.hi > 0.0)) return std::nullopt;
+  const double sigma_min = ratio * std::sqrt(rho);
+  for (const double f : {0.9, 0.6}) {
+    if (shifted_positive_definite(B, 1.0, -(f * sigma_min) * (f * sigma_min))) {
+      out.lo = f * sigma_min;
+      return out;
+    }
+  }
+  return std::nullopt;
 }
 
 // Estimate of sigma_min / sigma_max of a square J from its LU factors (no allocation: v and w are
@@ -219,16 +262,86 @@ inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& l
 // certificate proves the ratio above that threshold (the ratio then lies between the same
 // thresholds as the estimate), else the exact ratio (so below `gate`, the ambiguous verdict
 // reports the true distance to the singularity). Used by the closure solver and inverse
-// kinematics alike.
-inline double gated_sigma_ratio(const Eigen::PartialPivLU<Eigen::MatrixXd>& lu,
-                                const Eigen::MatrixXd& J, Eigen::VectorXd& v, Eigen::VectorXd& w,
-                                double trusted_above, double gate, double upper) {
-  const double estimate = sigma_ratio_estimate(lu, J, v, w);
-  if (estimate >= trusted_above) return estimate;
-  const double met = estimate >= upper ? upper : gate;
-  if (estimate >= met && sigma_ratio_certainly_above(J, met)) return estimate;
-  return sigma_ratio(J);
+// kinematics alike. With `bounds` (the closure solver's carried bounds), singular-value bounds
+// are proved along with the certificate, whose Gram matrix they share, and also for a trusted
+// estimate when `bounds_when_trusted`; they replace the certificate where they clear the
+// threshold.
+struct GatedRatio {
+  double ratio = 0.0;
+  std::optional<SingularBounds> bounds;
+};
+inline GatedRatio gated_sigma_ratio(const Eigen::PartialPivLU<Eigen::MatrixXd>& lu,
+                                    const Eigen::MatrixXd& J, Eigen::VectorXd& v,
+                                    Eigen::VectorXd& w, double trusted_above, double gate,
+                                    double upper, bool bounds = false,
+                                    bool bounds_when_trusted = false) {
+  GatedRatio out;
+  out.ratio = sigma_ratio_estimate(lu, J, v, w);
+  const bool trusted = out.ratio >= trusted_above;
+  if (trusted && !(bounds && bounds_when_trusted)) return out;
+  const double met = out.ratio >= upper ? upper : gate;
+  if (out.ratio >= met) {
+    Eigen::MatrixXd B(J.cols(), J.cols());
+    double rho = 0.0;
+    if (gram_and_rho(J, B, rho)) {
+      if (bounds) {
+        out.bounds = gram_singular_bounds(B, rho, out.ratio);
+        if (out.bounds && out.bounds->lo >= met * out.bounds->hi) return out;
+      }
+      if (trusted || gram_ratio_certainly_above(B, rho, met)) return out;
+    }
+  }
+  out.bounds.reset();
+  out.ratio = sigma_ratio(J);
+  return out;
 }
+
+// The conditioning (gated_sigma_ratio) of the answers of one solver, which along a path of warm
+// solves come close to each other: singular-value bounds proved for one answer's Jacobian J0 are
+// carried to the next ones by Weyl's inequality, |sigma_i(J) - sigma_i(J0)| <= ||J - J0||_F, so
+// one proof keeps the ratio clear of the thresholds for many steps at the cost of a matrix
+// difference (on the Delta's 1 mm helix the closure Jacobian moves by 0.12 % of sigma_max per
+// step). Where the carried bounds clear every threshold, the returned conditioning is their
+// proved lower bound of the ratio.
+// `lu`: the LU factors of J when the caller has them, else null (factored here when needed).
+class PathConditioning {
+ public:
+  double operator()(const Eigen::PartialPivLU<Eigen::MatrixXd>* lu, const Eigen::MatrixXd& J,
+                    Eigen::VectorXd& v, Eigen::VectorXd& w, double trusted_above, double gate,
+                    double upper) {
+    bool in_reach = false;
+    if (J0_.rows() == J.rows() && J0_.cols() == J.cols()) {
+      const double d = (J - J0_).norm();
+      const double lo = at_J0_.lo - d;
+      in_reach = lo > 0.0;
+      if (in_reach && lo >= upper * (at_J0_.hi + d)) return lo / (at_J0_.hi + d);
+    }
+    // New bounds cost a certificate's worth (with the certificate, two more factorisations of
+    // the same Gram matrix): paid only on a path of warm solves, where they are carried (the
+    // carried bounds in reach, or this Jacobian within 1 % of the last one), not by cold solves
+    // scattered over the workspace.
+    const bool on_a_path = in_reach || (last_J_.rows() == J.rows() && last_J_.cols() == J.cols() &&
+                                        (J - last_J_).norm() <= 0.01 * J.norm());
+    last_J_ = J;
+    if (lu == nullptr) {
+      lu_.compute(J);
+      lu = &lu_;
+    }
+    const GatedRatio r =
+        gated_sigma_ratio(*lu, J, v, w, trusted_above, gate, upper, on_a_path, on_a_path);
+    if (r.bounds && r.bounds->lo >= upper * r.bounds->hi) {
+      J0_ = J;
+      at_J0_ = *r.bounds;
+    }
+    return r.ratio;
+  }
+
+ private:
+  Eigen::MatrixXd J0_;  // a Jacobian with proved singular-value bounds
+  SingularBounds at_J0_;
+  Eigen::MatrixXd last_J_;  // the last answer's
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+};
 
 template <class System>
 LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, int max_iterations,

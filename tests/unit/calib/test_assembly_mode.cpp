@@ -447,5 +447,67 @@ TEST(AssemblyMode, PerturbedDeltaWarmAndInverseAnswersAreWhatColdForwardKinemati
   EXPECT_EQ(ik_wrong, 0);
 }
 
+TEST(AssemblyMode, IkSolverAlongAPathAnswersAsTheOneShotSolver) {
+  // The IK solver keeps state across solves (the evaluator, the design check's closure solver, the
+  // conditioning carried from answer to answer). Along warm paths of a perturbed Delta, through
+  // its nearly singular region and the design check's band, each answer must be the one the
+  // one-shot solve_ik gives for the same target and seed: status, readings, verdict, and the
+  // conditioning on the same side of the ambiguity gate and (perturbed model) of the design
+  // check's threshold.
+  const Mechanism m = load("rotary_delta.yaml");
+  const Eigen::VectorXd nominal = m.nominal_parameters();
+  const double gate = m.assembly_mode.min_conditioning;
+  std::mt19937 rng(16);
+  int compared = 0, ambiguous = 0, design_band = 0;
+  for (int draw = 0; draw < 2; ++draw) {
+    const Eigen::VectorXd p = draw == 0 ? nominal : sweep::perturbed(m, 5.0, rng);
+    for (double b = -0.6; b <= 1.5; b += 0.7) {
+      IkSolver solver(m, p);
+      IkSeed seed;
+      // Tool positions along a line of readings, 5 mrad apart on the first actuator.
+      for (double a = -0.6; a <= 1.5; a += 0.005) {
+        const Eigen::VectorXd q = readings_from_joint_values(m, p, Eigen::Vector3d(a, b, 0.2));
+        const ClosureResult fk = solve_closure(m, p, q);
+        if (!fk.ok() || !fk.mode.acceptable()) {
+          seed = {};
+          continue;
+        }
+        TaskTarget target;
+        target.pose.translation() = tool_position(m, p, q, fk.passive);
+        const IkResult once = solve_ik(m, p, target, seed);
+        const IkResult kept = solver.solve(target, seed);
+        ASSERT_EQ(kept.status, once.status) << "a " << a << " b " << b;
+        ASSERT_EQ(kept.mode.verdict, once.mode.verdict)
+            << "a " << a << " b " << b << ": " << kept.mode.describe() << " vs "
+            << once.mode.describe();
+        if (!once.ok()) {
+          seed = {};
+          continue;
+        }
+        EXPECT_EQ(kept.mode.invariant, once.mode.invariant) << "a " << a << " b " << b;
+        EXPECT_LE((kept.actuator_readings - once.actuator_readings).cwiseAbs().maxCoeff(), 1e-12)
+            << "a " << a << " b " << b;
+        // The thresholds that decide something: the gate, and for a perturbed model the design
+        // check's (above them the value may be an estimate or a proved lower bound).
+        for (const double threshold : {gate, draw == 0 ? gate : 3.0 * gate})
+          EXPECT_EQ(kept.mode.conditioning < threshold, once.mode.conditioning < threshold)
+              << "a " << a << " b " << b << ": " << kept.mode.conditioning << " vs "
+              << once.mode.conditioning;
+        ++compared;
+        ambiguous += once.mode.verdict == ModeVerdict::kAmbiguous ? 1 : 0;
+        design_band +=
+            draw == 1 && once.mode.conditioning >= gate && once.mode.conditioning < 3.0 * gate;
+        seed = {once.actuator_q, once.passive};
+      }
+    }
+  }
+  std::printf("%d answers compared, %d ambiguous, %d in the design check's band (perturbed)\n",
+              compared, ambiguous, design_band);
+  // The paths must have crossed both regions, or the test proves little.
+  EXPECT_GT(compared, 500);
+  EXPECT_GT(ambiguous, 0);
+  EXPECT_GT(design_band, 0);
+}
+
 }  // namespace
 }  // namespace robocal::calib

@@ -102,7 +102,7 @@ TEST(ConditioningNumerics, GatedRatioLiesBetweenTheSameThresholdsAsTheTrueOne) {
   for (int k = 0; k < 900; ++k) {
     const Case c = make_case(log_uniform(0.3 * gate, 3.0 * upper, rng), rng);
     const Eigen::PartialPivLU<Eigen::MatrixXd> lu(c.J);
-    const double r = gated_sigma_ratio(lu, c.J, v, w, 1e9, gate, upper);
+    const double r = gated_sigma_ratio(lu, c.J, v, w, 1e9, gate, upper).ratio;
     EXPECT_EQ(r < gate, c.ratio < gate) << "case " << k << ": " << r << " vs " << c.ratio;
     EXPECT_EQ(r < upper, c.ratio < upper) << "case " << k << ": " << r << " vs " << c.ratio;
     if (c.ratio < gate) {

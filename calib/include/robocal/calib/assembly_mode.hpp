@@ -44,8 +44,10 @@ struct ModeCheck {
   double margin = 0.0;
   // Distance to the nearest singularity where modes meet: min |value| (0..1).
   double distance = 0.0;
-  // sigma_min / sigma_max of the closure's constraint Jacobian at the answer (solvers: a cheap
-  // estimate; check_assembly_mode(model, params, state): exact); -1 = not evaluated (no loop).
+  // sigma_min / sigma_max of the closure's constraint Jacobian at the answer; -1 = not evaluated
+  // (no loop). check_assembly_mode(model, params, state): exact. Solvers: exact under the
+  // ambiguity gate; above it a cheap estimate (which can only overstate) or, along a path of warm
+  // solves, a proved lower bound, either on the same side of every threshold as the exact value.
   double conditioning = -1.0;
   bool intended() const { return verdict == ModeVerdict::kIntended; }
   // Not on another mode (intended, ambiguous or undeclared).

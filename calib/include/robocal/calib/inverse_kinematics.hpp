@@ -17,6 +17,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <memory>
+
 namespace robocal::calib {
 
 // A target in task coordinates. Which fields count depends on Mechanism::task.type:
@@ -52,5 +54,25 @@ struct IkResult {
 
 IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const TaskTarget& target,
                   const IkSeed& seed = {}, const IkOptions& options = {});
+
+// The same solver for many targets of one model (a path, a planner's candidates, compensation):
+// what depends only on the model and its parameters is built once, and along a path of warm
+// solves the closure's conditioning is carried from answer to answer instead of recomputed. Each
+// answer is the one solve_ik gives for the same target and seed. `model` must outlive the solver.
+class IkSolver {
+ public:
+  IkSolver(const Mechanism& model, const Eigen::VectorXd& params, IkOptions options = {});
+  ~IkSolver();
+  IkSolver(IkSolver&&) noexcept;
+  IkSolver& operator=(IkSolver&&) noexcept;
+  IkSolver(const IkSolver&) = delete;
+  IkSolver& operator=(const IkSolver&) = delete;
+
+  IkResult solve(const TaskTarget& target, const IkSeed& seed = {});
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace robocal::calib
