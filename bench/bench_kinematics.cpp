@@ -130,19 +130,20 @@ void BM_DeltaFkColdPerturbed(benchmark::State& state) {
 }
 BENCHMARK(BM_DeltaFkColdPerturbed);
 
-void BM_DeltaIkWarmPerturbed(benchmark::State& state) {
-  const Mechanism& m = delta();
-  const Eigen::VectorXd p = perturbed_parameters();
+// IK along the helix on the perturbed model, each target warm-started from the previous answer;
+// `solve(target, seed)` is the solver under test.
+template <class Solve>
+void ik_along_the_path(benchmark::State& state, Solve solve) {
   const auto pts = path_points();
   TaskTarget target;
   target.pose.translation() = pts[0];
-  IkResult first = solve_ik(m, p, target);
+  const IkResult first = solve(target, IkSeed{});
   IkSeed seed{first.actuator_q, first.passive};
   std::size_t k = 1;
   int iterations = 0;
   for (auto _ : state) {
     target.pose.translation() = pts[k];
-    const IkResult r = solve_ik(m, p, target, seed);
+    const IkResult r = solve(target, seed);
     if (!r.ok()) state.SkipWithError("ik failed");
     seed.actuator_q = r.actuator_q;
     seed.passive = r.passive;
@@ -155,35 +156,22 @@ void BM_DeltaIkWarmPerturbed(benchmark::State& state) {
   state.counters["newton_iters"] =
       benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
 }
+
+void BM_DeltaIkWarmPerturbed(benchmark::State& state) {
+  const Eigen::VectorXd p = perturbed_parameters();
+  ik_along_the_path(state, [&](const TaskTarget& target, const IkSeed& seed) {
+    return solve_ik(delta(), p, target, seed);
+  });
+}
 BENCHMARK(BM_DeltaIkWarmPerturbed);
 
 // The same path through one IkSolver (its state kept across the solves, as a planner or a path
 // check uses it).
 void BM_DeltaIkSolverWarmPerturbed(benchmark::State& state) {
-  const Mechanism& m = delta();
-  const Eigen::VectorXd p = perturbed_parameters();
-  const auto pts = path_points();
-  TaskTarget target;
-  target.pose.translation() = pts[0];
-  IkSolver solver(m, p);
-  IkResult first = solver.solve(target);
-  IkSeed seed{first.actuator_q, first.passive};
-  std::size_t k = 1;
-  int iterations = 0;
-  for (auto _ : state) {
-    target.pose.translation() = pts[k];
-    const IkResult r = solver.solve(target, seed);
-    if (!r.ok()) state.SkipWithError("ik failed");
-    seed.actuator_q = r.actuator_q;
-    seed.passive = r.passive;
-    iterations += r.iterations;
-    if (++k == pts.size()) {
-      k = 1;
-      seed = {first.actuator_q, first.passive};
-    }
-  }
-  state.counters["newton_iters"] =
-      benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
+  IkSolver solver(delta(), perturbed_parameters());
+  ik_along_the_path(state, [&](const TaskTarget& target, const IkSeed& seed) {
+    return solver.solve(target, seed);
+  });
 }
 BENCHMARK(BM_DeltaIkSolverWarmPerturbed);
 
