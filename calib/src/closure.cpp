@@ -132,12 +132,11 @@ struct ClosureSolver::Impl {
     return true;
   }
 
-  Eigen::VectorXd seed() { return seed(seed_ev, params, model->home_passive()); }
+  Eigen::VectorXd seed() { return seed(seed_ev, params); }
   // Closed-form seed for the actuators in q, with the loops of `loop_ev` (whose parameters are p
-  // but for the base and task frames): the loops closed with the task frame pinned where the
-  // closed form puts it, from `start` (passive values).
-  Eigen::VectorXd seed(detail::TreeEvaluator& loop_ev, const Eigen::VectorXd& p,
-                       Eigen::VectorXd x) {
+  // but for the base and task frames).
+  Eigen::VectorXd seed(detail::TreeEvaluator& loop_ev, const Eigen::VectorXd& p) {
+    Eigen::VectorXd x = model->home_passive();
     if (model->closed_form.kind == ClosedFormKind::kNone || model->passive.empty()) return x;
     Eigen::VectorXd qa(static_cast<Eigen::Index>(model->actuated.size()));
     for (std::size_t i = 0; i < model->actuated.size(); ++i) {
@@ -206,13 +205,13 @@ struct ClosureSolver::Impl {
   // the answer between those configurations. Returns false (r unspecified) when the design's
   // answer is not on an acceptable mode or a step does not close; the caller then seeds as before.
   static constexpr double kDesignStep = 1.0;  // largest step (fraction of the parameter path)
-  // The seed's pinned solve starts from the home configuration, always: started from the warm
-  // answer instead (tried: fewer steps), the design's answer followed that answer's branch, and
-  // the compensation test's perturbed Delta got a 4.6 mm different command at one target.
+  // The seed's pinned solve starts from the home configuration, never from a warm answer: tried
+  // (fewer steps), the design's answer then followed that answer's branch, and the compensation
+  // test's perturbed Delta got a 4.6 mm different command at one target.
   bool from_design(const Eigen::VectorXd& readings, ClosureResult& r) {
     ClosureSystem dsys{&design_ev, &q, model};
     set_actuators(readings, design);
-    r.passive = seed(design_ev, design, model->home_passive());
+    r.passive = seed(design_ev, design);
     attempt(dsys, r);
     if (!r.ok() || !r.mode.acceptable()) return false;
     const ModeCheck design_mode = r.mode;

@@ -168,51 +168,47 @@ inline bool shifted_positive_definite(const Eigen::MatrixXd& B, double sign, dou
   return Eigen::LLT<Eigen::MatrixXd>(A).info() == Eigen::Success;
 }
 
-// Whether sigma_min / sigma_max of J is certainly above t, given B = J^T J and rho <= lambda_max
-// (gram_and_rho), without the eigenvalues: c I - B positive definite proves lambda_max < c; then
-// B - t^2 c I positive definite proves lambda_min > t^2 c > t^2 lambda_max. c is the tightest of
-// 1.02, 1.1 and 1.5 rho that proves the bound (the power iteration is a few per cent at most
-// under lambda_max, often under one: the ratio is then proved from about 1.01 t; with 1.5 rho,
-// from about 1.22 t). Failing answers false, and the caller computes the ratio exactly. A quarter
-// of the cost of the eigenvalues, and the common answer away from singular configurations.
-inline bool gram_ratio_certainly_above(const Eigen::MatrixXd& B, double rho, double t) {
-  for (const double f : {1.02, 1.1, 1.5}) {
-    const double c = f * rho;
-    if (shifted_positive_definite(B, -1.0, c)) return shifted_positive_definite(B, 1.0, -t * t * c);
-  }
-  return false;
+// A proved upper bound c of lambda_max(B), given rho <= lambda_max (gram_and_rho): the tightest of
+// 1.02, 1.1 and 1.5 rho for which c I - B is positive definite (the power iteration is a few per
+// cent at most under lambda_max, often under one). Empty when none is.
+inline std::optional<double> lambda_max_bound(const Eigen::MatrixXd& B, double rho) {
+  for (const double f : {1.02, 1.1, 1.5})
+    if (shifted_positive_definite(B, -1.0, f * rho)) return f * rho;
+  return std::nullopt;
+}
+
+// Whether sigma_min / sigma_max of J is certainly above t, without the eigenvalues, given
+// c >= lambda_max(B) (lambda_max_bound): B - t^2 c I positive definite proves
+// lambda_min > t^2 c >= t^2 lambda_max. With c from the 1.02 rho try the ratio is proved from
+// about 1.01 t, from the 1.5 rho try from about 1.22 t. Failing answers false, and the caller
+// computes the ratio exactly. A quarter of the cost of the eigenvalues, and the common answer
+// away from singular configurations.
+inline bool gram_ratio_certainly_above(const Eigen::MatrixXd& B, double c, double t) {
+  return shifted_positive_definite(B, 1.0, -t * t * c);
 }
 inline bool sigma_ratio_certainly_above(const Eigen::MatrixXd& J, double t) {
   Eigen::MatrixXd B(J.cols(), J.cols());
   double rho = 0.0;
-  return gram_and_rho(J, B, rho) && gram_ratio_certainly_above(B, rho, t);
+  if (!gram_and_rho(J, B, rho)) return false;
+  const std::optional<double> c = lambda_max_bound(B, rho);
+  return c && gram_ratio_certainly_above(B, *c, t);
 }
 
-// Bounds on the singular values of J: sigma_min >= lo and sigma_max <= hi, proved by Cholesky
-// (hi^2 I - B and B - lo^2 I positive definite) around the guesses rho (sigma_max^2) and `ratio`
-// (an estimate of sigma_min / sigma_max), tight first (hi 1 % over, lo 10 % under the guesses).
+// Bounds on the singular values of J: sigma_min >= lo and sigma_max <= hi = sqrt(c), given
+// c >= lambda_max(B) (lambda_max_bound), lo proved by Cholesky (B - lo^2 I positive definite)
+// around the guess `ratio` (an estimate of sigma_min / sigma_max) times sqrt(rho): 10 % under it
+// first, then 40 %.
 struct SingularBounds {
   double lo = 0.0;
   double hi = 0.0;
 };
 inline std::optional<SingularBounds> gram_singular_bounds(const Eigen::MatrixXd& B, double rho,
-                                                          double ratio) {
+                                                          double c, double ratio) {
   if (!(ratio > 0.0) || !std::isfinite(ratio)) return std::nullopt;
-  SingularBounds out;
-  for (const double f : {1.02, 1.1, 1.5}) {
-    if (shifted_positive_definite(B, -1.0, f * rho)) {
-      out.hi = std::sqrt(f * rho);
-      break;
-    }
-  }
-  if (!(out.hi > 0.0)) return std::nullopt;
   const double sigma_min = ratio * std::sqrt(rho);
-  for (const double f : {0.9, 0.6}) {
-    if (shifted_positive_definite(B, 1.0, -(f * sigma_min) * (f * sigma_min))) {
-      out.lo = f * sigma_min;
-      return out;
-    }
-  }
+  for (const double f : {0.9, 0.6})
+    if (shifted_positive_definite(B, 1.0, -(f * sigma_min) * (f * sigma_min)))
+      return SingularBounds{f * sigma_min, std::sqrt(c)};
   return std::nullopt;
 }
 
@@ -283,12 +279,14 @@ inline GatedRatio gated_sigma_ratio(const Eigen::PartialPivLU<Eigen::MatrixXd>& 
   if (out.ratio >= met) {
     Eigen::MatrixXd B(J.cols(), J.cols());
     double rho = 0.0;
-    if (gram_and_rho(J, B, rho)) {
+    const std::optional<double> c =
+        gram_and_rho(J, B, rho) ? lambda_max_bound(B, rho) : std::nullopt;
+    if (c) {
       if (bounds) {
-        out.bounds = gram_singular_bounds(B, rho, out.ratio);
+        out.bounds = gram_singular_bounds(B, rho, *c, out.ratio);
         if (out.bounds && out.bounds->lo >= met * out.bounds->hi) return out;
       }
-      if (trusted || gram_ratio_certainly_above(B, rho, met)) return out;
+      if (trusted || gram_ratio_certainly_above(B, *c, met)) return out;
     }
   }
   out.bounds.reset();
