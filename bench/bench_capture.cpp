@@ -12,6 +12,8 @@
 // what is subtracted as "move"; the link's round trips count as robocal's overhead.
 #include "sim_camera_cell.hpp"
 
+#include "robocal/robotio/sim_process.hpp"
+
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -56,18 +58,6 @@ class TimedRobot final : public CaptureRobot {
   CaptureRobot* inner_;
   std::vector<std::chrono::steady_clock::time_point>* starts_;
 };
-
-// Durations of the simulator's non-homing motions, in order (its JSONL log).
-std::vector<double> simulated_motion_seconds(const std::string& log) {
-  std::vector<double> out;
-  for (const auto& motion :
-       robocal::test::events(robocal::test::read_sim_log(log), "motion_start")) {
-    if (!motion.value("homing", false)) {
-      out.push_back(motion.value("duration_s", 0.0));
-    }
-  }
-  return out;
-}
 
 double percentile(std::vector<double> values, double p) {
   std::sort(values.begin(), values.end());
@@ -226,7 +216,9 @@ int main(int argc, char** argv) {
   double sum_check = 0.0;
   double sum_write = 0.0;
   double sum_grab = 0.0;
+  double sum_wait = 0.0;
   for (const auto& pose : result.poses) {
+    sum_wait += pose.wait_s;
     sum_move += pose.move_s;
     sum_check += pose.check_s;
     sum_write += pose.write_s;
@@ -236,7 +228,7 @@ int main(int argc, char** argv) {
   // (the gantry: instantaneous).
   std::vector<double> motion_s(windows, 0.0);
   if (sim_controller) {
-    const std::vector<double> motions = simulated_motion_seconds(sim->log);
+    const std::vector<double> motions = robotio::simulated_motion_seconds(sim->log);
     for (std::size_t w = 0; w < windows && w < motions.size(); ++w) {
       motion_s[w] = motions[w];
     }
@@ -286,7 +278,8 @@ int main(int argc, char** argv) {
         {"simulated_motion", 1e3 * sum_motion / n},
         {"waiting_for_frames_incl_render", 1e3 * sum_grab / n},
         {"motion_check_background", 1e3 * sum_check / n},
-        {"write_background", 1e3 * sum_write / n}}},
+        {"write_background", 1e3 * sum_write / n},
+        {"waiting_for_check_and_write", 1e3 * sum_wait / n}}},
       {"definition",
        "overhead = wall time per pose - the robot's motion (sim: the controller's simulated "
        "motion durations, so link round trips count as overhead; gantry: move_and_settle) - "

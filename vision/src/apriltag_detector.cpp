@@ -31,21 +31,61 @@ struct AprilTagDetector::Impl {
     if (family != nullptr && destroy_family != nullptr) destroy_family(family);
   }
 
-  std::vector<TagDetection> run(const cv::Mat& gray, bool refine) {
+  // The black border is one cell of width_at_border; the white quiet zone at least one cell.
+  [[nodiscard]] QuadRefineOptions quad_refine_options() const {
+    QuadRefineOptions refine_options;
+    const double cell_fraction = 1.0 / static_cast<double>(family->width_at_border);
+    refine_options.inner_band_fraction = cell_fraction;
+    refine_options.outer_band_fraction = cell_fraction;
+    return refine_options;
+  }
+
+  // Refines every tag's corners from tag.corners on `gray` (the tags are independent: on the
+  // detector's threads). A tag whose refinement fails keeps its corners and `refined` false.
+  void refine_tags(const cv::Mat& gray, std::vector<TagDetection>& tags) const {
+    const QuadRefineOptions refine_options = quad_refine_options();
+    auto refine_range = [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        TagDetection& tag = tags[i];
+        if (const auto r = refine_quad_corners(gray, tag.corners, refine_options)) {
+          tag.corners = r->corners;
+          tag.refined = true;
+          tag.edge_blur_px = r->mean_blur_sigma;
+          tag.edge_contrast = r->mean_contrast;
+          tag.corner_covariance = r->corner_covariance;
+        }
+      }
+    };
+    const size_t workers =
+        std::min<size_t>(static_cast<size_t>(std::max(1, options.threads)), tags.size());
+    if (workers <= 1) {
+      refine_range(0, tags.size());
+      return;
+    }
+    std::vector<std::thread> pool;
+    const size_t chunk = (tags.size() + workers - 1) / workers;
+    for (size_t w = 1; w < workers; ++w) {
+      pool.emplace_back(refine_range, std::min(tags.size(), w * chunk),
+                        std::min(tags.size(), (w + 1) * chunk));
+    }
+    refine_range(0, std::min(tags.size(), chunk));
+    for (auto& t : pool) t.join();
+  }
+
+  static void check_image(const cv::Mat& gray) {
     if (gray.empty() || gray.type() != CV_8UC1) {
       throw std::invalid_argument(
           "AprilTag detection needs a non-empty 8-bit single-channel image");
     }
+  }
+
+  std::vector<TagDetection> run(const cv::Mat& gray, bool refine) {
+    check_image(gray);
     image_u8_t image{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]),
                      const_cast<uint8_t*>(gray.ptr<uint8_t>(0))};
     zarray_t* found = apriltag_detector_detect(detector, &image);
     std::vector<TagDetection> out;
     out.reserve(static_cast<size_t>(zarray_size(found)));
-    QuadRefineOptions refine_options;
-    // The black border is one cell of width_at_border; the white quiet zone at least one cell.
-    const double cell_fraction = 1.0 / static_cast<double>(family->width_at_border);
-    refine_options.inner_band_fraction = cell_fraction;
-    refine_options.outer_band_fraction = cell_fraction;
     for (int i = 0; i < zarray_size(found); ++i) {
       apriltag_detection_t* det = nullptr;
       zarray_get(found, i, &det);
@@ -64,33 +104,7 @@ struct AprilTagDetector::Impl {
       out.push_back(tag);
     }
     if (refine) {
-      // Tags are independent: refine them on the detector's threads.
-      auto refine_range = [&](size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) {
-          TagDetection& tag = out[i];
-          if (const auto r = refine_quad_corners(gray, tag.library_corners, refine_options)) {
-            tag.corners = r->corners;
-            tag.refined = true;
-            tag.edge_blur_px = r->mean_blur_sigma;
-            tag.edge_contrast = r->mean_contrast;
-            tag.corner_covariance = r->corner_covariance;
-          }
-        }
-      };
-      const size_t workers =
-          std::min<size_t>(static_cast<size_t>(std::max(1, options.threads)), out.size());
-      if (workers <= 1) {
-        refine_range(0, out.size());
-      } else {
-        std::vector<std::thread> pool;
-        const size_t chunk = (out.size() + workers - 1) / workers;
-        for (size_t w = 1; w < workers; ++w) {
-          pool.emplace_back(refine_range, std::min(out.size(), w * chunk),
-                            std::min(out.size(), (w + 1) * chunk));
-        }
-        refine_range(0, std::min(out.size(), chunk));
-        for (auto& t : pool) t.join();
-      }
+      refine_tags(gray, out);
     }
     apriltag_detections_destroy(found);
     std::sort(out.begin(), out.end(),
@@ -150,6 +164,27 @@ AprilTagDetector& AprilTagDetector::operator=(AprilTagDetector&&) noexcept = def
 
 std::vector<TagDetection> AprilTagDetector::detect(const cv::Mat& gray) {
   return impl_->run(gray, impl_->options.subpixel_refine);
+}
+
+std::vector<TagDetection> AprilTagDetector::refine_at(const cv::Mat& gray,
+                                                      const std::vector<TagDetection>& previous) {
+  Impl::check_image(gray);
+  std::vector<TagDetection> tags;
+  tags.reserve(previous.size());
+  for (const TagDetection& before : previous) {
+    TagDetection tag;
+    tag.id = before.id;
+    tag.hamming = before.hamming;
+    tag.decision_margin = before.decision_margin;
+    tag.library_corners = before.corners;  // where the refinement starts
+    tag.corners = before.corners;
+    tag.edge_blur_px = std::numeric_limits<double>::quiet_NaN();
+    tag.edge_contrast = std::numeric_limits<double>::quiet_NaN();
+    tags.push_back(tag);
+  }
+  impl_->refine_tags(gray, tags);
+  std::erase_if(tags, [](const TagDetection& tag) { return !tag.refined; });
+  return tags;
 }
 
 std::vector<TagDetection> AprilTagDetector::detect_library_only(const cv::Mat& gray) {

@@ -103,21 +103,25 @@ LoadedImage load_gray_image(const std::filesystem::path& path) {
   return out;
 }
 
-TargetDetection detect_apriltag_board(const cv::Mat& gray, const TargetBoard& board,
-                                      AprilTagDetector& detector) {
-  TargetDetection out;
-  if (board.spec.kind != TargetKind::kAprilTagGrid) {
-    out.reason = "target is not an AprilTag grid";
-    return out;
-  }
+namespace {
+
+// Whether the board and the detector can work together; the reason when not.
+std::string apriltag_board_mismatch(const TargetBoard& board, const AprilTagDetector& detector) {
+  if (board.spec.kind != TargetKind::kAprilTagGrid) return "target is not an AprilTag grid";
   if (board.spec.family != detector.options().family) {
-    out.reason = "detector family " + detector.options().family + " differs from the board's " +
-                 board.spec.family;
-    return out;
+    return "detector family " + detector.options().family + " differs from the board's " +
+           board.spec.family;
   }
+  return {};
+}
+
+// The board's corners among `tags` (tags of other boards ignored), with the status: found,
+// partial (which markers are missing) or rejected (none of the board, or an id seen twice).
+TargetDetection board_detection_from_tags(const std::vector<TagDetection>& tags,
+                                          const TargetBoard& board) {
+  TargetDetection out;
   std::map<int, const TargetMarker*> markers;
   for (const auto& m : board.markers) markers[m.id] = &m;
-  const auto tags = detector.detect(gray);
   std::map<int, int> seen;
   for (const auto& t : tags) ++seen[t.id];
   std::vector<int> duplicated;
@@ -167,6 +171,49 @@ TargetDetection detect_apriltag_board(const cv::Mat& gray, const TargetBoard& bo
     out.status = DetectionStatus::kPartial;
     out.reason = fmt::format("{} of {} tags missing: {}", out.missing_marker_ids.size(),
                              markers.size(), fmt::join(out.missing_marker_ids, ", "));
+  }
+  return out;
+}
+
+}  // namespace
+
+TargetDetection detect_apriltag_board(const cv::Mat& gray, const TargetBoard& board,
+                                      AprilTagDetector& detector) {
+  if (std::string why = apriltag_board_mismatch(board, detector); !why.empty()) {
+    TargetDetection out;
+    out.reason = std::move(why);
+    return out;
+  }
+  return board_detection_from_tags(detector.detect(gray), board);
+}
+
+TargetDetection redetect_apriltag_board(const cv::Mat& gray, const TargetBoard& board,
+                                        const TargetDetection& previous,
+                                        AprilTagDetector& detector) {
+  if (std::string why = apriltag_board_mismatch(board, detector); !why.empty()) {
+    TargetDetection out;
+    out.reason = std::move(why);
+    return out;
+  }
+  // The tags whose four corners the earlier detection holds (corner id = 4 x tag id + k).
+  std::map<int, TagDetection> tags;
+  std::map<int, int> corners_of;
+  for (std::size_t i = 0; i < previous.corner_ids.size(); ++i) {
+    const int id = previous.corner_ids[i] / 4;
+    TagDetection& tag = tags[id];
+    tag.id = id;
+    tag.corners[static_cast<std::size_t>(previous.corner_ids[i] % 4)] = previous.pixels[i];
+    ++corners_of[id];
+  }
+  std::vector<TagDetection> complete;
+  for (const auto& [id, tag] : tags) {
+    if (corners_of[id] == 4) complete.push_back(tag);
+  }
+  TargetDetection out = board_detection_from_tags(detector.refine_at(gray, complete), board);
+  if (out.status == DetectionStatus::kRejected && !complete.empty()) {
+    out.reason =
+        "no tag found again where the earlier image had it (the target moved more "
+        "than the refinement reaches, or is covered)";
   }
   return out;
 }

@@ -364,7 +364,8 @@ nlohmann::json pose_json(const robotio::PoseCaptureReport& p) {
           {"move_s", p.move_s},
           {"grab_s", p.grab_s},
           {"check_s", p.check_s},
-          {"write_s", p.write_s}};
+          {"write_s", p.write_s},
+          {"wait_s", p.wait_s}};
 }
 
 // The summary gets the outcome's status, message and signal.
@@ -499,6 +500,7 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   r["retakes"] = retakes;
   r["still_moving"] = still_moving;
   r["poses"] = summary_poses;
+  r["capture_seconds"] = result.seconds;
   const int sig = robotio::StopSignals::stop_signal();
   if (result.complete && on_disk == in.targets.size()) {
     res.status = "ok";

@@ -33,12 +33,12 @@ Eigen::Isometry3d SaggingBoard::world_T_board() {
 
 InProcessCamera::InProcessCamera(LiveCameraSpec spec, const vision::TargetBoard& board,
                                  robotio::TruePoseSource& truth,
-                                 std::shared_ptr<std::atomic<std::int64_t>> render_ns)
+                                 std::shared_ptr<robotio::RenderBusyClock> busy)
     : spec_(std::move(spec)),
       board_(&board),
       truth_(&truth),
       rays_(vision::precompute_rays(spec_.model)),
-      render_ns_(std::move(render_ns)) {}
+      busy_(std::move(busy)) {}
 
 InProcessCamera::~InProcessCamera() {
   if (pending_.valid()) pending_.wait();
@@ -96,12 +96,8 @@ void InProcessCamera::trigger() {
   options.seed = spec_.render.seed + frames_++;
   options.bit_depth = 8;
   pending_ = std::async(std::launch::async, [this, camera_T_board, options] {
-    const auto start = std::chrono::steady_clock::now();
-    cv::Mat image = vision::render(rays_, {{*board_, camera_T_board}}, options).image;
-    render_ns_->fetch_add(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                              std::chrono::steady_clock::now() - start)
-                              .count());
-    return image;
+    const robotio::RenderBusyScope busy(busy_.get());
+    return vision::render(rays_, {{*board_, camera_T_board}}, options).image;
   });
 }
 
@@ -143,7 +139,6 @@ LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision:
     : specs_(specs), board_(&board), prefix_(serial_prefix) {
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     truths_.push_back(truths.size() == 1 ? truths.front() : truths.at(i));
-    in_process_ns_.push_back(std::make_shared<std::atomic<std::int64_t>>(0));
     gige_.emplace_back();
     if (!gige) continue;
     robotio::SimulatedCameraSpec s;
@@ -152,6 +147,7 @@ LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision:
     s.model = specs_[i].model;
     s.camera_T_world = specs_[i].camera_T_world;
     s.render = specs_[i].render;
+    s.busy_clock = busy_;
     try {
       gige_[i] = std::make_unique<robotio::SimulatedGigECamera>(s, board, *truths_[i]);
       gige_[i]->set_history(1);
@@ -179,8 +175,7 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(std::size_t camera) {
       gige_[camera].reset();
     }
   }
-  return std::make_unique<InProcessCamera>(specs_[camera], *board_, *truths_[camera],
-                                           in_process_ns_[camera]);
+  return std::make_unique<InProcessCamera>(specs_[camera], *board_, *truths_[camera], busy_);
 }
 
 std::unique_ptr<robotio::CameraSource> LiveCameras::open(const std::string& name) {
@@ -192,21 +187,9 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(const std::string& name
 
 void LiveCameras::fall_back(std::size_t camera, const std::string& why) {
   if (!gige_[camera]) return;
-  in_process_ns_[camera]->fetch_add(
-      static_cast<std::int64_t>(gige_[camera]->render_seconds() * 1e9));  // keep the total
   gige_[camera].reset();
   notes_.push_back(
       fmt::format("{}: {}; rendered in-process from now on", specs_[camera].name, why));
-}
-
-double LiveCameras::render_seconds_max() const {
-  double most = 0.0;
-  for (std::size_t i = 0; i < specs_.size(); ++i) {
-    const double s = gige_[i] ? gige_[i]->render_seconds()
-                              : static_cast<double>(in_process_ns_[i]->load()) * 1e-9;
-    most = std::max(most, s);
-  }
-  return most;
 }
 
 }  // namespace robocal::app

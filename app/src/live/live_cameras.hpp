@@ -16,7 +16,6 @@
 
 #include <Eigen/Geometry>
 
-#include <atomic>
 #include <future>
 #include <memory>
 #include <mutex>
@@ -60,10 +59,10 @@ struct LiveCameraSpec {
 // both cameras before receiving renders them at once). Mono8, full frame only.
 class InProcessCamera final : public robotio::CameraSource {
  public:
-  // `render_ns` accumulates the rendering time (shared: it outlives the source).
+  // `busy` counts the rendering time, with the cell's other cameras (shared: it outlives the
+  // source).
   InProcessCamera(LiveCameraSpec spec, const vision::TargetBoard& board,
-                  robotio::TruePoseSource& truth,
-                  std::shared_ptr<std::atomic<std::int64_t>> render_ns);
+                  robotio::TruePoseSource& truth, std::shared_ptr<robotio::RenderBusyClock> busy);
   ~InProcessCamera() override;
   InProcessCamera(const InProcessCamera&) = delete;
   InProcessCamera& operator=(const InProcessCamera&) = delete;
@@ -98,7 +97,7 @@ class InProcessCamera final : public robotio::CameraSource {
   bool started_ = false;
   std::uint64_t frames_ = 0;
   std::future<cv::Mat> pending_;
-  std::shared_ptr<std::atomic<std::int64_t>> render_ns_;
+  std::shared_ptr<robotio::RenderBusyClock> busy_;
 };
 
 // The cameras of the cell showing one board, served as GigE where possible.
@@ -125,15 +124,15 @@ class LiveCameras {
   // the GigE heartbeat window looks like a lost camera); it is rendered in-process from then on.
   void fall_back(std::size_t camera, const std::string& why);
   [[nodiscard]] const std::vector<std::string>& notes() const { return notes_; }
-  // Rendering time so far over every camera, and the largest of one camera (s).
-  [[nodiscard]] double render_seconds_max() const;
+  // Wall time so far during which at least one camera was rendering (s).
+  [[nodiscard]] double render_seconds() const { return busy_->seconds(); }
 
  private:
   std::vector<LiveCameraSpec> specs_;
   const vision::TargetBoard* board_;
   std::vector<robotio::TruePoseSource*> truths_;  // per camera
   std::vector<std::unique_ptr<robotio::SimulatedGigECamera>> gige_;
-  std::vector<std::shared_ptr<std::atomic<std::int64_t>>> in_process_ns_;  // per camera
+  std::shared_ptr<robotio::RenderBusyClock> busy_ = std::make_shared<robotio::RenderBusyClock>();
   std::vector<std::string> notes_;
   std::string prefix_;
 };

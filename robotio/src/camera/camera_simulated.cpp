@@ -21,6 +21,23 @@ SimulatedGigECamera::SimulatedGigECamera(SimulatedCameraSpec spec, vision::Targe
       [this](const FakeFrameRequest& request) { return render_frame(request); });
 }
 
+void RenderBusyClock::begin() {
+  const std::lock_guard lock(mutex_);
+  if (active_++ == 0) since_ = std::chrono::steady_clock::now();
+}
+
+void RenderBusyClock::end() {
+  const std::lock_guard lock(mutex_);
+  if (--active_ == 0) busy_ += std::chrono::steady_clock::now() - since_;
+}
+
+double RenderBusyClock::seconds() const {
+  const std::lock_guard lock(mutex_);
+  auto busy = busy_;
+  if (active_ > 0) busy += std::chrono::steady_clock::now() - since_;
+  return std::chrono::duration<double>(busy).count();
+}
+
 cv::Mat SimulatedGigECamera::render_frame(const FakeFrameRequest& request) {
   const Region& r = request.region;
   if (r.x + r.width > spec_.model.width || r.y + r.height > spec_.model.height) {
@@ -29,6 +46,7 @@ cv::Mat SimulatedGigECamera::render_frame(const FakeFrameRequest& request) {
                              " outside the simulated " + std::to_string(spec_.model.width) + "x" +
                              std::to_string(spec_.model.height) + " image");
   }
+  const RenderBusyScope busy(spec_.busy_clock.get());
   const auto start = std::chrono::steady_clock::now();
   const Eigen::Isometry3d world_T_board = truth_->world_T_board();
   vision::RenderOptions options = spec_.render;

@@ -7,8 +7,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
+
 #include <cerrno>
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
 #include <thread>
 
@@ -98,6 +101,22 @@ int SimControllerProcess::stop(std::chrono::milliseconds timeout) {
   }
   pid_ = -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+std::vector<double> simulated_motion_seconds(const std::filesystem::path& log) {
+  std::ifstream in(log);
+  if (!in) {
+    throw std::runtime_error(log.string() + ": cannot read the sim-controller log");
+  }
+  std::vector<double> seconds;
+  for (std::string line; std::getline(in, line);) {
+    const nlohmann::json event = nlohmann::json::parse(line, nullptr, false);
+    if (event.is_object() && event.value("ev", "") == "motion_start" &&
+        !event.value("homing", false)) {
+      seconds.push_back(event.value("duration_s", 0.0));
+    }
+  }
+  return seconds;
 }
 
 }  // namespace robocal::robotio

@@ -104,6 +104,62 @@ TEST(AprilTagBoardDetection, PartialDuplicateAndMirroredImages) {
   EXPECT_EQ(det.reason, "no tags found");
 }
 
+// The second look of the settled-frame test: the tags of a first detection refined where they
+// were in a later image. Within the refinement's reach (2 px) every corner is found again where
+// the later view's homography puts it, as accurately as a full detection; beyond it, none is
+// (a target that moved is not reported still), and the reason says so.
+TEST(AprilTagBoardDetection, FoundAgainWhereItWasOnlyWithinReach) {
+  const auto board = tag_board();
+  const rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
+  const auto view = [&](double du, unsigned seed) {
+    return rt::render_board_view(board, cam, 0.5, 35.0, 20.0, 5.0, 319.5 + du, 255.5, 0.8, 2.0,
+                                 seed);
+  };
+  rv::AprilTagDetector detector;
+  const Rendered first_view = view(0.0, 1);
+  const auto first = rv::detect_apriltag_board(first_view.image, board, detector);
+  ASSERT_EQ(first.status, rv::DetectionStatus::kFound) << first.reason;
+
+  for (const double du : {0.0, 0.4, 1.5}) {
+    SCOPED_TRACE("moved " + std::to_string(du) + " px");
+    const Rendered later_view = view(du, 2);  // new image noise, as in a second frame
+    const auto again = rv::redetect_apriltag_board(later_view.image, board, first, detector);
+    ASSERT_EQ(again.status, rv::DetectionStatus::kFound) << again.reason;
+    EXPECT_EQ(again.corner_ids, first.corner_ids);
+    EXPECT_EQ(again.corner_groups.size(), first.corner_groups.size());
+    double sq = 0.0;
+    for (std::size_t i = 0; i < again.pixels.size(); ++i) {
+      const Eigen::Vector2d truth = rt::apply_h(later_view.h, again.board_points[i].head<2>());
+      sq += (again.pixels[i] - truth).squaredNorm();
+      EXPECT_LT((again.pixels[i] - truth).norm(), 0.1) << "corner " << again.corner_ids[i];
+    }
+    EXPECT_LT(std::sqrt(sq / static_cast<double>(again.pixels.size())), 0.03);
+  }
+
+  const Rendered far_view = view(8.0, 3);
+  const auto lost = rv::redetect_apriltag_board(far_view.image, board, first, detector);
+  EXPECT_EQ(lost.status, rv::DetectionStatus::kRejected);
+  EXPECT_TRUE(lost.pixels.empty());
+  EXPECT_NE(lost.reason.find("no tag found again"), std::string::npos) << lost.reason;
+
+  // A tag the first detection lacks is not looked for: the later image has all twelve, the
+  // first (covered) only eleven.
+  rv::TargetDetection eleven = first;
+  eleven.corner_ids.erase(eleven.corner_ids.begin(), eleven.corner_ids.begin() + 4);
+  eleven.board_points.erase(eleven.board_points.begin(), eleven.board_points.begin() + 4);
+  eleven.pixels.erase(eleven.pixels.begin(), eleven.pixels.begin() + 4);
+  const auto partial = rv::redetect_apriltag_board(view(0.0, 4).image, board, eleven, detector);
+  EXPECT_EQ(partial.status, rv::DetectionStatus::kPartial);
+  EXPECT_EQ(partial.missing_marker_ids, std::vector<int>{first.corner_ids.front() / 4});
+
+  rv::AprilTagDetectorOptions tag25h9;
+  tag25h9.family = "tag25h9";
+  rv::AprilTagDetector other_family(tag25h9);
+  const auto mismatch = rv::redetect_apriltag_board(first_view.image, board, first, other_family);
+  EXPECT_EQ(mismatch.status, rv::DetectionStatus::kRejected);
+  EXPECT_NE(mismatch.reason.find("tag25h9"), std::string::npos) << mismatch.reason;
+}
+
 TEST(ImageLoading, ClearErrorsPerFile) {
   const auto dir = temp_dir();
   const cv::Mat img(60, 80, CV_8UC1, cv::Scalar(100));

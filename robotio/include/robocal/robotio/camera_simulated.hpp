@@ -39,6 +39,42 @@ class TruePoseSource {
   [[nodiscard]] virtual Eigen::Isometry3d world_T_board() = 0;
 };
 
+// Wall time during which at least one of several simulated cameras was rendering: the union of
+// their render intervals. A capture triggers every camera and then waits for them all, so this
+// union (not the sum, nor one camera's total) is the time it waited on simulated exposures, which
+// benches and the live demo subtract to get robocal's own time. Thread safe; one per cell, shared
+// by its cameras.
+class RenderBusyClock {
+ public:
+  void begin();
+  void end();
+  [[nodiscard]] double seconds() const;  // so far, including a render in progress
+
+ private:
+  mutable std::mutex mutex_;
+  int active_ = 0;
+  std::chrono::steady_clock::time_point since_;
+  std::chrono::steady_clock::duration busy_{0};
+};
+
+// begin() now, end() when it goes (also when a render throws).
+class RenderBusyScope {
+ public:
+  explicit RenderBusyScope(RenderBusyClock* clock) : clock_(clock) {
+    if (clock_ != nullptr) clock_->begin();
+  }
+  ~RenderBusyScope() {
+    if (clock_ != nullptr) clock_->end();
+  }
+  RenderBusyScope(const RenderBusyScope&) = delete;
+  RenderBusyScope& operator=(const RenderBusyScope&) = delete;
+  RenderBusyScope(RenderBusyScope&&) = delete;
+  RenderBusyScope& operator=(RenderBusyScope&&) = delete;
+
+ private:
+  RenderBusyClock* clock_;
+};
+
 struct SimulatedCameraSpec {
   std::string serial;                 // GigE serial number it is served under
   std::string address = "127.0.0.1";  // its own IP address (one per fake camera)
@@ -47,6 +83,8 @@ struct SimulatedCameraSpec {
   vision::RenderOptions render;  // seed: the first frame's; each frame adds its index
   // Exposure at which `render`'s levels hold; other exposures scale them (and clip at white).
   double reference_exposure_us = 10000.0;
+  // Counts this camera's renders into a clock shared with the cell's other cameras (optional).
+  std::shared_ptr<RenderBusyClock> busy_clock;
 };
 
 // A frame as rendered, kept so tests can check what went over the wire bit for bit.

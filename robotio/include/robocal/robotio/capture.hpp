@@ -87,6 +87,9 @@ struct PoseCaptureReport {
   double grab_s = 0.0;        // waiting for frames (camera exposure / render / transfer)
   double check_s = 0.0;       // detection and the settled-frame test
   double write_s = 0.0;       // writing the pose folder (images, pose.yaml, rename)
+  // Waiting, after this pose's frames were taken, for the previous pose's check and writing to
+  // finish: the part of check_s and write_s that the next motion did not hide.
+  double wait_s = 0.0;
 };
 
 struct CaptureResult {
@@ -95,6 +98,7 @@ struct CaptureResult {
   // Why the capture stopped early (a lost camera names it); the robot was stopped.
   std::string stop_reason;
   std::optional<CameraError::Kind> camera_error;
+  double seconds = 0.0;  // wall time of the capture, from the first move to the last pose written
   [[nodiscard]] int recorded() const;
   [[nodiscard]] int already_recorded() const;
 };

@@ -4,6 +4,7 @@
 // "ready"). The process is stopped (SIGTERM, then SIGKILL) when this object goes away.
 #include <sys/types.h>
 #include <chrono>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -35,5 +36,11 @@ class SimControllerProcess {
   int out_ = -1;
   std::string tcp_, pty_, pose_;
 };
+
+// The durations (s) of the motions a sim-controller logged (its --log JSONL file), in order,
+// homing left out: the robot's own time, which benches and the live demo subtract from the wall
+// time to get robocal's. A line that is not a JSON object (a log cut short while it is written)
+// is skipped. Throws std::runtime_error when the file cannot be read.
+std::vector<double> simulated_motion_seconds(const std::filesystem::path& log);
 
 }  // namespace robocal::robotio

@@ -65,6 +65,15 @@ class AprilTagDetector {
   /// Sorted by id. Duplicated ids are all returned; the caller decides (board detection rejects).
   std::vector<TagDetection> detect(const cv::Mat& gray);
 
+  /// The tags of an earlier detection looked for again in a later image of the same view, by
+  /// refining each one's corners where they were (no quad search, no decoding: a fraction of
+  /// detect()'s time). The second look of the settled-frame test. Only refined tags are returned:
+  /// a tag whose edges are no longer within the refinement's reach of its old corners
+  /// (QuadRefineOptions::max_shift_px, 2 px), because the target moved or was covered, is left out.
+  /// The ids are those of `previous`, trusted, not decoded again. Throws as detect() does.
+  std::vector<TagDetection> refine_at(const cv::Mat& gray,
+                                      const std::vector<TagDetection>& previous);
+
   /// The library alone (same options, no refinement, corners converted to OpenCV convention):
   /// used by benchmarks and tests as the baseline.
   std::vector<TagDetection> detect_library_only(const cv::Mat& gray);

@@ -46,6 +46,16 @@ struct TargetDetection {
 TargetDetection detect_apriltag_board(const cv::Mat& gray, const TargetBoard& board,
                                       AprilTagDetector& detector);
 
+/// The AprilTag board of `previous` (a detection of the same view, typically the first of a
+/// series of frames) found again in a later image, at a fraction of the cost of a detection: each
+/// of its complete tags refined where it was (AprilTagDetector::refine_at). For telling whether
+/// the target stayed still between frames, not for finding it: a tag the earlier detection missed
+/// is not looked for; tags that moved beyond the refinement's reach (2 px) are missing (partial);
+/// none found again: rejected, saying so.
+TargetDetection redetect_apriltag_board(const cv::Mat& gray, const TargetBoard& board,
+                                        const TargetDetection& previous,
+                                        AprilTagDetector& detector);
+
 /// OpenCV 4.6's interpolateCornersCharuco returns corners +0.5 px off in both axes (measured on
 /// rendered boards, see vision.md); detect_charuco_board adds this before its own refinement.
 inline constexpr double kOpenCv46CharucoOffset = -0.5;
