@@ -57,6 +57,17 @@ TEST(LiveDemo, QuickRunCalibratesTheSimulatedRobotAgainstTheSimulatorsTruth) {
   // Every planned pose was driven and recorded; the simulator received the moves (its own log).
   EXPECT_EQ(report["collect"].value("status", ""), "ok");
   EXPECT_EQ(report["collect"].value("recorded_total", -1), 20);
+
+  // Measure took the intrinsics calibrated before collection from the very views the session
+  // holds, instead of calibrating every camera a second time.
+  const auto& before = report["intrinsics_before_collection"];
+  const auto& measured = report["measure"]["intrinsics"];
+  ASSERT_EQ(measured.size(), before.size());
+  for (std::size_t c = 0; c < measured.size(); ++c) {
+    EXPECT_EQ(measured[c].value("calibrated", ""), "before collection, from these views");
+    EXPECT_EQ(measured[c].value("camera", "?"), before[c].value("camera", "!"));
+    EXPECT_EQ(measured[c].value("rms_px", -1.0), before[c].value("rms_px", -2.0));
+  }
   const auto sim_log =
       robocal::test::read_sim_log((out / "setup" / "sim-controller.jsonl").string());
   EXPECT_GE(robocal::test::received(sim_log, "G1") + robocal::test::received(sim_log, "G0"), 20);

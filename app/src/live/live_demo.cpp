@@ -23,6 +23,7 @@
 
 #include <array>
 #include <fstream>
+#include <optional>
 #include <random>
 
 namespace robocal::app {
@@ -215,9 +216,14 @@ struct TruthLog {
 // The intrinsics from the calibration views, before anything moves (the planner and the
 // settled-frame test use them): the cell's camera files get the calibrated models in place of
 // the datasheet's. Returns false (and says why) when a camera cannot be calibrated.
-bool calibrate_cameras(const std::vector<LiveCameraSpec>& specs, const LiveCell& lc,
-                       const fs::path& views, const fs::path& cell_dir, const PipelineLog& log,
-                       nlohmann::json& report) {
+// The intrinsics the collection's settled-frame test needs; measure reuses them (the same views
+// join the session). nullopt when a camera cannot be calibrated (said).
+std::optional<CalibratedIntrinsics> calibrate_cameras(const std::vector<LiveCameraSpec>& specs,
+                                                      const LiveCell& lc, const fs::path& views,
+                                                      const fs::path& cell_dir,
+                                                      const PipelineLog& log,
+                                                      nlohmann::json& report) {
+  CalibratedIntrinsics calibrated;
   nlohmann::json cams = nlohmann::json::array();
   for (const auto& spec : specs) {
     const IntrinsicsStep step = calibrate_camera(spec.name, spec.model.width, spec.model.height,
@@ -226,16 +232,17 @@ bool calibrate_cameras(const std::vector<LiveCameraSpec>& specs, const LiveCell&
     if (step.result.status == vision::CalibrationStatus::kFailed ||
         step.result.status == vision::CalibrationStatus::kRefused) {
       say(log, "camera {} cannot be calibrated: {}\n", spec.name, step.result.reason);
-      return false;
+      return std::nullopt;
     }
     say(log, "  {}: fx {:.2f} px, RMS {:.3f} px from {} views\n", spec.name,
         step.result.camera.params[0], step.result.rms_px, step.views.size());
     core::write_file_atomic(cell_dir / (spec.name + ".yaml"),
                             vision::camera_to_yaml(step.result.camera, spec.name));
     cams.push_back({{"camera", spec.name}, {"rms_px", step.result.rms_px}});
+    calibrated.emplace(spec.name, step);
   }
   report["intrinsics_before_collection"] = cams;
-  return true;
+  return calibrated;
 }
 
 // After collection: the calibration views and board join the session, session.yaml names them
@@ -370,7 +377,8 @@ int run_live_demo(const LiveDemoOptions& o) {
   const fs::path views = fs::exists(session / "calibration")
                              ? session / "calibration" / "intrinsics"
                              : setup / "calibration" / "intrinsics";
-  if (!calibrate_cameras(specs, lc, views, setup, log, report)) return kExitFailure;
+  const auto intrinsics = calibrate_cameras(specs, lc, views, setup, log, report);
+  if (!intrinsics) return kExitFailure;
 
   stage(log, "live: plan");
   const fs::path plan_file = setup / "plan.yaml";
@@ -454,7 +462,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   sim.stop();
 
   fmt::print(out, "\nmeasure: cameras, rig and end-effector poses from the recorded images\n");
-  report["measure"] = measure_session(session, "", log);
+  report["measure"] = measure_session(session, "", log, {}, *intrinsics);
   if (report["measure"]["status"] != "ok") return kExitFailure;
   fmt::print(out, "\nidentify\n");
   report["identify"] = identify_session(session, "", log, o.route, true);

@@ -20,6 +20,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <set>
 
 namespace robocal::app {
 
@@ -36,10 +37,20 @@ std::vector<fs::path> calibration_images(const fs::path& folder) {
   return fs::is_directory(folder, ec) ? vision::list_image_files(folder) : std::vector<fs::path>{};
 }
 
+// Whether `step` was calibrated from `files`: as many images, and every view one of them.
+bool from_files(const IntrinsicsStep& step, const std::vector<fs::path>& files) {
+  if (step.images != files.size()) return false;
+  std::set<std::string> stems;
+  for (const auto& f : files) stems.insert(f.stem().string());
+  return std::all_of(step.views.begin(), step.views.end(),
+                     [&](const vision::CalibrationView& v) { return stems.count(v.name) != 0; });
+}
+
 }  // namespace
 
 nlohmann::json measure_session(const fs::path& dir, const std::string& robot_override,
-                               const PipelineLog& log, const GateOptions& gates) {
+                               const PipelineLog& log, const GateOptions& gates,
+                               const CalibratedIntrinsics& calibrated) {
   const Session s = load_session(dir);
   const ResultsLayout results{dir};
   const SessionRobot robot = session_robot(s, robot_override);
@@ -71,10 +82,16 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   nlohmann::json intrinsics = nlohmann::json::array();
   for (std::size_t c = 0; c < n_cams; ++c) {
     const auto files = calibration_images(s.path(s.intrinsics_views) / names[c]);
-    const IntrinsicsStep step = calibrate_camera(names[c], s.cameras[c].width, s.cameras[c].height,
-                                                 files, cal_board, step_log(log));
+    const auto earlier = calibrated.find(names[c]);
+    const bool reuse = earlier != calibrated.end() && from_files(earlier->second, files);
+    const IntrinsicsStep step =
+        reuse ? earlier->second
+              : calibrate_camera(names[c], s.cameras[c].width, s.cameras[c].height, files,
+                                 cal_board, step_log(log));
+    if (reuse) say(log, "  {}: calibrated before collection from these views\n", names[c]);
     const auto& result = step.result;
     nlohmann::json cj{{"camera", names[c]}, {"images", files.size()}, {"views", step.views.size()}};
+    if (reuse) cj["calibrated"] = "before collection, from these views";
     cj["problems"] = step.problems;
     if (result.status != vision::CalibrationStatus::kOk) {
       intrinsics.push_back(cj);

@@ -12,11 +12,13 @@
 // Bad input (missing or malformed files, a robot file that does not match) throws InputError.
 #include "cli/command_registry.hpp"
 #include "cli/progress.hpp"
+#include "stages/measure_steps.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -59,10 +61,16 @@ struct GateOptions {
 // stages/simulate.cpp
 nlohmann::json simulate_session(const SimulateOptions& options, const PipelineLog& log);
 
+// Intrinsics already calibrated from a session's own calibration views, by camera name (the
+// live demo calibrates them before collection, for the settled-frame test).
+using CalibratedIntrinsics = std::map<std::string, IntrinsicsStep>;
+
 // stages/measure.cpp. robot_override: a robot file to use instead of the session's (checked
-// against the session).
+// against the session). `calibrated`: used instead of calibrating a camera again when computed
+// from the same image files (the same names, as many); otherwise the camera is calibrated.
 nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
-                               const PipelineLog& log, const GateOptions& gates = {});
+                               const PipelineLog& log, const GateOptions& gates = {},
+                               const CalibratedIntrinsics& calibrated = {});
 // stages/identify.cpp. route: "pose" (from the measured 6-D poses), "pixel" or "both" (also
 // camera-in-the-loop from the corner pixels, started from the pose route's base-frame alignment;
 // both reported). priors: the robot file's tolerances as priors (MAP) on every geometric

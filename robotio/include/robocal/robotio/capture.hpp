@@ -2,10 +2,15 @@
 // Synchronised capture of a session's robot poses: at each pose, wait until the robot reports it
 // settled, take frames from every camera, reject and retake when the target moved between shots
 // (vision's settled-frame test, check_target_still), and record the pose atomically in the
-// session format (app/SESSION.md): every file of a pose is written into a staging folder,
-// which is renamed to poses/pose_NNN only when complete. A pose folder therefore either exists
-// whole or not at all, and a capture started again on the same folder skips the poses already
-// recorded and completes the others (no duplicate, no lost pose).
+// session format (app/SESSION.md). The first shot of each camera is searched for the target in
+// full; the later shots only refine its tags where the first had them (an AprilTag board:
+// vision::redetect_apriltag_board), which is all the settled-frame test needs. That test and the
+// writing of a pose run while the robot moves to the next one.
+//
+// Every file of a pose is written into a staging folder, which is renamed to poses/pose_NNN only
+// when complete. A pose folder therefore either exists whole or not at all, and a capture started
+// again on the same folder skips the poses already recorded and completes the others (no
+// duplicate, no lost pose).
 //
 // A camera that disappears stops the robot (CaptureRobot::stop) and ends the capture with the
 // reason; everything recorded so far stays, and the next run resumes.
