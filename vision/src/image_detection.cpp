@@ -5,6 +5,8 @@
 
 #include <memory>
 #include <mutex>
+#include <utility>
+#include <vector>
 
 namespace robocal::vision {
 
@@ -18,54 +20,103 @@ AprilTagDetectorOptions detector_options(const TargetBoard& board,
 
 }  // namespace
 
+namespace {
+
+// Detectors shared by the workers of one call, one per worker at a time (building a tag family's
+// decode table costs tens of ms).
+class DetectorPool {
+ public:
+  explicit DetectorPool(AprilTagDetectorOptions options) : options_(std::move(options)) {}
+  std::unique_ptr<AprilTagDetector> take() {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (!idle_.empty()) {
+        auto detector = std::move(idle_.back());
+        idle_.pop_back();
+        return detector;
+      }
+    }
+    return std::make_unique<AprilTagDetector>(options_);
+  }
+  void give_back(std::unique_ptr<AprilTagDetector> detector) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    idle_.push_back(std::move(detector));
+  }
+
+ private:
+  AprilTagDetectorOptions options_;
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<AprilTagDetector>> idle_;
+};
+
+// One image: read, size checked, the board detected, or (an AprilTag board and a `reference`
+// detection of the same view) its tags refined where the reference had them.
+ImageDetection detect_one(const DetectionRequest& request, const TargetBoard& board,
+                          DetectorPool& detectors, const TargetDetection* reference) {
+  ImageDetection result;
+  const LoadedImage img = load_gray_image(request.image);
+  if (!img.error.empty()) {
+    result.problem = img.error;
+    return result;
+  }
+  result.width = img.gray.cols;
+  result.height = img.gray.rows;
+  if (request.width > 0 && (img.gray.cols != request.width || img.gray.rows != request.height)) {
+    result.problem =
+        fmt::format("{}: image is {}x{} but {} for {}x{}", request.image.string(), img.gray.cols,
+                    img.gray.rows, request.expected_by, request.width, request.height);
+    return result;
+  }
+  std::unique_ptr<AprilTagDetector> detector = detectors.take();
+  result.detection = reference != nullptr && board.spec.kind == TargetKind::kAprilTagGrid
+                         ? redetect_apriltag_board(img.gray, board, *reference, *detector)
+                         : detect_target(img.gray, board, *detector);
+  detectors.give_back(std::move(detector));
+  if (result.detection.status == DetectionStatus::kRejected)
+    result.problem = fmt::format("{}: target not detected ({})", request.image.string(),
+                                 result.detection.reason);
+  return result;
+}
+
+}  // namespace
+
 std::vector<ImageDetection> detect_in_images(const std::vector<DetectionRequest>& requests,
                                              const TargetBoard& board, int threads,
                                              const std::function<void()>& done,
                                              const AprilTagDetectorOptions& detector) {
   std::vector<ImageDetection> out(requests.size());
-  const AprilTagDetectorOptions options = detector_options(board, detector);
-  // One detector per worker (building a tag family's decode table costs tens of ms).
-  std::mutex detectors_mutex;
-  std::vector<std::unique_ptr<AprilTagDetector>> idle;
+  DetectorPool detectors(detector_options(board, detector));
   std::mutex done_mutex;
   core::parallel_for(static_cast<int>(requests.size()), threads, [&](int i) {
     const auto k = static_cast<std::size_t>(i);
-    const DetectionRequest& request = requests[k];
-    ImageDetection& result = out[k];
-    const LoadedImage img = load_gray_image(request.image);
-    if (!img.error.empty()) {
-      result.problem = img.error;
-    } else {
-      result.width = img.gray.cols;
-      result.height = img.gray.rows;
-      if (request.width > 0 &&
-          (img.gray.cols != request.width || img.gray.rows != request.height)) {
-        result.problem = fmt::format("{}: image is {}x{} but {} for {}x{}", request.image.string(),
-                                     img.gray.cols, img.gray.rows, request.expected_by,
-                                     request.width, request.height);
-      } else {
-        std::unique_ptr<AprilTagDetector> worker_detector;
-        {
-          const std::lock_guard<std::mutex> lock(detectors_mutex);
-          if (!idle.empty()) {
-            worker_detector = std::move(idle.back());
-            idle.pop_back();
-          }
-        }
-        if (!worker_detector) worker_detector = std::make_unique<AprilTagDetector>(options);
-        result.detection = detect_target(img.gray, board, *worker_detector);
-        {
-          const std::lock_guard<std::mutex> lock(detectors_mutex);
-          idle.push_back(std::move(worker_detector));
-        }
-        if (result.detection.status == DetectionStatus::kRejected)
-          result.problem = fmt::format("{}: target not detected ({})", request.image.string(),
-                                       result.detection.reason);
-      }
-    }
+    out[k] = detect_one(requests[k], board, detectors, nullptr);
     if (done) {
       const std::lock_guard<std::mutex> lock(done_mutex);
       done();
+    }
+  });
+  return out;
+}
+
+std::vector<std::vector<ImageDetection>> detect_in_image_series(
+    const std::vector<std::vector<DetectionRequest>>& series, const TargetBoard& board, int threads,
+    const std::function<void()>& done, const AprilTagDetectorOptions& detector) {
+  std::vector<std::vector<ImageDetection>> out(series.size());
+  DetectorPool detectors(detector_options(board, detector));
+  std::mutex done_mutex;
+  core::parallel_for(static_cast<int>(series.size()), threads, [&](int i) {
+    const auto& requests = series[static_cast<std::size_t>(i)];
+    auto& results = out[static_cast<std::size_t>(i)];
+    results.reserve(requests.size());  // `reference` points into it
+    const TargetDetection* reference = nullptr;
+    for (const DetectionRequest& request : requests) {
+      results.push_back(detect_one(request, board, detectors, reference));
+      if (reference == nullptr && results.back().problem.empty())
+        reference = &results.back().detection;
+      if (done) {
+        const std::lock_guard<std::mutex> lock(done_mutex);
+        done();
+      }
     }
   });
   return out;

@@ -134,6 +134,12 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
       return false;
     }
   };
+  // The frames of one round are written while the cameras render the next one.
+  std::vector<std::pair<fs::path, cv::Mat>> unwritten;
+  const auto write_unwritten = [&] {
+    for (const auto& [path, image] : unwritten) write_image_atomic(path, image);
+    unwritten.clear();
+  };
   for (std::size_t v = 0; v < rounds; ++v) {
     std::vector<std::pair<std::size_t, bool>> shown;
     for (std::size_t c = 0; c < specs.size(); ++c)
@@ -141,9 +147,10 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
         boards[c]->set(specs[c].camera_T_world.inverse() * lc.intrinsic_views[c][v]);
         shown.emplace_back(c, trigger(c));
       }
+    write_unwritten();
     for (const auto& [c, triggered] : shown) {
-      write_image_atomic(dir / "intrinsics" / specs[c].name / fmt::format("view_{:03d}.png", v),
-                         take(c, triggered));
+      unwritten.emplace_back(dir / "intrinsics" / specs[c].name / fmt::format("view_{:03d}.png", v),
+                             take(c, triggered));
       bar.advance();
     }
   }
@@ -151,11 +158,13 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
     for (auto& b : boards) b->set(lc.rig_views[v]);
     std::vector<bool> triggered(specs.size());
     for (std::size_t c = 0; c < specs.size(); ++c) triggered[c] = trigger(c);
+    write_unwritten();
     for (std::size_t c = 0; c < specs.size(); ++c)
-      write_image_atomic(dir / "rig" / fmt::format("view_{:03d}", v) / (specs[c].name + ".png"),
-                         take(c, triggered[c]));
+      unwritten.emplace_back(dir / "rig" / fmt::format("view_{:03d}", v) / (specs[c].name + ".png"),
+                             take(c, triggered[c]));
     bar.advance();
   }
+  write_unwritten();
   bar.finish(fmt::format("{} views", total));
   for (auto& s : src) s->close();
   report["calibration_views"] = total;

@@ -104,11 +104,14 @@ std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>
                                             const PoseStepOptions& options, const StepLog& log) {
   const std::size_t n_cams = rig.size();
   std::vector<PoseImages> out(poses.size());
-  struct Job {
-    std::size_t pose, camera, frame;
+  // One series per pose and camera: its frames show one still view, so after the first the
+  // board's tags are refined where they were instead of searched for again.
+  struct Series {
+    std::size_t pose, camera;
   };
-  std::vector<Job> jobs;
-  std::vector<vision::DetectionRequest> requests;
+  std::vector<Series> jobs;
+  std::vector<std::vector<vision::DetectionRequest>> requests;
+  std::size_t images = 0;
   for (std::size_t p = 0; p < poses.size(); ++p) {
     std::size_t n_frames = 0;
     for (std::size_t c = 0; c < n_cams; ++c) {
@@ -118,26 +121,31 @@ std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>
       n_frames = std::max(n_frames, poses[p].frames_of_camera[c].size());
     }
     out[p].frames.assign(n_frames, std::vector<vision::CameraFrame>(n_cams));
-    for (std::size_t c = 0; c < n_cams; ++c)
-      for (std::size_t f = 0; f < poses[p].frames_of_camera[c].size(); ++f) {
-        jobs.push_back({p, c, f});
-        requests.push_back({poses[p].frames_of_camera[c][f], rig[c].model.width,
-                            rig[c].model.height, camera_is_calibrated(rig[c])});
-      }
-  }
-  StageProgress bar(log.out, "pose images", jobs.size());
-  const auto detected =
-      vision::detect_in_images(requests, board, log.threads, [&] { bar.advance(); });
-  bar.finish(fmt::format("{} images", jobs.size()));
-  for (std::size_t i = 0; i < jobs.size(); ++i) {
-    const Job& j = jobs[i];
-    if (!detected[i].problem.empty()) {
-      out[j.pose].problems.push_back(detected[i].problem);
-      continue;
+    for (std::size_t c = 0; c < n_cams; ++c) {
+      if (poses[p].frames_of_camera[c].empty()) continue;
+      jobs.push_back({p, c});
+      requests.emplace_back();
+      for (const auto& file : poses[p].frames_of_camera[c])
+        requests.back().push_back(
+            {file, rig[c].model.width, rig[c].model.height, camera_is_calibrated(rig[c])});
+      images += requests.back().size();
     }
-    auto& frame = out[j.pose].frames[j.frame][j.camera];
-    frame = vision::camera_frame(detected[i].detection);
-    set_corner_sigma(frame, options.corner_sigma_px, j.camera);
+  }
+  StageProgress bar(log.out, "pose images", images);
+  const auto detected =
+      vision::detect_in_image_series(requests, board, log.threads, [&] { bar.advance(); });
+  bar.finish(fmt::format("{} images", images));
+  for (std::size_t i = 0; i < jobs.size(); ++i) {
+    for (std::size_t f = 0; f < detected[i].size(); ++f) {
+      const vision::ImageDetection& d = detected[i][f];
+      if (!d.problem.empty()) {
+        out[jobs[i].pose].problems.push_back(d.problem);
+        continue;
+      }
+      auto& frame = out[jobs[i].pose].frames[f][jobs[i].camera];
+      frame = vision::camera_frame(d.detection);
+      set_corner_sigma(frame, options.corner_sigma_px, jobs[i].camera);
+    }
   }
   const auto points = board_points(board);
   for (auto& pose : out) {

@@ -1,6 +1,7 @@
 #include "robocal/robotio/capture.hpp"
 
 #include "robocal/vision/apriltag_detector.hpp"
+#include "robocal/vision/image_detection.hpp"
 #include "robocal/vision/pose_measurement.hpp"
 #include "robocal/vision/target_detection.hpp"
 
@@ -88,19 +89,6 @@ cv::Mat gray_8bit(const cv::Mat& image) {
   return gray;
 }
 
-vision::CameraFrame camera_frame(const vision::TargetDetection& detection) {
-  vision::CameraFrame frame;
-  if (detection.status == vision::DetectionStatus::kRejected) {
-    return frame;
-  }
-  frame.blur_px = detection.edge_blur_px;
-  for (std::size_t i = 0; i < detection.corner_ids.size(); ++i) {
-    frame.corners.push_back({detection.corner_ids[i], detection.pixels[i], 0.0});
-  }
-  frame.corner_groups = detection.corner_groups;
-  return frame;
-}
-
 // A later shot of the series: an AprilTag board is refined where the first shot had it (a
 // fraction of a detection's time, and all the settled-frame test needs); others are detected.
 vision::TargetDetection detect_again(const cv::Mat& gray, const vision::TargetBoard& board,
@@ -131,7 +119,7 @@ MotionVerdict check_motion(const ShotSeries& shots, const std::vector<CaptureCam
         {cameras[c].source->name(), cameras[c].model, Eigen::Isometry3d::Identity(), {}}};
     const vision::TargetDetection first_detection =
         vision::detect_target(gray_8bit(shots[0][c].image), board, *detectors[c]);
-    const vision::CameraFrame first = camera_frame(first_detection);
+    const vision::CameraFrame first = vision::camera_frame(first_detection);
     verdict.corners.push_back(static_cast<int>(first.corners.size()));
     if (first.corners.size() < 4 || shots.size() < 2) {
       continue;
@@ -141,7 +129,7 @@ MotionVerdict check_motion(const ShotSeries& shots, const std::vector<CaptureCam
       continue;
     }
     for (std::size_t k = 1; k < shots.size(); ++k) {
-      const vision::CameraFrame later = camera_frame(
+      const vision::CameraFrame later = vision::camera_frame(
           detect_again(gray_8bit(shots[k][c].image), board, first_detection, *detectors[c]));
       const vision::PoseMeasurement other =
           vision::refine_target_pose(rig, points, {later}, reference.world_T_target);

@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "board_views.hpp"
+#include "robocal/vision/image_detection.hpp"
 #include "robocal/vision/target_detection.hpp"
 
 namespace rv = robocal::vision;
@@ -158,6 +159,63 @@ TEST(AprilTagBoardDetection, FoundAgainWhereItWasOnlyWithinReach) {
   const auto mismatch = rv::redetect_apriltag_board(first_view.image, board, first, other_family);
   EXPECT_EQ(mismatch.status, rv::DetectionStatus::kRejected);
   EXPECT_NE(mismatch.reason.find("tag25h9"), std::string::npos) << mismatch.reason;
+}
+
+// Series of frames of one still view: the first image where the board is found is detected in
+// full (as detect_in_images does), the later ones refined from it; an unreadable image in a
+// series is reported and the next readable one becomes the reference.
+TEST(AprilTagBoardDetection, ImageSeriesDetectFirstAndRefineTheRest) {
+  const auto board = tag_board();
+  const rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
+  const auto view = [&](double du, unsigned seed) {
+    return rt::render_board_view(board, cam, 0.5, 35.0, 20.0, 5.0, 319.5 + du, 255.5, 0.8, 2.0,
+                                 seed);
+  };
+  const auto dir = temp_dir();
+  std::vector<Rendered> views;
+  const auto file = [&](const std::string& name, double du, unsigned seed) {
+    views.push_back(view(du, seed));
+    const auto path = dir / name;
+    cv::imwrite(path.string(), views.back().image);
+    return path;
+  };
+  // Any size accepted (0 x 0): the checks of image size are detect_in_images' own.
+  const auto request = [](const std::filesystem::path& path) {
+    return rv::DetectionRequest{path, 0, 0, ""};
+  };
+  const std::vector<std::vector<rv::DetectionRequest>> series = {
+      {request(file("a0.png", 0.0, 1)), request(file("a1.png", 0.3, 2)),
+       request(dir / "missing.png")},
+      {request(dir / "absent.png"), request(file("b1.png", 0.0, 3)),
+       request(file("b2.png", -0.3, 4))}};
+  const auto out = rv::detect_in_image_series(series, board, 2);
+  ASSERT_EQ(out.size(), 2u);
+  ASSERT_EQ(out[0].size(), 3u);
+  ASSERT_EQ(out[1].size(), 3u);
+  EXPECT_NE(out[0][2].problem.find("missing.png"), std::string::npos) << out[0][2].problem;
+  EXPECT_NE(out[1][0].problem.find("absent.png"), std::string::npos) << out[1][0].problem;
+
+  // The first found image of each series is detected exactly as detect_in_images detects it.
+  const auto full =
+      rv::detect_in_images({request(dir / "a0.png"), request(dir / "b1.png")}, board, 1);
+  EXPECT_EQ(out[0][0].detection.pixels, full[0].detection.pixels);
+  EXPECT_EQ(out[1][1].detection.pixels, full[1].detection.pixels);
+
+  // Every found image: all 48 corners where its own view's homography puts them.
+  const std::vector<std::pair<const rv::ImageDetection*, const Rendered*>> found = {
+      {&out[0][0], &views[0]},
+      {&out[0][1], &views[1]},
+      {&out[1][1], &views[2]},
+      {&out[1][2], &views[3]}};
+  for (const auto& [d, v] : found) {
+    ASSERT_TRUE(d->problem.empty()) << d->problem;
+    ASSERT_EQ(d->detection.pixels.size(), 48u);
+    for (std::size_t i = 0; i < d->detection.pixels.size(); ++i) {
+      const Eigen::Vector2d truth = rt::apply_h(v->h, d->detection.board_points[i].head<2>());
+      EXPECT_LT((d->detection.pixels[i] - truth).norm(), 0.1) << "corner " << i;
+    }
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ImageLoading, ClearErrorsPerFile) {

@@ -41,6 +41,16 @@ std::vector<ImageDetection> detect_in_images(const std::vector<DetectionRequest>
                                              const std::function<void()>& done = {},
                                              const AprilTagDetectorOptions& detector = {});
 
+// The same for series of images of one unchanging view each (the frames one camera took at one
+// robot pose while it stood still): one series per job. In each series the first image where the
+// board is found is detected in full, and in the images after it an AprilTag board's tags are
+// refined where that detection had them (redetect_apriltag_board: about a third of the time;
+// a tag it missed is not looked for, one that moved more than 2 px is missing); other boards are
+// detected in full. Results are [series][image], in request order.
+std::vector<std::vector<ImageDetection>> detect_in_image_series(
+    const std::vector<std::vector<DetectionRequest>>& series, const TargetBoard& board, int threads,
+    const std::function<void()>& done = {}, const AprilTagDetectorOptions& detector = {});
+
 // A detection as the estimators read it: the corners (sigma unknown: 0), the edge blur and the
 // per-tag joint corner covariances. Empty for a rejected detection.
 CameraFrame camera_frame(const TargetDetection& detection);
