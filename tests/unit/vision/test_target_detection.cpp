@@ -26,6 +26,13 @@ Rendered render_board(const rv::TargetBoard& board, double tilt, double blur, do
   return rt::render_board_view(board, cam, 0.5, tilt, 20.0, 5.0, 319.5, 255.5, blur, noise);
 }
 
+// The board 0.5 m away, tilted 35 deg, its centre `du` px right of the principal point, with the
+// image noise of `seed`: frames of a still (du = 0) or slightly moved target.
+Rendered shifted_view(const rv::TargetBoard& board, double du, unsigned seed) {
+  const rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
+  return rt::render_board_view(board, cam, 0.5, 35.0, 20.0, 5.0, 319.5 + du, 255.5, 0.8, 2.0, seed);
+}
+
 std::filesystem::path temp_dir() {
   const auto d =
       std::filesystem::temp_directory_path() /
@@ -111,11 +118,7 @@ TEST(AprilTagBoardDetection, PartialDuplicateAndMirroredImages) {
 // (a target that moved is not reported still), and the reason says so.
 TEST(AprilTagBoardDetection, FoundAgainWhereItWasOnlyWithinReach) {
   const auto board = tag_board();
-  const rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
-  const auto view = [&](double du, unsigned seed) {
-    return rt::render_board_view(board, cam, 0.5, 35.0, 20.0, 5.0, 319.5 + du, 255.5, 0.8, 2.0,
-                                 seed);
-  };
+  const auto view = [&](double du, unsigned seed) { return shifted_view(board, du, seed); };
   rv::AprilTagDetector detector;
   const Rendered first_view = view(0.0, 1);
   const auto first = rv::detect_apriltag_board(first_view.image, board, detector);
@@ -166,11 +169,7 @@ TEST(AprilTagBoardDetection, FoundAgainWhereItWasOnlyWithinReach) {
 // series is reported and the next readable one becomes the reference.
 TEST(AprilTagBoardDetection, ImageSeriesDetectFirstAndRefineTheRest) {
   const auto board = tag_board();
-  const rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
-  const auto view = [&](double du, unsigned seed) {
-    return rt::render_board_view(board, cam, 0.5, 35.0, 20.0, 5.0, 319.5 + du, 255.5, 0.8, 2.0,
-                                 seed);
-  };
+  const auto view = [&](double du, unsigned seed) { return shifted_view(board, du, seed); };
   const auto dir = temp_dir();
   std::vector<Rendered> views;
   const auto file = [&](const std::string& name, double du, unsigned seed) {
