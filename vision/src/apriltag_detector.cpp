@@ -4,8 +4,8 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-#include <thread>
 
+#include "robocal/core/parallel.hpp"
 #include "robocal/vision/edge_fit.hpp"
 
 extern "C" {
@@ -44,32 +44,16 @@ struct AprilTagDetector::Impl {
   // detector's threads). A tag whose refinement fails keeps its corners and `refined` false.
   void refine_tags(const cv::Mat& gray, std::vector<TagDetection>& tags) const {
     const QuadRefineOptions refine_options = quad_refine_options();
-    auto refine_range = [&](size_t begin, size_t end) {
-      for (size_t i = begin; i < end; ++i) {
-        TagDetection& tag = tags[i];
-        if (const auto r = refine_quad_corners(gray, tag.corners, refine_options)) {
-          tag.corners = r->corners;
-          tag.refined = true;
-          tag.edge_blur_px = r->mean_blur_sigma;
-          tag.edge_contrast = r->mean_contrast;
-          tag.corner_covariance = r->corner_covariance;
-        }
+    core::parallel_for(static_cast<int>(tags.size()), options.threads, [&](int i) {
+      TagDetection& tag = tags[static_cast<size_t>(i)];
+      if (const auto r = refine_quad_corners(gray, tag.corners, refine_options)) {
+        tag.corners = r->corners;
+        tag.refined = true;
+        tag.edge_blur_px = r->mean_blur_sigma;
+        tag.edge_contrast = r->mean_contrast;
+        tag.corner_covariance = r->corner_covariance;
       }
-    };
-    const size_t workers =
-        std::min<size_t>(static_cast<size_t>(std::max(1, options.threads)), tags.size());
-    if (workers <= 1) {
-      refine_range(0, tags.size());
-      return;
-    }
-    std::vector<std::thread> pool;
-    const size_t chunk = (tags.size() + workers - 1) / workers;
-    for (size_t w = 1; w < workers; ++w) {
-      pool.emplace_back(refine_range, std::min(tags.size(), w * chunk),
-                        std::min(tags.size(), (w + 1) * chunk));
-    }
-    refine_range(0, std::min(tags.size(), chunk));
-    for (auto& t : pool) t.join();
+    });
   }
 
   static void check_image(const cv::Mat& gray) {

@@ -224,9 +224,8 @@ struct TruthLog {
 
 // The intrinsics from the calibration views, before anything moves (the planner and the
 // settled-frame test use them): the cell's camera files get the calibrated models in place of
-// the datasheet's. Returns false (and says why) when a camera cannot be calibrated.
-// The intrinsics the collection's settled-frame test needs; measure reuses them (the same views
-// join the session). nullopt when a camera cannot be calibrated (said).
+// the datasheet's, and measure reuses them (the same views join the session). nullopt (and says
+// why) when a camera cannot be calibrated.
 std::optional<CalibratedIntrinsics> calibrate_cameras(const std::vector<LiveCameraSpec>& specs,
                                                       const LiveCell& lc, const fs::path& views,
                                                       const fs::path& cell_dir,

@@ -62,7 +62,6 @@ cv::Mat SimulatedGigECamera::render_frame(const FakeFrameRequest& request) {
   const cv::Mat full = vision::render(rays_, {target}, options).image;
   cv::Mat image = full(cv::Rect(r.x, r.y, r.width, r.height)).clone();
   const auto end = std::chrono::steady_clock::now();
-  render_ns_.fetch_add(std::chrono::duration_cast<std::chrono::nanoseconds>(end - start).count());
   {
     const std::lock_guard lock(history_mutex_);
     history_.push_back({request.frame_index, world_T_board, image, start, end});

@@ -15,7 +15,6 @@
 
 #include <Eigen/Geometry>
 
-#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <deque>
@@ -107,8 +106,6 @@ class SimulatedGigECamera {
   // The last `keep` rendered frames, oldest first.
   [[nodiscard]] std::deque<RenderedFrame> rendered() const;
   void set_history(std::size_t keep);
-  // Time spent rendering so far (benchmarks subtract it from capture times).
-  [[nodiscard]] double render_seconds() const { return render_ns_.load() * 1e-9; }
 
  private:
   cv::Mat render_frame(const FakeFrameRequest& request);
@@ -120,7 +117,6 @@ class SimulatedGigECamera {
   mutable std::mutex history_mutex_;
   std::deque<RenderedFrame> history_;
   std::size_t keep_ = 8;
-  std::atomic<std::int64_t> render_ns_{0};
   std::unique_ptr<FakeGigECamera> server_;  // last: stops serving before the rest goes
 };
 
