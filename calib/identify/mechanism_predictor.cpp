@@ -140,7 +140,7 @@ Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, do
   Eigen::VectorXd s = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.parameters.size()));
   for (std::size_t i = 0; i < model.parameters.size(); ++i) {
     const Parameter& p = model.parameters[i];
-    if (!p.free && !include_fixed) continue;
+    if ((!p.free && !include_fixed) || p.exact) continue;
     switch (p.unit) {
       case ParamUnit::kLength:
         s(static_cast<Eigen::Index>(i)) = length_sigma;

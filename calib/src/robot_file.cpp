@@ -456,7 +456,7 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   std::map<std::string, int> raw_index;
   for (const auto& b : bodies) {
     check_keys(source, b, "body",
-               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed", "sigma",
+               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed", "exact", "sigma",
                 "encoder", "limits", "cone", "home", "collision", "rotation_order", "axis",
                 "orientation"});
     if (!b["name"]) fail(source, b, "body without 'name'");
@@ -579,11 +579,23 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
              "body '" + body.name + "': 'fixed' names unknown parameter '" + k + "'");
       fixed.insert(k);
     }
+    std::set<std::string> exact;
+    for (const std::string& k : string_list(source, b["exact"], "exact")) {
+      if (!keys.count(k))
+        fail(source, b["exact"],
+             "body '" + body.name + "': 'exact' names unknown parameter '" + k + "'");
+      exact.insert(k);
+      fixed.insert(k);
+    }
     std::set<std::string> freed;
     for (const std::string& k : string_list(source, b["free"], "free")) {
       if (!keys.count(k) && k != "encoder_offset" && k != "encoder_scale")
         fail(source, b["free"],
              "body '" + body.name + "': 'free' names unknown parameter '" + k + "'");
+      if (exact.count(k))
+        fail(source, b["free"],
+             "body '" + body.name + "': '" + k +
+                 "' is both 'exact' (cannot differ from the drawing) and 'free' (identified)");
       freed.insert(k);
       fixed.erase(k);
     }
@@ -626,6 +638,7 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
         const double v = values.count(op.key) ? values[op.key] : 0.0;
         e.param = add_param(op.key, angle ? ParamUnit::kAngle : ParamUnit::kLength, geom_group, v,
                             !fixed.count(op.key), lines.count(op.key) ? lines[op.key] : body.line);
+        m.parameters[static_cast<std::size_t>(e.param)].exact = exact.count(op.key) > 0;
       }
       if (op.joint) body.joint_op = static_cast<int>(body.ops.size());
       body.ops.push_back(e);

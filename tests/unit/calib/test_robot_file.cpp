@@ -293,6 +293,20 @@ TEST(RobotFile, WorkspaceEntryIsParsedAndChecked) {
   expect_error(head + "workspace: 0.3\n", 4, "workspace must be a map");
 }
 
+TEST(RobotFile, ExactParametersAreHeldAndNamedOnce) {
+  const std::string head =
+      "robot: x\nbodies:\n  - {name: a, convention: mcpc}\n"
+      "  - name: b\n    parent: a\n    convention: mcpc\n    joint: revolute\n";
+  const Mechanism m = parse_robot_yaml(head + "    exact: [d1]\n", "x");
+  const Parameter& d1 = m.parameters[static_cast<std::size_t>(m.parameter_index("b.d1"))];
+  EXPECT_TRUE(d1.exact);
+  EXPECT_FALSE(d1.free);
+  EXPECT_FALSE(m.parameters[static_cast<std::size_t>(m.parameter_index("b.d2"))].exact);
+  expect_error(head + "    exact: [d9]\n", 8, "'exact' names unknown parameter 'd9'");
+  expect_error(head + "    exact: [d1]\n    free:\n      - d1\n", 10,
+               "'d1' is both 'exact' (cannot differ from the drawing) and 'free'");
+}
+
 TEST(RobotFile, MissingFileIsReported) {
   try {
     load_robot_file("/nonexistent/robot.yaml");

@@ -71,6 +71,10 @@ struct Parameter {
   std::string name;    // stable, e.g. "body26.d1", "rod5.length", "base.z", "body2.encoder_offset"
   double value = 0.0;  // nominal value from the robot file
   bool free = true;    // identification may estimate it (robot file: free:/fixed: lists)
+  // Exact by construction (robot file `exact:`; implies held fixed): a real robot cannot differ
+  // from the drawing here, so a simulation's unmodelled error leaves it alone (the offsets
+  // between the three revolute axes that model a ball joint, which meet at its centre).
+  bool exact = false;
   double sigma = 0.0;  // prior tolerance (1-sigma) for identification; > 0
   ParamUnit unit = ParamUnit::kLength;
   ParamGroup group = ParamGroup::kJointGeometry;

@@ -57,7 +57,7 @@ namespace robocal::calib {
 
 // Realistic-tolerance perturbation sigmas per parameter: `length_sigma` for lengths,
 // `angle_sigma` for angles, `scale_sigma` for encoder scales; parameters the robot file fixes are
-// not perturbed unless `include_fixed`.
+// not perturbed unless `include_fixed`, and those it declares exact (Parameter::exact) never.
 Eigen::VectorXd tolerance_sigmas(const Mechanism& model, double length_sigma, double angle_sigma,
                                  double scale_sigma = 0.0, bool include_fixed = false);
 
