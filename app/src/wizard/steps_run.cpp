@@ -5,6 +5,7 @@
 #include "live/collect.hpp"
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/held_out_errors.hpp"
+#include "session/json_values.hpp"
 #include "session/results_files.hpp"
 #include "session/results_layout.hpp"
 #include "session/session.hpp"
@@ -191,7 +192,10 @@ class IdentifyStep final : public Step {
 };
 
 // The session without its held-out poses (every K-th used pose): the recorded files, shared by
-// copy (the fit session is the wizard's own scratch, never a recording).
+// copy (the fit session is the wizard's own scratch, never a recording), and the identify step's
+// board measurements of the other poses. Those do not depend on the held-out poses (intrinsics
+// and rig come from the calibration views, each pose is measured on its own), so measuring them
+// again would only repeat the intrinsics and rig calibrations.
 std::set<std::string> make_fit_session(const fs::path& session, const fs::path& fit,
                                        const std::vector<MeasuredPose>& used, int every) {
   std::set<std::string> held;
@@ -207,6 +211,14 @@ std::set<std::string> make_fit_session(const fs::path& session, const fs::path& 
   for (const auto& e : fs::directory_iterator(session / "poses"))
     if (held.count(e.path().filename().string()) == 0)
       fs::copy(e.path(), fit / "poses" / e.path().filename(), fs::copy_options::recursive);
+  const ResultsLayout from{session}, to{fit};
+  nlohmann::json measured = read_json_file(from.measured_poses(), "run the identify step first");
+  nlohmann::json kept = nlohmann::json::array();
+  for (const auto& p : measured.at("poses"))
+    if (held.count(p.value("pose", std::string())) == 0) kept.push_back(p);
+  measured["poses"] = kept;
+  fs::create_directories(to.measured_poses().parent_path());
+  write_json(measured, to.measured_poses().string());
   return held;
 }
 
@@ -235,11 +247,8 @@ class ValidateStep final : public Step {
     fmt::print(ctx.out, "Fitting without {} of the {} measured poses...\n", held.size(),
                used.size());
     PipelineLog log;
-    log.out = nullptr;  // the same stages as the identify step, quietly
-    const auto measured = measure_session(fit, "", log);
-    const auto ident = measured.value("status", "") == "ok"
-                           ? identify_session(fit, "", log, "pose", true)
-                           : measured;
+    log.out = nullptr;  // the same identification as the identify step, quietly
+    const auto ident = identify_session(fit, "", log, "pose", true);
     if (ident.value("status", "") != "ok")
       return StepOutcome::stopped(
           "the fit without the held-out poses failed: " + ident.value("message", std::string("?")) +
