@@ -456,8 +456,8 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   std::map<std::string, int> raw_index;
   for (const auto& b : bodies) {
     check_keys(source, b, "body",
-               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed", "exact", "sigma",
-                "encoder", "limits", "cone", "home", "collision", "rotation_order", "axis",
+               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed", "exact",
+                "sigma", "encoder", "limits", "cone", "home", "collision", "rotation_order", "axis",
                 "orientation"});
     if (!b["name"]) fail(source, b, "body without 'name'");
     RawBody r{b, text(source, b["name"], "name"), "world"};
