@@ -191,26 +191,27 @@ class IdentifyStep final : public Step {
   }
 };
 
-// The session without its held-out poses (every K-th used pose): the recorded files, shared by
-// copy (the fit session is the wizard's own scratch, never a recording), and the identify step's
-// board measurements of the other poses. Those do not depend on the held-out poses (intrinsics
-// and rig come from the calibration views, each pose is measured on its own), so measuring them
-// again would only repeat the intrinsics and rig calibrations.
+// The session without its held-out poses (every K-th used pose), for the fit that must not see
+// them: the session's description (session.yaml, robot, cameras, targets) by copy, and the
+// identify step's board measurements of the other poses. Those do not depend on the held-out
+// poses (intrinsics and rig come from the calibration views, each pose is measured on its own),
+// and the identification reads nothing else, so neither the images (poses, calibration views)
+// are copied nor measured again. The fit session is the wizard's own scratch, never a recording.
 std::set<std::string> make_fit_session(const fs::path& session, const fs::path& fit,
                                        const std::vector<MeasuredPose>& used, int every) {
   std::set<std::string> held;
   for (std::size_t k = 0; k < used.size(); ++k)
     if ((k + 1) % static_cast<std::size_t>(every) == 0) held.insert(used[k].pose);
+  const Session s = load_session(session);
+  // First component of a session-relative folder ("calibration" of "calibration/intrinsics").
+  const auto top = [](const std::string& folder) { return fs::path(folder).begin()->string(); };
+  const std::set<std::string> images = {top(s.poses), top(s.intrinsics_views), top(s.rig_views),
+                                        "results"};
   fs::remove_all(fit);
-  fs::create_directories(fit / "poses");
-  for (const auto& e : fs::directory_iterator(session)) {
-    const std::string name = e.path().filename().string();
-    if (name == "poses" || name == "results") continue;
-    fs::copy(e.path(), fit / name, fs::copy_options::recursive);
-  }
-  for (const auto& e : fs::directory_iterator(session / "poses"))
-    if (held.count(e.path().filename().string()) == 0)
-      fs::copy(e.path(), fit / "poses" / e.path().filename(), fs::copy_options::recursive);
+  fs::create_directories(fit);
+  for (const auto& e : fs::directory_iterator(session))
+    if (images.count(e.path().filename().string()) == 0)
+      fs::copy(e.path(), fit / e.path().filename(), fs::copy_options::recursive);
   const ResultsLayout from{session}, to{fit};
   nlohmann::json measured = read_json_file(from.measured_poses(), "run the identify step first");
   nlohmann::json kept = nlohmann::json::array();
