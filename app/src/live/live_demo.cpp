@@ -226,17 +226,20 @@ struct TruthLog {
 // settled-frame test use them): the cell's camera files get the calibrated models in place of
 // the datasheet's, and measure reuses them (the same views join the session). nullopt (and says
 // why) when a camera cannot be calibrated.
-std::optional<CalibratedIntrinsics> calibrate_cameras(const std::vector<LiveCameraSpec>& specs,
-                                                      const LiveCell& lc, const fs::path& views,
-                                                      const fs::path& cell_dir,
-                                                      const PipelineLog& log,
-                                                      nlohmann::json& report) {
+std::optional<CalibratedIntrinsics> calibrate_before_collection(
+    const std::vector<LiveCameraSpec>& specs, const LiveCell& lc, const fs::path& views,
+    const fs::path& cell_dir, const PipelineLog& log, nlohmann::json& report) {
   CalibratedIntrinsics calibrated;
   nlohmann::json cams = nlohmann::json::array();
-  for (const auto& spec : specs) {
-    const IntrinsicsStep step = calibrate_camera(spec.name, spec.model.width, spec.model.height,
-                                                 vision::list_image_files(views / spec.name),
-                                                 lc.cell.calibration_board, step_log(log));
+  std::vector<CameraViews> cameras;
+  for (const auto& spec : specs)
+    cameras.push_back({spec.name, spec.model.width, spec.model.height,
+                       vision::list_image_files(views / spec.name)});
+  std::vector<IntrinsicsStep> steps =
+      calibrate_cameras(cameras, lc.cell.calibration_board, step_log(log));
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    const auto& spec = specs[c];
+    IntrinsicsStep& step = steps[c];
     if (step.result.status == vision::CalibrationStatus::kFailed ||
         step.result.status == vision::CalibrationStatus::kRefused) {
       say(log, "camera {} cannot be calibrated: {}\n", spec.name, step.result.reason);
@@ -247,7 +250,7 @@ std::optional<CalibratedIntrinsics> calibrate_cameras(const std::vector<LiveCame
     core::write_file_atomic(cell_dir / (spec.name + ".yaml"),
                             vision::camera_to_yaml(step.result.camera, spec.name));
     cams.push_back({{"camera", spec.name}, {"rms_px", step.result.rms_px}});
-    calibrated.emplace(spec.name, step);
+    calibrated.emplace(spec.name, std::move(step));
   }
   report["intrinsics_before_collection"] = cams;
   return calibrated;
@@ -385,7 +388,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   const fs::path views = fs::exists(session / "calibration")
                              ? session / "calibration" / "intrinsics"
                              : setup / "calibration" / "intrinsics";
-  const auto intrinsics = calibrate_cameras(specs, lc, views, setup, log, report);
+  const auto intrinsics = calibrate_before_collection(specs, lc, views, setup, log, report);
   if (!intrinsics) return kExitFailure;
 
   stage(log, "live: plan");

@@ -80,14 +80,23 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   std::vector<vision::RigCamera> rig_cameras;
   std::vector<double> corner_sigma;
   nlohmann::json intrinsics = nlohmann::json::array();
+  // The cameras calibrated before from these very views keep that result; the others are
+  // calibrated here, side by side.
+  std::vector<std::vector<fs::path>> files_of(n_cams);
+  std::vector<bool> reused(n_cams, false);
+  std::vector<CameraViews> to_calibrate;
   for (std::size_t c = 0; c < n_cams; ++c) {
-    const auto files = calibration_images(s.path(s.intrinsics_views) / names[c]);
+    files_of[c] = calibration_images(s.path(s.intrinsics_views) / names[c]);
     const auto earlier = calibrated.find(names[c]);
-    const bool reuse = earlier != calibrated.end() && from_files(earlier->second, files);
-    const IntrinsicsStep step =
-        reuse ? earlier->second
-              : calibrate_camera(names[c], s.cameras[c].width, s.cameras[c].height, files,
-                                 cal_board, step_log(log));
+    reused[c] = earlier != calibrated.end() && from_files(earlier->second, files_of[c]);
+    if (!reused[c])
+      to_calibrate.push_back({names[c], s.cameras[c].width, s.cameras[c].height, files_of[c]});
+  }
+  std::vector<IntrinsicsStep> fresh = calibrate_cameras(to_calibrate, cal_board, step_log(log));
+  for (std::size_t c = 0, k = 0; c < n_cams; ++c) {
+    const auto& files = files_of[c];
+    const bool reuse = reused[c];
+    const IntrinsicsStep step = reuse ? calibrated.at(names[c]) : std::move(fresh.at(k++));
     if (reuse) say(log, "  {}: calibrated before collection from these views\n", names[c]);
     const auto& result = step.result;
     nlohmann::json cj{{"camera", names[c]}, {"images", files.size()}, {"views", step.views.size()}};

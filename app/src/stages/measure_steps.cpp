@@ -6,6 +6,8 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <atomic>
+#include <future>
 
 namespace robocal::app {
 
@@ -32,9 +34,12 @@ vision::BoardPoints board_points(const vision::TargetBoard& board) {
   return pts;
 }
 
-IntrinsicsStep calibrate_camera(const std::string& camera, int width, int height,
-                                const std::vector<fs::path>& files,
-                                const vision::TargetBoard& board, const StepLog& log) {
+namespace {
+
+// The views of one camera's calibration images (detection only; `result` left empty).
+IntrinsicsStep detect_calibration_views(const std::string& camera, int width, int height,
+                                        const std::vector<fs::path>& files,
+                                        const vision::TargetBoard& board, const StepLog& log) {
   IntrinsicsStep out;
   out.images = files.size();
   std::vector<vision::DetectionRequest> requests;
@@ -52,11 +57,47 @@ IntrinsicsStep calibrate_camera(const std::string& camera, int width, int height
       out.problems.push_back(detected[i].problem);
   }
   bar.finish(fmt::format("board found in {} of {} images", out.views.size(), files.size()));
+  return out;
+}
+
+vision::IntrinsicCalibrationResult calibrate_views(
+    const std::vector<vision::CalibrationView>& views, int width, int height) {
   vision::IntrinsicCalibrationOptions options;
   options.width = width;
   options.height = height;
-  out.result = vision::calibrate_intrinsics(out.views, options);
+  return vision::calibrate_intrinsics(views, options);
+}
+
+}  // namespace
+
+IntrinsicsStep calibrate_camera(const std::string& camera, int width, int height,
+                                const std::vector<fs::path>& files,
+                                const vision::TargetBoard& board, const StepLog& log) {
+  IntrinsicsStep out = detect_calibration_views(camera, width, height, files, board, log);
+  out.result = calibrate_views(out.views, width, height);
   return out;
+}
+
+std::vector<IntrinsicsStep> calibrate_cameras(const std::vector<CameraViews>& cameras,
+                                              const vision::TargetBoard& board,
+                                              const StepLog& log) {
+  std::vector<IntrinsicsStep> steps;
+  steps.reserve(cameras.size());
+  for (const auto& c : cameras)
+    steps.push_back(detect_calibration_views(c.camera, c.width, c.height, c.files, board, log));
+  // Each worker takes the next camera not yet taken; a solve's exception reaches the caller.
+  std::atomic<std::size_t> next{0};
+  const auto work = [&] {
+    for (std::size_t k = next++; k < cameras.size(); k = next++)
+      steps[k].result = calibrate_views(steps[k].views, cameras[k].width, cameras[k].height);
+  };
+  const std::size_t workers =
+      std::min<std::size_t>(cameras.size(), static_cast<std::size_t>(std::max(log.threads, 1)));
+  std::vector<std::future<void>> running;
+  for (std::size_t w = 1; w < workers; ++w) running.push_back(std::async(std::launch::async, work));
+  work();
+  for (auto& r : running) r.get();
+  return steps;
 }
 
 RigStep calibrate_rig_from_views(const std::vector<vision::RigCamera>& cameras,

@@ -37,6 +37,20 @@ IntrinsicsStep calibrate_camera(const std::string& camera, int width, int height
                                 const std::vector<std::filesystem::path>& files,
                                 const vision::TargetBoard& board, const StepLog& log);
 
+// The same for several cameras. Their images are detected one camera after the other (each on
+// `log.threads` workers, with its progress bar); then their bundle adjustments, each
+// single-threaded and independent of the others, run side by side on up to `log.threads`
+// threads: the same results as one camera at a time, in less time (each one solve of 96 views
+// takes about 7 s). Steps in the order of `cameras`.
+struct CameraViews {
+  std::string camera;
+  int width = 0;
+  int height = 0;
+  std::vector<std::filesystem::path> files;
+};
+std::vector<IntrinsicsStep> calibrate_cameras(const std::vector<CameraViews>& cameras,
+                                              const vision::TargetBoard& board, const StepLog& log);
+
 // 2. The rig: the cameras' relative poses from views they share.
 struct RigStepOptions {
   vision::RigCalibrationOptions calibration;
