@@ -4,6 +4,8 @@
 #include "cli/command_registry.hpp"
 #include "stages/stages.hpp"
 
+#include <fmt/format.h>
+
 #include <memory>
 
 namespace robocal::app {
@@ -37,10 +39,13 @@ CommandSpec simulate_command() {
             cmd.add_option("--poses", o->poses, "Robot poses to record")
                 ->check(CLI::Range(3, 1000))
                 ->capture_default_str();
-            cmd.add_option("--intrinsic-views", o->intrinsic_views,
-                           "Calibration-board views per camera (default 48, 12 with --quick)");
+            cmd.add_option(
+                "--intrinsic-views", o->intrinsic_views,
+                fmt::format("Calibration-board views per camera (default {}, 12 with --quick)",
+                            SimulateOptions{}.intrinsic_views));
             cmd.add_option("--rig-views", o->rig_views,
-                           "Board views both cameras see (default 12, 6 with --quick)");
+                           fmt::format("Board views both cameras see (default {}, 6 with --quick)",
+                                       SimulateOptions{}.rig_views));
             cmd.add_flag("--random-poses", o->random_poses,
                          "Random reachable poses with the board in view (for comparison) "
                          "instead of poses planned by observability (planner/)");

@@ -19,8 +19,8 @@ struct LiveDemoOptions {
   unsigned seed = 1;
   int poses = 60;
   int held_out = 500;
-  int intrinsic_views = 48;  // per camera
-  int rig_views = 12;
+  int intrinsic_views = SimulateOptions{}.intrinsic_views;  // per camera, as the offline demo
+  int rig_views = SimulateOptions{}.rig_views;
   int threads = 2;
   bool quick = false;
   bool idealised_truth = false;
