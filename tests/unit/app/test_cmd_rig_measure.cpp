@@ -2,6 +2,7 @@
 // the bad-input cases: a missing camera image, an image whose size does not match the camera
 // file, a target seen by no camera, and cameras sharing no views.
 #include "cli/command_registry.hpp"
+#include "stages/measure_steps.hpp"
 
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/pose.hpp"
@@ -182,6 +183,53 @@ TEST(RigMeasureCli, CalibratesARigAndMeasuresPosesWithPerPoseStatus) {
   EXPECT_NE(bad["message"].get<std::string>().find("camera 1 'right' shares no views"),
             std::string::npos)
       << bad["message"];
+}
+
+// The cameras' intrinsics solved side by side (calibrate_cameras) are those of one camera at a
+// time, bit for bit, and each result belongs to its own camera (their focal lengths differ by 10
+// %).
+TEST(MeasureSteps, IntrinsicsSolvedSideBySideEqualOneCameraAtATime) {
+  Scene scene;
+  scene.cams[1].params[0] *= 1.1;
+  scene.cams[1].params[1] *= 1.1;
+  scene.rays[1] = rv::precompute_rays(scene.cams[1]);
+  const fs::path dir = fs::temp_directory_path() / "robocal_unit_intrinsics_side_by_side";
+  fs::remove_all(dir);
+  std::mt19937_64 rng(5);
+  std::vector<CameraViews> cameras;
+  for (int c = 0; c < 2; ++c) {
+    const std::string name = "cam" + std::to_string(c);
+    CameraViews views{name, scene.cams[0].width, scene.cams[0].height, {}};
+    for (int i = 0; i < 14; ++i) {
+      // World = this camera's frame, so every view faces it.
+      scene.write(
+          dir / name, fmt_view(i), c,
+          scene.camera_T_world[static_cast<size_t>(c)].inverse() * scene.random_pose(rng, 45.0));
+      views.files.push_back(dir / name / (fmt_view(i) + ".png"));
+    }
+    cameras.push_back(views);
+  }
+  const StepLog quiet{nullptr, 2};
+  const std::vector<IntrinsicsStep> both = calibrate_cameras(cameras, scene.board, quiet);
+  ASSERT_EQ(both.size(), 2U);
+  for (std::size_t c = 0; c < 2; ++c) {
+    const IntrinsicsStep one =
+        calibrate_camera(cameras[c].camera, cameras[c].width, cameras[c].height, cameras[c].files,
+                         scene.board, quiet);
+    ASSERT_EQ(one.result.status, rv::CalibrationStatus::kOk) << one.result.reason;
+    EXPECT_EQ(both[c].result.status, one.result.status);
+    EXPECT_EQ(both[c].result.camera.params, one.result.camera.params) << "camera " << c;
+    // The covariance's last bits can differ when it is computed on another thread (repeats on
+    // one thread are bit-equal, and so are the parameters either way): equal to rounding.
+    ASSERT_EQ(both[c].result.param_stddev.size(), one.result.param_stddev.size());
+    for (std::size_t k = 0; k < one.result.param_stddev.size(); ++k)
+      EXPECT_NEAR(both[c].result.param_stddev[k], one.result.param_stddev[k],
+                  1e-12 * one.result.param_stddev[k])
+          << "camera " << c << ", parameter " << k;
+    EXPECT_EQ(both[c].views.size(), one.views.size());
+    EXPECT_NEAR(both[c].result.camera.params[0], scene.cams[c].params[0], 1.0) << "camera " << c;
+  }
+  fs::remove_all(dir);
 }
 
 }  // namespace
