@@ -219,12 +219,13 @@ TEST(MeasureSteps, IntrinsicsSolvedSideBySideEqualOneCameraAtATime) {
     ASSERT_EQ(one.result.status, rv::CalibrationStatus::kOk) << one.result.reason;
     EXPECT_EQ(both[c].result.status, one.result.status);
     EXPECT_EQ(both[c].result.camera.params, one.result.camera.params) << "camera " << c;
-    // The covariance's last bits can differ when it is computed on another thread (repeats on
-    // one thread are bit-equal, and so are the parameters either way): equal to rounding.
+    // The covariance can differ in its last digits (seen: up to 6e-12 relative) when it is
+    // computed on another thread; repeats on one thread are bit-equal, and so are the parameters
+    // either way. Equal to rounding.
     ASSERT_EQ(both[c].result.param_stddev.size(), one.result.param_stddev.size());
     for (std::size_t k = 0; k < one.result.param_stddev.size(); ++k)
       EXPECT_NEAR(both[c].result.param_stddev[k], one.result.param_stddev[k],
-                  1e-12 * one.result.param_stddev[k])
+                  1e-9 * one.result.param_stddev[k])
           << "camera " << c << ", parameter " << k;
     EXPECT_EQ(both[c].views.size(), one.views.size());
     EXPECT_NEAR(both[c].result.camera.params[0], scene.cams[c].params[0], 1.0) << "camera " << c;
