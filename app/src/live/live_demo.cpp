@@ -232,6 +232,7 @@ std::optional<CalibratedIntrinsics> calibrate_before_collection(
   CalibratedIntrinsics calibrated;
   nlohmann::json cams = nlohmann::json::array();
   std::vector<CameraViews> cameras;
+  cameras.reserve(specs.size());
   for (const auto& spec : specs)
     cameras.push_back({spec.name, spec.model.width, spec.model.height,
                        vision::list_image_files(views / spec.name)});

@@ -96,7 +96,11 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   for (std::size_t c = 0, k = 0; c < n_cams; ++c) {
     const auto& files = files_of[c];
     const bool reuse = reused[c];
-    const IntrinsicsStep step = reuse ? calibrated.at(names[c]) : std::move(fresh.at(k++));
+    IntrinsicsStep step;
+    if (reuse)
+      step = calibrated.at(names[c]);
+    else
+      step = std::move(fresh.at(k++));
     if (reuse) say(log, "  {}: calibrated before collection from these views\n", names[c]);
     const auto& result = step.result;
     nlohmann::json cj{{"camera", names[c]}, {"images", files.size()}, {"views", step.views.size()}};
