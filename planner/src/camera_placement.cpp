@@ -28,6 +28,76 @@ Eigen::Isometry3d look_at(const Eigen::Vector3d& eye, const Eigen::Vector3d& at,
   return T;
 }
 
+// Greedy growth of a camera array from its first station (camera_placement.hpp). Each round
+// ranks the candidate stations by the poses they would add seen by at least two cameras (quick
+// test), measures the best few with the full test (occlusion by links and obstacles included)
+// and adds the best of those, among candidates sharing a view with the array (one of their
+// cameras and one already placed see the same pose: the rig's board views chain through it).
+template <typename QuickCounts, typename FullCounts>
+CameraPlacement grow_array(const CameraPlacement& first,
+                           const std::vector<CameraPlacement>& stations,
+                           const QuickCounts& quick_counts, const FullCounts& full_counts,
+                           const PlacementOptions& options, int ncam) {
+  CameraPlacement array = first;
+  array.station_look_at = {first.look_at};
+  array.cameras_per_station = ncam;
+  array.min_cameras = 2;
+  std::vector<int> quick = quick_counts(array.world_T_camera);
+  std::vector<int> full = full_counts(array.world_T_camera);
+  const std::size_t poses = full.size();
+  auto covered = [](const std::vector<int>& now, const std::vector<int>& add) {
+    std::ptrdiff_t n = 0;
+    for (std::size_t b = 0; b < now.size(); ++b) n += now[b] + add[b] >= 2 ? 1 : 0;
+    return n;
+  };
+  const std::vector<int> none(poses, 0);
+  std::vector<std::vector<int>> station_quick;
+  station_quick.reserve(stations.size());
+  for (const CameraPlacement& t : stations) station_quick.push_back(quick_counts(t.world_T_camera));
+  const auto min_gain = std::max<std::ptrdiff_t>(1, static_cast<std::ptrdiff_t>(0.02 * poses));
+  while (static_cast<int>(array.world_T_camera.size()) + ncam <= options.max_cameras &&
+         static_cast<double>(covered(full, none)) <
+             options.array_coverage * static_cast<double>(poses)) {
+    // Quick ranking of the candidates that share a view with the array.
+    std::vector<std::pair<std::ptrdiff_t, std::size_t>> ranked;
+    const auto quick_now = covered(quick, none);
+    for (std::size_t t = 0; t < stations.size(); ++t) {
+      std::size_t shared = 0;
+      for (std::size_t b = 0; b < poses; ++b)
+        shared += quick[b] > 0 && station_quick[t][b] > 0 ? 1 : 0;
+      if (shared < 3) continue;
+      const auto gain = covered(quick, station_quick[t]) - quick_now;
+      if (gain >= min_gain) ranked.emplace_back(gain, t);
+    }
+    std::stable_sort(ranked.begin(), ranked.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    // The best few under the full test.
+    std::ptrdiff_t best_gain = 0;
+    std::size_t best = stations.size();
+    std::vector<int> best_full;
+    const auto full_now = covered(full, none);
+    for (std::size_t k = 0; k < std::min<std::size_t>(6, ranked.size()); ++k) {
+      std::vector<int> add = full_counts(stations[ranked[k].second].world_T_camera);
+      const auto gain = covered(full, add) - full_now;
+      if (gain > best_gain) {
+        best_gain = gain;
+        best = ranked[k].second;
+        best_full = std::move(add);
+      }
+    }
+    if (best == stations.size() || best_gain < min_gain) break;
+    for (const Eigen::Isometry3d& wc : stations[best].world_T_camera)
+      array.world_T_camera.push_back(wc);
+    for (std::size_t b = 0; b < poses; ++b) {
+      full[b] += best_full[b];
+      quick[b] += station_quick[best][b];
+    }
+    array.station_look_at.push_back(stations[best].look_at);
+  }
+  array.coverage = static_cast<double>(covered(full, none)) / static_cast<double>(poses);
+  return array;
+}
+
 }  // namespace
 
 Cell with_cameras(const Cell& cell, const CameraPlacement& placement) {
@@ -42,6 +112,7 @@ Cell with_cameras(const Cell& cell, const CameraPlacement& placement) {
     c.pose_uncertainty = 0.0;
     out.cameras.push_back(c);
   }
+  if (placement.min_cameras > 0) out.visibility.min_cameras = placement.min_cameras;
   // Visibility requirements naming cameras that no longer exist fall back to "all".
   for (const std::string& n : out.visibility.cameras)
     if (out.camera_index(n) < 0) {
@@ -90,37 +161,70 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       std::min(std::atan(0.5 * cam.width / fx), std::atan(0.5 * cam.height / fy));
   const int ncam = std::max(1, options.cameras);
   const double tilt = ncam > 1 ? 0.5 * options.triangulation_angle : 0.0;
-  // Quick coverage of a placement: every camera sees the outline inside the image (border),
-  // within the maximum incidence and at least min_image_size (occlusion is left to the full
-  // test of the chosen placement).
-  auto quick_coverage = [&](const std::vector<Eigen::Isometry3d>& world_T_camera) {
-    std::size_t seen = 0;
-    for (const Eigen::Isometry3d& wb : boards) {
-      bool all = true;
-      for (const Eigen::Isometry3d& wc : world_T_camera) {
-        const Eigen::Isometry3d cb = wc.inverse() * wb;
-        const Eigen::Vector3d centre = cb * board_mid;
-        const Eigen::Vector3d face = -cb.linear().col(2);
-        if (std::acos(std::clamp(face.dot(-centre.normalized()), -1.0, 1.0)) >
-            cell.visibility.max_incidence) {
-          all = false;
-          break;
-        }
-        std::vector<Eigen::Vector2d> px;
-        for (const Eigen::Vector3d& p : outline) {
-          const auto q = vision::project(cam, cb * p);
-          if (!q || !vision::in_image(cam, *q, cell.margins.image_border)) break;
-          px.push_back(*q);
-        }
-        if (px.size() < 4 || std::min((px[1] - px[0]).norm(), (px[3] - px[0]).norm()) <
-                                 cell.visibility.min_image_size) {
-          all = false;
-          break;
-        }
+  // Quick visibility of the sampled boards from one camera: the outline inside the image
+  // (border), within the maximum incidence and at least min_image_size (occlusion is left to
+  // the full test of the chosen placement).
+  auto camera_sees = [&](const Eigen::Isometry3d& wc) {
+    std::vector<char> sees(boards.size(), 0);
+    const Eigen::Isometry3d cw = wc.inverse();
+    for (std::size_t b = 0; b < boards.size(); ++b) {
+      const Eigen::Isometry3d cb = cw * boards[b];
+      const Eigen::Vector3d centre = cb * board_mid;
+      const Eigen::Vector3d face = -cb.linear().col(2);
+      if (std::acos(std::clamp(face.dot(-centre.normalized()), -1.0, 1.0)) >
+          cell.visibility.max_incidence)
+        continue;
+      std::vector<Eigen::Vector2d> px;
+      for (const Eigen::Vector3d& p : outline) {
+        const auto q = vision::project(cam, cb * p);
+        if (!q || !vision::in_image(cam, *q, cell.margins.image_border)) break;
+        px.push_back(*q);
       }
-      seen += all ? 1 : 0;
+      sees[b] = px.size() == 4 && std::min((px[1] - px[0]).norm(), (px[3] - px[0]).norm()) >=
+                                      cell.visibility.min_image_size;
     }
-    return static_cast<double>(seen) / static_cast<double>(boards.size());
+    return sees;
+  };
+  // Per sampled board: how many of the cameras see it.
+  auto seen_counts = [&](const std::vector<Eigen::Isometry3d>& world_T_camera) {
+    std::vector<int> count(boards.size(), 0);
+    for (const Eigen::Isometry3d& wc : world_T_camera) {
+      const std::vector<char> sees = camera_sees(wc);
+      for (std::size_t b = 0; b < boards.size(); ++b) count[b] += sees[b];
+    }
+    return count;
+  };
+  auto quick_coverage = [&](const std::vector<Eigen::Isometry3d>& world_T_camera) {
+    const std::vector<int> count = seen_counts(world_T_camera);
+    const auto all =
+        std::count(count.begin(), count.end(), static_cast<int>(world_T_camera.size()));
+    return static_cast<double>(all) / static_cast<double>(boards.size());
+  };
+  // A station of ncam cameras at `distance` from `c` on a circle around the direction `n`, each
+  // tilted by half the triangulation angle.
+  auto station = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& n, const Eigen::Vector3d& e1,
+                     const Eigen::Vector3d& e2, const Eigen::Vector3d& up, double distance) {
+    CameraPlacement pl;
+    pl.look_at = c;
+    pl.view_direction = n;
+    for (int i = 0; i < ncam; ++i) {
+      const double phi = 2 * M_PI * i / ncam;
+      const Eigen::Vector3d dir =
+          (std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * e1 + std::sin(phi) * e2))
+              .normalized();
+      pl.world_T_camera.push_back(look_at(c + distance * dir, c, up));
+    }
+    pl.distance = distance;
+    pl.baseline =
+        ncam > 1 ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
+                 : 0.0;
+    return pl;
+  };
+  // The distance keeping the target's image at min_image_size (10 % margin).
+  auto size_at_point = [&] {
+    return cell.visibility.min_image_size > 0
+               ? std::min(fx, fy) * short_side / (1.1 * cell.visibility.min_image_size)
+               : 1e300;
   };
   // Candidate viewing directions: the mean face direction (one side for a level board, as on a
   // Delta), then the face directions of a spread of sampled poses (a serial arm's board faces
@@ -162,36 +266,18 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       // side; from a look-at point inside a larger volume, up to where the target at that point
       // keeps min_image_size.
       const double fov_distance = radius / std::sin(0.85 * half_fov);
-      const double size_at_point =
-          cell.visibility.min_image_size > 0
-              ? std::min(fx, fy) * short_side / (1.1 * cell.visibility.min_image_size)
-              : 1e300;
-      const double size_distance = size_at_point - radius;
+      const double size_distance = size_at_point() - radius;
       const double top =
           li == 0 ? std::min(1.6 * fov_distance, std::max(size_distance, 0.3 * fov_distance))
-                  : std::min(1.6 * fov_distance, size_at_point);
+                  : std::min(1.6 * fov_distance, size_at_point());
       // From 60 % of the field-of-view distance (the mean) or 40 % of the top (a point) up to
       // the top; keep the best coverage, the nearer on ties (bigger images).
       const double first = li == 0 ? 0.6 * fov_distance : 0.4 * top;
       for (int k = 0; k <= 6; ++k) {
         const double distance = li == 0 ? std::min(top, fov_distance * (0.6 + 0.1 * 1.67 * k))
                                         : std::min(top, first + (top - first) * k / 6.0);
-        CameraPlacement pl;
-        pl.look_at = c;
-        pl.view_direction = n;
+        CameraPlacement pl = station(c, n, e1, e2, up, distance);
         pl.volume_radius = radius;
-        for (int i = 0; i < ncam; ++i) {
-          const double phi = 2 * M_PI * i / ncam;
-          const Eigen::Vector3d dir =
-              (std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * e1 + std::sin(phi) * e2))
-                  .normalized();
-          pl.world_T_camera.push_back(look_at(c + distance * dir, c, up));
-        }
-        pl.distance = distance;
-        pl.baseline =
-            ncam > 1
-                ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
-                : 0.0;
         pl.coverage = quick_coverage(pl.world_T_camera);
         best_quick = std::max(best_quick, pl.coverage);
         tried.push_back(pl);
@@ -223,14 +309,62 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     throw std::invalid_argument("no viewing direction sees enough of robot '" + model.name +
                                 "'s reachable poses");
   const Eigen::Vector3d c = best.look_at, n = best.view_direction;
-  const int ncam_out = ncam;
   CameraPlacement out = best;
   std::ostringstream s;
-  s << ncam_out << " camera(s) " << out.distance << " m from the point they look at ("
-    << c.transpose() << "), looking along " << (-n).transpose() << ", baseline " << out.baseline
+  s << ncam << " camera(s) " << out.distance << " m from the point they look at (" << c.transpose()
+    << "), looking along " << (-n).transpose() << ", baseline " << out.baseline
     << " m; they see the target at " << std::lround(100 * out.coverage) << " % of "
     << configs.size() << " reachable sampled poses";
   out.summary = s.str();
+  if (options.max_cameras >= 2 * ncam && ncam >= 2 && out.coverage < options.min_coverage) {
+    // Candidate stations: the tried placements, and pairs looking along the first station's
+    // direction at 32 points spread over the poses facing that way, from the distance keeping
+    // the target's image at min_image_size and from two nearer ones.
+    std::vector<CameraPlacement> stations = tried;
+    {
+      const Eigen::Vector3d e1 = n.unitOrthogonal();
+      const Eigen::Vector3d e2 = n.cross(e1);
+      const Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? e2 : Eigen::Vector3d::UnitZ();
+      std::vector<Eigen::Vector3d> facing;
+      for (std::size_t i = 0; i < centres.size(); ++i)
+        if (normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
+          facing.push_back(centres[i]);
+      const double far = std::min(out.distance, size_at_point());
+      for (std::size_t k = 0; k < 32 && !facing.empty(); ++k)
+        for (const double f : {1.0, 0.8, 0.6})
+          stations.push_back(station(facing[k * facing.size() / 32], n, e1, e2, up, f * far));
+    }
+    // Per sampled pose, how many of `cameras` see the target under the full test.
+    auto full_counts = [&](const std::vector<Eigen::Isometry3d>& cameras) {
+      CameraPlacement p;
+      p.world_T_camera = cameras;
+      const Cell placed = with_cameras(cell, p);
+      FeasibilityOptions opts = feasibility_options_from_cell(placed);
+      opts.check_visibility = false;  // per-camera verdicts only
+      const FeasibilityChecker checker(model, params, placed, frame, opts);
+      std::vector<int> count(configs.size(), 0);
+      for (std::size_t i = 0; i < configs.size(); ++i) {
+        const Candidate cand = checker.evaluate(configs[i]);
+        if (!cand.feasible()) continue;
+        for (const CameraView& v : cand.views) count[i] += v.visible ? 1 : 0;
+      }
+      return count;
+    };
+    CameraPlacement array = grow_array(out, stations, seen_counts, full_counts, options, ncam);
+    if (array.station_look_at.size() > 1 && array.coverage > out.coverage) {
+      std::ostringstream a;
+      a << array.world_T_camera.size() << " cameras in " << array.station_look_at.size()
+        << " stations of " << ncam << " (one pair sees the target at only "
+        << std::lround(100 * out.coverage) << " % of " << configs.size()
+        << " reachable sampled poses; two cameras of the array see it at "
+        << std::lround(100 * array.coverage) << " %); stations look at";
+      for (std::size_t k = 0; k < array.station_look_at.size(); ++k)
+        a << (k == 0 ? " (" : ", (") << array.station_look_at[k].transpose() << ")";
+      a << ", first station " << out.distance << " m away, baseline " << out.baseline << " m";
+      array.summary = a.str();
+      return array;
+    }
+  }
   return out;
 }
 

@@ -290,10 +290,17 @@ void read_target(const Reader& r, const YAML::Node& node, TargetMount& t) {
 }
 
 void read_visibility(const Reader& r, const YAML::Node& node, VisibilityRequirements& v) {
-  r.known_keys(node, {"cameras", "max_incidence", "min_image_size", "corners"}, "visibility");
+  r.known_keys(node, {"cameras", "min_cameras", "max_incidence", "min_image_size", "corners"},
+               "visibility");
   if (const YAML::Node c = node["cameras"]) {
     if (!c.IsSequence()) r.fail(c, "visibility.cameras must be a list of camera names");
     for (const YAML::Node& n : c) v.cameras.push_back(r.text(n, "visibility.cameras"));
+  }
+  if (node["min_cameras"]) {
+    const double n = r.number(node["min_cameras"], "visibility.min_cameras");
+    if (n < 1 || n != std::floor(n))
+      r.fail(node["min_cameras"], "visibility.min_cameras must be a whole number >= 1");
+    v.min_cameras = static_cast<int>(n);
   }
   if (node["max_incidence"]) {
     v.max_incidence = r.number(node["max_incidence"], "visibility.max_incidence");
@@ -323,6 +330,11 @@ int Cell::camera_index(const std::string& camera_name) const {
   for (std::size_t i = 0; i < cameras.size(); ++i)
     if (cameras[i].name == camera_name) return static_cast<int>(i);
   return -1;
+}
+
+int Cell::cameras_needed() const {
+  const int required = static_cast<int>(required_cameras().size());
+  return visibility.min_cameras > 0 ? std::min(visibility.min_cameras, required) : required;
 }
 
 std::vector<int> Cell::required_cameras() const {
@@ -390,6 +402,13 @@ Cell parse_cell_yaml(const std::string& text, const std::string& source,
       if (cell.camera_index(cam_name) < 0)
         r.fail(v["cameras"],
                "visibility.cameras names '" + cam_name + "', which is not a camera of this cell");
+    const auto required = static_cast<int>(cell.required_cameras().size());
+    if (cell.visibility.min_cameras > required)
+      r.fail(v["min_cameras"], "visibility.min_cameras is " +
+                                   std::to_string(cell.visibility.min_cameras) + " but only " +
+                                   std::to_string(required) +
+                                   " camera(s) may see the target (visibility.cameras, or every "
+                                   "camera of the cell)");
   }
   return cell;
 }

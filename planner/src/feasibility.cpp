@@ -108,7 +108,8 @@ FeasibilityChecker::FeasibilityChecker(const calib::Mechanism& model, const Eige
       scene_(model, cell, options.collision),
       corners_(required_corner_points(cell.target.board, cell.visibility.corners)),
       outline_(board_outline(cell.target.board)),
-      required_(cell.required_cameras()) {}
+      required_(cell.required_cameras()),
+      needed_(cell.cameras_needed()) {}
 
 namespace {
 
@@ -159,6 +160,9 @@ Candidate FeasibilityChecker::evaluate(const Eigen::VectorXd& readings) const {
   Eigen::Vector3d board_centre = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& p : outline_world) board_centre += p / 4.0;
   c.views.resize(cell_->cameras.size());
+  int seen = 0;
+  Rejection first_problem = Rejection::kNone;
+  std::string first_detail;
   for (std::size_t ci = 0; ci < cell_->cameras.size(); ++ci) {
     const CellCamera& cam = cell_->cameras[ci];
     CameraView& v = c.views[ci];
@@ -203,16 +207,24 @@ Candidate FeasibilityChecker::evaluate(const Eigen::VectorXd& readings) const {
     v.visible = v.problem == Rejection::kNone;
     const bool required =
         std::find(required_.begin(), required_.end(), static_cast<int>(ci)) != required_.end();
-    if (options_.check_visibility && required && !v.visible && c.rejection == Rejection::kNone) {
-      c.rejection = v.problem;
+    seen += required && v.visible ? 1 : 0;
+    if (required && !v.visible && first_problem == Rejection::kNone) {
+      first_problem = v.problem;
       std::ostringstream s;
       s << "camera '" << cam.name << "'";
       if (v.problem == Rejection::kOccluded) s << " blocked by " << blocker;
       if (v.problem == Rejection::kFacingAway)
         s << " at " << v.incidence * 180 / M_PI << " deg incidence";
       if (v.problem == Rejection::kTooSmall) s << ": " << v.image_size << " px";
-      c.detail = s.str();
+      if (needed_ < static_cast<int>(required_.size()))
+        s << " (" << needed_ << " of " << required_.size() << " cameras must see it)";
+      first_detail = s.str();
     }
+  }
+  // Too few of the required cameras see it: the first one that does not says why.
+  if (options_.check_visibility && seen < needed_) {
+    c.rejection = first_problem;
+    c.detail = first_detail;
   }
   return c;
 }

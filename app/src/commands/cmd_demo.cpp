@@ -1,6 +1,6 @@
 // `robocal demo`: the whole pipeline on a simulated cell, from rendered images to a calibrated
 // robot proven against the hidden truth, through a session folder (app/SESSION.md):
-//   1. simulate  a true robot (library robot + realistic perturbations), two cameras, boards;
+//   1. simulate  a true robot (library robot + realistic perturbations), cameras, boards;
 //                rendered calibration views and pose images, actuator readings, truth/
 //   2. measure   intrinsics per camera, stereo rig, board pose per robot pose (multi-camera PnP
 //                with a 6x6 covariance), pixel observations
@@ -130,7 +130,8 @@ CommandSpec demo_command() {
             auto o = std::make_shared<DemoOptions>();
             cmd.footer(
                 "Builds a simulated cell (a library robot whose real geometry differs from its "
-                "drawing by realistic tolerances, two cameras, a board on the end-effector) and "
+                "drawing by realistic tolerances, two cameras (an array of pairs where one pair "
+                "sees too little of its range), a board on the end-effector) and "
                 "records it as a session folder (app/SESSION.md), then runs the real pipeline on "
                 "that folder: camera intrinsics, stereo rig, end-effector pose measurement, "
                 "closed-loop identification, and validation against the hidden truth on held-out "

@@ -103,13 +103,19 @@ LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robo
       vec(cell.volume_centre + cell.volume_extent + grow),
       library.bodies.at(static_cast<std::size_t>(library.tool)).name, vec(mount.translation()),
       ypr[2], ypr[1], ypr[0]);
-  core::write_file_atomic(f.cell, text);
+  // An array of camera pairs: any two of its cameras measure a pose.
+  const std::string visibility =
+      cell.placement.min_cameras > 0
+          ? fmt::format("visibility: {{min_cameras: {}}}\n", cell.placement.min_cameras)
+          : std::string();
+  core::write_file_atomic(f.cell, text + visibility);
   return f;
 }
 
 namespace {
 
-// The fallback: poses of the nominal robot where both cameras see the whole board, chained so
+// The fallback: poses of the nominal robot where both cameras (two of an array's) see the whole
+// board, chained so
 // that the safety guard (the same one collect builds: limits, workspace, the cell's collision
 // scene) lets every motion through, starting from the controller's home.
 std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
@@ -144,12 +150,16 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
     if (static_cast<int>(out.size()) == count) break;
     const auto fk = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
     if (!fk.closure.ok()) continue;
-    bool seen = true;
-    for (const auto& cam : cell.cameras)
+    int seeing = 0;
+    for (const auto& cam : cell.cameras) {
+      bool whole = true;
       for (const auto& t : vision::corner_truth(
                cam.model, {{cell.ee_board, cam.camera_T_world * fk.pose}}, cell.options.render))
-        seen = seen && t.visible;
-    if (!seen || !guard.check_move(from, q, speed).allowed) continue;
+        whole = whole && t.visible;
+      seeing += whole ? 1 : 0;
+    }
+    if (seeing < cell.plan_cell.cameras_needed() || !guard.check_move(from, q, speed).allowed)
+      continue;
     out.push_back(q);
     from = q;
   }

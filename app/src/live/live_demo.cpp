@@ -278,7 +278,7 @@ void complete_session(const LiveCell& lc, const LiveDemoOptions& o, const fs::pa
   core::write_file_atomic(session / "session.yaml", session_to_yaml(s));
 
   TruthFile truth;
-  truth.elastic_sag = lc.cell.options.elastic_sag;
+  truth.elastic_sag = lc.cell.elastic_sag;
   truth.nominal = lc.cell.nominal;
   truth.truth = lc.cell.truth;
   for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
@@ -408,7 +408,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   // Collection through `robocal collect`'s own code: guard, confirmation, progress, resume.
   stage(log, "live: collect");
   robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
-  SaggingBoard seen(truth, lc.cell.options.elastic_sag);
+  SaggingBoard seen(truth, lc.cell.elastic_sag);
   LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("L{}-", ::getpid()));
   std::string camera_note;
   for (std::size_t c = 0; c < specs.size(); ++c)
@@ -434,7 +434,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   co.yes = o.yes;
   co.open_camera = [&cams](const CollectCamera& c) { return cams.open(c.name); };
   co.on_settled = [&](const Eigen::VectorXd& readings) {
-    truth_log.append(readings, truth.read(), lc.cell.options.elastic_sag);
+    truth_log.append(readings, truth.read(), lc.cell.elastic_sag);
   };
   const fs::path sim_log = setup / "sim-controller.jsonl";
   // The overhead reported is that of the last attempt (capture_seconds is its wall time).

@@ -134,7 +134,7 @@ bool true_frame_pose(const SimulatedCell& cell, const Eigen::VectorXd& readings,
                      Eigen::Isometry3d* world_T_frame) {
   const auto fk = calib::forward_kinematics(cell.model, cell.truth, readings, cell.target_frame);
   if (!fk.closure.ok()) return false;
-  *world_T_frame = elastic_deflection(fk.pose, cell.options.elastic_sag);
+  *world_T_frame = elastic_deflection(fk.pose, cell.elastic_sag);
   return true;
 }
 
@@ -232,6 +232,13 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   }
   cell.volume_centre = 0.5 * (lo + hi);
   cell.volume_extent = 0.5 * (hi - lo);
+  // The elastic sag's law, scaled down where the robot reaches far enough to sag more than
+  // kMaxElasticSag by it.
+  double reach2 = 0.0;
+  for (const Eigen::Isometry3d& p : tool_poses)
+    reach2 = std::max(reach2, p.translation().head<2>().squaredNorm());
+  cell.elastic_sag =
+      reach2 * options.elastic_sag > kMaxElasticSag ? kMaxElasticSag / reach2 : options.elastic_sag;
 
   // The board is mounted 1 cm below the tool point, level, facing down at the cameras (its z
   // axis points up, away from them), centred on the tool point. Designed mount = nominal tool.
@@ -295,6 +302,12 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   planner::PlacementOptions placement;
   placement.cameras = 2;
   placement.triangulation_angle = options.triangulation_angle;
+  // An array of camera pairs where one pair sees too little of a parallel robot's range (the
+  // Gantry-Tau's guideways). A serial arm keeps its pair: its board turns with the wrist, and
+  // its poses are planned with the board facing the pair (UR5, modular arm: 24-39 µm held-out).
+  // Below a quarter (the four-bar's pair sees 45 %, and keeps it).
+  placement.max_cameras = cell.model.closures.empty() ? 2 : options.max_cameras;
+  placement.min_coverage = 0.25;
   try {
     cell.placement = planner::propose_cameras(cell.model, cell.nominal, cell.plan_cell, placement);
   } catch (const std::invalid_argument& e) {
@@ -335,10 +348,10 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
     }
   }
   cell.plan_cell = planner::with_cameras(cell.plan_cell, cell.placement);
-  for (int i = 0; i < 2; ++i) {
+  for (std::size_t i = 0; i < cell.placement.world_T_camera.size(); ++i) {
     SimulatedCamera cam;
     cam.model = true_camera(options, rng);
-    cam.camera_T_world = cell.placement.world_T_camera[static_cast<std::size_t>(i)].inverse();
+    cam.camera_T_world = cell.placement.world_T_camera[i].inverse();
     cam.rays = vision::precompute_rays(cam.model);
     cell.cameras.push_back(std::move(cam));
   }
@@ -442,24 +455,61 @@ std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int cou
   const Eigen::Matrix3d facing =
       Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -cell.placement.view_direction)
           .toRotationMatrix();
+  // Where the board is held: a pair's look-at point; for an array, every station's and the
+  // midpoints of neighbouring stations (the views that chain one station's cameras to the
+  // next's), taken in turn.
+  struct Anchor {
+    Eigen::Vector3d at;
+    int station_a = -1, station_b = -1;  // both -1: every camera must see the board
+  };
+  std::vector<Anchor> anchors;
+  const auto& looks = cell.placement.station_look_at;
+  const int per = cell.placement.cameras_per_station;
+  if (looks.size() < 2 || per < 1) {
+    anchors.push_back({cell.placement.look_at, -1, -1});
+  } else {
+    for (std::size_t a = 0; a < looks.size(); ++a) {
+      anchors.push_back({looks[a], static_cast<int>(a), static_cast<int>(a)});
+      for (std::size_t b = a + 1; b < looks.size(); ++b)
+        anchors.push_back({0.5 * (looks[a] + looks[b]), static_cast<int>(a), static_cast<int>(b)});
+    }
+  }
+  auto sees = [&](std::size_t camera, const Eigen::Isometry3d& world_T_board) {
+    const SimulatedCamera& cam = cell.cameras[camera];
+    return visible_fraction(cam.model, cell.calibration_board, cam.camera_T_world * world_T_board,
+                            cell.options.render) >= 0.5;
+  };
+  // Accepted: every camera sees it (a pair), or, in an array, two cameras at least, one of each
+  // station the anchor joins.
+  auto accepted = [&](const Anchor& anchor, const Eigen::Isometry3d& world_T_board) {
+    int seeing = 0;
+    bool in_a = false, in_b = false;
+    for (std::size_t k = 0; k < cell.cameras.size(); ++k) {
+      const bool s = sees(k, world_T_board);
+      if (!s && anchor.station_a < 0) return false;
+      seeing += s ? 1 : 0;
+      const int station = per > 0 ? static_cast<int>(k) / per : 0;
+      in_a = in_a || (s && station == anchor.station_a);
+      in_b = in_b || (s && station == anchor.station_b);
+    }
+    return anchor.station_a < 0 || (seeing >= 2 && in_a && in_b);
+  };
   std::vector<Eigen::Isometry3d> views;
   for (int v = 0; v < count; ++v) {
+    const Anchor& anchor = anchors[static_cast<std::size_t>(v) % anchors.size()];
+    // A link between stations whose fields do not meet near the midpoint: spread wider.
+    const double spread =
+        anchor.station_a != anchor.station_b && anchor.station_a >= 0 ? 0.3 : 0.15;
     for (int attempt = 0; attempt < 200; ++attempt) {
       Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
       // Printed face (board -z) towards the cameras, then tilted.
       world_T_board.linear() =
           facing * random_tilt(std::abs(u(rng)) * 35.0 * kPi / 180.0, u(rng) * kPi, rng);
       const Eigen::Vector3d centre =
-          cell.placement.look_at +
-          facing * Eigen::Vector3d(u(rng) * 0.15, u(rng) * 0.15, u(rng) * 0.1);
+          anchor.at + facing * Eigen::Vector3d(u(rng) * spread, u(rng) * spread, u(rng) * 0.1);
       world_T_board.translation() =
           centre - world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0);
-      bool all_see = true;
-      for (const auto& cam : cell.cameras)
-        all_see = all_see &&
-                  visible_fraction(cam.model, cell.calibration_board,
-                                   cam.camera_T_world * world_T_board, cell.options.render) >= 0.5;
-      if (all_see) {
+      if (accepted(anchor, world_T_board)) {
         views.push_back(world_T_board);
         break;
       }

@@ -1,6 +1,7 @@
 #pragma once
 // A simulated robot cell for the demo and for CI: a "true" robot (library robot + random
-// perturbations), two cameras placed to see the working volume, a target board on the
+// perturbations), cameras placed to see the working volume (a pair, or an array of pairs where
+// one pair sees too little of the robot's range), a target board on the
 // end-effector and a calibration board. Everything the measurement pipeline gets from it are
 // rendered images and actuator readings; the truth stays in SimulatedCell and is read only to
 // report errors (validation).
@@ -36,6 +37,9 @@ struct CellOptions {
   // poses' board fits failed the measure stage's consistency gate (chi2/dof 60-150).
   double triangulation_angle = 0.6;  // rad
   double min_board_image = 250.0;    // px
+  // Where one pair sees the board at under a quarter of the reachable poses of a robot with loops,
+  // an array of up to this many cameras (pairs placed by the planner) whose fields tile the range.
+  int max_cameras = 6;
   // The end-effector board: ee_tags x ee_tags AprilTags (tag36h11, ids from 0); default 6x6 tags
   // of 40 mm with 10 mm gaps, a 290 mm pattern on the Delta's ~0.4 m plate. The board's tilt is
   // its least well measured quantity (depth across the board from 1-2 m away), and it grows
@@ -53,7 +57,9 @@ struct CellOptions {
   // which differs from the drawing only where the model can follow.
   unsigned unmodelled_seed = 0;
   // Elastic deflection of the realistic truth (elastic_deflection below), m per m of reach
-  // squared; 0: a rigid robot.
+  // squared; 0: a rigid robot. A robot is built stiff enough to sag at most kMaxElasticSag
+  // anywhere it reaches: where the law would give more (a reach beyond 1 m), the cell scales
+  // it down (SimulatedCell::elastic_sag).
   double elastic_sag = 0.0;
   // Actuator readings: Gaussian noise and quantisation step, joint units (rad or m).
   double actuator_noise = 2e-6;
@@ -84,7 +90,17 @@ struct SimulatedCell {
   planner::Cell plan_cell;
   planner::CameraPlacement placement;  // what propose_cameras said
   CellOptions options;
+  // The true robot's elastic sag, m per m^2: options.elastic_sag, scaled down where the
+  // robot reaches further than the largest sag allows (kMaxElasticSag at its farthest reach).
+  double elastic_sag = 0.0;
 };
+
+// The largest elastic sag of a simulated robot anywhere it reaches (m). At the law's 1e-4 /m,
+// the rotary Delta (0.93 m at most), the UR5 (0.85 m) and the four-bar stay below it and keep
+// the law; the
+// Gantry-Tau, whose platform works up to 4 m from its base axis on its guideways, would sag
+// 1.6 mm by the law, which no precision gantry does (its carts carry the structure along).
+inline constexpr double kMaxElasticSag = 100e-6;
 
 // The demo's cell for a seed (offline `simulate`/`demo` and `demo --live` share it, so the same
 // seed gives the same true robot): quick = smaller images; the realistic truth has unmodelled
@@ -134,7 +150,9 @@ Eigen::VectorXd read_actuators(const SimulatedCell& cell, const Eigen::VectorXd&
 std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, int camera,
                                                     int count, std::mt19937& rng);
 
-// world_T_board views of the calibration board inside the working volume seen by all cameras.
+// world_T_board views of the calibration board inside the working volume seen by all cameras
+// (a pair), or, for an array, by two cameras at least: around each station's look-at point and
+// between stations (the views that chain the rig), in turn.
 std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int count,
                                               std::mt19937& rng);
 

@@ -257,6 +257,13 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
                            corner_observations_json(images.frames, names, 0.0, true)});
     measured_poses.push_back(std::move(out));
   }
+  std::size_t out_of_view = 0;
+  for (const auto& images : measured_images) out_of_view += images.out_of_view.size();
+  if (out_of_view > 0)
+    say(log,
+        "  {} pose images show no part of the board: in a camera array each pose is seen by "
+        "the cameras facing it\n",
+        out_of_view);
   write_measured_poses(results, measured_poses);
   write_pixel_observations(results, {s.robot_file, s.measured_frame, s.ee_target}, pixel_poses);
   core::write_file_atomic(results.measurements(), calib::measurements_to_yaml(mfile));

@@ -180,7 +180,12 @@ std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>
     for (std::size_t f = 0; f < detected[i].size(); ++f) {
       const vision::ImageDetection& d = detected[i][f];
       if (!d.problem.empty()) {
-        out[jobs[i].pose].problems.push_back(d.problem);
+        const bool nothing_seen =
+            d.detection.status == vision::DetectionStatus::kRejected && d.detection.pixels.empty();
+        if (n_cams > 2 && nothing_seen)
+          out[jobs[i].pose].out_of_view.push_back(static_cast<int>(jobs[i].camera));
+        else
+          out[jobs[i].pose].problems.push_back(d.problem);
         continue;
       }
       auto& frame = out[jobs[i].pose].frames[f][jobs[i].camera];

@@ -75,6 +75,9 @@ struct PoseStepOptions {
 struct PoseImages {
   std::vector<std::vector<vision::CameraFrame>> frames;  // [frame][camera]
   std::vector<std::string> problems;                     // missing / unreadable images
+  // In a camera array (more than two cameras), the cameras whose image shows no part of the
+  // board: each pose is seen by the cameras facing it, so this is expected, not a problem.
+  std::vector<int> out_of_view;
   vision::PoseMeasurement measurement;
 };
 std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>& rig,

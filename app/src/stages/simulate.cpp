@@ -28,8 +28,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // The realistic truth's elastic sag (simcell elastic_deflection): 16 µm at the rotary Delta's
-// 0.4 m reach, 64 µm at 0.8 m. Small against the 0.5 mm / 0.2° tolerances, but no kinematic
-// model can represent it, as on a real robot.
+// 0.4 m reach, 64 µm at 0.8 m, at most 100 µm (kMaxElasticSag). Small against the 0.5 mm / 0.2°
+// tolerances, but no kinematic model can represent it, as on a real robot.
 
 // One image to render: a board seen by a camera, written to `file`.
 struct Shot {
@@ -76,8 +76,8 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
       o.idealised_truth ? "idealised (differs from the drawing only in what the model estimates)"
                         : "with unmodelled error (parameters the model holds fixed are off too, "
                           "and the robot sags elastically with its reach)");
-  say(log, "cell: {} ({} parameters), 2 cameras {}x{}, end-effector board {} corners\n",
-      cell.model.name, cell.model.parameters.size(), cell_options.image_width,
+  say(log, "cell: {} ({} parameters), {} cameras {}x{}, end-effector board {} corners\n",
+      cell.model.name, cell.model.parameters.size(), cell.cameras.size(), cell_options.image_width,
       cell_options.image_height, cell.ee_board.corners.size());
 
   Session s;
@@ -127,24 +127,32 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   render_shots(cell, shots, "render calibration views", log);
 
   // Robot poses: planned (default) or random. Either way a pose is recorded only when both
-  // (true) cameras see the whole end-effector board on the true robot.
+  // (true) cameras (two of an array's) see the whole end-effector board on the true robot.
   stage(log, "simulate: robot poses and images");
   say(log, "cameras: {}\n", cell.placement.summary);
   calib::MechanismPredictor true_predictor(cell.model, cell.target_frame);
   std::vector<Eigen::VectorXd> true_readings;
   std::vector<Eigen::Isometry3d> true_board_poses;
-  auto seen_by_all = [&](const Eigen::Isometry3d& world_T_board) {
+  // Every camera of a pair; two cameras at least of an array.
+  const int cameras_needed = cell.plan_cell.cameras_needed();
+  const std::string seen_by =
+      cameras_needed == static_cast<int>(cell.cameras.size())
+          ? "both cameras"
+          : fmt::format("{} of the {} cameras", cameras_needed, cell.cameras.size());
+  auto seen_enough = [&](const Eigen::Isometry3d& world_T_board) {
+    int seeing = 0;
     for (const auto& cam : cell.cameras) {
       const auto corners = vision::corner_truth(
           cam.model, {{cell.ee_board, cam.camera_T_world * world_T_board}}, cell.options.render);
-      if (!std::all_of(corners.begin(), corners.end(), [](const auto& t) { return t.visible; }))
-        return false;
+      seeing += std::all_of(corners.begin(), corners.end(), [](const auto& t) { return t.visible; })
+                    ? 1
+                    : 0;
     }
-    return true;
+    return seeing >= cameras_needed;
   };
   auto try_pose = [&](const Eigen::VectorXd& q) {
     Eigen::Isometry3d world_T_board;
-    if (!true_frame_pose(cell, q, &world_T_board) || !seen_by_all(world_T_board)) return false;
+    if (!true_frame_pose(cell, q, &world_T_board) || !seen_enough(world_T_board)) return false;
     true_readings.push_back(q);
     true_board_poses.push_back(world_T_board);
     return true;
@@ -162,9 +170,9 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
       for (const auto& q : planned) unseen += try_pose(q) ? 0 : 1;
       if (unseen > 0)
         say(log,
-            "  {} planned poses not recorded: the board is not wholly in view of both true "
-            "cameras (the plan knows only the nominal robot and intrinsics)\n",
-            unseen);
+            "  {} planned poses not recorded: the board is not wholly in view of {} (true "
+            "cameras; the plan knows only the nominal robot and intrinsics)\n",
+            unseen, seen_by);
     }
   }
   if (pose_source == "random") {
@@ -176,11 +184,10 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
     }
   }
   if (static_cast<int>(true_readings.size()) < o.poses)
-    say(log, "  note: only {} poses with the board in view of both cameras\n",
-        true_readings.size());
+    say(log, "  note: only {} poses with the board in view of {}\n", true_readings.size(), seen_by);
   shots.clear();
   TruthFile truth;
-  truth.elastic_sag = cell_options.elastic_sag;
+  truth.elastic_sag = cell.elastic_sag;
   for (std::size_t i = 0; i < true_readings.size(); ++i) {
     PoseRecord record;
     record.name = fmt::format("pose_{:03d}", i);

@@ -629,3 +629,104 @@ TEST(PlannerCells, ProposedCamerasSeePartOfAnArmsRing) {
 
 }  // namespace
 }  // namespace robocal::planner
+
+namespace robocal::planner {
+namespace {
+
+// A Gantry-Tau's platform travels 3 m along its guideways: one camera pair sees a small part of
+// the range, so the placement grows an array of pairs whose fields tile it (two cameras, any
+// two, see each covered pose) and whose stations share views, through which the rig's board
+// views chain. Checked with the independent geometry above on fresh samples.
+TEST(PlannerCells, AnArrayOfPairsTilesARangeOnePairCannotSee) {
+  const calib::Mechanism gantry = calib::load_robot_file(kData + "/robots/gantry_tau.yaml");
+  const Eigen::VectorXd params = gantry.nominal_parameters();
+  // The board under the platform's 10 cm box, facing down; cameras below.
+  const Cell cell = parse_cell_yaml(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [1.5, -0.5, -2], "
+      "look_at: [1.5, -0.5, 0]}}\n"
+      "target: {file: ../vision/apriltag_4x3.yaml, position: [0, 0, -0.06]}\n"
+      "visibility: {min_image_size: 150}\n",
+      "gantry.yaml", kCells);
+  PlacementOptions one;
+  const CameraPlacement pair = propose_cameras(gantry, params, cell, one);
+  ASSERT_EQ(pair.world_T_camera.size(), 2u);
+  ASSERT_LT(pair.coverage, one.min_coverage) << pair.summary;
+  PlacementOptions up_to_six = one;
+  up_to_six.max_cameras = 6;
+  const CameraPlacement array = propose_cameras(gantry, params, cell, up_to_six);
+  ASSERT_GE(array.world_T_camera.size(), 4u) << array.summary;
+  ASSERT_LE(array.world_T_camera.size(), 6u);
+  EXPECT_EQ(array.cameras_per_station, 2);
+  EXPECT_EQ(array.station_look_at.size() * 2, array.world_T_camera.size());
+  EXPECT_EQ(array.min_cameras, 2);
+  const Cell placed = with_cameras(cell, array);
+  EXPECT_EQ(placed.cameras_needed(), 2);
+
+  const FeasibilityChecker checker(gantry, params, placed, gantry.tool,
+                                   feasibility_options_from_cell(placed));
+  std::mt19937 rng(21);
+  int reachable = 0, by_pair = 0, by_array = 0;
+  const auto stations = static_cast<int>(array.station_look_at.size());
+  // shared[a][b]: a pose seen by a camera of station a and one of station b.
+  std::vector<std::vector<char>> shared(static_cast<std::size_t>(stations),
+                                        std::vector<char>(static_cast<std::size_t>(stations), 0));
+  const Cell pair_cell = with_cameras(cell, pair);
+  for (const Candidate& c : checker.sample(1500, rng, nullptr)) {
+    if (c.rejection != Rejection::kNone && c.rejection < Rejection::kFacingAway) continue;
+    ++reachable;
+    const RobotGeometry g = geometry_at(gantry, solve_state(gantry, c.readings));
+    const Eigen::Isometry3d board =
+        g.poses[static_cast<std::size_t>(gantry.tool)] * placed.target.frame_T_board;
+    std::vector<int> seeing;
+    for (std::size_t k = 0; k < placed.cameras.size(); ++k)
+      if (seen_by(placed, placed.cameras[k], board, g).visible)
+        seeing.push_back(static_cast<int>(k));
+    // The planner never claims a pose fewer than two cameras see.
+    if (c.feasible()) {
+      EXPECT_GE(seeing.size(), 2u) << "readings " << c.readings.transpose();
+    }
+    by_array += seeing.size() >= 2 ? 1 : 0;
+    for (const int a : seeing)
+      for (const int b : seeing)
+        shared[static_cast<std::size_t>(a / 2)][static_cast<std::size_t>(b / 2)] = 1;
+    bool both = true;
+    for (const CellCamera& cam : pair_cell.cameras)
+      both = both && seen_by(pair_cell, cam, board, g).visible;
+    by_pair += both ? 1 : 0;
+  }
+  ASSERT_GT(reachable, 300);
+  // The array sees at least twice as much of the range as the pair.
+  EXPECT_GE(by_array, 2 * std::max(by_pair, 1))
+      << by_pair << " / " << by_array << " of " << reachable << "; " << array.summary;
+  // Every station is chained to the first through shared views (a connected graph).
+  std::vector<char> reached(static_cast<std::size_t>(stations), 0);
+  reached.at(0) = 1;
+  for (int round = 0; round < stations; ++round)
+    for (int a = 0; a < stations; ++a)
+      for (int b = 0; b < stations; ++b)
+        if (reached[static_cast<std::size_t>(a)] &&
+            shared[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)])
+          reached[static_cast<std::size_t>(b)] = 1;
+  for (int s = 0; s < stations; ++s) EXPECT_TRUE(reached[static_cast<std::size_t>(s)]) << s;
+}
+
+// visibility.min_cameras: how many of the required cameras must see the target; more than the
+// cell has is a load error naming the line.
+TEST(PlannerBadInput, MinCamerasBeyondTheCellsCameras) {
+  const std::string text =
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [0, 0, -2], "
+      "look_at: [0, 0, 0]}}\n"
+      "target: {file: ../vision/apriltag_4x3.yaml}\n"
+      "visibility:\n  min_cameras: 2\n";
+  try {
+    parse_cell_yaml(text, "few.yaml", kCells);
+    FAIL() << "no error";
+  } catch (const CellFileError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("few.yaml:5"), std::string::npos) << what;
+    EXPECT_NE(what.find("min_cameras is 2 but only 1"), std::string::npos) << what;
+  }
+}
+
+}  // namespace
+}  // namespace robocal::planner

@@ -14,6 +14,16 @@
 // min_image_size. The placement seeing the target whole (outline in the image with the border,
 // incidence, size) at the most sampled poses wins; its coverage is then measured with the full
 // feasibility test (feasibility.hpp, obstacles and occlusion included).
+//
+// Camera arrays: where one group of cameras sees the target at fewer than `min_coverage` of the
+// reachable poses (a Gantry-Tau's 3 m of guideway, a wire robot's wide frame) and
+// `max_cameras` allows more, further groups ("stations", `cameras` each, from the same tried
+// placements) are added greedily, each the one that adds the most poses seen by at least two
+// cameras of the array, until the coverage reaches `array_coverage`, a station adds less than
+// 2 % or the count reaches `max_cameras`. A station joins only if it shares a view with the
+// array (some pose seen by one of its cameras and one already placed): the rig is calibrated by
+// chaining board views through such overlaps (vision/rig_calibration.hpp). The array's cell
+// then asks for two cameras, any two, at each pose (VisibilityRequirements::min_cameras).
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/planner/cell.hpp"
 
@@ -30,6 +40,8 @@ struct PlacementOptions {
   double min_coverage = 0.5;         // fraction of reachable poses visible to every camera
   int samples = 600;                 // reachable configurations sampled
   unsigned seed = 3;
+  int max_cameras = 0;          // > cameras: an array of stations allowed (see above)
+  double array_coverage = 0.9;  // an array stops growing at this coverage
 };
 
 struct CameraPlacement {
@@ -40,6 +52,11 @@ struct CameraPlacement {
   double baseline = 0.0;                                      // m, between the first two cameras
   double volume_radius = 0.0;
   double coverage = 0.0;  // fraction of reachable sampled poses visible to every camera
+  // An array: the point each station of `cameras_per_station` cameras looks at (camera i is in
+  // station i / cameras_per_station), and how many cameras must see a pose (0: all of them).
+  std::vector<Eigen::Vector3d> station_look_at;
+  int cameras_per_station = 0;
+  int min_cameras = 0;
   std::string summary;
 };
 
@@ -49,7 +66,8 @@ struct CameraPlacement {
 CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::VectorXd& params,
                                 const Cell& cell, const PlacementOptions& options = {});
 
-// The cell with its cameras moved to a placement (camera i gets pose i, known).
+// The cell with its cameras moved to a placement (camera i gets pose i, known); an array's
+// visibility asks for its min_cameras.
 Cell with_cameras(const Cell& cell, const CameraPlacement& placement);
 
 }  // namespace robocal::planner

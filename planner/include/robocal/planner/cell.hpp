@@ -89,7 +89,11 @@ enum class RequiredCorners : std::uint8_t {
 };
 
 struct VisibilityRequirements {
-  std::vector<std::string> cameras;           // must all see the target; empty = every camera
+  std::vector<std::string> cameras;  // must all see the target; empty = every camera
+  // At least this many of those cameras must see the target (0: all of them). A camera array
+  // whose fields tile a working volume larger than one view (camera_placement.hpp) needs two:
+  // a pose seen by any two of its cameras is measured in stereo.
+  int min_cameras = 0;
   double max_incidence = 1.0471975511965976;  // rad (60°): board normal vs line of sight
   double min_image_size = 40.0;               // px, shortest side of the target's image
   RequiredCorners corners = RequiredCorners::kAll;
@@ -110,6 +114,8 @@ struct Cell {
   int camera_index(const std::string& name) const;
   // Cameras that must see the target (visibility.cameras, or all).
   std::vector<int> required_cameras() const;
+  // How many of the required cameras must see it (visibility.min_cameras, or all of them).
+  int cameras_needed() const;
 };
 
 // Reads a cell file; camera, target and mesh files are resolved relative to the cell file's

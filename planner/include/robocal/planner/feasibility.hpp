@@ -5,7 +5,8 @@
 //     singularities, passive limits, ball-joint cones;
 //  2. the declared safe workspace contains the measured frame's origin and the target's outline;
 //  3. collision (collision_scene.hpp, FCL): links vs obstacles with clearance, links vs links;
-//  4. visibility for every required camera: the target's printed face turned towards the camera
+//  4. visibility for every required camera (or at least visibility.min_cameras of them): the
+//  target's printed face turned towards the camera
 //     within the maximum incidence, every required corner projecting inside the image with the
 //     border margin, the target's image at least `min_image_size` px on its shortest side, and
 //     the lines of sight free of obstacles and links.
@@ -117,6 +118,7 @@ class FeasibilityChecker {
   std::vector<Eigen::Vector3d> corners_;  // required corners, board frame
   std::vector<Eigen::Vector3d> outline_;  // board frame
   std::vector<int> required_;             // camera indices
+  int needed_ = 0;                        // how many of them must see the target
 };
 
 }  // namespace robocal::planner
