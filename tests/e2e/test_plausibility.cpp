@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -149,6 +150,46 @@ TEST_F(Gates, DegreesAndSwappedImagesExcludeTheirPosesAndTheRestCalibrates) {
   EXPECT_TRUE(
       load_json(s / "results" / "identification.json")["fit_gate"]["plausible"].get<bool>());
   EXPECT_TRUE(fs::exists(s / "results" / "calibrated_robot.yaml"));
+}
+
+// Beside the pose route, the camera-in-the-loop route is a second opinion: corner pixels that
+// no model explains (here 1 px of added jitter, 50x the detector's noise, in
+// results/pixel_observations.json only) fail its gate, and the pose route's calibration stands
+// with a warning; asked for alone, that route's verdict is the identification's.
+TEST_F(Gates, AnImplausiblePixelRouteLeavesThePoseRouteStanding) {
+  const fs::path s = scratch("pixels");
+  copy_recorded(recorded_, s);
+  ASSERT_EQ(run_cli({"measure", s.string()}), 0);
+  const fs::path pixels = s / "results" / "pixel_observations.json";
+  auto doc = load_json(pixels);
+  std::uint32_t state = 12345;
+  const auto jitter = [&state] {
+    state = state * 1664525U + 1013904223U;
+    return 2.0 * (static_cast<double>(state >> 8) / 16777216.0) - 1.0;  // [-1, 1) px
+  };
+  for (auto& pose : doc["poses"])
+    for (auto& camera : pose["observations"])
+      for (auto& corner : camera["corners"]) {
+        corner[1] = corner[1].get<double>() + jitter();
+        corner[2] = corner[2].get<double>() + jitter();
+      }
+  std::ofstream(pixels, std::ios::trunc) << doc.dump();
+
+  EXPECT_EQ(run_cli({"identify", s.string()}), 0);
+  const auto both = load_json(s / "results" / "identification.json");
+  EXPECT_EQ(both["status"], "ok");
+  EXPECT_EQ(both["pixel_route"]["status"], "implausible");
+  ASSERT_TRUE(both.contains("warnings"));
+  EXPECT_NE(both["warnings"][0].get<std::string>().find("camera-in-the-loop route implausible"),
+            std::string::npos)
+      << both["warnings"];
+  EXPECT_TRUE(fs::exists(s / "results" / "calibrated_robot.yaml"));
+  EXPECT_FALSE(fs::exists(s / "results" / "calibrated_robot_pixels.yaml"));
+
+  EXPECT_EQ(run_cli({"identify", s.string(), "--route", "pixel"}), 1);
+  const auto alone = load_json(s / "results" / "identification.json");
+  EXPECT_EQ(alone["status"], "implausible");
+  EXPECT_FALSE(fs::exists(s / "results" / "calibrated_robot_pixels.yaml"));
 }
 
 }  // namespace
