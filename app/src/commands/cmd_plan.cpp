@@ -34,6 +34,7 @@ struct PlanCommandOptions {
   double target_um = 0.0;
   bool json = false;
   bool suggest_cameras = false;
+  int max_cameras = 2;
   bool no_order = false;
 };
 
@@ -68,26 +69,37 @@ int run_plan(const PlanCommandOptions& o) {
   report["robot"] = model.name;
   report["cell"] = cell.source;
   if (o.suggest_cameras) {
-    const CameraPlacement p = propose_cameras(model, params, cell);
+    PlacementOptions placement;
+    placement.max_cameras = o.max_cameras;
+    const CameraPlacement p = propose_cameras(model, params, cell, placement);
+    // Camera i looks at its station's point (an array), or the pair's.
+    const auto look_at_of = [&p](std::size_t i) {
+      return p.cameras_per_station > 0
+                 ? p.station_look_at.at(i / static_cast<std::size_t>(p.cameras_per_station))
+                 : p.look_at;
+    };
     nlohmann::json cams = nlohmann::json::array();
     for (std::size_t i = 0; i < p.world_T_camera.size(); ++i) {
       const Eigen::Vector3d pos = p.world_T_camera[i].translation();
-      cams.push_back({{"position", {pos.x(), pos.y(), pos.z()}},
-                      {"look_at", {p.look_at.x(), p.look_at.y(), p.look_at.z()}}});
+      const Eigen::Vector3d at = look_at_of(i);
+      cams.push_back(
+          {{"position", {pos.x(), pos.y(), pos.z()}}, {"look_at", {at.x(), at.y(), at.z()}}});
     }
-    report["camera_suggestion"] = {{"cameras", cams},
-                                   {"distance_m", p.distance},
-                                   {"baseline_m", p.baseline},
-                                   {"coverage", p.coverage},
-                                   {"summary", p.summary}};
+    report["camera_suggestion"] = {
+        {"cameras", cams},        {"distance_m", p.distance},     {"baseline_m", p.baseline},
+        {"coverage", p.coverage}, {"min_cameras", p.min_cameras}, {"summary", p.summary}};
     if (!o.json) {
       fmt::print("camera suggestion: {}\n", p.summary);
       for (std::size_t i = 0; i < p.world_T_camera.size(); ++i) {
         const Eigen::Vector3d pos = p.world_T_camera[i].translation();
+        const Eigen::Vector3d at = look_at_of(i);
         fmt::print(
             "  - pose: {{position: [{:.3f}, {:.3f}, {:.3f}], look_at: [{:.3f}, {:.3f}, {:.3f}]}}\n",
-            pos.x(), pos.y(), pos.z(), p.look_at.x(), p.look_at.y(), p.look_at.z());
+            pos.x(), pos.y(), pos.z(), at.x(), at.y(), at.z());
       }
+      if (p.min_cameras > 0)
+        fmt::print("  (an array: add `visibility: {{min_cameras: {}}}` to the cell file)\n",
+                   p.min_cameras);
     }
   }
 
@@ -201,6 +213,11 @@ CommandSpec plan_command() {
         cmd.add_flag("--suggest-cameras", o->suggest_cameras,
                      "Also propose camera poses that see the working volume (from the first "
                      "camera's intrinsics)");
+        cmd.add_option("--max-cameras", o->max_cameras,
+                       "With --suggest-cameras: up to this many cameras; from 4, an array of "
+                       "pairs where one pair sees under half the reachable poses")
+            ->capture_default_str()
+            ->check(CLI::Range(2, 16));
         cmd.add_flag("--no-order", o->no_order, "Skip the motion order (tour)");
         cmd.add_flag("--json", o->json, "Print the summary as JSON");
         return [o] { return run_plan(*o); };
