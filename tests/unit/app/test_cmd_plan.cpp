@@ -1,0 +1,98 @@
+// `robocal plan --suggest-cameras` in-process: a pair by default; with --max-cameras, an array of
+// pairs on a robot whose range one pair cannot see (the Gantry-Tau), each camera looking at its
+// own station's point and the operator told to ask for two cameras per pose; a count below a
+// pair is refused by the command line.
+#include "run_robocal.hpp"
+
+#include "robocal/core/files.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <Eigen/Core>
+
+#include <filesystem>
+#include <set>
+#include <string>
+#include <tuple>
+
+namespace {
+namespace fs = std::filesystem;
+
+using robocal::test::CliRun;
+constexpr auto& run = robocal::test::run_robocal_captured;
+
+// A Gantry-Tau cell: one camera (whose model the suggestion uses), the board under the
+// platform's box, facing down.
+fs::path gantry_cell() {
+  const fs::path dir = fs::temp_directory_path() / "robocal_plan_cli";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string data = ROBOCAL_TESTDATA_DIR;
+  robocal::core::write_file_atomic(
+      dir / "cell.yaml",
+      "cameras:\n  - {name: a, file: " + data +
+          "/cells/camera_1600x1200.yaml, pose: {position: [1.5, -0.5, -2], look_at: [1.5, "
+          "-0.5, 0]}}\ntarget: {file: " +
+          data + "/vision/apriltag_4x3.yaml, position: [0, 0, -0.06]}\n" +
+          "visibility: {min_image_size: 150}\n");
+  return dir;
+}
+
+nlohmann::json suggestion(const fs::path& dir, const std::string& max_cameras) {
+  std::vector<std::string> args = {"plan",
+                                   "--cell",
+                                   (dir / "cell.yaml").string(),
+                                   "--robot",
+                                   "gantry_tau",
+                                   "--suggest-cameras",
+                                   "--count",
+                                   "5",
+                                   "--no-order",
+                                   "--out",
+                                   (dir / "plan.yaml").string(),
+                                   "--json"};
+  if (!max_cameras.empty()) {
+    args.emplace_back("--max-cameras");
+    args.push_back(max_cameras);
+  }
+  const CliRun r = run(args);
+  // The cell's own camera sees no feasible pose: no plan (exit 1), the suggestion all the same.
+  EXPECT_EQ(r.code, 1) << r.err;
+  return nlohmann::json::parse(r.out).at("camera_suggestion");
+}
+
+TEST(PlanCli, SuggestsAPairOrWithMaxCamerasAnArrayOfPairs) {
+  const fs::path dir = gantry_cell();
+  const auto pair = suggestion(dir, "");
+  EXPECT_EQ(pair.at("cameras").size(), 2u);
+  EXPECT_EQ(pair.at("min_cameras"), 0);
+
+  const auto array = suggestion(dir, "6");
+  const auto& cams = array.at("cameras");
+  ASSERT_GE(cams.size(), 4u) << array.at("summary");
+  ASSERT_EQ(cams.size() % 2, 0u);
+  EXPECT_EQ(array.at("min_cameras"), 2);
+  EXPECT_GT(array.at("coverage").get<double>(), pair.at("coverage").get<double>());
+  // Each pair looks at its own point: as many distinct look-at points as pairs, shared within
+  // a pair.
+  std::set<std::tuple<double, double, double>> points;
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    const auto& at = cams[i].at("look_at");
+    points.emplace(at[0].get<double>(), at[1].get<double>(), at[2].get<double>());
+    if (i % 2 == 1) {
+      EXPECT_EQ(cams[i].at("look_at"), cams[i - 1].at("look_at")) << i;
+    }
+  }
+  EXPECT_EQ(points.size(), cams.size() / 2);
+}
+
+TEST(PlanCli, FewerThanAPairIsRefused) {
+  const fs::path dir = gantry_cell();
+  const CliRun r = run(
+      {"plan", "--cell", (dir / "cell.yaml").string(), "--suggest-cameras", "--max-cameras", "1"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--max-cameras"), std::string::npos) << r.err;
+}
+
+}  // namespace
