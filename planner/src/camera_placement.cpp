@@ -237,15 +237,20 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     directions[0] = mean_n.normalized();
   for (std::size_t k = 1; k < directions.size(); ++k)
     directions[k] = normals[(k - 1) * normals.size() / 16].normalized();
-  // Every placement tried, with its quick coverage; the best few are measured in full below.
-  std::vector<CameraPlacement> tried;
-  double best_quick = -1.0;
-  for (const Eigen::Vector3d& n : directions) {
+  // The target centres of the sampled poses whose board faces within 40 deg of `n`.
+  auto facing_centres = [&](const Eigen::Vector3d& n) {
     std::vector<Eigen::Vector3d> facing;
     facing.reserve(centres.size());
     for (std::size_t i = 0; i < centres.size(); ++i)
       if (normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
         facing.push_back(centres[i]);
+    return facing;
+  };
+  // Every placement tried, with its quick coverage; the best few are measured in full below.
+  std::vector<CameraPlacement> tried;
+  double best_quick = -1.0;
+  for (const Eigen::Vector3d& n : directions) {
+    const std::vector<Eigen::Vector3d> facing = facing_centres(n);
     if (facing.size() < std::max<std::size_t>(5, centres.size() / 20)) continue;
     Eigen::Vector3d mean_c = Eigen::Vector3d::Zero();
     for (const Eigen::Vector3d& p : facing) mean_c += p;
@@ -325,10 +330,7 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       const Eigen::Vector3d e1 = n.unitOrthogonal();
       const Eigen::Vector3d e2 = n.cross(e1);
       const Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? e2 : Eigen::Vector3d::UnitZ();
-      std::vector<Eigen::Vector3d> facing;
-      for (std::size_t i = 0; i < centres.size(); ++i)
-        if (normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
-          facing.push_back(centres[i]);
+      const std::vector<Eigen::Vector3d> facing = facing_centres(n);
       const double far = std::min(out.distance, size_at_point());
       for (std::size_t k = 0; k < 32 && !facing.empty(); ++k)
         for (const double f : {1.0, 0.8, 0.6})

@@ -115,9 +115,8 @@ LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robo
 namespace {
 
 // The fallback: poses of the nominal robot where both cameras (two of an array's) see the whole
-// board, chained so
-// that the safety guard (the same one collect builds: limits, workspace, the cell's collision
-// scene) lets every motion through, starting from the controller's home.
+// board, chained so that the safety guard (the same one collect builds: limits, workspace, the
+// cell's collision scene) lets every motion through, starting from the controller's home.
 std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
                                            const calib::Mechanism& library,
                                            const planner::Cell& pcell, int count, unsigned seed,
@@ -150,15 +149,8 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
     if (static_cast<int>(out.size()) == count) break;
     const auto fk = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
     if (!fk.closure.ok()) continue;
-    int seeing = 0;
-    for (const auto& cam : cell.cameras) {
-      bool whole = true;
-      for (const auto& t : vision::corner_truth(
-               cam.model, {{cell.ee_board, cam.camera_T_world * fk.pose}}, cell.options.render))
-        whole = whole && t.visible;
-      seeing += whole ? 1 : 0;
-    }
-    if (seeing < cell.plan_cell.cameras_needed() || !guard.check_move(from, q, speed).allowed)
+    if (cameras_seeing_board(cell, fk.pose) < cell.plan_cell.cameras_needed() ||
+        !guard.check_move(from, q, speed).allowed)
       continue;
     out.push_back(q);
     from = q;

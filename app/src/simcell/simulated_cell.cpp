@@ -138,6 +138,18 @@ bool true_frame_pose(const SimulatedCell& cell, const Eigen::VectorXd& readings,
   return true;
 }
 
+int cameras_seeing_board(const SimulatedCell& cell, const Eigen::Isometry3d& world_T_board) {
+  int seeing = 0;
+  for (const SimulatedCamera& cam : cell.cameras) {
+    const auto corners = vision::corner_truth(
+        cam.model, {{cell.ee_board, cam.camera_T_world * world_T_board}}, cell.options.render);
+    seeing += std::all_of(corners.begin(), corners.end(), [](const auto& t) { return t.visible; })
+                  ? 1
+                  : 0;
+  }
+  return seeing;
+}
+
 Eigen::VectorXd read_actuators(const SimulatedCell& cell, const Eigen::VectorXd& true_readings,
                                std::mt19937& rng) {
   std::normal_distribution<double> noise(0.0, cell.options.actuator_noise);

@@ -141,6 +141,10 @@ inline Eigen::Isometry3d elastic_deflection(Eigen::Isometry3d world_T_frame, dou
 bool true_frame_pose(const SimulatedCell& cell, const Eigen::VectorXd& readings,
                      Eigen::Isometry3d* world_T_frame);
 
+// How many of the cell's (true) cameras see every corner of the end-effector board at
+// `world_T_board`; a pose is recorded when it reaches plan_cell.cameras_needed().
+int cameras_seeing_board(const SimulatedCell& cell, const Eigen::Isometry3d& world_T_board);
+
 // Reads actuator values as a controller would: quantised with noise.
 Eigen::VectorXd read_actuators(const SimulatedCell& cell, const Eigen::VectorXd& true_readings,
                                std::mt19937& rng);

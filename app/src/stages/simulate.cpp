@@ -139,20 +139,11 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
       cameras_needed == static_cast<int>(cell.cameras.size())
           ? "both cameras"
           : fmt::format("{} of the {} cameras", cameras_needed, cell.cameras.size());
-  auto seen_enough = [&](const Eigen::Isometry3d& world_T_board) {
-    int seeing = 0;
-    for (const auto& cam : cell.cameras) {
-      const auto corners = vision::corner_truth(
-          cam.model, {{cell.ee_board, cam.camera_T_world * world_T_board}}, cell.options.render);
-      seeing += std::all_of(corners.begin(), corners.end(), [](const auto& t) { return t.visible; })
-                    ? 1
-                    : 0;
-    }
-    return seeing >= cameras_needed;
-  };
   auto try_pose = [&](const Eigen::VectorXd& q) {
     Eigen::Isometry3d world_T_board;
-    if (!true_frame_pose(cell, q, &world_T_board) || !seen_enough(world_T_board)) return false;
+    if (!true_frame_pose(cell, q, &world_T_board) ||
+        cameras_seeing_board(cell, world_T_board) < cameras_needed)
+      return false;
     true_readings.push_back(q);
     true_board_poses.push_back(world_T_board);
     return true;
