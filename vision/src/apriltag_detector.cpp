@@ -40,6 +40,16 @@ struct AprilTagDetector::Impl {
     return refine_options;
   }
 
+  // Drops the tags whose quiet zone leaves the image. The library decodes tags cut by the image
+  // border (its quad then follows the border: corners up to 10 px off), and no refinement can
+  // measure an edge whose surround is outside the image.
+  void drop_tags_cut_by_image_border(const cv::Mat& gray, std::vector<TagDetection>& tags) const {
+    const double quiet_zone = quad_refine_options().outer_band_fraction;
+    std::erase_if(tags, [&](const TagDetection& tag) {
+      return !quad_surround_inside_image(tag.corners, quiet_zone, gray.size());
+    });
+  }
+
   // Refines every tag's corners from tag.corners on `gray` (the tags are independent: on the
   // detector's threads). A tag whose refinement fails keeps its corners and `refined` false.
   void refine_tags(const cv::Mat& gray, std::vector<TagDetection>& tags) const {
@@ -87,8 +97,10 @@ struct AprilTagDetector::Impl {
       tag.edge_contrast = std::numeric_limits<double>::quiet_NaN();
       out.push_back(tag);
     }
+    drop_tags_cut_by_image_border(gray, out);
     if (refine) {
       refine_tags(gray, out);
+      drop_tags_cut_by_image_border(gray, out);
     }
     apriltag_detections_destroy(found);
     std::sort(out.begin(), out.end(),

@@ -363,7 +363,24 @@ std::vector<EdgeSample> quad_edge_samples(const cv::Mat& gray,
   return samples;
 }
 
-// First-order propagation of the four edges' (angle, offset, curvature) covariances to the
+// The quad's extent perpendicular to each edge (edge i from corner i to i+1): the distance to
+// the nearer end of the opposite edge.
+std::array<double, 4> quad_extents(const std::array<Eigen::Vector2d, 4>& corners) {
+  std::array<double, 4> extent{};
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d& a = corners[static_cast<size_t>(i)];
+    const Eigen::Vector2d d = (corners[static_cast<size_t>((i + 1) % 4)] - a).normalized();
+    double e = std::numeric_limits<double>::infinity();
+    for (int k = 2; k < 4; ++k) {
+      const Eigen::Vector2d q = corners[static_cast<size_t>((i + k) % 4)] - a;
+      e = std::min(e, std::abs(d.x() * q.y() - d.y() * q.x()));
+    }
+    extent[static_cast<size_t>(i)] = e;
+  }
+  return extent;
+}
+
+// First-order propagation of the four edges (angle, offset, curvature) covariances to the
 // corners they intersect in (corner i = edge i-1 x edge i), by central differences.
 Eigen::Matrix<double, 8, 8> propagate_corner_covariance(const std::array<EdgeLineFit, 4>& edges,
                                                         const std::array<Eigen::Vector2d, 4>& at) {
@@ -404,10 +421,48 @@ Eigen::Matrix<double, 8, 8> propagate_corner_covariance(const std::array<EdgeLin
 
 }  // namespace
 
+bool quad_surround_inside_image(const std::array<Eigen::Vector2d, 4>& corners,
+                                double outer_band_fraction, const cv::Size& image,
+                                double margin_px) {
+  const std::array<double, 4> extent = quad_extents(corners);
+  const Eigen::Vector2d centre = (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
+  // Each side moved outwards by its band; the surround's corners are where adjacent moved sides
+  // meet.
+  std::array<Eigen::Vector2d, 4> point;
+  std::array<Eigen::Vector2d, 4> direction;
+  for (size_t i = 0; i < 4; ++i) {
+    const Eigen::Vector2d& a = corners[i];
+    const Eigen::Vector2d d = corners[(i + 1) % 4] - a;
+    if (d.norm() < 1e-9) return false;
+    direction[i] = d.normalized();
+    Eigen::Vector2d out(direction[i].y(), -direction[i].x());
+    if (out.dot(centre - a) > 0.0) out = -out;
+    point[i] = a + outer_band_fraction * extent[i] * out;
+  }
+  const double lo = -0.5 + margin_px;
+  const double hi_u = image.width - 0.5 - margin_px;
+  const double hi_v = image.height - 0.5 - margin_px;
+  for (size_t k = 0; k < 4; ++k) {
+    const size_t e1 = (k + 3) % 4;  // corner k joins edges k-1 and k
+    const Eigen::Vector2d& d1 = direction[e1];
+    const Eigen::Vector2d& d2 = direction[k];
+    const double den = d1.x() * d2.y() - d1.y() * d2.x();
+    if (std::abs(den) < 1e-9) return false;
+    const Eigen::Vector2d w = point[k] - point[e1];
+    const double s = (w.x() * d2.y() - w.y() * d2.x()) / den;
+    const Eigen::Vector2d q = point[e1] + s * d1;
+    if (!(q.x() >= lo && q.x() <= hi_u && q.y() >= lo && q.y() <= hi_v)) return false;
+  }
+  return true;
+}
+
 std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
                                                   const std::array<Eigen::Vector2d, 4>& corners,
                                                   const QuadRefineOptions& options) {
   if (gray.empty() || gray.type() != CV_8UC1) return std::nullopt;
+  if (!quad_surround_inside_image(corners, options.outer_band_fraction, gray.size())) {
+    return std::nullopt;
+  }
   double side = 0.0;
   for (int i = 0; i < 4; ++i) {
     const double len =
@@ -416,20 +471,10 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
     side += len / 4.0;
   }
   // Depth of the border cell behind each edge, measured across that edge: a fraction of the
-  // quad's extent perpendicular to it (the nearer end of the opposite edge). A tilted tag is
-  // foreshortened across two of its edges only; a band sized from the mean side length reached
-  // into the data bits there (a white bit pulls the fitted edge inwards: a shrink bias).
-  std::array<double, 4> extent{};
-  for (int i = 0; i < 4; ++i) {
-    const Eigen::Vector2d& a = corners[static_cast<size_t>(i)];
-    const Eigen::Vector2d d = (corners[static_cast<size_t>((i + 1) % 4)] - a).normalized();
-    double e = std::numeric_limits<double>::infinity();
-    for (int k = 2; k < 4; ++k) {
-      const Eigen::Vector2d q = corners[static_cast<size_t>((i + k) % 4)] - a;
-      e = std::min(e, std::abs(d.x() * q.y() - d.y() * q.x()));
-    }
-    extent[static_cast<size_t>(i)] = e;
-  }
+  // quad's extent perpendicular to it. A tilted tag is foreshortened across two of its edges
+  // only; a band sized from the mean side length reached into the data bits there (a white bit
+  // pulls the fitted edge inwards: a shrink bias).
+  const std::array<double, 4> extent = quad_extents(corners);
   std::array<double, 4> inner_cell{};
   std::array<double, 4> outer_cell{};
   for (size_t i = 0; i < 4; ++i) {
@@ -492,6 +537,9 @@ std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
     result.mean_blur_sigma = mean_blur;
     result.mean_contrast = contrast;
     blur = std::clamp(mean_blur, 0.3, options.max_blur_px);
+  }
+  if (!quad_surround_inside_image(result.corners, options.outer_band_fraction, gray.size())) {
+    return std::nullopt;
   }
   return result;
 }

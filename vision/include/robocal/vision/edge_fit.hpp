@@ -98,9 +98,19 @@ struct QuadRefinement {
   Eigen::Matrix<double, 8, 8> corner_covariance = Eigen::Matrix<double, 8, 8>::Zero();
 };
 
+/// Whether a quadrilateral's surround (the band `outer_band_fraction` of its extent beyond each
+/// side: a tag's white quiet zone) lies inside the image, `margin_px` clear of its border. A quad
+/// cut by the image border cannot be measured: its detected corners follow the border, and an edge
+/// fit in a window the border clips locks onto the border (corners 10 px off, with a tiny sigma).
+bool quad_surround_inside_image(const std::array<Eigen::Vector2d, 4>& corners,
+                                double outer_band_fraction, const cv::Size& image,
+                                double margin_px = 1.0);
+
 /// Refines the corners of a quadrilateral with uniform border (an AprilTag's black border) by
 /// fitting each side's edge on the full-resolution 8-bit image and intersecting adjacent sides.
-/// Returns nullopt when any side cannot be fitted (the caller keeps the unrefined corners).
+/// Returns nullopt when any side cannot be fitted (the caller keeps the unrefined corners), or
+/// when the quad's surround, before or after refinement, leaves the image
+/// (quad_surround_inside_image: then the caller must drop the quad).
 std::optional<QuadRefinement> refine_quad_corners(const cv::Mat& gray,
                                                   const std::array<Eigen::Vector2d, 4>& corners,
                                                   const QuadRefineOptions& options = {});
