@@ -5,6 +5,7 @@
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/kinematics.hpp"
 
+#include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -424,7 +425,8 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   if (!root.IsMap()) fail(source, root, "a robot file must be a YAML mapping");
   check_keys(source, root, "robot file",
              {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool", "task",
-              "closed_form", "workspace", "bodies", "closures", "rods", "assembly_mode", "labels"});
+              "closed_form", "workspace", "bodies", "closures", "rods", "assembly_mode", "labels",
+              "unmodelled_error"});
   Mechanism m;
   m.source = source;
   if (!root["robot"]) fail(source, root, "missing 'robot' (the robot's name)");
@@ -445,6 +447,23 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       const double v = number(source, kv.second, "sigma_defaults." + kv.first.Scalar());
       if (v <= 0) fail(source, kv.second, "sigma must be > 0");
       sigma_defaults[kv.first.Scalar()] = v;
+    }
+  }
+
+  if (const YAML::Node u = root["unmodelled_error"]) {
+    check_keys(source, u, "unmodelled_error", {"position", "rotation"});
+    m.unmodelled_error.line = u.Mark().line + 1;
+    for (const char* key : {"position", "rotation"}) {
+      if (!u[key]) continue;
+      const double v = number(source, u[key], std::string("unmodelled_error.") + key);
+      // Beyond 10 mm / 0.1 rad a "calibration" could not be told from a wrong model.
+      const double most = std::string(key) == "position" ? 1e-2 : 0.1;
+      if (!(v >= 0.0 && v <= most))
+        fail(source, u[key],
+             fmt::format("unmodelled_error.{} must be in [0, {}] ({}); {} given", key, most,
+                         std::string(key) == "position" ? "m" : "rad", v));
+      (std::string(key) == "position" ? m.unmodelled_error.position : m.unmodelled_error.rotation) =
+          v;
     }
   }
 

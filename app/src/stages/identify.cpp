@@ -23,6 +23,7 @@
 
 #include <fmt/core.h>
 
+#include <map>
 #include <set>
 
 namespace robocal::app {
@@ -39,11 +40,16 @@ std::string measure_first(const fs::path& dir) {
 
 // The fit gate (calib/fit_gate.hpp) on a route's result: "implausible" unless it passes or the
 // operator accepted it; recorded in the report either way.
-void apply_fit_gate(const calib::IdentificationResult& result, const GateOptions& gates,
-                    const std::string& route, nlohmann::json& report, const PipelineLog& log) {
-  const calib::FitVerdict verdict = calib::judge_identification(result);
+void apply_fit_gate(const calib::IdentificationResult& result, const calib::FitGateOptions& options,
+                    const GateOptions& gates, const std::string& route, nlohmann::json& report,
+                    const PipelineLog& log) {
+  const calib::FitVerdict verdict = calib::judge_identification(result, options);
   report["fit_gate"] = {{"plausible", verdict.plausible},
-                        {"overridden", !verdict.plausible && gates.accept_implausible}};
+                        {"overridden", !verdict.plausible && gates.accept_implausible},
+                        {"max_noise_scale", options.max_noise_scale},
+                        {"model_error_m", options.model_error_m},
+                        {"model_error_rad", options.model_error_rad},
+                        {"model_error_px", options.model_error_px}};
   if (verdict.plausible) return;
   report["fit_gate"]["reason"] = verdict.reason;
   say(log, "  {} RESULT NOT PLAUSIBLE: {}\n", route, verdict.reason);
@@ -106,7 +112,15 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
                       r.status == calib::IdentificationStatus::kNotConverged;
   report["status"] = usable ? "ok" : "failed";
   if (!usable) report["message"] = r.message;
-  if (usable) apply_fit_gate(r, gates, "pixels", report, log);
+  // The robot's unmodelled error as the cameras see it (the pixels a metre spans at the board).
+  std::map<std::string, Eigen::Isometry3d> rig_T_target;
+  for (const MeasuredPose& m : read_used_measured_poses(results, measure_first(s.dir)))
+    rig_T_target[m.pose] = m.rig_T_target;
+  const double pixels_per_metre = median_pixels_per_metre(rig, poses, rig_T_target);
+  report["pixels_per_metre"] = pixels_per_metre;
+  if (usable)
+    apply_fit_gate(r, calib::fit_gate_options(model.unmodelled_error, pixels_per_metre), gates,
+                   "pixels", report, log);
   return report;
 }
 
@@ -218,7 +232,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   fs::remove(results.calibrated_robot_pixels(), stale);
   fs::remove(results.report("validation"), stale);  // it judged the previous identification
   if (usable) {
-    apply_fit_gate(result, gates, "pose route", report, log);
+    apply_fit_gate(result, calib::fit_gate_options(model.unmodelled_error, 0.0), gates,
+                   "pose route", report, log);
     usable = report["status"] == "ok";
   }
   if (usable) {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Cholesky>
 
+#include <algorithm>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -140,6 +141,27 @@ PixelRouteResult identify_from_pixels(const calib::FramePredictor& robot,
     out.world_T_camera.push_back(model.world_T_camera(out.result.estimate, c));
   out.fit_pixels = calib::pixel_errors(model, out.result.estimate, out.input.measurements.poses);
   return out;
+}
+
+double median_pixels_per_metre(const std::vector<vision::RigCamera>& rig,
+                               const std::vector<PosePixels>& poses,
+                               const std::map<std::string, Eigen::Isometry3d>& rig_T_target) {
+  std::vector<double> scales;
+  for (const PosePixels& pose : poses) {
+    const auto target = rig_T_target.find(pose.id);
+    if (target == rig_T_target.end()) continue;
+    for (std::size_t c = 0; c < pose.cameras.size() && c < rig.size(); ++c) {
+      if (pose.cameras[c].corners.empty() || rig[c].model.params.size() < 2) continue;
+      const double depth = (rig[c].camera_T_world * target->second).translation().z();
+      if (!(depth > 0.0)) continue;
+      const double focal = 0.5 * (rig[c].model.params[0] + rig[c].model.params[1]);
+      scales.push_back(focal / depth);
+    }
+  }
+  if (scales.empty()) return 0.0;
+  const auto mid = scales.begin() + static_cast<std::ptrdiff_t>(scales.size() / 2);
+  std::nth_element(scales.begin(), mid, scales.end());
+  return *mid;
 }
 
 }  // namespace robocal::app

@@ -8,7 +8,9 @@
 #include "robocal/vision/observations.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -40,6 +42,14 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
                                            const vision::BoardPoints& target,
                                            const std::vector<PosePixels>& poses,
                                            const PixelBridgeOptions& options = {});
+
+// How many pixels a metre at the board spans, as the cameras saw it: the median, over the poses
+// and the cameras with corners of them, of the mean focal length over the board's depth
+// (`rig_T_target` per pose id; poses without one are skipped). 0 when there is none. It turns
+// the robot's unmodelled error into pixels for the fit gate.
+double median_pixels_per_metre(const std::vector<vision::RigCamera>& rig,
+                               const std::vector<PosePixels>& poses,
+                               const std::map<std::string, Eigen::Isometry3d>& rig_T_target);
 
 // The camera-in-the-loop route end to end: builds the pixel measurements, adds the rig's cameras
 // to `robot` (camera 0 = gauge; the other cameras' poses estimated, intrinsics held) and

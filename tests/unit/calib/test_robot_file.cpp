@@ -293,6 +293,25 @@ TEST(RobotFile, WorkspaceEntryIsParsedAndChecked) {
   expect_error(head + "workspace: 0.3\n", 4, "workspace must be a map");
 }
 
+TEST(RobotFile, UnmodelledErrorHasDefaultsAndIsChecked) {
+  const std::string head = "robot: x\nbodies:\n  - {name: a, convention: mcpc}\n";
+  const Mechanism plain = parse_robot_yaml(head, "x");
+  EXPECT_DOUBLE_EQ(plain.unmodelled_error.position, 20e-6);
+  EXPECT_DOUBLE_EQ(plain.unmodelled_error.rotation, 1e-4);
+  EXPECT_EQ(plain.unmodelled_error.line, 0);
+  const Mechanism m =
+      parse_robot_yaml(head + "unmodelled_error: {position: 50e-6, rotation: 0}\n", "x");
+  EXPECT_DOUBLE_EQ(m.unmodelled_error.position, 50e-6);
+  EXPECT_DOUBLE_EQ(m.unmodelled_error.rotation, 0.0);
+  EXPECT_EQ(m.unmodelled_error.line, 4);
+  expect_error(head + "unmodelled_error:\n  position: -1e-6\n", 5,
+               "unmodelled_error.position must be in [0, 0.01] (m)");
+  expect_error(head + "unmodelled_error:\n  rotation: 1\n", 5,
+               "unmodelled_error.rotation must be in [0, 0.1] (rad)");
+  expect_error(head + "unmodelled_error:\n  sag: 1e-4\n", 5,
+               "unknown key 'sag' in unmodelled_error");
+}
+
 TEST(RobotFile, ExactParametersAreHeldAndNamedOnce) {
   const std::string head =
       "robot: x\nbodies:\n  - {name: a, convention: mcpc}\n"

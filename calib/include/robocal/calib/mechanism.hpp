@@ -222,6 +222,16 @@ struct AssemblyModeSpec {
   int line = 0;
 };
 
+// How closely a geometric model can follow this robot at best: the RMS, per axis, of what no
+// kinematic parameter explains (elastic deflection, gear runout, thermal drift, a joint's play).
+// The fit gate (fit_gate.hpp) allows fit residuals this large beyond the measurement noise, so a
+// real robot's calibration is not refused for being a real robot.
+struct UnmodelledErrorSpec {
+  double position = 20e-6;  // m
+  double rotation = 1e-4;   // rad
+  int line = 0;             // robot-file line (0: the defaults)
+};
+
 struct Mechanism {
   std::string name;
   std::string source;  // file the model was read from (for messages)
@@ -236,6 +246,7 @@ struct Mechanism {
   ClosedFormSpec closed_form;
   WorkspaceSpec workspace;
   AssemblyModeSpec assembly_mode;
+  UnmodelledErrorSpec unmodelled_error;
 
   int constraint_rows() const;  // sum of closure_rows over closures
   // -1 if absent.
