@@ -232,7 +232,9 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
       if (total > 0)
         d.accuracy_note += fmt::format(
             " FAILURES: of {} configurations drawn from the true robot, a model could not "
-            "answer (its loops do not close on the intended assembly mode) at {}; the figures "
+            "answer on the intended assembly mode (a loop that does not close, or a configuration "
+            "at "
+            "or across a mode boundary) at {}; the figures "
             "are over the {} that every model answers.",
             v.value("held_out_drawn", validation->points.size()), which, validation->points.size());
     }

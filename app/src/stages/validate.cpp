@@ -173,8 +173,9 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   const auto say_failures = [&](const char* name, const ModelAnswers& a) {
     if (a.failures > 0)
       say(log,
-          "  {} model: cannot answer at {} of {} held-out configurations (loops do not close "
-          "on the intended assembly mode); counted as failures\n",
+          "  {} model: cannot answer at {} of {} held-out configurations (no answer on the "
+          "intended assembly mode: a loop that does not close, or a configuration at or "
+          "across a mode boundary); counted as failures\n",
           name, a.failures, evaluated);
   };
   say_failures("nominal", nominal_answers);

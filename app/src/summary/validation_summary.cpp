@@ -61,7 +61,9 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
     if (total > 0)
       fmt::print(out,
                  "  FAILURES: of {} configurations drawn from the truth, a model could not answer "
-                 "(its loops do not close on the intended assembly mode) at: {}. The figures "
+                 "(no answer on the intended assembly mode: a loop that does not close, or a "
+                 "configuration "
+                 "at or across a mode boundary) at: {}. The figures "
                  "above are over the {} every model answers.\n",
                  drawn, which, v.at("held_out_poses").get<int>());
     if (drawn < v.value("held_out_requested", drawn))
