@@ -89,11 +89,21 @@ int run_demo(DemoOptions o) {
   nlohmann::json report;
   report["simulate"] = simulate_session(o.simulate, log);
   fmt::print(out, "\nmeasure: cameras, rig and end-effector poses from the images\n");
+  // A stage that cannot go on ends the demo with its reason in one line (the stage's own lines
+  // above say the details); nothing written so far is removed.
+  const auto stopped = [&](const char* stage, const nlohmann::json& result) {
+    const auto& message = result.value("message", nlohmann::json());
+    fmt::print(out, "\ndemo stopped at {} ({}): {}. The session folder keeps what was done: {}\n",
+               stage, result.value("status", std::string("failed")),
+               message.is_string() ? message.get<std::string>() : std::string("see above"),
+               dir.string());
+    return kExitFailure;
+  };
   report["measure"] = measure_session(dir, "", log);
-  if (report["measure"]["status"] != "ok") return kExitFailure;
+  if (report["measure"]["status"] != "ok") return stopped("measure", report["measure"]);
   fmt::print(out, "\nidentify\n");
   report["identify"] = identify_session(dir, "", log, o.route, !o.no_priors);
-  if (report["identify"]["status"] != "ok") return kExitFailure;
+  if (report["identify"]["status"] != "ok") return stopped("identify", report["identify"]);
   fmt::print(out, "\nvalidate (against the truth, which only this stage reads)\n");
   report["validate"] = validate_session(dir, o.held_out, log);
   clock.stop();
