@@ -453,17 +453,22 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   if (const YAML::Node u = root["unmodelled_error"]) {
     check_keys(source, u, "unmodelled_error", {"position", "rotation"});
     m.unmodelled_error.line = u.Mark().line + 1;
-    for (const char* key : {"position", "rotation"}) {
-      if (!u[key]) continue;
-      const double v = number(source, u[key], std::string("unmodelled_error.") + key);
-      // Beyond 10 mm / 0.1 rad a "calibration" could not be told from a wrong model.
-      const double most = std::string(key) == "position" ? 1e-2 : 0.1;
-      if (!(v >= 0.0 && v <= most))
-        fail(source, u[key],
-             fmt::format("unmodelled_error.{} must be in [0, {}] ({}); {} given", key, most,
-                         std::string(key) == "position" ? "m" : "rad", v));
-      (std::string(key) == "position" ? m.unmodelled_error.position : m.unmodelled_error.rotation) =
-          v;
+    // Beyond 10 mm / 0.1 rad a "calibration" could not be told from a wrong model.
+    const struct {
+      const char* key;
+      double* value;
+      double most;
+      const char* unit;
+    } entries[] = {{"position", &m.unmodelled_error.position, 1e-2, "m"},
+                   {"rotation", &m.unmodelled_error.rotation, 0.1, "rad"}};
+    for (const auto& e : entries) {
+      if (!u[e.key]) continue;
+      const double v = number(source, u[e.key], std::string("unmodelled_error.") + e.key);
+      if (!(v >= 0.0 && v <= e.most))
+        fail(source, u[e.key],
+             fmt::format("unmodelled_error.{} must be in [0, {}] ({}); {} given", e.key, e.most,
+                         e.unit, v));
+      *e.value = v;
     }
   }
 

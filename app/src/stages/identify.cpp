@@ -68,8 +68,9 @@ void apply_fit_gate(const calib::IdentificationResult& result, const calib::FitG
 nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& model,
                                     const calib::FramePredictor& predictor,
                                     const Eigen::VectorXd& start,
-                                    const calib::SolveOptions& options, const PipelineLog& log,
-                                    const GateOptions& gates) {
+                                    const calib::SolveOptions& options,
+                                    const std::map<std::string, Eigen::Isometry3d>& rig_T_target,
+                                    const PipelineLog& log, const GateOptions& gates) {
   const ResultsLayout results{s.dir};
   const auto rig = read_rig_file(results.rig()).cameras;
   const auto target = board_points(load_board(s.path(s.ee_target)));
@@ -107,9 +108,6 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
   report["status"] = usable ? "ok" : "failed";
   if (!usable) report["message"] = r.message;
   // The robot's unmodelled error as the cameras see it (the pixels a metre spans at the board).
-  std::map<std::string, Eigen::Isometry3d> rig_T_target;
-  for (const MeasuredPose& m : read_used_measured_poses(results, measure_first(s.dir)))
-    rig_T_target[m.pose] = m.rig_T_target;
   const double pixels_per_metre = median_pixels_per_metre(rig, poses, rig_T_target);
   report["pixels_per_metre"] = pixels_per_metre;
   if (usable)
@@ -142,7 +140,10 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   // covariances are not bit-exact, and the identification's choice among confounded parameters
   // is that sensitive).
   calib::Measurements measurements;
-  measurements.poses = to_pose_measurements(read_used_measured_poses(results, measure_first(dir)));
+  const std::vector<MeasuredPose> measured = read_used_measured_poses(results, measure_first(dir));
+  measurements.poses = to_pose_measurements(measured);
+  std::map<std::string, Eigen::Isometry3d> rig_T_target;  // the board's measured poses, by pose
+  for (const MeasuredPose& m : measured) rig_T_target[m.pose] = m.rig_T_target;
   stage(log, "identify");
   const calib::Mechanism& model = robot.model;
   nlohmann::json report{{"stage", "identify"}, {"session", dir.string()}};
@@ -248,7 +249,7 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   }
   if (usable && route != "pose") {
     report["pixel_route"] =
-        identify_pixel_route(s, model, predictor, start, solve_options, log, gates);
+        identify_pixel_route(s, model, predictor, start, solve_options, rig_T_target, log, gates);
     // Not converged from the robot file: again from the pose route's estimate (priors still
     // centred on the robot file). On the Gantry-Tau's camera array (demo --seed 2) the first
     // wandered for 200 iterations to 7.8 px, the second converged in 14 to 0.045 px. Not the
@@ -260,7 +261,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
           "pose route's estimate\n");
       calib::SolveOptions again = solve_options;
       again.start = result.estimate;
-      nlohmann::json second = identify_pixel_route(s, model, predictor, start, again, log, gates);
+      nlohmann::json second =
+          identify_pixel_route(s, model, predictor, start, again, rig_T_target, log, gates);
       if (second["result"].value("status", "") == "converged") {
         second["restarted_from_pose_route"] = true;
         report["pixel_route"] = std::move(second);

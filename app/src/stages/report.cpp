@@ -9,6 +9,7 @@
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
 #include "summary/report_page.hpp"
+#include "summary/validation_summary.hpp"
 
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
@@ -232,11 +233,9 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
       if (total > 0)
         d.accuracy_note += fmt::format(
             " FAILURES: of {} configurations drawn from the true robot, a model could not "
-            "answer on the intended assembly mode (a loop that does not close, or a configuration "
-            "at "
-            "or across a mode boundary) at {}; the figures "
-            "are over the {} that every model answers.",
-            v.value("held_out_drawn", validation->points.size()), which, validation->points.size());
+            "answer ({}) at {}; the figures are over the {} that every model answers.",
+            v.value("held_out_drawn", validation->points.size()), kNoAnswerMeaning, which,
+            validation->points.size());
     }
     d.per_pose_source = "held-out poses";
     for (const auto& p : validation->points) {

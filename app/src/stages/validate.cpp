@@ -9,6 +9,7 @@
 #include "stages/measured_region.hpp"
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
+#include "summary/validation_summary.hpp"
 
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/held_out_errors.hpp"
@@ -173,10 +174,9 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   const auto say_failures = [&](const char* name, const ModelAnswers& a) {
     if (a.failures > 0)
       say(log,
-          "  {} model: cannot answer at {} of {} held-out configurations (no answer on the "
-          "intended assembly mode: a loop that does not close, or a configuration at or "
-          "across a mode boundary); counted as failures\n",
-          name, a.failures, evaluated);
+          "  {} model: cannot answer at {} of {} held-out configurations ({}); counted as "
+          "failures\n",
+          name, a.failures, evaluated, kNoAnswerMeaning);
   };
   say_failures("nominal", nominal_answers);
   say_failures("calibrated", calibrated_answers);

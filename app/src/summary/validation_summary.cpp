@@ -61,11 +61,8 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
     if (total > 0)
       fmt::print(out,
                  "  FAILURES: of {} configurations drawn from the truth, a model could not answer "
-                 "(no answer on the intended assembly mode: a loop that does not close, or a "
-                 "configuration "
-                 "at or across a mode boundary) at: {}. The figures "
-                 "above are over the {} every model answers.\n",
-                 drawn, which, v.at("held_out_poses").get<int>());
+                 "({}) at: {}. The figures above are over the {} every model answers.\n",
+                 drawn, kNoAnswerMeaning, which, v.at("held_out_poses").get<int>());
     if (drawn < v.value("held_out_requested", drawn))
       fmt::print(out, "  only {} of the {} requested held-out configurations could be drawn\n",
                  drawn, v.value("held_out_requested", drawn));

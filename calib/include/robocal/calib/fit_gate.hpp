@@ -22,7 +22,7 @@ struct FitGateOptions {
   double max_noise_scale = 5.0;
   // The robot's unmodelled error per residual unit (RMS per axis): "m" (points, pose positions,
   // distances, probe heights), "rad" (pose rotations), "px" (corner pixels: the position error
-  // as the cameras see it, model_error_pixels). 0 = none allowed.
+  // as the cameras see it: fit_gate_options). 0 = none allowed.
   double model_error_m = 0.0;
   double model_error_rad = 0.0;
   double model_error_px = 0.0;
