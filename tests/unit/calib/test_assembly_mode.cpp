@@ -447,6 +447,40 @@ TEST(AssemblyMode, PerturbedDeltaWarmAndInverseAnswersAreWhatColdForwardKinemati
   EXPECT_EQ(ik_wrong, 0);
 }
 
+TEST(AssemblyMode, AWarmSeedNewtonTravelsFromIsCheckedAgainstTheColdAnswer) {
+  // A formerly silent wrong-mode case of bench_assembly_modes --warm: the 17th perturbed draw of
+  // the sweep (5x the file's tolerances, seed 15), 20 values per actuator, seeded with the design's
+  // answer at the same readings (as compensation seeds). The design is near a singularity of its
+  // loops there (conditioning 0.0015), so the cold answer is ambiguous; the warm solve, far from
+  // any singularity of its own (conditioning 0.066), took seven Newton steps from that seed to a
+  // configuration that keeps every declared sign, its tool 45 mm from the sweep's reference (the
+  // design's answer continued to the perturbation in small steps), and called it intended. Fails
+  // on the old solver (warm `intended`, cold `ambiguous`).
+  const Mechanism m = load("rotary_delta.yaml");
+  const Eigen::VectorXd nominal = m.nominal_parameters();
+  std::mt19937 rng(15);
+  Eigen::VectorXd p;
+  for (int draw = 0; draw < 17; ++draw) p = sweep::perturbed(m, 5.0, rng);
+  const Eigen::Vector3d wanted(-0.633830, 0.744061, 1.295218);
+  Eigen::VectorXd q;
+  for (const Eigen::VectorXd& c : sweep::grid(m, nominal, 20))
+    if (q.size() == 0 || (c - wanted).norm() < (q - wanted).norm()) q = c;
+  ASSERT_LT((q - wanted).norm(), 1e-5);
+  const ClosureResult cold = solve_closure(m, p, q);
+  ASSERT_TRUE(cold.ok() && cold.mode.acceptable()) << cold.mode.describe();
+  const ClosureResult design = solve_closure(m, nominal, q);
+  ASSERT_TRUE(design.ok());
+  const ClosureResult warm = solve_closure(m, p, q, design.passive);
+  ASSERT_TRUE(warm.ok()) << to_string(warm.status);
+  const double apart =
+      (tool_position(m, p, q, warm.passive) - tool_position(m, p, q, cold.passive)).norm();
+  // Intended only where it is the cold answer; elsewhere it must say it is not sure.
+  EXPECT_TRUE(!warm.mode.intended() || apart < 1e-9)
+      << "warm answer " << warm.mode.describe() << ", " << apart << " m from the cold one, after "
+      << warm.iterations << " steps";
+  EXPECT_EQ(warm.mode.verdict, cold.mode.verdict) << warm.mode.describe();
+}
+
 TEST(AssemblyMode, IkSolverAlongAPathAnswersAsTheOneShotSolver) {
   // The IK solver keeps state across solves (the evaluator, the design check's closure solver, the
   // conditioning carried from answer to answer). Along warm paths of a perturbed Delta, through
