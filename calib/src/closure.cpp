@@ -181,7 +181,7 @@ struct ClosureSolver::Impl {
       return -1.0;
     if (!ws.lu_current) {
       sys.jacobian(ws.J);
-      ws.lu.compute(ws.J);
+      ws.lu.factor(ws.J);
     }
     // The estimate only ever overstates the ratio (its power iterations approach sigma_max from
     // below and sigma_min from above), so a state just inside a threshold could pass as clear of

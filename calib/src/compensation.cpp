@@ -4,6 +4,7 @@
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/closure.hpp"
+#include "small_lu.hpp"
 #include "task_rows.hpp"
 #include "tree_evaluator.hpp"
 
@@ -52,70 +53,7 @@ TaskTarget position_target(const Eigen::Vector3d& p) {
 
 namespace {
 
-// LU factorisation with partial pivoting of a small square matrix, in storage kept between calls
-// (Eigen's blocked LU spends most of its time in packing and dispatch at these sizes, ~18 x 18).
-class SmallLu {
- public:
-  // false when a pivot is zero or not finite (singular Jacobian: the caller falls back).
-  template <class Matrix>
-  bool factor(const Matrix& a) {
-    lu_ = a;
-    const int n = static_cast<int>(lu_.rows());
-    pivots_.resize(n);
-    double* m = lu_.data();
-    for (int k = 0; k < n; ++k) {
-      double* __restrict col_k = m + static_cast<std::ptrdiff_t>(k) * n;
-      int p = k;
-      double best = std::abs(col_k[k]);
-      for (int i = k + 1; i < n; ++i)
-        if (const double v = std::abs(col_k[i]); v > best) {
-          best = v;
-          p = i;
-        }
-      if (!(best > 0.0) || !std::isfinite(best)) return false;
-      pivots_[k] = p;
-      if (p != k)
-        for (int j = 0; j < n; ++j)
-          std::swap(m[k + static_cast<std::ptrdiff_t>(j) * n],
-                    m[p + static_cast<std::ptrdiff_t>(j) * n]);
-      const double inv = 1.0 / col_k[k];
-      for (int i = k + 1; i < n; ++i) col_k[i] *= inv;
-      for (int j = k + 1; j < n; ++j) {
-        double* __restrict col_j = m + static_cast<std::ptrdiff_t>(j) * n;
-        const double f = col_j[k];
-        if (f == 0.0) continue;
-        for (int i = k + 1; i < n; ++i) col_j[i] -= col_k[i] * f;
-      }
-    }
-    return true;
-  }
-
-  // b <- A^-1 b with the last factors.
-  void solve(Eigen::VectorXd& b) const {
-    const int n = static_cast<int>(lu_.rows());
-    const double* m = lu_.data();
-    double* __restrict v = b.data();
-    for (int k = 0; k < n; ++k)
-      if (pivots_[k] != k) std::swap(v[k], v[pivots_[k]]);
-    for (int j = 0; j < n; ++j) {
-      const double f = v[j];
-      if (f == 0.0) continue;
-      const double* col = m + static_cast<std::ptrdiff_t>(j) * n;
-      for (int i = j + 1; i < n; ++i) v[i] -= col[i] * f;
-    }
-    for (int j = n - 1; j >= 0; --j) {
-      const double* col = m + static_cast<std::ptrdiff_t>(j) * n;
-      v[j] /= col[j];
-      const double f = v[j];
-      if (f == 0.0) continue;
-      for (int i = 0; i < j; ++i) v[i] -= col[i] * f;
-    }
-  }
-
- private:
-  Eigen::MatrixXd lu_;
-  std::vector<int> pivots_;
-};
+using detail::SmallLu;
 
 // Storage of the Newton iterations on one system (sized on first use).
 struct NewtonWorkspace {

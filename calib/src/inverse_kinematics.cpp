@@ -92,6 +92,7 @@ struct IkSolver::Impl {
         ev(valid_params ? detail::TreeEvaluator(m, p) : detail::TreeEvaluator()),
         q(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.bodies.size()))),
         sys{&ev, &q, &m, {}, {}} {
+    sys.unknown_bodies.reserve(m.actuated.size() + m.passive.size());
     for (int b : m.actuated) sys.unknown_bodies.push_back(b);
     for (int b : m.passive) sys.unknown_bodies.push_back(b);
     differs_from_design = valid_params && detail::loops_differ_from_design(m, p);

@@ -3,6 +3,7 @@
 // joint twists, closure residual rows and their derivatives, and the damped Gauss-Newton loop
 // shared by the closure solver and inverse kinematics. Not installed; not public API.
 #include "robocal/calib/mechanism.hpp"
+#include "small_lu.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -10,6 +11,7 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 #include <vector>
@@ -30,6 +32,9 @@ inline bool is_rotation(OpKind k) {
 
 // Right-multiplies an elementary transform onto (R, p).
 inline void apply_op(Eigen::Matrix3d& R, Eigen::Vector3d& p, OpKind kind, double value) {
+  // A zero op is the identity exactly (cos 0 = 1, sin 0 = 0): most of a model's constant ops are
+  // (the MCPC twist angles of the design), and their sine and cosine were a tenth of a solve.
+  if (value == 0.0) return;
   const int ax = axis_of(kind);
   if (!is_rotation(kind)) {
     p += value * R.col(ax);
@@ -97,8 +102,9 @@ class TreeEvaluator {
 struct LmWorkspace {
   Eigen::MatrixXd J, A;
   Eigen::VectorXd r, g, dx, x_trial, r_trial;
-  Eigen::LLT<Eigen::MatrixXd> llt;
-  Eigen::PartialPivLU<Eigen::MatrixXd> lu;
+  Eigen::LLT<Eigen::MatrixXd> llt;  // normal equations past SmallCholesky::kMax unknowns
+  SmallCholesky chol;
+  SmallLu lu;
   // The last accepted step was a plain Newton step: `lu` factors the Jacobian of the previous
   // iterate (which at convergence is the solution's to within the last step).
   bool lu_current = false;
@@ -147,7 +153,7 @@ inline double sigma_ratio(const Eigen::MatrixXd& J) {
 inline bool gram_and_rho(const Eigen::MatrixXd& J, Eigen::MatrixXd& B, double& rho) {
   const Eigen::Index n = J.cols();
   if (n == 0 || J.rows() < n) return false;
-  B.noalias() = J.transpose() * J;
+  gram_matrix(J, B);
   Eigen::VectorXd v = Eigen::VectorXd::Ones(n), w(n);
   rho = 0.0;
   for (int k = 0; k < 4; ++k) {
@@ -163,9 +169,13 @@ inline bool gram_and_rho(const Eigen::MatrixXd& J, Eigen::MatrixXd& B, double& r
 
 // Whether sign * B + shift I is positive definite (a Cholesky factorisation exists).
 inline bool shifted_positive_definite(const Eigen::MatrixXd& B, double sign, double shift) {
-  Eigen::MatrixXd A = sign * B;
-  A.diagonal().array() += shift;
-  return Eigen::LLT<Eigen::MatrixXd>(A).info() == Eigen::Success;
+  if (B.rows() > SmallCholesky::kMax) {
+    Eigen::MatrixXd A = sign * B;
+    A.diagonal().array() += shift;
+    return Eigen::LLT<Eigen::MatrixXd>(A).info() == Eigen::Success;
+  }
+  SmallCholesky chol;
+  return chol.factor(B, sign, shift);
 }
 
 // A proved upper bound c of lambda_max(B), given rho <= lambda_max (gram_and_rho): the tightest of
@@ -219,8 +229,7 @@ inline std::optional<SingularBounds> gram_singular_bounds(const Eigen::MatrixXd&
 // within a few per cent after two steps on these Jacobians, and the inverse iteration's estimate
 // of sigma_min can only err high, by the ratio of the two smallest singular values to the 3rd
 // power (the sweep in tests/support/mode_sweep.hpp checks the verdicts it leads to).
-inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& lu,
-                                   const Eigen::MatrixXd& J, Eigen::VectorXd& v,
+inline double sigma_ratio_estimate(const SmallLu& lu, const Eigen::MatrixXd& J, Eigen::VectorXd& v,
                                    Eigen::VectorXd& w) {
   const Eigen::Index n = J.cols();
   if (n == 0 || J.rows() != n) return 1.0;
@@ -233,16 +242,13 @@ inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& l
     v.noalias() = J.transpose() * w;
     if (!(v.norm() > 0.0)) return 0.0;
   }
-  // J = P^-1 L U, so (J^T J)^-1 u = U^-1 L^-1 P P^T L^-T U^-T u = U^-1 L^-1 L^-T U^-T u: the
-  // permutation cancels and the four triangular solves run in place (no temporaries).
-  const auto& f = lu.matrixLU();
+  // (J^T J)^-1 u from the LU factors (SmallLu::gram_inverse_apply: four triangular solves in
+  // place). Factors that do not exist (a zero pivot): singular, the caller's exact ratio decides.
+  if (!lu.ok() || lu.size() != n) return 0.0;
   v.setOnes();
   for (int k = 0; k < 3; ++k) {
     v /= v.norm();
-    f.triangularView<Eigen::Upper>().transpose().solveInPlace(v);
-    f.triangularView<Eigen::UnitLower>().transpose().solveInPlace(v);
-    f.triangularView<Eigen::UnitLower>().solveInPlace(v);
-    f.triangularView<Eigen::Upper>().solveInPlace(v);
+    lu.gram_inverse_apply(v);
     const double g = std::sqrt(v.norm());  // ||(J^T J)^-1 u|| -> 1 / sigma_min^2
     if (!std::isfinite(g) || g <= 0.0) return 0.0;
     small = 1.0 / g;
@@ -250,8 +256,33 @@ inline double sigma_ratio_estimate(const Eigen::PartialPivLU<Eigen::MatrixXd>& l
   return big > 0.0 ? small / big : 0.0;
 }
 
-// sigma_min / sigma_max of a square J for comparisons with the thresholds `gate` <= `upper` (LU
-// factors of J at hand; v, w n-sized scratch). The estimate can only overstate the ratio, so it
+// The same estimate from B = J^T J and rho (gram_and_rho), for a caller without LU factors of J
+// who needs B for the certificate anyway: sigma_max^2 >= rho (four power iterations on B),
+// sigma_min^2 by three steps of inverse iteration through B's Cholesky factor. It too can only
+// overstate the ratio (rho is a Rayleigh quotient of B, and 1 / ||B^-1 u|| >= lambda_min(B) for a
+// unit u). 0 where B is not positive definite (singular: the caller's exact ratio decides).
+// With `shift` s > 0 the inverse iteration runs on B - s I (lambda_min(B) = lambda_min(B - s I) +
+// s, and the estimate still overstates): where that matrix is positive definite its factor both
+// proves lambda_min(B) > s and serves the estimate. 0 where it is not.
+inline double gram_ratio_estimate(const Eigen::MatrixXd& B, double rho, Eigen::VectorXd& v,
+                                  double shift = 0.0) {
+  SmallCholesky chol;
+  if (!(rho > 0.0) || !chol.factor(B, 1.0, -shift)) return 0.0;
+  double small2 = 0.0;  // estimate of sigma_min^2 = lambda_min(B)
+  v.setOnes(B.cols());
+  for (int k = 0; k < 3; ++k) {
+    v /= v.norm();
+    chol.solve(v);
+    const double g = v.norm();  // ||(B - s I)^-1 u|| -> 1 / lambda_min(B - s I)
+    if (!std::isfinite(g) || g <= 0.0) return 0.0;
+    small2 = 1.0 / g + shift;
+  }
+  return std::sqrt(small2 / rho);
+}
+
+// sigma_min / sigma_max of a square J for comparisons with the thresholds `gate` <= `upper` (`lu`:
+// LU factors of J when the caller has them, else null: the estimate then comes from J^T J, which
+// the certificate shares; v, w scratch). The estimate can only overstate the ratio, so it
 // already places the ratio below every threshold above it; what needs proof is that the ratio
 // clears the highest threshold the estimate meets. Returned: the estimate where it is at least
 // `trusted_above` (it overstates by less than that margin over every threshold), or where the
@@ -266,27 +297,54 @@ struct GatedRatio {
   double ratio = 0.0;
   std::optional<SingularBounds> bounds;
 };
-inline GatedRatio gated_sigma_ratio(const Eigen::PartialPivLU<Eigen::MatrixXd>& lu,
-                                    const Eigen::MatrixXd& J, Eigen::VectorXd& v,
+inline GatedRatio gated_sigma_ratio(const SmallLu* lu, const Eigen::MatrixXd& J, Eigen::VectorXd& v,
                                     Eigen::VectorXd& w, double trusted_above, double gate,
                                     double upper, bool bounds = false,
                                     bool bounds_when_trusted = false) {
   GatedRatio out;
-  out.ratio = sigma_ratio_estimate(lu, J, v, w);
+  if (J.cols() == 0 || J.rows() != J.cols()) {
+    out.ratio = 1.0;  // as sigma_ratio_estimate: only square closures are judged
+    return out;
+  }
+  Eigen::MatrixXd B;
+  double rho = 0.0;
+  int gram = -1;            // B and rho: -1 not yet computed, 0 degenerate, 1 at hand
+  std::optional<double> c;  // lambda_max_bound(B, rho), once tried
+  bool c_tried = false;
+  bool proved_upper = false;  // the ratio is proved above `upper`
+  if (lu != nullptr || J.cols() > SmallCholesky::kMax) {
+    SmallLu own;
+    if (lu == nullptr) {
+      own.factor(J);
+      lu = &own;
+    }
+    out.ratio = sigma_ratio_estimate(*lu, J, v, w);
+  } else {
+    // Without LU factors: the certificate at `upper` first, whose factor also gives the estimate
+    // (gram_ratio_estimate with a shift); the plain estimate where it fails.
+    gram = gram_and_rho(J, B, rho) ? 1 : 0;
+    if (gram == 1) {
+      c = lambda_max_bound(B, rho);
+      c_tried = true;
+      if (c) {
+        out.ratio = gram_ratio_estimate(B, rho, v, upper * upper * *c);
+        proved_upper = out.ratio > 0.0;
+      }
+      if (!proved_upper) out.ratio = gram_ratio_estimate(B, rho, v);
+    }
+  }
   const bool trusted = out.ratio >= trusted_above;
-  if (trusted && !(bounds && bounds_when_trusted)) return out;
+  if ((trusted || proved_upper) && !(bounds && bounds_when_trusted)) return out;
   const double met = out.ratio >= upper ? upper : gate;
   if (out.ratio >= met) {
-    Eigen::MatrixXd B(J.cols(), J.cols());
-    double rho = 0.0;
-    const std::optional<double> c =
-        gram_and_rho(J, B, rho) ? lambda_max_bound(B, rho) : std::nullopt;
+    if (gram < 0) gram = gram_and_rho(J, B, rho) ? 1 : 0;
+    if (!c_tried && gram == 1) c = lambda_max_bound(B, rho);
     if (c) {
       if (bounds) {
         out.bounds = gram_singular_bounds(B, rho, *c, out.ratio);
         if (out.bounds && out.bounds->lo >= met * out.bounds->hi) return out;
       }
-      if (trusted || gram_ratio_certainly_above(B, *c, met)) return out;
+      if (trusted || proved_upper || gram_ratio_certainly_above(B, *c, met)) return out;
     }
   }
   out.bounds.reset();
@@ -301,12 +359,11 @@ inline GatedRatio gated_sigma_ratio(const Eigen::PartialPivLU<Eigen::MatrixXd>& 
 // difference (on the Delta's 1 mm helix the closure Jacobian moves by 0.12 % of sigma_max per
 // step). Where the carried bounds clear every threshold, the returned conditioning is their
 // proved lower bound of the ratio.
-// `lu`: the LU factors of J when the caller has them, else null (factored here when needed).
+// `lu`: the LU factors of J when the caller has them, else null (gated_sigma_ratio).
 class PathConditioning {
  public:
-  double operator()(const Eigen::PartialPivLU<Eigen::MatrixXd>* lu, const Eigen::MatrixXd& J,
-                    Eigen::VectorXd& v, Eigen::VectorXd& w, double trusted_above, double gate,
-                    double upper) {
+  double operator()(const SmallLu* lu, const Eigen::MatrixXd& J, Eigen::VectorXd& v,
+                    Eigen::VectorXd& w, double trusted_above, double gate, double upper) {
     bool in_reach = false;
     if (J0_.rows() == J.rows() && J0_.cols() == J.cols()) {
       const double d = (J - J0_).norm();
@@ -321,12 +378,8 @@ class PathConditioning {
     const bool on_a_path = in_reach || (last_J_.rows() == J.rows() && last_J_.cols() == J.cols() &&
                                         (J - last_J_).norm() <= 0.01 * J.norm());
     last_J_ = J;
-    if (lu == nullptr) {
-      lu_.compute(J);
-      lu = &lu_;
-    }
     const GatedRatio r =
-        gated_sigma_ratio(*lu, J, v, w, trusted_above, gate, upper, on_a_path, on_a_path);
+        gated_sigma_ratio(lu, J, v, w, trusted_above, gate, upper, on_a_path, on_a_path);
     if (r.bounds && r.bounds->lo >= upper * r.bounds->hi) {
       J0_ = J;
       at_J0_ = *r.bounds;
@@ -338,7 +391,6 @@ class PathConditioning {
   Eigen::MatrixXd J0_;  // a Jacobian with proved singular-value bounds
   SingularBounds at_J0_;
   Eigen::MatrixXd last_J_;  // the last answer's
-  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
 };
 
 template <class System>
@@ -367,26 +419,35 @@ LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, 
     double scale = 1.0;
     for (int attempt = 0; attempt < 30 && !accepted; ++attempt) {
       if (newton_ok && attempt == 0) {
-        ws.lu.compute(ws.J);
-        ws.dx = ws.lu.solve(ws.r);
-        ws.dx = -ws.dx;
+        if (!ws.lu.factor(ws.J)) continue;  // singular: damped steps
+        ws.dx = -ws.r;
+        ws.lu.solve(ws.dx);
         if (!ws.dx.allFinite()) continue;
       } else {
         if (!normal_ready) {
-          ws.A.noalias() = ws.J.transpose() * ws.J;
+          gram_matrix(ws.J, ws.A);
           ws.g.noalias() = ws.J.transpose() * ws.r;
           scale = std::max(ws.A.diagonal().maxCoeff(), 1e-300);
           normal_ready = true;
         }
-        for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) += lambda * scale;
-        ws.llt.compute(ws.A);
-        for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) -= lambda * scale;
-        if (ws.llt.info() != Eigen::Success) {
-          lambda *= 100.0;
-          continue;
+        if (n <= SmallCholesky::kMax) {
+          if (!ws.chol.factor(ws.A, 1.0, lambda * scale)) {
+            lambda *= 100.0;
+            continue;
+          }
+          ws.dx = -ws.g;
+          ws.chol.solve(ws.dx);
+        } else {
+          for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) += lambda * scale;
+          ws.llt.compute(ws.A);
+          for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) -= lambda * scale;
+          if (ws.llt.info() != Eigen::Success) {
+            lambda *= 100.0;
+            continue;
+          }
+          ws.dx = ws.llt.solve(ws.g);
+          ws.dx = -ws.dx;
         }
-        ws.dx = ws.llt.solve(ws.g);
-        ws.dx = -ws.dx;
       }
       const double step = max_abs(ws.dx);
       if (step > max_step) ws.dx *= max_step / step;

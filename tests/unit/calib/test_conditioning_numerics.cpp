@@ -6,6 +6,7 @@
 #include "tree_evaluator.hpp"
 
 #include <gtest/gtest.h>
+#include <Eigen/LU>
 #include <Eigen/QR>
 
 #include <algorithm>
@@ -57,6 +58,32 @@ TEST(ConditioningNumerics, ExactRatioIsTheConstructedOne) {
   }
 }
 
+TEST(ConditioningNumerics, SmallLuSolvesAsADenseInverse) {
+  // The LU the Newton steps and the estimate use: A^-1 b and (A^T A)^-1 b against Eigen's
+  // inverse, on random matrices whose row order forces pivoting; a zero column is refused.
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int n : {1, 3, 15, 18}) {
+    Eigen::MatrixXd a(n, n);
+    for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = g(rng);
+    Eigen::VectorXd b(n);
+    for (Eigen::Index i = 0; i < n; ++i) b[i] = g(rng);
+    SmallLu lu;
+    ASSERT_TRUE(lu.factor(a));
+    const Eigen::MatrixXd inv = a.inverse();
+    Eigen::VectorXd x = b;
+    lu.solve(x);
+    EXPECT_LT((x - inv * b).norm(), 1e-10 * (inv * b).norm()) << "n " << n;
+    Eigen::VectorXd y = b;
+    lu.gram_inverse_apply(y);
+    const Eigen::VectorXd want = inv * inv.transpose() * b;
+    EXPECT_LT((y - want).norm(), 1e-9 * want.norm()) << "n " << n;
+    a.col(0).setZero();
+    EXPECT_FALSE(lu.factor(a));
+    EXPECT_FALSE(lu.ok());
+  }
+}
+
 TEST(ConditioningNumerics, EstimateNeverUnderstatesTheRatio) {
   // Its power iteration gives a lower bound of sigma_max and its inverse iteration (through the
   // LU factors' triangular solves) an upper bound of sigma_min: the estimate can only overstate,
@@ -65,9 +92,20 @@ TEST(ConditioningNumerics, EstimateNeverUnderstatesTheRatio) {
   Eigen::VectorXd v(15), w(15);
   for (int k = 0; k < 500; ++k) {
     const Case c = make_case(log_uniform(1e-4, 0.5, rng), rng);
-    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(c.J);
+    SmallLu lu;
+    ASSERT_TRUE(lu.factor(c.J));
     const double estimate = sigma_ratio_estimate(lu, c.J, v, w);
     EXPECT_GE(estimate, c.ratio * (1.0 - 1e-9)) << "case " << k;
+    // The same from J^T J (callers without LU factors): a Rayleigh quotient for sigma_max^2 and
+    // inverse iteration through the Cholesky factor for sigma_min^2. Below ~1e-3 the squared
+    // No looser than the LU route: the same inverse iteration, and sigma_max from more power
+    // iterations.
+    Eigen::MatrixXd B;
+    double rho = 0.0;
+    ASSERT_TRUE(gram_and_rho(c.J, B, rho));
+    const double from_gram = gram_ratio_estimate(B, rho, v);
+    EXPECT_GE(from_gram, c.ratio * (1.0 - 1e-6)) << "case " << k;
+    EXPECT_LE(from_gram, estimate * (1.0 + 1e-6)) << "case " << k;
   }
 }
 
@@ -101,12 +139,18 @@ TEST(ConditioningNumerics, GatedRatioLiesBetweenTheSameThresholdsAsTheTrueOne) {
   int below = 0, between = 0, above = 0;
   for (int k = 0; k < 900; ++k) {
     const Case c = make_case(log_uniform(0.3 * gate, 3.0 * upper, rng), rng);
-    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(c.J);
-    const double r = gated_sigma_ratio(lu, c.J, v, w, 1e9, gate, upper).ratio;
+    SmallLu lu;
+    ASSERT_TRUE(lu.factor(c.J));
+    const double r = gated_sigma_ratio(&lu, c.J, v, w, 1e9, gate, upper).ratio;
     EXPECT_EQ(r < gate, c.ratio < gate) << "case " << k << ": " << r << " vs " << c.ratio;
     EXPECT_EQ(r < upper, c.ratio < upper) << "case " << k << ": " << r << " vs " << c.ratio;
+    // Without LU factors (the estimate from J^T J): the same sides of both thresholds.
+    const double g = gated_sigma_ratio(nullptr, c.J, v, w, 1e9, gate, upper).ratio;
+    EXPECT_EQ(g < gate, c.ratio < gate) << "case " << k << ": " << g << " vs " << c.ratio;
+    EXPECT_EQ(g < upper, c.ratio < upper) << "case " << k << ": " << g << " vs " << c.ratio;
     if (c.ratio < gate) {
       EXPECT_NEAR(r, c.ratio, 1e-9 * c.ratio);
+      EXPECT_NEAR(g, c.ratio, 1e-9 * c.ratio);
       ++below;
     } else {
       (c.ratio < upper ? between : above)++;
