@@ -120,7 +120,10 @@ TEST(DemoEndToEnd, DefaultDeltaSeed1ReachesItsDocumentedFigure) {
   // 96 intrinsic and 24 rig views (README): 31.8 / 35.4 µm over all, 19.3 / 17.0 µm inside the
   // measured region (38.0 / 35.6 and 19.9 / 16.3 µm before the detector dropped the tags cut by
   // the image border). With 48 and 12 views it was 46.7 / 52.8 and 47.2 / 44.1 µm, which these
-  // bounds (a 1.25 margin) do not admit.
+  // bounds (a 1.25 margin) do not admit. Since the kinematics' small factorisations (eighteenth
+  // session) the planner makes one more DETMAX exchange on rounding-level differences, and the
+  // figures are 25.4 / 29.6 µm, 16.0 / 17.8 µm inside: the bounds stay on the larger ones, a
+  // choice that close being as likely to fall either way elsewhere.
   EXPECT_LT(v["calibrated"]["rms_m"].get<double>(), 1.25 * 31.8e-6);
   EXPECT_LT(v["calibrated_pixels"]["rms_m"].get<double>(), 1.25 * 35.4e-6);
   const auto& inside = v["held_out_by_region"]["inside"];
