@@ -175,18 +175,19 @@ class SmallCholesky {
     // column k is scaled by its pivot's root, then the trailing lower triangle loses its outer
     // product (only the lower triangle is read).
     for (Eigen::Index j = 0; j < n; ++j)
-      for (Eigen::Index i = j; i < n; ++i) l_[j * kMax + i] = sign * B(i, j);
-    for (Eigen::Index k = 0; k < n; ++k) l_[k * kMax + k] += shift;
+      for (Eigen::Index i = j; i < n; ++i)
+        l_[static_cast<std::size_t>(j * kMax + i)] = sign * B(i, j);
+    for (Eigen::Index k = 0; k < n; ++k) l_[static_cast<std::size_t>(k * kMax + k)] += shift;
     for (Eigen::Index k = 0; k < n; ++k) {
-      double* __restrict col_k = l_ + k * kMax;
+      double* __restrict col_k = l() + k * kMax;
       const double d = col_k[k];
       if (!(d > 0.0) || !std::isfinite(d)) return false;
       const double r = std::sqrt(d);
       col_k[k] = r;
-      inv_diag_[k] = 1.0 / r;
-      for (Eigen::Index i = k + 1; i < n; ++i) col_k[i] *= inv_diag_[k];
+      inv_diag_[static_cast<std::size_t>(k)] = 1.0 / r;
+      for (Eigen::Index i = k + 1; i < n; ++i) col_k[i] *= inv_diag_[static_cast<std::size_t>(k)];
       for (Eigen::Index j = k + 1; j < n; ++j) {
-        double* __restrict col_j = l_ + j * kMax;
+        double* __restrict col_j = l() + j * kMax;
         const double f = col_k[j];
         for (Eigen::Index i = j; i < n; ++i) col_j[i] -= col_k[i] * f;
       }
@@ -197,12 +198,12 @@ class SmallCholesky {
   void solve(Eigen::VectorXd& vec) const {
     double* __restrict v = vec.data();
     for (Eigen::Index j = 0; j < n_; ++j) {  // L y = v, column by column
-      const double* col = l_ + j * kMax;
-      const double f = v[j] *= inv_diag_[j];
+      const double* col = l() + j * kMax;
+      const double f = v[j] *= inv_diag_[static_cast<std::size_t>(j)];
       for (Eigen::Index i = j + 1; i < n_; ++i) v[i] -= col[i] * f;
     }
     for (Eigen::Index j = n_ - 1; j >= 0; --j) {  // L^T x = y: column j of L below the diagonal
-      const double* col = l_ + j * kMax;
+      const double* col = l() + j * kMax;
       double s0 = 0.0, s1 = 0.0;  // two partial sums: half the dependent chain
       Eigen::Index i = j + 1;
       for (; i + 1 < n_; i += 2) {
@@ -210,15 +211,19 @@ class SmallCholesky {
         s1 += col[i + 1] * v[i + 1];
       }
       if (i < n_) s0 += col[i] * v[i];
-      v[j] = (v[j] - (s0 + s1)) * inv_diag_[j];
+      v[j] = (v[j] - (s0 + s1)) * inv_diag_[static_cast<std::size_t>(j)];
     }
   }
 
  private:
+  // No pointer into the storage is kept: a copied workspace (ClosureSolver's copy) must factor
+  // into its own.
+  double* l() { return l_.data(); }
+  const double* l() const { return l_.data(); }
+
   Eigen::Index n_ = 0;
-  std::array<double, kMax * kMax> l_storage_;  // column-major, leading dimension kMax (lower)
+  std::array<double, kMax * kMax> l_;  // column-major, leading dimension kMax (lower)
   std::array<double, kMax> inv_diag_;
-  double* l_ = l_storage_.data();
 };
 
 }  // namespace robocal::calib::detail

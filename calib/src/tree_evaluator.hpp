@@ -11,7 +11,6 @@
 #include <Eigen/LU>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <optional>
 #include <vector>
@@ -102,7 +101,6 @@ class TreeEvaluator {
 struct LmWorkspace {
   Eigen::MatrixXd J, A;
   Eigen::VectorXd r, g, dx, x_trial, r_trial;
-  Eigen::LLT<Eigen::MatrixXd> llt;  // normal equations past SmallCholesky::kMax unknowns
   SmallCholesky chol;
   SmallLu lu;
   // The last accepted step was a plain Newton step: `lu` factors the Jacobian of the previous
@@ -112,7 +110,7 @@ struct LmWorkspace {
     if (J.rows() != rows || J.cols() != cols) {
       J.resize(rows, cols);
       A.resize(cols, cols);
-      // llt / lu size themselves on their first compute() and reuse the storage afterwards.
+      // lu sizes itself on its first factor() and reuses the storage afterwards.
     }
     r.resize(rows);
     r_trial.resize(rows);
@@ -439,13 +437,15 @@ LmOutcome levenberg_marquardt(System& sys, Eigen::VectorXd& x, LmWorkspace& ws, 
           ws.chol.solve(ws.dx);
         } else {
           for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) += lambda * scale;
-          ws.llt.compute(ws.A);
+          // Past SmallCholesky::kMax unknowns (no library closure): Eigen's, factored here (an
+          // uncomputed LLT kept in the workspace would be copied uninitialised with a solver).
+          const Eigen::LLT<Eigen::MatrixXd> llt(ws.A);
           for (Eigen::Index i = 0; i < n; ++i) ws.A(i, i) -= lambda * scale;
-          if (ws.llt.info() != Eigen::Success) {
+          if (llt.info() != Eigen::Success) {
             lambda *= 100.0;
             continue;
           }
-          ws.dx = ws.llt.solve(ws.g);
+          ws.dx = llt.solve(ws.g);
           ws.dx = -ws.dx;
         }
       }
