@@ -1162,6 +1162,10 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
       return options.outliers.robust_scale ? g.robust_scale : result.noise_applied ? g.scale : 1.0;
     };
     // normal_inverse is in the reweighted problem's units (rows / row_scale).
+    // C = S Sᵀ for the factored form (PoseResidual::leverage_factor = J_b S).
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> c_eig(result.noise.normal_inverse);
+    const Eigen::MatrixXd c_root =
+        c_eig.eigenvectors() * c_eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
     for (std::size_t k = 0; k < per_pose.size(); ++k) {
       const auto [start_row, count] = pose_rows[k];
       Eigen::MatrixXd Jp(count, n_est);
@@ -1179,10 +1183,19 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
       }
       // Residual covariance in units of the fit scale, then re-expressed in the test scale.
       const Eigen::VectorXd ratio = fit_scale.cwiseQuotient(test_scale);
-      per_pose[k].residual_covariance =
-          ratio.asDiagonal() *
-          pose_residual_covariance(Jp, result.noise.normal_inverse, pose_in_fit[k]) *
-          ratio.asDiagonal();
+      const bool one_ratio =
+          count > 0 && ratio.maxCoeff() - ratio.minCoeff() <= 1e-12 * ratio.cwiseAbs().maxCoeff();
+      if (one_ratio) {
+        // One noise scale in the block (e.g. all pixel rows): the factored form, exact and cheap.
+        per_pose[k].leverage_factor = Jp * c_root;
+        per_pose[k].leverage_sign = pose_in_fit[k] ? -1.0 : 1.0;
+        per_pose[k].covariance_factor = ratio(0) * ratio(0);
+      } else {
+        per_pose[k].residual_covariance =
+            ratio.asDiagonal() *
+            pose_residual_covariance(Jp, result.noise.normal_inverse, pose_in_fit[k]) *
+            ratio.asDiagonal();
+      }
       per_pose[k].whitened = per_pose[k].whitened.cwiseQuotient(test_scale);
     }
     result.residuals = diagnose_residuals(per_pose, options.outliers);

@@ -125,6 +125,40 @@ double normal_quantile(double probability) {
   return 0.5 * (lo + hi);
 }
 
+FactoredTest factored_residual_test(const Eigen::VectorXd& whitened, const Eigen::MatrixXd& L,
+                                    double sign, double covariance_factor) {
+  constexpr double kEigenvalueCut = 1e-6;  // as for a dense residual_covariance
+  FactoredTest t;
+  const Eigen::Index n = whitened.size();
+  Eigen::VectorXd rest = whitened;  // the part outside span(L), where Q's eigenvalue is the factor
+  Eigen::Index spanned = 0;
+  if (L.cols() > 0) {
+    // L = U Σ Vᵀ: eigenvalues of L Lᵀ are those of LᵀL, with eigenvectors u = L v / σ.
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(L.transpose() * L);
+    const double largest = std::max(1.0, eig.eigenvalues().cwiseAbs().maxCoeff());
+    for (Eigen::Index i = 0; i < eig.eigenvalues().size(); ++i) {
+      const double s2 = eig.eigenvalues()(i);
+      // A direction L barely reaches has Q's eigenvalue ~ factor, as the complement: leaving it
+      // there changes rᵀ Q⁺ r by less than s2 while its u would be noise.
+      if (!(s2 > 1e-12 * largest)) continue;
+      const Eigen::VectorXd u = L * eig.eigenvectors().col(i) / std::sqrt(s2);
+      const double p = u.dot(whitened);
+      rest -= p * u;
+      ++spanned;
+      const double lambda = covariance_factor * (1.0 + sign * s2);
+      if (lambda > kEigenvalueCut) {
+        t.chi_square += p * p / lambda;
+        ++t.dof;
+      }
+    }
+  }
+  if (covariance_factor > kEigenvalueCut) {
+    t.chi_square += rest.squaredNorm() / covariance_factor;
+    t.dof += static_cast<int>(n - spanned);
+  }
+  return t;
+}
+
 ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residuals,
                                        const OutlierOptions& options) {
   ResidualDiagnostics out;
@@ -132,7 +166,8 @@ ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residual
   for (const auto& r : residuals)
     for (Eigen::Index i = 0; i < r.whitened.size(); ++i)
       magnitudes.push_back(std::abs(r.whitened(i)));
-  const bool normalised = !residuals.empty() && residuals.front().residual_covariance.size() > 0;
+  const bool normalised = !residuals.empty() && (residuals.front().residual_covariance.size() > 0 ||
+                                                 residuals.front().leverage_factor.rows() > 0);
   if (options.robust_scale && !normalised && !magnitudes.empty()) {
     auto mid = magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2);
     std::nth_element(magnitudes.begin(), mid, magnitudes.end());
@@ -146,7 +181,12 @@ ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residual
     s.id = r.id;
     s.dof = static_cast<int>(r.whitened.size());
     s.chi_square = r.whitened.squaredNorm() / (out.scale * out.scale);
-    if (r.residual_covariance.size() > 0) {
+    if (r.leverage_factor.rows() > 0) {
+      const FactoredTest t = factored_residual_test(r.whitened, r.leverage_factor, r.leverage_sign,
+                                                    r.covariance_factor);
+      s.dof = t.dof;
+      s.chi_square = t.chi_square;
+    } else if (r.residual_covariance.size() > 0) {
       // Normalised: directions of the block the fit absorbed (eigenvalue ~0) carry no test.
       const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(r.residual_covariance);
       const Eigen::VectorXd proj = eig.eigenvectors().transpose() * r.whitened;

@@ -1,3 +1,4 @@
+#include "robocal/calib/noise_estimate.hpp"
 #include "robocal/calib/observations.hpp"
 #include "robocal/calib/uncertainty.hpp"
 
@@ -6,7 +7,10 @@
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
 #include <random>
+#include <utility>
 
 namespace {
 
@@ -157,3 +161,56 @@ TEST(ResidualDiagnostics, FlagsGrossOutliersEvenWithWrongStatedNoise) {
 }
 
 }  // namespace
+
+namespace {
+
+// rᵀ Q⁺ r and rank over eigenvalues above 1e-6 of a dense Q: the definition, written here.
+std::pair<double, int> dense_test(const Eigen::VectorXd& r, const Eigen::MatrixXd& Q) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Q);
+  const Eigen::VectorXd proj = eig.eigenvectors().transpose() * r;
+  double chi = 0.0;
+  int dof = 0;
+  for (Eigen::Index i = 0; i < proj.size(); ++i)
+    if (eig.eigenvalues()(i) > 1e-6) {
+      chi += proj(i) * proj(i) / eig.eigenvalues()(i);
+      ++dof;
+    }
+  return {chi, dof};
+}
+
+}  // namespace
+
+// The factored outlier test (a large pose block) gives the dense test's statistic and dof: rows
+// in the fit and not, a block that absorbs some directions fully, a parameter the block does not
+// see, and a noise-scale factor.
+TEST(ResidualDiagnostics, FactoredTestEqualsTheDenseEigenDecomposition) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> g;
+  struct Case {
+    int rows_all, params, first, count;
+    bool in_fit;
+    double factor;
+  };
+  for (const Case c : {Case{100, 8, 20, 40, true, 1.3}, Case{100, 8, 20, 40, false, 0.7},
+                       Case{8, 8, 0, 8, true, 1.0}, Case{30, 6, 0, 12, true, 2.0}}) {
+    Eigen::MatrixXd J(c.rows_all, c.params);
+    for (Eigen::Index i = 0; i < J.size(); ++i) J.data()[i] = g(rng);
+    // Parameter 1 acts only outside the block: its column there is zero (unless the block is
+    // all the data: every direction absorbed, nothing left to test).
+    if (c.count < c.rows_all) J.block(c.first, 1, c.count, 1).setZero();
+    const Eigen::MatrixXd C = (J.transpose() * J).inverse();
+    const Eigen::MatrixXd Jb = J.middleRows(c.first, c.count);
+    Eigen::VectorXd r(c.count);
+    for (Eigen::Index i = 0; i < r.size(); ++i) r(i) = g(rng);
+    // Residuals of rows in the fit lie in the range of Q (the fit removed the rest).
+    const Eigen::MatrixXd G = pose_residual_covariance(Jb, C, c.in_fit);  // I ∓ J_b C J_bᵀ
+    if (c.in_fit) r = G * r;
+    const auto [chi, dof] = dense_test(r, c.factor * G);
+
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ce(C);
+    const Eigen::MatrixXd root = ce.eigenvectors() * ce.eigenvalues().cwiseSqrt().asDiagonal();
+    const FactoredTest t = factored_residual_test(r, Jb * root, c.in_fit ? -1.0 : 1.0, c.factor);
+    EXPECT_EQ(t.dof, dof) << c.rows_all << " " << c.count;
+    EXPECT_NEAR(t.chi_square, chi, 1e-9 * std::max(1.0, chi)) << c.rows_all << " " << c.count;
+  }
+}

@@ -81,7 +81,24 @@ struct PoseResidual {
   // in the fit): when given, the test statistic is rᵀ Q⁺ r with the rank of Q as dof (correct for
   // any leverage and any mix of σ) and `whitened` is taken as already scaled (no robust rescaling).
   Eigen::MatrixXd residual_covariance;
+  // The same covariance in factored form, given instead of residual_covariance when the block is
+  // large (a pose seen by several cameras has hundreds of pixel rows, and the eigen decomposition
+  // of an n x n matrix cost a six-camera Gantry-Tau a minute): Q = covariance_factor ·
+  // (I + leverage_sign · L Lᵀ) with L = J_b C^½ (n x parameters). Its eigenvalues come from the
+  // small Gram matrix LᵀL; the test is the same rᵀ Q⁺ r with the same eigenvalue cut.
+  Eigen::MatrixXd leverage_factor;
+  double leverage_sign = -1.0;     // −1: rows in the fit, +1: rows that were not
+  double covariance_factor = 1.0;  // the squared ratio of the fit's to the test's noise scale
 };
+
+// rᵀ Q⁺ r and the number of eigenvalues of Q above 1e-6, with Q = covariance_factor ·
+// (I + sign · L Lᵀ): exact, at the cost of a parameters x parameters eigen decomposition.
+struct FactoredTest {
+  double chi_square = 0.0;
+  int dof = 0;
+};
+FactoredTest factored_residual_test(const Eigen::VectorXd& whitened, const Eigen::MatrixXd& L,
+                                    double sign, double covariance_factor);
 
 struct OutlierOptions {
   // A pose is an outlier when its normalised squared residual exceeds the chi-square quantile with
