@@ -1,10 +1,10 @@
 // Every test gets its own temporary folder: at the start of each test, TMPDIR points at
 // <TMPDIR>/t<pid>-<n> (the n-th test of the process), so temp_directory_path() and any robocal
-// process the test starts write there. ctest runs each TEST as its own process, in parallel: two tests that pick the same
-// scratch name (a helper shared by several tests, say) no longer remove each other's files. The
-// folder is removed when the test passes and kept when it fails, for a look (its file `test`
-// names the test). The name stays short: programs put Unix socket paths (at most 107 bytes)
-// under TMPDIR, Chromium's profile lock among them.
+// process the test starts write there. ctest runs each TEST as its own process, in parallel: two
+// tests that pick the same scratch name (a helper shared by several tests, say) no longer remove
+// each other's files. The folder is removed when the test passes and kept when it fails, for a look
+// (its file `test` names the test). The name stays short: programs put Unix socket paths (at most
+// 107 bytes) under TMPDIR, Chromium's profile lock among them.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
