@@ -76,6 +76,65 @@ BENCHMARK(BM_Render_2448x2048)
     ->Iterations(5)
     ->MeasureProcessCPUTime();
 
+// The live demo's cameras (1600x1200): in a camera array most cameras do not see the board at a
+// given pose (out of view), and a seen board covers part of the image.
+struct DemoScene {
+  rv::CameraRays rays;
+  std::vector<rv::RenderTarget> out_of_view, in_view;
+  rv::RenderOptions options;
+};
+
+const DemoScene& demo_scene() {
+  static const DemoScene s = [] {
+    DemoScene sc;
+    const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 1600, 1200, 1600, 1600, 799.5,
+                                     599.5, {-0.05, 0.02, 0.0, 0.0, 0.0});
+    sc.rays = rv::precompute_rays(cam);
+    const auto board = rt::apriltag_grid_board(4, 3, 0.04);
+    const Eigen::Matrix3d tilt =
+        Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    auto seen = rt::centred_board_pose(board, tilt, 1.2);
+    sc.in_view = {{board, seen}};
+    seen.translation().x() += 2.0;  // 2 m to the side at 1.2 m: outside the 53 degree view
+    sc.out_of_view = {{board, seen}};
+    sc.options.blur_sigma = 0.8;
+    sc.options.read_noise = 2.0;
+    sc.options.shot_noise_gain = 10.0;
+    return sc;
+  }();
+  return s;
+}
+
+void BM_Render_1600x1200_BoardOutOfView(benchmark::State& state) {
+  const DemoScene& s = demo_scene();
+  for (auto _ : state)
+    benchmark::DoNotOptimize(rv::render(s.rays, s.out_of_view, s.options).image.data);
+}
+BENCHMARK(BM_Render_1600x1200_BoardOutOfView)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(10)
+    ->MeasureProcessCPUTime();
+
+void BM_Render_1600x1200_BoardInView(benchmark::State& state) {
+  const DemoScene& s = demo_scene();
+  for (auto _ : state)
+    benchmark::DoNotOptimize(rv::render(s.rays, s.in_view, s.options).image.data);
+}
+BENCHMARK(BM_Render_1600x1200_BoardInView)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(10)
+    ->MeasureProcessCPUTime();
+
+void BM_RenderIdeal_1600x1200_BoardOutOfView(benchmark::State& state) {
+  const DemoScene& s = demo_scene();
+  for (auto _ : state)
+    benchmark::DoNotOptimize(rv::render_ideal(s.rays, s.out_of_view, s.options).data);
+}
+BENCHMARK(BM_RenderIdeal_1600x1200_BoardOutOfView)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(10)
+    ->MeasureProcessCPUTime();
+
 }  // namespace
 
 int main(int argc, char** argv) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
 namespace robocal::vision {
@@ -119,6 +120,39 @@ double clipped_area(const std::array<Eigen::Vector2d, 4>& q, double rx0, double 
   return polygon_moments(in, n, centroid);
 }
 
+// The footprint's board area is not spread evenly over the pixel: under perspective the board
+// area per image area (det of the pixel->board Jacobian) changes across the pixel. To first order
+// it is the bilinear interpolation of its values at the four corners, so each clipped piece is
+// weighted by 1/det at its centroid (a 60 degree tilt would otherwise shift edges by ~0.0005 px).
+struct FootprintWeight {
+  double det00, det10, det11, det01;
+  Eigen::Vector2d centre;
+  Eigen::Matrix2d st_of;  // board offset from the centre -> (s, t) offset, locally affine
+  bool weighted;
+
+  explicit FootprintWeight(const std::array<Eigen::Vector2d, 4>& q) {
+    auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+      return a.x() * b.y() - a.y() * b.x();
+    };
+    det00 = cross(q[1] - q[0], q[3] - q[0]);
+    det10 = cross(q[1] - q[0], q[2] - q[1]);
+    det11 = cross(q[2] - q[3], q[2] - q[1]);
+    det01 = cross(q[2] - q[3], q[3] - q[0]);
+    centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
+    st_of.col(0) = 0.5 * (q[1] + q[2] - q[0] - q[3]);
+    st_of.col(1) = 0.5 * (q[2] + q[3] - q[0] - q[1]);
+    weighted = std::abs(st_of.determinant()) > 0.0;
+    if (weighted) st_of = st_of.inverse().eval();
+    weighted = weighted && det00 * det10 > 0 && det00 * det11 > 0 && det00 * det01 > 0;
+  }
+  double operator()(const Eigen::Vector2d& p) const {
+    const Eigen::Vector2d st = Eigen::Vector2d(0.5, 0.5) + st_of * (p - centre);
+    const double s_ = std::clamp(st.x(), 0.0, 1.0), t_ = std::clamp(st.y(), 0.0, 1.0);
+    return 1.0 / ((1 - s_) * (1 - t_) * det00 + s_ * (1 - t_) * det10 + s_ * t_ * det11 +
+                  (1 - s_) * t_ * det01);
+  }
+};
+
 double PatternIndex::black_fraction(const std::array<Eigen::Vector2d, 4>& q) const {
   double bx0 = q[0].x(), bx1 = q[0].x(), by0 = q[0].y(), by1 = q[0].y();
   for (int i = 1; i < 4; ++i) {
@@ -145,32 +179,9 @@ double PatternIndex::black_fraction(const std::array<Eigen::Vector2d, 4>& q) con
   // A footprint spanning more patches (board far away) visits all of them.
   const int total = overflow ? static_cast<int>(board->patches.size()) : n_cand;
 
-  // The footprint's board area is not spread evenly over the pixel: under perspective the
-  // board area per image area (det of the pixel->board Jacobian) changes across the pixel. To
-  // first order it is the bilinear interpolation of its values at the four corners, so each
-  // clipped piece is weighted by 1/det at its centroid (a 60 degree tilt would otherwise shift
-  // edges by ~0.0005 px).
-  auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return a.x() * b.y() - a.y() * b.x();
-  };
-  const double det00 = cross(q[1] - q[0], q[3] - q[0]);
-  const double det10 = cross(q[1] - q[0], q[2] - q[1]);
-  const double det11 = cross(q[2] - q[3], q[2] - q[1]);
-  const double det01 = cross(q[2] - q[3], q[3] - q[0]);
-  const Eigen::Vector2d centre = 0.25 * (q[0] + q[1] + q[2] + q[3]);
-  Eigen::Matrix2d st_of;  // board offset from the centre -> (s, t) offset, locally affine
-  st_of.col(0) = 0.5 * (q[1] + q[2] - q[0] - q[3]);
-  st_of.col(1) = 0.5 * (q[2] + q[3] - q[0] - q[1]);
-  bool weighted = std::abs(st_of.determinant()) > 0.0;
-  if (weighted) st_of = st_of.inverse().eval();
-  auto weight = [&](const Eigen::Vector2d& p) {
-    const Eigen::Vector2d st = Eigen::Vector2d(0.5, 0.5) + st_of * (p - centre);
-    const double s_ = std::clamp(st.x(), 0.0, 1.0), t_ = std::clamp(st.y(), 0.0, 1.0);
-    return 1.0 / ((1 - s_) * (1 - t_) * det00 + s_ * (1 - t_) * det10 + s_ * t_ * det11 +
-                  (1 - s_) * t_ * det01);
-  };
-  weighted = weighted && det00 * det10 > 0 && det00 * det11 > 0 && det00 * det01 > 0;
-
+  // The perspective weights (FootprintWeight) are only needed where a black module cuts the
+  // footprint: most pixels lie inside one module and return before.
+  std::optional<FootprintWeight> weight;
   double area = -1.0;
   double weighted_area = 0.0;
   double black = 0.0;
@@ -193,13 +204,14 @@ double PatternIndex::black_fraction(const std::array<Eigen::Vector2d, 4>& q) con
         const double rx1 = rx0 + m, ry1 = ry0 + m;
         if (bx0 >= rx0 && bx1 <= rx1 && by0 >= ry0 && by1 <= ry1) return 1.0;  // all black
         if (area < 0) {
+          weight.emplace(q);
           Eigen::Vector2d qc;
           area = polygon_moments(q.data(), 4, &qc);
-          weighted_area = weighted ? area * weight(qc) : area;
+          weighted_area = weight->weighted ? area * (*weight)(qc) : area;
         }
         Eigen::Vector2d pc;
         const double a = clipped_area(q, rx0, ry0, rx1, ry1, &pc);
-        black += weighted ? a * weight(pc) : a;
+        black += weight->weighted ? a * (*weight)(pc) : a;
       }
     }
   }
