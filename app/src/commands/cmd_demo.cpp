@@ -192,7 +192,7 @@ CommandSpec demo_command() {
             cmd.add_flag("--resume", o->resume,
                          "--live: continue an interrupted live demo in --out");
             cmd.add_option("--speed", o->speed,
-                           "--live: actuator speed, m/s or rad/s (default 0.25 m/s prismatic, "
+                           "--live: actuator speed, m/s or rad/s (default 0.5 m/s prismatic, "
                            "2 rad/s revolute)");
             cmd.add_option("--json", o->json,
                            "Write the JSON report here ('-' = stdout; default: "

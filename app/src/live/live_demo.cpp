@@ -335,11 +335,15 @@ double motion_seconds_since(const fs::path& log, std::size_t first) {
   return sum;
 }
 
+// The simulated robot's speed. 2 rad/s moves the library Delta's 0.6 m upper arms at 1.2 m/s;
+// carriages on rails (linear delta, Gantry-Tau) move at 0.5 m/s, the travel speed of a printer
+// firmware's delta configuration and well below the Delta's. (`robocal collect` on a real robot
+// starts at a cautious 0.02 unless the operator gives --speed.)
 double default_speed(const calib::Mechanism& model) {
   for (int a : model.actuated)
     if (model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic)
-      return 0.25;  // m/s
-  return 2.0;       // rad/s
+      return 0.5;  // m/s
+  return 2.0;      // rad/s
 }
 
 }  // namespace

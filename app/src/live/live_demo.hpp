@@ -27,7 +27,7 @@ struct LiveDemoOptions {
   bool gige = true;  // try the fake GigE cameras (false: in-process rendering)
   bool yes = false;  // the operator's confirmation before the first motion
   bool resume = false;
-  double speed = 0.0;  // actuator units/s; 0: 2 rad/s revolute, 0.25 m/s prismatic
+  double speed = 0.0;  // actuator units/s; 0: 2 rad/s revolute, 0.5 m/s prismatic
   std::string route = "both";
   std::string out;   // demo folder: session/ and setup/ inside
   std::string json;  // report path ('-' stdout)
