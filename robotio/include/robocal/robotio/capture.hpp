@@ -71,6 +71,9 @@ struct CaptureOptions {
   double reading_tolerance = 1e-5;
   std::int64_t session_start_ns = 0;  // pose timestamps are seconds since this (host clock)
   int png_compression = 1;            // 0..9: 1 keeps writing fast (lossless either way)
+  // Threads for the settled-frame test and the writing of a pose, which run while the robot moves
+  // to the next one: with several cameras one thread outlasts a short move.
+  int workers = 2;
   // Observers (progress display, tests): every file written into staging, every pose done.
   std::function<void(const std::filesystem::path&)> on_file_written;
   // Called on the calling thread once a pose is recorded (its folder renamed into place).
