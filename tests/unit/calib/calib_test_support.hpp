@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 
+#include <initializer_list>
 #include <random>
 #include <string>
 #include <vector>
@@ -43,6 +44,23 @@ inline Eigen::VectorXd random_readings(const LibraryRobot& r, std::mt19937& rng)
     v[static_cast<Eigen::Index>(i)] =
         std::uniform_real_distribution<double>(r.lower[i], r.upper[i])(rng);
   return v;
+}
+
+// The nominal parameters with every parameter of `groups` moved by a normal draw of `sigma`
+// (metres or radians), in parameter order from a generator seeded with `seed`.
+inline Eigen::VectorXd perturbed_parameters(const Mechanism& m, double sigma, unsigned seed,
+                                            std::initializer_list<ParamGroup> groups = {
+                                                ParamGroup::kJointGeometry}) {
+  Eigen::VectorXd p = m.nominal_parameters();
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (std::size_t k = 0; k < m.parameters.size(); ++k)
+    for (const ParamGroup g : groups)
+      if (m.parameters[k].group == g) {
+        p[static_cast<Eigen::Index>(k)] += sigma * n(rng);
+        break;
+      }
+  return p;
 }
 
 }  // namespace robocal::calib::testing

@@ -189,13 +189,8 @@ TEST(Closure, InvalidInputIsReportedNotSolved) {
 
 TEST(Closure, PerturbedDeltaStillClosesFromNominalClosedFormSeed) {
   const Mechanism m = load("rotary_delta.yaml");
-  Eigen::VectorXd p = m.nominal_parameters();
-  std::mt19937 rng(11);
-  std::normal_distribution<double> n(0.0, 1.0);
-  for (std::size_t k = 0; k < m.parameters.size(); ++k)
-    if (m.parameters[k].group == ParamGroup::kJointGeometry ||
-        m.parameters[k].group == ParamGroup::kFrame)
-      p[static_cast<Eigen::Index>(k)] += 1e-3 * n(rng);
+  const Eigen::VectorXd p =
+      testing::perturbed_parameters(m, 1e-3, 11, {ParamGroup::kJointGeometry, ParamGroup::kFrame});
   ClosureSolver solver(m, p);
   for (double t : {-0.1, 0.2, 0.5}) {
     const Eigen::Vector3d theta(t, 0.3, 0.1);
@@ -214,12 +209,7 @@ TEST(Closure, ACopiedSolverAnswersAsAFreshOneAfterTheOriginalIsGone) {
   // own its own. Cold solves of a perturbed Delta use every one of them (the seed's damped solve,
   // the Newton steps, the conditioning certificate, the continuation from the design).
   const Mechanism m = load("rotary_delta.yaml");
-  Eigen::VectorXd p = m.nominal_parameters();
-  std::mt19937 rng(12);
-  std::normal_distribution<double> n(0.0, 1.0);
-  for (std::size_t k = 0; k < m.parameters.size(); ++k)
-    if (m.parameters[k].group == ParamGroup::kJointGeometry)
-      p[static_cast<Eigen::Index>(k)] += 1e-3 * n(rng);
+  const Eigen::VectorXd p = testing::perturbed_parameters(m, 1e-3, 12);
   auto original = std::make_unique<ClosureSolver>(m, p);
   (void)original->solve(Eigen::Vector3d(0.2, 0.3, 0.1));  // its workspaces in use
   const ClosureSolver copy(*original);

@@ -96,12 +96,7 @@ TEST(InverseKinematics, DeltaClosedFormInverseMatchesGenericSolver) {
 
 TEST(InverseKinematics, PerturbedDeltaWarmStartedAlongPath) {
   const Mechanism m = load("rotary_delta.yaml");
-  Eigen::VectorXd p = m.nominal_parameters();
-  std::mt19937 rng(2);
-  std::normal_distribution<double> n(0.0, 1.0);
-  for (std::size_t k = 0; k < m.parameters.size(); ++k)
-    if (m.parameters[k].group == ParamGroup::kJointGeometry)
-      p[static_cast<Eigen::Index>(k)] += 5e-4 * n(rng);
+  const Eigen::VectorXd p = testing::perturbed_parameters(m, 5e-4, 2);
   TaskTarget target;
   target.pose.translation() = Eigen::Vector3d(0.0, 0.0, -0.9);
   IkResult prev = solve_ik(m, p, target);
