@@ -135,6 +135,24 @@ BENCHMARK(BM_RenderIdeal_1600x1200_BoardOutOfView)
     ->Iterations(10)
     ->MeasureProcessCPUTime();
 
+// The second shot of the settled-frame test: the robot stands still, so a simulated camera's
+// StillSceneRenderer keeps the first shot's blurred light and draws new noise only (compare
+// BM_Render_1600x1200_BoardInView, the first shot).
+void BM_StillSceneRepeatedShot_1600x1200_BoardInView(benchmark::State& state) {
+  const DemoScene& s = demo_scene();
+  rv::StillSceneRenderer camera(s.rays);
+  rv::RenderOptions options = s.options;
+  benchmark::DoNotOptimize(camera.render(s.in_view, options).data);  // the first shot
+  for (auto _ : state) {
+    ++options.seed;
+    benchmark::DoNotOptimize(camera.render(s.in_view, options).data);
+  }
+}
+BENCHMARK(BM_StillSceneRepeatedShot_1600x1200_BoardInView)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(10)
+    ->MeasureProcessCPUTime();
+
 }  // namespace
 
 int main(int argc, char** argv) {

@@ -607,15 +607,27 @@ cv::Mat apply_sensor(const cv::Mat& ideal, const RenderOptions& o) {
   return apply_sensor(scene, o);
 }
 
-cv::Mat apply_sensor(const SceneIrradiance& scene, const RenderOptions& o) {
-  if (scene.pixels.type() != CV_32F)
-    throw std::invalid_argument("apply_sensor: expects a CV_32F image");
+namespace {
+
+void check_sensor_options(const RenderOptions& o) {
   if (o.bit_depth != 8 && o.bit_depth != 16)
     throw std::invalid_argument("bit_depth must be 8 or 16");
+}
+
+}  // namespace
+
+cv::Mat blurred_irradiance(const SceneIrradiance& scene, const RenderOptions& o) {
+  if (scene.pixels.type() != CV_32F)
+    throw std::invalid_argument("apply_sensor: expects a CV_32F image");
   if (scene.subcell_values.size() !=
       scene.edge_pixels.size() * static_cast<size_t>(scene.subcells * scene.subcells))
     throw std::invalid_argument("apply_sensor: sub-cell values do not match the edge pixels");
-  const cv::Mat img = o.blur_sigma > 0.0 ? blur_before_sampling(scene, o.blur_sigma) : scene.pixels;
+  return o.blur_sigma > 0.0 ? blur_before_sampling(scene, o.blur_sigma) : scene.pixels;
+}
+
+cv::Mat sensor_readout(const cv::Mat& img, const RenderOptions& o) {
+  if (img.type() != CV_32F) throw std::invalid_argument("sensor_readout: expects a CV_32F image");
+  check_sensor_options(o);
   const double scale = o.bit_depth == 16 ? 257.0 : 1.0;
   const double max_value = o.bit_depth == 16 ? 65535.0 : 255.0;
   cv::Mat out(img.rows, img.cols, o.bit_depth == 16 ? CV_16U : CV_8U);
@@ -646,6 +658,11 @@ cv::Mat apply_sensor(const SceneIrradiance& scene, const RenderOptions& o) {
     }
   }
   return out;
+}
+
+cv::Mat apply_sensor(const SceneIrradiance& scene, const RenderOptions& o) {
+  check_sensor_options(o);
+  return sensor_readout(blurred_irradiance(scene, o), o);
 }
 
 std::vector<CornerTruth> corner_truth(const CameraModel& camera,
@@ -694,6 +711,52 @@ RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& tar
   r.image = apply_sensor(render_irradiance(rays, targets, options), options);
   r.corners = corner_truth(rays.camera, targets, options);
   return r;
+}
+
+namespace {
+
+// Options that give the same blurred irradiance: all but the sensor's (noise, seed, bit depth).
+bool same_scene_options(const RenderOptions& a, const RenderOptions& b) {
+  const auto same_occluder = [](const Occluder& x, const Occluder& y) {
+    return x.shape == y.shape && x.center == y.center && x.radius == y.radius &&
+           x.half_size == y.half_size && x.level == y.level;
+  };
+  return a.black_level == b.black_level && a.white_level == b.white_level &&
+         a.background_level == b.background_level && a.lighting_gradient == b.lighting_gradient &&
+         a.vignetting == b.vignetting && a.blur_sigma == b.blur_sigma &&
+         a.blur_subcells == b.blur_subcells &&
+         std::equal(a.occluders.begin(), a.occluders.end(), b.occluders.begin(), b.occluders.end(),
+                    same_occluder);
+}
+
+}  // namespace
+
+cv::Mat StillSceneRenderer::render(const std::vector<RenderTarget>& targets,
+                                   const RenderOptions& options) {
+  std::vector<Eigen::Matrix4d> poses;
+  poses.reserve(targets.size());
+  for (const RenderTarget& t : targets) poses.push_back(t.camera_T_board.matrix());
+  cv::Mat irradiance;
+  {
+    const std::lock_guard lock(mutex_);
+    if (last_options_ && same_scene_options(*last_options_, options) && poses == last_poses_) {
+      irradiance = last_irradiance_;  // shared, never written: readout makes a new image
+      ++reused_;
+    }
+  }
+  if (irradiance.empty()) {
+    irradiance = blurred_irradiance(render_irradiance(rays_, targets, options), options);
+    const std::lock_guard lock(mutex_);
+    last_poses_ = std::move(poses);
+    last_options_ = options;
+    last_irradiance_ = irradiance;
+  }
+  return sensor_readout(irradiance, options);
+}
+
+long StillSceneRenderer::reused() const {
+  const std::lock_guard lock(mutex_);
+  return reused_;
 }
 
 }  // namespace robocal::vision

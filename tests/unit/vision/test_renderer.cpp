@@ -284,6 +284,62 @@ TEST(Renderer, DeterministicWithSeed) {
   EXPECT_GT(cv::norm(a, c, cv::NORM_L1), 1000.0);
 }
 
+// A still scene shot again draws only new noise: every frame equals render()'s bit for bit, and
+// only a frame of the very same scene (pose and levels) reuses the last one's light.
+TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
+  const auto cam =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto board = april_board();
+  const Eigen::Isometry3d a = rt::tilted_board_pose(board, 0.3, 10, 10, 0);
+  Eigen::Isometry3d b = a;
+  b.translation().x() += 1e-9;  // a robot that moved by a nanometre is another scene
+  rv::RenderOptions opt;
+  opt.read_noise = 2.0;
+  opt.shot_noise_gain = 4.0;
+  opt.blur_sigma = 0.8;
+  rv::StillSceneRenderer camera(rv::precompute_rays(cam));
+  struct Frame {
+    Eigen::Isometry3d pose;
+    double white;
+    std::uint64_t seed;
+    int bit_depth;
+    long reused_after;
+  };
+  const std::vector<Frame> frames = {{a, 220.0, 1, 8, 0}, {a, 220.0, 2, 8, 1}, {a, 220.0, 3, 16, 2},
+                                     {b, 220.0, 4, 8, 2}, {b, 200.0, 5, 8, 2}, {b, 200.0, 6, 8, 3}};
+  for (const Frame& f : frames) {
+    opt.white_level = f.white;
+    opt.seed = f.seed;
+    opt.bit_depth = f.bit_depth;
+    const std::vector<rv::RenderTarget> targets = {{board, f.pose}};
+    const cv::Mat expected = rv::render(camera.rays(), targets, opt).image;
+    const cv::Mat got = camera.render(targets, opt);
+    ASSERT_EQ(got.type(), expected.type()) << "frame " << f.seed;
+    EXPECT_EQ(cv::norm(got, expected, cv::NORM_INF), 0.0) << "frame " << f.seed;
+    EXPECT_EQ(camera.reused(), f.reused_after) << "frame " << f.seed;
+  }
+}
+
+// The readout rounds half away from zero and clamps to the sensor's range, as std::round would.
+TEST(Renderer, ReadoutRoundsHalfAwayFromZeroAndClamps) {
+  const std::vector<float> light = {-3.0f, -0.5f,      0.0f,   0.49999997f, 0.5f,   1.5f,
+                                    2.5f,  127.49998f, 127.5f, 254.5f,      255.0f, 300.0f};
+  const cv::Mat irradiance(1, static_cast<int>(light.size()), CV_32F,
+                           const_cast<float*>(light.data()));
+  for (const int depth : {8, 16}) {
+    rv::RenderOptions opt;  // no noise
+    opt.bit_depth = depth;
+    const cv::Mat out = rv::sensor_readout(irradiance, opt);
+    const double scale = depth == 16 ? 257.0 : 1.0, top = depth == 16 ? 65535.0 : 255.0;
+    for (std::size_t i = 0; i < light.size(); ++i) {
+      const double expected = std::clamp(std::round(double(light[i]) * scale), 0.0, top);
+      const double got = depth == 16 ? out.at<std::uint16_t>(0, static_cast<int>(i))
+                                     : out.at<std::uint8_t>(0, static_cast<int>(i));
+      EXPECT_EQ(got, expected) << light[i] << " at " << depth << " bit";
+    }
+  }
+}
+
 TEST(Renderer, NoiseStatistics) {
   const auto cam =
       rv::make_camera(rv::CameraKind::kPinholeRadtan, 300, 300, 300, 300, 149.5, 149.5);

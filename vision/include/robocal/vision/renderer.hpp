@@ -22,6 +22,9 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <mutex>
+#include <optional>
+#include <utility>
 #include <vector>
 
 namespace robocal::vision {
@@ -99,8 +102,13 @@ SceneIrradiance render_irradiance(const CameraRays& rays, const std::vector<Rend
 // The ideal image: the pixel means alone; no blur, noise or quantisation.
 cv::Mat render_ideal(const CameraRays& rays, const std::vector<RenderTarget>& targets,
                      const RenderOptions& options);
-// Blur, noise and quantisation (deterministic for a given seed).
+// Blur, noise and quantisation (deterministic for a given seed):
+// sensor_readout(blurred_irradiance(scene, options), options).
 cv::Mat apply_sensor(const SceneIrradiance& scene, const RenderOptions& options);
+// The light on the pixels after the lens blur (CV_32F, DN); the scene's pixels without blur.
+cv::Mat blurred_irradiance(const SceneIrradiance& scene, const RenderOptions& options);
+// Noise and quantisation of the light on the pixels (deterministic for a given seed).
+cv::Mat sensor_readout(const cv::Mat& irradiance, const RenderOptions& options);
 // The same for an image of pixel means alone: every pixel taken as uniform.
 cv::Mat apply_sensor(const cv::Mat& ideal, const RenderOptions& options);
 // Ground-truth pixel positions and visibility of every corner of every target.
@@ -110,5 +118,28 @@ std::vector<CornerTruth> corner_truth(const CameraModel& camera,
 // All of the above.
 RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& targets,
                     const RenderOptions& options);
+
+// The frames of one simulated camera. A robot standing still is shot several times (the
+// settled-frame test): a frame of the same scene as the last one (the same target poses, bit for
+// bit, and the same options but for the noise seed and bit depth) keeps the last frame's blurred
+// irradiance and draws only new sensor noise. Its image equals render()'s exactly, at the cost of
+// the readout alone. Thread-safe; one object per camera.
+class StillSceneRenderer {
+ public:
+  explicit StillSceneRenderer(CameraRays rays) : rays_(std::move(rays)) {}
+  [[nodiscard]] const CameraRays& rays() const { return rays_; }
+  // The image render(rays(), targets, options) gives.
+  cv::Mat render(const std::vector<RenderTarget>& targets, const RenderOptions& options);
+  // Frames that reused the last scene (tests, statistics).
+  [[nodiscard]] long reused() const;
+
+ private:
+  CameraRays rays_;
+  mutable std::mutex mutex_;
+  std::vector<Eigen::Matrix4d> last_poses_;
+  std::optional<RenderOptions> last_options_;
+  cv::Mat last_irradiance_;
+  long reused_ = 0;
+};
 
 }  // namespace robocal::vision
