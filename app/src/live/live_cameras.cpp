@@ -37,7 +37,7 @@ InProcessCamera::InProcessCamera(LiveCameraSpec spec, const vision::TargetBoard&
     : spec_(std::move(spec)),
       board_(&board),
       truth_(&truth),
-      rays_(vision::precompute_rays(spec_.model)),
+      renderer_(std::make_unique<vision::StillSceneRenderer>(vision::precompute_rays(spec_.model))),
       busy_(std::move(busy)) {}
 
 InProcessCamera::~InProcessCamera() {
@@ -97,7 +97,7 @@ void InProcessCamera::trigger() {
   options.bit_depth = 8;
   pending_ = std::async(std::launch::async, [this, camera_T_board, options] {
     const robotio::RenderBusyScope busy(busy_.get());
-    return vision::render(rays_, {{*board_, camera_T_board}}, options).image;
+    return renderer_->render({{*board_, camera_T_board}}, options);
   });
 }
 

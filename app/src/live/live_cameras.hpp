@@ -90,7 +90,8 @@ class InProcessCamera final : public robotio::CameraSource {
   LiveCameraSpec spec_;
   const vision::TargetBoard* board_;
   robotio::TruePoseSource* truth_;
-  vision::CameraRays rays_;
+  // Repeated shots of a robot standing still draw only new noise (vision::StillSceneRenderer).
+  std::unique_ptr<vision::StillSceneRenderer> renderer_;
   double exposure_us_ = 10000.0;
   double gain_ = 0.0;
   bool open_ = true;

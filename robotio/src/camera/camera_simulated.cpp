@@ -15,7 +15,7 @@ SimulatedGigECamera::SimulatedGigECamera(SimulatedCameraSpec spec, vision::Targe
         "simulated camera " + spec_.serial + ": " + std::to_string(spec_.model.width) + "x" +
         std::to_string(spec_.model.height) + " exceeds the fake GigE sensor (2048 x 2048)");
   }
-  rays_ = vision::precompute_rays(spec_.model);
+  renderer_ = std::make_unique<vision::StillSceneRenderer>(vision::precompute_rays(spec_.model));
   server_ = std::make_unique<FakeGigECamera>(
       spec_.address, spec_.serial,
       [this](const FakeFrameRequest& request) { return render_frame(request); });
@@ -59,7 +59,7 @@ cv::Mat SimulatedGigECamera::render_frame(const FakeFrameRequest& request) {
     options.background_level *= scale;
   }
   const vision::RenderTarget target{board_, spec_.camera_T_world * world_T_board};
-  const cv::Mat full = vision::render(rays_, {target}, options).image;
+  const cv::Mat full = renderer_->render({target}, options);
   cv::Mat image = full(cv::Rect(r.x, r.y, r.width, r.height)).clone();
   const auto end = std::chrono::steady_clock::now();
   {

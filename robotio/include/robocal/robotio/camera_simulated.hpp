@@ -113,7 +113,8 @@ class SimulatedGigECamera {
   SimulatedCameraSpec spec_;
   vision::TargetBoard board_;
   TruePoseSource* truth_;
-  vision::CameraRays rays_;
+  // Repeated shots of a robot standing still draw only new noise (vision::StillSceneRenderer).
+  std::unique_ptr<vision::StillSceneRenderer> renderer_;
   mutable std::mutex history_mutex_;
   std::deque<RenderedFrame> history_;
   std::size_t keep_ = 8;
