@@ -731,8 +731,39 @@ bool same_scene_options(const RenderOptions& a, const RenderOptions& b) {
 
 }  // namespace
 
-cv::Mat StillSceneRenderer::render(const std::vector<RenderTarget>& targets,
+StillSceneRenderer::StillSceneRenderer(CameraRays rays) : rays_(std::move(rays)) {
+  double lowest_z = 1.0;
+  for (const Eigen::Vector3d& ray : rays_.rays)
+    if (ray.allFinite()) lowest_z = std::min(lowest_z, ray.z() / ray.norm());
+  widest_ray_ = std::acos(std::clamp(lowest_z, -1.0, 1.0));
+}
+
+// False only when no ray can meet the target's paper, as render_scene's intersect() decides: the
+// camera sees its back (the same test, from the same numbers), or a sphere around the paper lies
+// wholly outside the cone of the rays (with a margin far above rounding).
+bool StillSceneRenderer::may_be_seen(const RenderTarget& target) const {
+  if (!geometry_of(target).faces_camera) return false;
+  const Eigen::Vector2d lo = target.board.extent_min, hi = target.board.extent_max;
+  const std::array<Eigen::Vector3d, 4> paper = {
+      target.camera_T_board * Eigen::Vector3d(lo.x(), lo.y(), 0.0),
+      target.camera_T_board * Eigen::Vector3d(hi.x(), lo.y(), 0.0),
+      target.camera_T_board * Eigen::Vector3d(hi.x(), hi.y(), 0.0),
+      target.camera_T_board * Eigen::Vector3d(lo.x(), hi.y(), 0.0)};
+  const Eigen::Vector3d centre = 0.25 * (paper[0] + paper[1] + paper[2] + paper[3]);
+  double radius = 0.0;
+  for (const Eigen::Vector3d& p : paper) radius = std::max(radius, (p - centre).norm());
+  const double distance = centre.norm();
+  if (!(distance > radius)) return true;  // the camera is inside the sphere
+  const double off_axis = std::atan2(centre.head<2>().norm(), centre.z());
+  const double half_width = std::asin(radius / distance);
+  return off_axis - half_width <= widest_ray_ + 1e-6;
+}
+
+cv::Mat StillSceneRenderer::render(const std::vector<RenderTarget>& all_targets,
                                    const RenderOptions& options) {
+  std::vector<RenderTarget> targets;
+  for (const RenderTarget& t : all_targets)
+    if (may_be_seen(t)) targets.push_back(t);
   std::vector<Eigen::Matrix4d> poses;
   poses.reserve(targets.size());
   for (const RenderTarget& t : targets) poses.push_back(t.camera_T_board.matrix());

@@ -293,6 +293,12 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
   const Eigen::Isometry3d a = rt::tilted_board_pose(board, 0.3, 10, 10, 0);
   Eigen::Isometry3d b = a;
   b.translation().x() += 1e-9;  // a robot that moved by a nanometre is another scene
+  // Out of view: 1 m to the side at 0.3 m (the camera's half angle is 28 degrees), then 2 m; and
+  // the board turned away from the camera. All three are the same empty scene.
+  Eigen::Isometry3d side = a, further = a, turned = a;
+  side.translation().x() += 1.0;
+  further.translation().x() += 2.0;
+  turned.linear() = a.linear() * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY());
   rv::RenderOptions opt;
   opt.read_noise = 2.0;
   opt.shot_noise_gain = 4.0;
@@ -305,8 +311,11 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
     int bit_depth;
     long reused_after;
   };
-  const std::vector<Frame> frames = {{a, 220.0, 1, 8, 0}, {a, 220.0, 2, 8, 1}, {a, 220.0, 3, 16, 2},
-                                     {b, 220.0, 4, 8, 2}, {b, 200.0, 5, 8, 2}, {b, 200.0, 6, 8, 3}};
+  const std::vector<Frame> frames = {{a, 220.0, 1, 8, 0},      {a, 220.0, 2, 8, 1},
+                                     {a, 220.0, 3, 16, 2},     {b, 220.0, 4, 8, 2},
+                                     {b, 200.0, 5, 8, 2},      {b, 200.0, 6, 8, 3},
+                                     {side, 200.0, 7, 8, 3},   {further, 200.0, 8, 8, 4},
+                                     {turned, 200.0, 9, 8, 5}, {turned, 220.0, 10, 8, 5}};
   for (const Frame& f : frames) {
     opt.white_level = f.white;
     opt.seed = f.seed;

@@ -122,11 +122,14 @@ RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& tar
 // The frames of one simulated camera. A robot standing still is shot several times (the
 // settled-frame test): a frame of the same scene as the last one (the same target poses, bit for
 // bit, and the same options but for the noise seed and bit depth) keeps the last frame's blurred
-// irradiance and draws only new sensor noise. Its image equals render()'s exactly, at the cost of
-// the readout alone. Thread-safe; one object per camera.
+// irradiance and draws only new sensor noise. A target no ray of the camera can meet (it faces
+// away, or its paper lies outside the cone of the camera's rays) is left out of the scene first,
+// so every frame of a camera in an array that does not see the board is the same empty scene.
+// Either way the image equals render()'s exactly, at the cost of the readout alone. Thread-safe;
+// one object per camera.
 class StillSceneRenderer {
  public:
-  explicit StillSceneRenderer(CameraRays rays) : rays_(std::move(rays)) {}
+  explicit StillSceneRenderer(CameraRays rays);
   [[nodiscard]] const CameraRays& rays() const { return rays_; }
   // The image render(rays(), targets, options) gives.
   cv::Mat render(const std::vector<RenderTarget>& targets, const RenderOptions& options);
@@ -134,7 +137,10 @@ class StillSceneRenderer {
   [[nodiscard]] long reused() const;
 
  private:
+  [[nodiscard]] bool may_be_seen(const RenderTarget& target) const;
+
   CameraRays rays_;
+  double widest_ray_ = 0.0;  // largest angle of a ray from the optical axis, rad
   mutable std::mutex mutex_;
   std::vector<Eigen::Matrix4d> last_poses_;
   std::optional<RenderOptions> last_options_;
