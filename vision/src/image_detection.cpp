@@ -3,6 +3,8 @@
 #include <fmt/core.h>
 #include "robocal/core/parallel.hpp"
 
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <mutex>
 #include <utility>
@@ -10,15 +12,11 @@
 
 namespace robocal::vision {
 
-namespace {
-
-AprilTagDetectorOptions detector_options(const TargetBoard& board,
-                                         AprilTagDetectorOptions options) {
+AprilTagDetectorOptions detector_options_for(const TargetBoard& board,
+                                             AprilTagDetectorOptions options) {
   if (board.spec.kind == TargetKind::kAprilTagGrid) options.family = board.spec.family;
   return options;
 }
-
-}  // namespace
 
 namespace {
 
@@ -49,11 +47,41 @@ class DetectorPool {
   std::vector<std::unique_ptr<AprilTagDetector>> idle_;
 };
 
+std::string wrong_size(const DetectionRequest& request, int width, int height) {
+  if (request.width <= 0 || (width == request.width && height == request.height)) return {};
+  return fmt::format("{}: image is {}x{} but {} for {}x{}", request.image.string(), width, height,
+                     request.expected_by, request.width, request.height);
+}
+
+// The recorded detection of the request's image, when the file is the one it was made from.
+const RecordedDetection* recorded_detection(const DetectionRequest& request) {
+  if (request.record == nullptr || request.record->empty()) return nullptr;
+  std::ifstream in(request.image, std::ios::binary);
+  if (!in) return nullptr;
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                         std::istreambuf_iterator<char>());
+  return matching_entry(*request.record, request.image, bytes);
+}
+
 // One image: read, size checked, the board detected, or (an AprilTag board and a `reference`
 // detection of the same view) its tags refined where the reference had them.
 ImageDetection detect_one(const DetectionRequest& request, const TargetBoard& board,
                           DetectorPool& detectors, const TargetDetection* reference) {
   ImageDetection result;
+  if (const RecordedDetection* recorded = recorded_detection(request)) {
+    result.width = recorded->width;
+    result.height = recorded->height;
+    if (const std::string wrong = wrong_size(request, result.width, result.height);
+        !wrong.empty()) {
+      result.problem = wrong;
+      return result;
+    }
+    result.detection = recorded->detection;
+    if (result.detection.status == DetectionStatus::kRejected)
+      result.problem = fmt::format("{}: target not detected ({})", request.image.string(),
+                                   result.detection.reason);
+    return result;
+  }
   const LoadedImage img = load_gray_image(request.image);
   if (!img.error.empty()) {
     result.problem = img.error;
@@ -61,10 +89,8 @@ ImageDetection detect_one(const DetectionRequest& request, const TargetBoard& bo
   }
   result.width = img.gray.cols;
   result.height = img.gray.rows;
-  if (request.width > 0 && (img.gray.cols != request.width || img.gray.rows != request.height)) {
-    result.problem =
-        fmt::format("{}: image is {}x{} but {} for {}x{}", request.image.string(), img.gray.cols,
-                    img.gray.rows, request.expected_by, request.width, request.height);
+  if (const std::string wrong = wrong_size(request, result.width, result.height); !wrong.empty()) {
+    result.problem = wrong;
     return result;
   }
   std::unique_ptr<AprilTagDetector> detector = detectors.take();
@@ -85,7 +111,7 @@ std::vector<ImageDetection> detect_in_images(const std::vector<DetectionRequest>
                                              const std::function<void()>& done,
                                              const AprilTagDetectorOptions& detector) {
   std::vector<ImageDetection> out(requests.size());
-  DetectorPool detectors(detector_options(board, detector));
+  DetectorPool detectors(detector_options_for(board, detector));
   std::mutex done_mutex;
   core::parallel_for(static_cast<int>(requests.size()), threads, [&](int i) {
     const auto k = static_cast<std::size_t>(i);
@@ -102,7 +128,7 @@ std::vector<std::vector<ImageDetection>> detect_in_image_series(
     const std::vector<std::vector<DetectionRequest>>& series, const TargetBoard& board, int threads,
     const std::function<void()>& done, const AprilTagDetectorOptions& detector) {
   std::vector<std::vector<ImageDetection>> out(series.size());
-  DetectorPool detectors(detector_options(board, detector));
+  DetectorPool detectors(detector_options_for(board, detector));
   std::mutex done_mutex;
   core::parallel_for(static_cast<int>(series.size()), threads, [&](int i) {
     const auto& requests = series[static_cast<std::size_t>(i)];

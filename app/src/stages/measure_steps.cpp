@@ -153,6 +153,19 @@ std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>
   std::vector<Series> jobs;
   std::vector<std::vector<vision::DetectionRequest>> requests;
   std::size_t images = 0;
+  // What collect detected in each pose's images while the robot moved on: taken instead of
+  // detecting an unchanged image again (vision/detection_record.hpp).
+  const std::string signature =
+      vision::detection_signature(board, vision::detector_options_for(board));
+  std::vector<vision::DetectionRecord> records(poses.size());
+  for (std::size_t p = 0; p < poses.size(); ++p) {
+    for (const auto& frames : poses[p].frames_of_camera)
+      if (!frames.empty()) {
+        records[p] = vision::read_detection_record(
+            frames.front().parent_path() / vision::kDetectionRecordFile, signature);
+        break;
+      }
+  }
   for (std::size_t p = 0; p < poses.size(); ++p) {
     std::size_t n_frames = 0;
     for (std::size_t c = 0; c < n_cams; ++c) {
@@ -167,8 +180,8 @@ std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>
       jobs.push_back({p, c});
       requests.emplace_back();
       for (const auto& file : poses[p].frames_of_camera[c])
-        requests.back().push_back(
-            {file, rig[c].model.width, rig[c].model.height, camera_is_calibrated(rig[c])});
+        requests.back().push_back({file, rig[c].model.width, rig[c].model.height,
+                                   camera_is_calibrated(rig[c]), &records[p]});
       images += requests.back().size();
     }
   }

@@ -2,6 +2,7 @@
 
 #include "robocal/core/parallel.hpp"
 #include "robocal/vision/apriltag_detector.hpp"
+#include "robocal/vision/detection_record.hpp"
 #include "robocal/vision/image_detection.hpp"
 #include "robocal/vision/pose_measurement.hpp"
 #include "robocal/vision/target_detection.hpp"
@@ -108,13 +109,17 @@ struct MotionVerdict {
   bool moving = false;
   double chi2 = 0.0;
   std::vector<int> corners;
+  // detections[c][shot]: what the test detected (see CameraMotion).
+  std::vector<std::vector<std::optional<vision::TargetDetection>>> detections;
 };
 
-// One camera's part of the settled-frame test.
+// One camera's part of the settled-frame test, with the detections it made (by shot; shots it
+// did not need to detect have none), which the pose's folder records for measure.
 struct CameraMotion {
   int corners = 0;
   bool moving = false;
   double chi2 = 0.0;
+  std::vector<std::optional<vision::TargetDetection>> detections;
 };
 
 CameraMotion check_camera_motion(const ShotSeries& shots, std::size_t c,
@@ -122,10 +127,17 @@ CameraMotion check_camera_motion(const ShotSeries& shots, std::size_t c,
                                  const vision::BoardPoints& points,
                                  vision::AprilTagDetector& detector, double false_alarm) {
   CameraMotion out;
+  out.detections.resize(shots.size());
+  // Only what measure would detect the same way is recorded: it reads 8-bit gray images as they
+  // are.
+  const auto keep = [&](std::size_t shot, const vision::TargetDetection& d) {
+    if (shots[shot][c].image.type() == CV_8UC1) out.detections[shot] = d;
+  };
   const std::vector<vision::RigCamera> rig = {
       {camera.source->name(), camera.model, Eigen::Isometry3d::Identity(), {}}};
   const vision::TargetDetection first_detection =
       vision::detect_target(gray_8bit(shots[0][c].image), board, detector);
+  keep(0, first_detection);
   const vision::CameraFrame first = vision::camera_frame(first_detection);
   out.corners = static_cast<int>(first.corners.size());
   if (first.corners.size() < 4 || shots.size() < 2) {
@@ -136,8 +148,10 @@ CameraMotion check_camera_motion(const ShotSeries& shots, std::size_t c,
     return out;
   }
   for (std::size_t k = 1; k < shots.size(); ++k) {
-    const vision::CameraFrame later = vision::camera_frame(
-        detect_again(gray_8bit(shots[k][c].image), board, first_detection, detector));
+    const vision::TargetDetection again =
+        detect_again(gray_8bit(shots[k][c].image), board, first_detection, detector);
+    keep(k, again);
+    const vision::CameraFrame later = vision::camera_frame(again);
     const vision::PoseMeasurement other =
         vision::refine_target_pose(rig, points, {later}, reference.world_T_target);
     if (other.status != vision::PoseStatus::kOk) {
@@ -169,6 +183,7 @@ MotionVerdict check_motion(const ShotSeries& shots, const std::vector<CaptureCam
     verdict.chi2 = std::max(verdict.chi2, m.chi2);
     verdict.moving = verdict.moving || m.moving;
   }
+  for (CameraMotion& m : per_camera) verdict.detections.push_back(std::move(m.detections));
   return verdict;
 }
 
@@ -193,11 +208,22 @@ void write_text(const fs::path& file, const std::string& text) {
   }
 }
 
+void write_bytes(const fs::path& file, const std::vector<unsigned char>& bytes) {
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
+  out.flush();
+  if (!out) {
+    throw std::runtime_error(file.string() + ": cannot write the image");
+  }
+}
+
 // Writes the pose into staging/<name>, then renames it to poses/<name>: the pose appears whole.
 void write_pose(const fs::path& staging, const fs::path& poses_dir, const std::string& name,
                 const ShotSeries& shots, const std::vector<CaptureCamera>& cameras,
                 const Eigen::VectorXd& before, const Eigen::VectorXd& after,
-                const PoseCaptureReport& report, const CaptureOptions& options) {
+                const PoseCaptureReport& report, const MotionVerdict& verdict,
+                const std::string& detector, const CaptureOptions& options) {
   const fs::path dir = staging / name;
   std::error_code error;
   fs::remove_all(dir, error);
@@ -213,18 +239,31 @@ void write_pose(const fs::path& staging, const fs::path& poses_dir, const std::s
     return frame_file_name(cameras[i % cameras.size()].source->name(),
                            static_cast<int>(i / cameras.size()), n_shots);
   };
+  std::vector<std::optional<vision::RecordedDetection>> recorded(n_frames);
   core::parallel_for(static_cast<int>(n_frames), options.workers, [&](int k) {
     const auto i = static_cast<std::size_t>(k);
     const fs::path path = dir / file_of(i);
+    const cv::Mat& image = frame_of(i).image;
     // Huffman coding only: camera noise leaves deflate's string matching little to find, so
     // skipping it writes 20 % faster and 13-16 % smaller files (1600x1200, rendered and real
     // images; still lossless).
-    if (!cv::imwrite(path.string(), frame_of(i).image,
-                     {cv::IMWRITE_PNG_COMPRESSION, options.png_compression,
-                      cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY})) {
-      throw std::runtime_error(path.string() + ": cannot write the image");
+    std::vector<unsigned char> png;
+    if (!cv::imencode(".png", image, png,
+                      {cv::IMWRITE_PNG_COMPRESSION, options.png_compression,
+                       cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY})) {
+      throw std::runtime_error(path.string() + ": cannot encode the image");
+    }
+    write_bytes(path, png);
+    const auto& detection = verdict.detections[i % cameras.size()][i / cameras.size()];
+    if (detection) {
+      recorded[i] = vision::RecordedDetection{png.size(), vision::content_hash(png), image.cols,
+                                              image.rows, *detection};
     }
   });
+  vision::DetectionRecord record;
+  for (std::size_t i = 0; i < n_frames; ++i) {
+    if (recorded[i]) record[file_of(i)] = std::move(*recorded[i]);
+  }
   std::string frames_yaml;
   for (std::size_t i = 0; i < n_frames; ++i) {
     const Frame& frame = frame_of(i);
@@ -251,6 +290,13 @@ void write_pose(const fs::path& staging, const fs::path& poses_dir, const std::s
   write_text(dir / "pose.yaml", text);
   if (options.on_file_written) {
     options.on_file_written(dir / "pose.yaml");
+  }
+  if (!record.empty()) {
+    write_text(dir / vision::kDetectionRecordFile,
+               vision::detection_record_to_json(detector, record));
+    if (options.on_file_written) {
+      options.on_file_written(dir / vision::kDetectionRecordFile);
+    }
   }
   fs::rename(dir, poses_dir / name);  // atomic on one filesystem; refuses a non-empty target
 }
@@ -283,6 +329,7 @@ struct TakenPose {
   Eigen::VectorXd after;
   bool moving = false;  // set by the check
   bool written = false;
+  MotionVerdict verdict;  // set by the check
 };
 
 }  // namespace
@@ -315,9 +362,12 @@ CaptureResult capture_poses(const fs::path& session_dir,
   for (const auto& corner : board.corners) {
     points[corner.id] = corner.point;
   }
+  // The board's detector, as measure builds it: the detections it makes are recorded for measure.
+  const vision::AprilTagDetectorOptions detector_options = vision::detector_options_for(board);
+  const std::string detector_signature = vision::detection_signature(board, detector_options);
   std::vector<std::unique_ptr<vision::AprilTagDetector>> detectors;
   for (std::size_t c = 0; c < cameras.size(); ++c) {
-    detectors.push_back(std::make_unique<vision::AprilTagDetector>());
+    detectors.push_back(std::make_unique<vision::AprilTagDetector>(detector_options));
   }
 
   CaptureResult result;
@@ -342,19 +392,19 @@ CaptureResult capture_poses(const fs::path& session_dir,
   std::future<TakenPose> in_flight;
   const auto check_and_write = [&](TakenPose taken) {
     auto t = Clock::now();
-    const MotionVerdict verdict = check_motion(taken.shots, cameras, board, points, detectors,
-                                               options.motion_false_alarm, options.workers);
+    taken.verdict = check_motion(taken.shots, cameras, board, points, detectors,
+                                 options.motion_false_alarm, options.workers);
     taken.report.check_s += seconds_since(t);
-    taken.report.motion_chi2 = verdict.chi2;
-    taken.report.corners = verdict.corners;
-    taken.moving = taken.moving || verdict.moving;
+    taken.report.motion_chi2 = taken.verdict.chi2;
+    taken.report.corners = taken.verdict.corners;
+    taken.moving = taken.moving || taken.verdict.moving;
     if (taken.moving && taken.report.retakes < options.max_retakes) {
       return taken;  // not written: retaken later
     }
     taken.report.still_moving = taken.moving;
     t = Clock::now();
     write_pose(staging, poses_dir, taken.report.name, taken.shots, cameras, taken.before,
-               taken.after, taken.report, options);
+               taken.after, taken.report, taken.verdict, detector_signature, options);
     taken.report.write_s = seconds_since(t);
     taken.written = true;
     return taken;

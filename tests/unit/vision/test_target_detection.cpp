@@ -3,10 +3,12 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "board_views.hpp"
+#include "robocal/vision/detection_record.hpp"
 #include "robocal/vision/image_detection.hpp"
 #include "robocal/vision/target_detection.hpp"
 
@@ -214,6 +216,80 @@ TEST(AprilTagBoardDetection, ImageSeriesDetectFirstAndRefineTheRest) {
       EXPECT_LT((d->detection.pixels[i] - truth).norm(), 0.1) << "corner " << i;
     }
   }
+  std::filesystem::remove_all(dir);
+}
+
+// A detection recorded with its image (detection_record.hpp) round-trips exactly, is taken for that
+// very file by the same detector, and is ignored for a changed file, another detector or board
+// and a damaged record: those images are detected again.
+TEST(DetectionRecord, TakenForTheSameImageAndDetectorOnly) {
+  const auto board = tag_board();
+  const auto dir = temp_dir();
+  const Rendered view = shifted_view(board, 0.0, 1);
+  std::vector<unsigned char> png;
+  ASSERT_TRUE(cv::imencode(".png", view.image, png));
+  std::ofstream(dir / "cam0_0.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+  const rv::DetectionRequest plain{dir / "cam0_0.png", 0, 0, ""};
+  const rv::TargetDetection detected = rv::detect_in_images({plain}, board, 1)[0].detection;
+  ASSERT_EQ(detected.status, rv::DetectionStatus::kFound);
+  ASSERT_FALSE(detected.corner_groups.empty());
+
+  // What a recorder would write, but with every pixel moved by 1/8 px: when the record is taken,
+  // the moved pixels come back, which detecting the image cannot give.
+  rv::TargetDetection marked = detected;
+  for (auto& p : marked.pixels) p += Eigen::Vector2d(0.125, -0.125);
+  marked.edge_blur_px = std::numeric_limits<double>::quiet_NaN();
+  const std::string signature = rv::detection_signature(board, rv::detector_options_for(board));
+  const rv::DetectionRecord record = {
+      {"cam0_0.png",
+       {png.size(), rv::content_hash(png), view.image.cols, view.image.rows, marked}}};
+  std::ofstream(dir / rv::kDetectionRecordFile) << rv::detection_record_to_json(signature, record);
+
+  const rv::DetectionRecord read =
+      rv::read_detection_record(dir / rv::kDetectionRecordFile, signature);
+  ASSERT_EQ(read.size(), 1u);
+  const rv::TargetDetection& back = read.at("cam0_0.png").detection;
+  EXPECT_EQ(back.status, marked.status);
+  EXPECT_EQ(back.corner_ids, marked.corner_ids);
+  EXPECT_EQ(back.pixels, marked.pixels);  // bit for bit
+  EXPECT_EQ(back.board_points, marked.board_points);
+  EXPECT_TRUE(std::isnan(back.edge_blur_px));
+  ASSERT_EQ(back.corner_groups.size(), marked.corner_groups.size());
+  for (std::size_t g = 0; g < back.corner_groups.size(); ++g) {
+    EXPECT_EQ(back.corner_groups[g].corner_ids, marked.corner_groups[g].corner_ids);
+    EXPECT_EQ(back.corner_groups[g].covariance, marked.corner_groups[g].covariance);
+  }
+
+  rv::DetectionRequest with_record = plain;
+  with_record.record = &read;
+  const auto taken = rv::detect_in_image_series({{with_record}}, board, 1)[0][0];
+  EXPECT_TRUE(taken.problem.empty()) << taken.problem;
+  EXPECT_EQ(taken.detection.pixels, marked.pixels);
+  EXPECT_EQ(taken.width, view.image.cols);
+
+  // Another detector (a different decimation) or board: nothing read.
+  rv::AprilTagDetectorOptions finer = rv::detector_options_for(board);
+  finer.quad_decimate = 1.0f;
+  EXPECT_TRUE(rv::read_detection_record(dir / rv::kDetectionRecordFile,
+                                        rv::detection_signature(board, finer))
+                  .empty());
+  const auto other_board = rt::apriltag_grid_board(4, 3, 0.05);
+  EXPECT_NE(rv::detection_signature(other_board, rv::detector_options_for(other_board)), signature);
+
+  // The image changed after recording (one pixel): detected again.
+  cv::Mat changed = view.image.clone();
+  changed.at<std::uint8_t>(0, 0) ^= 1;
+  ASSERT_TRUE(cv::imwrite((dir / "cam0_0.png").string(), changed));
+  const auto again = rv::detect_in_image_series({{with_record}}, board, 1)[0][0];
+  ASSERT_TRUE(again.problem.empty()) << again.problem;
+  EXPECT_NE(again.detection.pixels, marked.pixels);
+  EXPECT_EQ(again.detection.corner_ids, detected.corner_ids);
+
+  // A damaged record reads as none.
+  std::ofstream(dir / rv::kDetectionRecordFile) << "{\"format\": \"robocal detection record 1\", ";
+  EXPECT_TRUE(rv::read_detection_record(dir / rv::kDetectionRecordFile, signature).empty());
+  EXPECT_TRUE(rv::read_detection_record(dir / "absent.json", signature).empty());
   std::filesystem::remove_all(dir);
 }
 

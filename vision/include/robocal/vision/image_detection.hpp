@@ -3,6 +3,7 @@
 // from a folder of views, the rig's shared views, the end-effector board at each robot pose).
 // One bad image never stops the others: it comes back with its problem in words.
 #include "robocal/vision/apriltag_detector.hpp"
+#include "robocal/vision/detection_record.hpp"
 #include "robocal/vision/observations.hpp"
 #include "robocal/vision/target.hpp"
 #include "robocal/vision/target_detection.hpp"
@@ -22,7 +23,15 @@ struct DetectionRequest {
   int width = 0;
   int height = 0;
   std::string expected_by;
+  // Detections recorded with the image's folder (detection_record.hpp; owned by the caller), or
+  // none. The image's entry is taken instead of detecting when it was made from this very file
+  // by the same detector (the caller reads the record with detection_signature()).
+  const DetectionRecord* record = nullptr;
 };
+
+// The detector options a board is detected with: `options` with the board's tag family.
+AprilTagDetectorOptions detector_options_for(const TargetBoard& board,
+                                             AprilTagDetectorOptions options = {});
 
 struct ImageDetection {
   // "<file>: <why>" when the image is unreadable, has the wrong size or the target was not
