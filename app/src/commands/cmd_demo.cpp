@@ -160,6 +160,16 @@ CommandSpec demo_command() {
             cmd.add_option("--threads", o->threads, "Worker threads for rendering and detection")
                 ->check(CLI::Range(1, 64))
                 ->capture_default_str();
+            cmd.add_option("--intrinsic-views", o->simulate.intrinsic_views,
+                           fmt::format("Calibration-board views per camera (default {}, 12 with "
+                                       "--quick)",
+                                       SimulateOptions{}.intrinsic_views))
+                ->check(CLI::Range(4, 1000));
+            cmd.add_option("--rig-views", o->simulate.rig_views,
+                           fmt::format("Board views the cameras see together (default {}, 6 "
+                                       "with --quick)",
+                                       SimulateOptions{}.rig_views))
+                ->check(CLI::Range(2, 1000));
             cmd.add_flag("--random-poses", o->simulate.random_poses,
                          "Random reachable poses with the board in view (for comparison) "
                          "instead of poses planned by observability (planner/)");
@@ -197,10 +207,10 @@ CommandSpec demo_command() {
             cmd.add_option("--json", o->json,
                            "Write the JSON report here ('-' = stdout; default: "
                            "<session>/results/demo.json)");
-            return [o]() {
+            return [o, &cmd]() {
               if (o->simulate.quick) {
-                o->simulate.intrinsic_views = 12;
-                o->simulate.rig_views = 6;
+                if (cmd.count("--intrinsic-views") == 0) o->simulate.intrinsic_views = 12;
+                if (cmd.count("--rig-views") == 0) o->simulate.rig_views = 6;
               }
               return o->live ? run_live(*o) : run_demo(*o);
             };
