@@ -736,6 +736,23 @@ StillSceneRenderer::StillSceneRenderer(CameraRays rays) : rays_(std::move(rays))
   for (const Eigen::Vector3d& ray : rays_.rays)
     if (ray.allFinite()) lowest_z = std::min(lowest_z, ray.z() / ray.norm());
   widest_ray_ = std::acos(std::clamp(lowest_z, -1.0, 1.0));
+  if (!(lowest_z > 0.0)) return;
+  // The rays' extreme angles left-right (atan2(x, z)) and up-down (atan2(y, z)): a ray at angle a
+  // lies behind the plane with normal (cos b, 0, -sin b) for every b >= a.
+  constexpr double kPi = std::numbers::pi;
+  double x_lo = kPi, x_hi = -kPi, y_lo = kPi, y_hi = -kPi;
+  for (const Eigen::Vector3d& ray : rays_.rays) {
+    if (!ray.allFinite()) continue;
+    const double ax = std::atan2(ray.x(), ray.z()), ay = std::atan2(ray.y(), ray.z());
+    x_lo = std::min(x_lo, ax);
+    x_hi = std::max(x_hi, ax);
+    y_lo = std::min(y_lo, ay);
+    y_hi = std::max(y_hi, ay);
+  }
+  sides_ = {{-std::cos(x_lo), 0.0, std::sin(x_lo)},
+            {std::cos(x_hi), 0.0, -std::sin(x_hi)},
+            {0.0, -std::cos(y_lo), std::sin(y_lo)},
+            {0.0, std::cos(y_hi), -std::sin(y_hi)}};
 }
 
 // False only when no ray can meet the target's paper, as render_scene's intersect() decides: the
@@ -756,7 +773,11 @@ bool StillSceneRenderer::may_be_seen(const RenderTarget& target) const {
   if (!(distance > radius)) return true;  // the camera is inside the sphere
   const double off_axis = std::atan2(centre.head<2>().norm(), centre.z());
   const double half_width = std::asin(radius / distance);
-  return off_axis - half_width <= widest_ray_ + 1e-6;
+  if (off_axis - half_width > widest_ray_ + 1e-6) return false;
+  // Wholly in front of a side plane: every ray is behind it.
+  return std::none_of(sides_.begin(), sides_.end(), [&](const Eigen::Vector3d& n) {
+    return n.dot(centre) > radius + 1e-6 * distance;
+  });
 }
 
 cv::Mat StillSceneRenderer::render(const std::vector<RenderTarget>& all_targets,

@@ -299,6 +299,15 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
   side.translation().x() += 1.0;
   further.translation().x() += 2.0;
   turned.linear() = a.linear() * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY());
+  // 1.5 m away, 30 degrees below the axis (camera y points down the image): inside the cone of the
+  // rays (the image diagonal's 33.7 degrees) but beyond the bottom edge's 21.8; then at 20
+  // degrees, partly in the image.
+  const auto at_elevation = [&](double degrees) {
+    Eigen::Isometry3d pose = rt::centred_board_pose(board, Eigen::Matrix3d::Identity(), 1.5);
+    pose.translation().y() += 1.5 * std::tan(degrees * M_PI / 180.0);
+    return pose;
+  };
+  const Eigen::Isometry3d below = at_elevation(30.0), at_edge = at_elevation(20.0);
   rv::RenderOptions opt;
   opt.read_noise = 2.0;
   opt.shot_noise_gain = 4.0;
@@ -311,11 +320,11 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
     int bit_depth;
     long reused_after;
   };
-  const std::vector<Frame> frames = {{a, 220.0, 1, 8, 0},      {a, 220.0, 2, 8, 1},
-                                     {a, 220.0, 3, 16, 2},     {b, 220.0, 4, 8, 2},
-                                     {b, 200.0, 5, 8, 2},      {b, 200.0, 6, 8, 3},
-                                     {side, 200.0, 7, 8, 3},   {further, 200.0, 8, 8, 4},
-                                     {turned, 200.0, 9, 8, 5}, {turned, 220.0, 10, 8, 5}};
+  const std::vector<Frame> frames = {
+      {a, 220.0, 1, 8, 0},       {a, 220.0, 2, 8, 1},       {a, 220.0, 3, 16, 2},
+      {b, 220.0, 4, 8, 2},       {b, 200.0, 5, 8, 2},       {b, 200.0, 6, 8, 3},
+      {side, 200.0, 7, 8, 3},    {further, 200.0, 8, 8, 4}, {turned, 200.0, 9, 8, 5},
+      {turned, 220.0, 10, 8, 5}, {below, 220.0, 11, 8, 6},  {at_edge, 220.0, 12, 8, 6}};
   for (const Frame& f : frames) {
     opt.white_level = f.white;
     opt.seed = f.seed;
@@ -326,6 +335,11 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
     ASSERT_EQ(got.type(), expected.type()) << "frame " << f.seed;
     EXPECT_EQ(cv::norm(got, expected, cv::NORM_INF), 0.0) << "frame " << f.seed;
     EXPECT_EQ(camera.reused(), f.reused_after) << "frame " << f.seed;
+    if (f.seed == 12) {  // part of the board in the image's bottom rows: not an empty scene
+      double lo = 0, hi = 0;
+      cv::minMaxLoc(expected.rowRange(expected.rows - 20, expected.rows), &lo, &hi);
+      EXPECT_GT(hi - lo, 100.0);
+    }
   }
 }
 

@@ -123,7 +123,8 @@ RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& tar
 // settled-frame test): a frame of the same scene as the last one (the same target poses, bit for
 // bit, and the same options but for the noise seed and bit depth) keeps the last frame's blurred
 // irradiance and draws only new sensor noise. A target no ray of the camera can meet (it faces
-// away, or its paper lies outside the cone of the camera's rays) is left out of the scene first,
+// away, or its paper lies outside the cone or the four side planes that hold every ray) is left
+// out of the scene first,
 // so every frame of a camera in an array that does not see the board is the same empty scene.
 // Either way the image equals render()'s exactly, at the cost of the readout alone. Thread-safe;
 // one object per camera.
@@ -141,6 +142,9 @@ class StillSceneRenderer {
 
   CameraRays rays_;
   double widest_ray_ = 0.0;  // largest angle of a ray from the optical axis, rad
+  // Outward normals of planes through the camera centre with every ray behind them (left, right,
+  // top, bottom; none for a lens that sees behind itself).
+  std::vector<Eigen::Vector3d> sides_;
   mutable std::mutex mutex_;
   std::vector<Eigen::Matrix4d> last_poses_;
   std::optional<RenderOptions> last_options_;
