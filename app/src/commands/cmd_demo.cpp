@@ -36,6 +36,7 @@ struct DemoOptions {
   std::string route = "both";  // pose | pixel | both (identification routes reported)
   bool no_priors = false;
   bool live = false;  // the live loop (live/live_demo.hpp)
+  bool intrinsic_views_given = false;
   bool in_process = false;
   bool yes = false;
   bool resume = false;
@@ -49,7 +50,8 @@ int run_live(const DemoOptions& o) {
   l.seed = o.simulate.seed;
   l.poses = o.simulate.poses;
   l.held_out = o.held_out;
-  l.intrinsic_views = o.simulate.intrinsic_views;
+  // Not given: the live demo's own default, which depends on the cell's cameras.
+  l.intrinsic_views = o.intrinsic_views_given || o.simulate.quick ? o.simulate.intrinsic_views : 0;
   l.rig_views = o.simulate.rig_views;
   l.threads = o.threads;
   l.quick = o.simulate.quick;
@@ -162,8 +164,8 @@ CommandSpec demo_command() {
                 ->capture_default_str();
             cmd.add_option("--intrinsic-views", o->simulate.intrinsic_views,
                            fmt::format("Calibration-board views per camera (default {}, 12 with "
-                                       "--quick)",
-                                       SimulateOptions{}.intrinsic_views))
+                                       "--quick; --live with more than two cameras: {})",
+                                       SimulateOptions{}.intrinsic_views, kArrayIntrinsicViews))
                 ->check(CLI::Range(4, 1000));
             cmd.add_option("--rig-views", o->simulate.rig_views,
                            fmt::format("Board views the cameras see together (default {}, 6 "
@@ -208,6 +210,7 @@ CommandSpec demo_command() {
                            "Write the JSON report here ('-' = stdout; default: "
                            "<session>/results/demo.json)");
             return [o, &cmd]() {
+              o->intrinsic_views_given = cmd.count("--intrinsic-views") > 0;
               if (o->simulate.quick) {
                 if (cmd.count("--intrinsic-views") == 0) o->simulate.intrinsic_views = 12;
                 if (cmd.count("--rig-views") == 0) o->simulate.rig_views = 6;

@@ -59,9 +59,11 @@ LiveCell make_live_cell(const LiveDemoOptions& o, const std::string& robot_file)
   std::mt19937 rng(o.seed);
   const CellOptions co = demo_cell_options(o.seed, o.quick, o.idealised_truth);
   LiveCell c{make_simulated_cell(robot_file, co, rng), {}, {}};
+  const int views = o.intrinsic_views > 0       ? o.intrinsic_views
+                    : c.cell.cameras.size() > 2 ? kArrayIntrinsicViews
+                                                : SimulateOptions{}.intrinsic_views;
   for (std::size_t k = 0; k < c.cell.cameras.size(); ++k)
-    c.intrinsic_views.push_back(
-        intrinsic_view_poses(c.cell, static_cast<int>(k), o.intrinsic_views, rng));
+    c.intrinsic_views.push_back(intrinsic_view_poses(c.cell, static_cast<int>(k), views, rng));
   c.rig_views = rig_view_poses(c.cell, o.rig_views, rng);
   return c;
 }
