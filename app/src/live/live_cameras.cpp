@@ -4,6 +4,7 @@
 #include "simcell/simulated_cell.hpp"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include <chrono>
 #include <exception>
@@ -137,6 +138,10 @@ LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision:
                          const std::vector<robotio::TruePoseSource*>& truths, bool gige,
                          const std::string& serial_prefix)
     : specs_(specs), board_(&board), prefix_(serial_prefix) {
+  // Cameras that cannot be served, said in one note: on a plain machine every camera but the
+  // first fails for the same reason (only 127.0.0.1 is on the loopback interface).
+  std::vector<std::string> unserved;
+  std::string first_reason;
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     truths_.push_back(truths.size() == 1 ? truths.front() : truths.at(i));
     gige_.emplace_back();
@@ -152,9 +157,17 @@ LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision:
       gige_[i] = std::make_unique<robotio::SimulatedGigECamera>(s, board, *truths_[i]);
       gige_[i]->set_history(1);
     } catch (const std::exception& e) {
-      notes_.push_back(fmt::format("{}: no fake GigE camera on {} ({}); rendered in-process",
-                                   specs_[i].name, s.address, e.what()));
+      if (unserved.empty()) first_reason = fmt::format("on {}: {}", s.address, e.what());
+      unserved.push_back(specs_[i].name);
     }
+  }
+  if (unserved.size() == 1) {
+    notes_.push_back(fmt::format("{}: no fake GigE camera ({}); rendered in-process",
+                                 unserved.front(), first_reason));
+  } else if (unserved.size() > 1) {
+    notes_.push_back(
+        fmt::format("{}: no fake GigE cameras ({}; the same for the other {}); rendered in-process",
+                    fmt::join(unserved, ", "), first_reason, unserved.size() - 1));
   }
 }
 
