@@ -43,7 +43,13 @@ class GantryCell final : public CaptureRobot, public TruePoseSource {
     const std::lock_guard lock(mutex_);
     q_ = target;
     ++moves_;
+    moved_to_.push_back(target);
     return q_;
+  }
+  // Every target the robot was moved to, in order.
+  [[nodiscard]] std::vector<Eigen::VectorXd> moved_to() const {
+    const std::lock_guard lock(mutex_);
+    return moved_to_;
   }
   Eigen::VectorXd read_actuators() override {
     const std::lock_guard lock(mutex_);
@@ -82,6 +88,7 @@ class GantryCell final : public CaptureRobot, public TruePoseSource {
   int moves_ = 0;
   int stops_ = 0;
   int wobble_renders_ = 0;
+  std::vector<Eigen::VectorXd> moved_to_;
 };
 
 // Poses of the gantry: a few cm around home, all with the board fully in both views.

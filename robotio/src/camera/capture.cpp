@@ -372,7 +372,14 @@ CaptureResult capture_poses(const fs::path& session_dir,
 
   CaptureResult result;
   const auto started = Clock::now();
-  std::deque<int> queue;
+  // What the robot does next: move to a target and take its pose, or only pass through it on the
+  // way back from a retake.
+  struct Step {
+    int index = 0;
+    bool capture = true;
+  };
+  std::deque<Step> queue;
+  std::vector<int> visited;    // the targets the robot moved to, in order
   std::map<int, int> retakes;  // by pose index: shot series rejected so far
   for (std::size_t i = 0; i < targets.size(); ++i) {
     PoseCaptureReport report;
@@ -382,13 +389,35 @@ CaptureResult capture_poses(const fs::path& session_dir,
       report.status = PoseCaptureStatus::kAlreadyRecorded;
       result.poses.push_back(report);
     } else {
-      queue.push_back(report.index);
+      queue.push_back({report.index, true});
     }
   }
 
   // The motion check and the writing of one pose run while the robot moves to the next one (at
-  // most one pose in flight). A pose whose target moved is taken again later: the robot comes
-  // back to it after the others.
+  // most one pose in flight). A pose whose target moved is taken again as soon as that is known:
+  // the robot goes back along the motions it made to reach it (each was planned and checked; a
+  // new straight motion from elsewhere might not be safe, and the guard would refuse it), takes
+  // it again, and returns the same way to go on with the plan.
+  const auto plan_retake = [&](int pose) {
+    const auto last = std::find(visited.rbegin(), visited.rend(), pose);
+    const auto at = last == visited.rend()
+                        ? visited.size()
+                        : static_cast<std::size_t>(std::distance(visited.begin(), last.base()) - 1);
+    if (at + 1 >= visited.size()) {
+      queue.push_front({pose, true});  // the robot is still there
+      return;
+    }
+    std::vector<Step> steps;
+    for (std::size_t k = visited.size() - 1; k-- > at;) {
+      steps.push_back({visited[k], k == at});
+    }
+    const bool more_to_take =
+        std::any_of(queue.begin(), queue.end(), [](const Step& s) { return s.capture; });
+    for (std::size_t k = at + 1; more_to_take && k < visited.size(); ++k) {
+      steps.push_back({visited[k], false});
+    }
+    queue.insert(queue.begin(), steps.begin(), steps.end());
+  };
   std::future<TakenPose> in_flight;
   const auto check_and_write = [&](TakenPose taken) {
     auto t = Clock::now();
@@ -399,7 +428,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
     taken.report.corners = taken.verdict.corners;
     taken.moving = taken.moving || taken.verdict.moving;
     if (taken.moving && taken.report.retakes < options.max_retakes) {
-      return taken;  // not written: retaken later
+      return taken;  // not written: taken again (plan_retake)
     }
     taken.report.still_moving = taken.moving;
     t = Clock::now();
@@ -409,7 +438,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
     taken.written = true;
     return taken;
   };
-  // Collects the pose in flight; a rejected one goes back in the queue.
+  // Collects the pose in flight; a rejected one is taken again next (plan_retake).
   const auto settle_in_flight = [&] {
     if (!in_flight.valid()) {
       return;
@@ -420,7 +449,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
       if (options.on_pose_recorded) options.on_pose_recorded(done.report);
     } else {
       retakes[done.report.index] = done.report.retakes + 1;
-      queue.push_back(done.report.index);
+      plan_retake(done.report.index);
     }
   };
   const auto stop = [&](const std::string& reason, std::optional<CameraError::Kind> kind) {
@@ -453,9 +482,22 @@ CaptureResult capture_poses(const fs::path& session_dir,
       }
       continue;
     }
-    TakenPose taken;
-    const int index = queue.front();
+    const Step step = queue.front();
     queue.pop_front();
+    const int index = step.index;
+    if (!step.capture) {  // on the way back from a retake: the robot only passes through
+      try {
+        (void)robot.move_and_settle(targets[static_cast<std::size_t>(index)]);
+        visited.push_back(index);
+      } catch (const std::exception& failure) {
+        stop(fmt::format("on the way back from a retake, at {}: {}", pose_folder_name(index),
+                         failure.what()),
+             std::nullopt);
+        return result;
+      }
+      continue;
+    }
+    TakenPose taken;
     taken.report.index = index;
     taken.report.name = pose_folder_name(index);
     taken.report.retakes = retakes[index];
@@ -463,6 +505,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
       auto t = Clock::now();
       taken.before = robot.move_and_settle(targets[static_cast<std::size_t>(index)]);
       taken.report.move_s = seconds_since(t);
+      visited.push_back(index);
       // The readings tell at once whether the robot moved during the shots: retake right away.
       for (;;) {
         t = Clock::now();

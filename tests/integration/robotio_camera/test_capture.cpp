@@ -169,6 +169,47 @@ TEST(Capture, TargetMovingBetweenShotsIsRejectedAndRetaken) {
   EXPECT_GE(pose["retakes"].as<int>(), 1);
   EXPECT_LT(pose["motion_chi2"].as<double>(), 30.0);
   expect_complete_poses(session, targets, 2);
+  // The retake went back along the motion the robot made (pose 2 -> 1, the plan's 1 -> 2
+  // reversed) as soon as the rejection was known; no motion joins poses the plan does not join.
+  const std::vector<Eigen::VectorXd> moves = cell.moved_to();
+  const auto target_of = [&](const Eigen::VectorXd& q) {
+    for (std::size_t i = 0; i < targets.size(); ++i)
+      if (q == targets[i]) return static_cast<int>(i);
+    return -1;
+  };
+  std::vector<int> order;
+  for (const auto& q : moves) order.push_back(target_of(q));
+  EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 1})) << "pose 1 retaken from pose 2, then done";
+  for (std::size_t k = 1; k < order.size(); ++k)
+    EXPECT_LE(std::abs(order[k] - order[k - 1]), 1) << "motion " << k;
+}
+
+// Two rejected poses in a row, the second rejected while the robot is on its way back: every
+// retake still follows motions the robot made, and the plan goes on from where it left off.
+TEST(Capture, RetakesFollowTheMotionsMadeAndThePlanGoesOn) {
+  SKIP_WITHOUT_NETNS();
+  const fs::path session = fresh_dir("retake_path");
+  GantryCell cell;
+  CameraRig rig(cell, 64);
+  const auto targets = gantry_targets(5);
+  cell.before_move = [&](int move) {
+    if (move == 1 || move == 2) cell.wobble(4);  // poses 1 and 2, first visits
+  };
+  CaptureOptions options;
+  options.session_start_ns = host_time_ns();
+  const CaptureResult result = capture_poses(session, targets, cell, rig.capture, board(), options);
+  ASSERT_TRUE(result.complete) << result.stop_reason;
+  expect_complete_poses(session, targets, 2);
+  std::vector<int> order;
+  for (const auto& q : cell.moved_to())
+    for (std::size_t i = 0; i < targets.size(); ++i)
+      if (q == targets[i]) order.push_back(static_cast<int>(i));
+  ASSERT_EQ(order.size(), cell.moved_to().size());
+  for (std::size_t k = 1; k < order.size(); ++k)
+    EXPECT_LE(std::abs(order[k] - order[k - 1]), 1) << "motion " << k << " of " << order.size();
+  EXPECT_GE(result.poses[1].retakes, 1);
+  EXPECT_GE(result.poses[2].retakes, 1);
+  EXPECT_EQ(order.back(), 4);
 }
 
 TEST(Capture, CameraLostMidSessionStopsTheRobotAndTheResumedRunCompletesWithoutDuplicates) {
