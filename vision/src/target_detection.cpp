@@ -205,9 +205,18 @@ TargetDetection redetect_apriltag_board(const cv::Mat& gray, const TargetBoard& 
     tag.corners[static_cast<std::size_t>(previous.corner_ids[i] % 4)] = previous.pixels[i];
     ++corners_of[id];
   }
+  // A tag the earlier detection could not refine (too small or too blurred for the edge fit) was
+  // kept with the library's corners; it cannot be refined here either, so a view holding one is
+  // detected in full: a refinement would lose it and report the target as moved.
+  std::set<int> refined;
+  for (const CornerGroup& group : previous.corner_groups) {
+    for (const int corner : group.corner_ids) refined.insert(corner / 4);
+  }
   std::vector<TagDetection> complete;
   for (const auto& [id, tag] : tags) {
-    if (corners_of[id] == 4) complete.push_back(tag);
+    if (corners_of[id] != 4) continue;
+    if (refined.count(id) == 0) return detect_apriltag_board(gray, board, detector);
+    complete.push_back(tag);
   }
   TargetDetection out = board_detection_from_tags(detector.refine_at(gray, complete), board);
   if (out.status == DetectionStatus::kRejected && !complete.empty()) {

@@ -460,3 +460,27 @@ TEST(AprilTagBoardDetection, TagsCutByTheImageBorderAreRightOrAbsent) {
   EXPECT_LT(corners_checked, views * 48);
   EXPECT_LT(nearest_to_border, 12.0);
 }
+// Tags too small for the edge-fit refinement are detected with the library's corners alone; a
+// later frame of the same still view cannot refine them either, so it is detected in full
+// instead of reported as "moved" (the live Gantry-Tau's small boards at the edge of a view).
+TEST(AprilTagBoardDetection, ViewOfUnrefinedTagsIsDetectedAgainInFull) {
+  const auto board = tag_board();
+  const rt::SyntheticCamera cam{640, 512, 600.0, 319.5, 255.5};
+  rv::AprilTagDetector detector(rv::detector_options_for(board));
+  // 1.0 m: no tag refined; 0.9 m: one of the twelve.
+  for (const auto& [distance, refined] : {std::pair{1.0, 0u}, std::pair{0.9, 1u}}) {
+    const auto view = [&](unsigned seed) {
+      return rt::render_board_view(board, cam, distance, 35.0, 20.0, 5.0, 319.5, 255.5, 0.8, 2.0,
+                                   seed);
+    };
+    const rv::TargetDetection first = rv::detect_target(view(1).image, board, detector);
+    ASSERT_EQ(first.status, rv::DetectionStatus::kFound) << first.reason;
+    ASSERT_EQ(first.corner_groups.size(), refined) << "at " << distance << " m";
+    const rv::TargetDetection again =
+        rv::redetect_apriltag_board(view(2).image, board, first, detector);
+    EXPECT_EQ(again.status, rv::DetectionStatus::kFound) << again.reason;
+    EXPECT_EQ(again.corner_ids, first.corner_ids);
+    for (std::size_t i = 0; i < again.pixels.size() && i < first.pixels.size(); ++i)
+      EXPECT_LT((again.pixels[i] - first.pixels[i]).norm(), 1.0) << "corner " << i;
+  }
+}
