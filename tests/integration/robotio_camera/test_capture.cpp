@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -143,6 +144,17 @@ TEST(Capture, EveryPoseRecordedWithFramesBitExactAndReplayableAsARecordedSession
   EXPECT_THROW((void)recorded.grab(std::chrono::milliseconds(100)), CameraError);
 }
 
+// The targets the robot was moved to, by index (-1: none of them).
+std::vector<int> targets_moved_to(const GantryCell& cell,
+                                  const std::vector<Eigen::VectorXd>& targets) {
+  std::vector<int> order;
+  for (const Eigen::VectorXd& q : cell.moved_to()) {
+    const auto it = std::find(targets.begin(), targets.end(), q);
+    order.push_back(it == targets.end() ? -1 : static_cast<int>(it - targets.begin()));
+  }
+  return order;
+}
+
 TEST(Capture, TargetMovingBetweenShotsIsRejectedAndRetaken) {
   SKIP_WITHOUT_NETNS();
   const fs::path session = fresh_dir("retake");
@@ -170,18 +182,9 @@ TEST(Capture, TargetMovingBetweenShotsIsRejectedAndRetaken) {
   EXPECT_LT(pose["motion_chi2"].as<double>(), 30.0);
   expect_complete_poses(session, targets, 2);
   // The retake went back along the motion the robot made (pose 2 -> 1, the plan's 1 -> 2
-  // reversed) as soon as the rejection was known; no motion joins poses the plan does not join.
-  const std::vector<Eigen::VectorXd> moves = cell.moved_to();
-  const auto target_of = [&](const Eigen::VectorXd& q) {
-    for (std::size_t i = 0; i < targets.size(); ++i)
-      if (q == targets[i]) return static_cast<int>(i);
-    return -1;
-  };
-  std::vector<int> order;
-  for (const auto& q : moves) order.push_back(target_of(q));
-  EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 1})) << "pose 1 retaken from pose 2, then done";
-  for (std::size_t k = 1; k < order.size(); ++k)
-    EXPECT_LE(std::abs(order[k] - order[k - 1]), 1) << "motion " << k;
+  // reversed) as soon as the rejection was known.
+  EXPECT_EQ(targets_moved_to(cell, targets), (std::vector<int>{0, 1, 2, 1}))
+      << "pose 1 retaken from pose 2, then done";
 }
 
 // Two rejected poses in a row, the second rejected while the robot is on its way back: every
@@ -200,11 +203,7 @@ TEST(Capture, RetakesFollowTheMotionsMadeAndThePlanGoesOn) {
   const CaptureResult result = capture_poses(session, targets, cell, rig.capture, board(), options);
   ASSERT_TRUE(result.complete) << result.stop_reason;
   expect_complete_poses(session, targets, 2);
-  std::vector<int> order;
-  for (const auto& q : cell.moved_to())
-    for (std::size_t i = 0; i < targets.size(); ++i)
-      if (q == targets[i]) order.push_back(static_cast<int>(i));
-  ASSERT_EQ(order.size(), cell.moved_to().size());
+  const std::vector<int> order = targets_moved_to(cell, targets);
   for (std::size_t k = 1; k < order.size(); ++k)
     EXPECT_LE(std::abs(order[k] - order[k - 1]), 1) << "motion " << k << " of " << order.size();
   EXPECT_GE(result.poses[1].retakes, 1);
