@@ -16,18 +16,7 @@ namespace {
 
 constexpr const char* kFormat = "robocal detection record 1";
 
-const char* status_name(DetectionStatus s) {
-  switch (s) {
-    case DetectionStatus::kFound:
-      return "found";
-    case DetectionStatus::kPartial:
-      return "partial";
-    case DetectionStatus::kRejected:
-      break;
-  }
-  return "rejected";
-}
-
+// detection_status_name's inverse.
 DetectionStatus status_of(const std::string& name) {
   if (name == "found") return DetectionStatus::kFound;
   if (name == "partial") return DetectionStatus::kPartial;
@@ -56,7 +45,7 @@ nlohmann::json to_json(const TargetDetection& d) {
                       {"cols", g.covariance.cols()},
                       {"covariance", cov}});
   }
-  return {{"status", status_name(d.status)},
+  return {{"status", detection_status_name(d.status)},
           {"reason", d.reason},
           {"missing_marker_ids", d.missing_marker_ids},
           {"corner_ids", d.corner_ids},
@@ -96,19 +85,18 @@ TargetDetection detection_of(const nlohmann::json& j) {
 }  // namespace
 
 std::string detection_signature(const TargetBoard& board, const AprilTagDetectorOptions& o) {
-  const std::string spec = target_to_yaml(board.spec);
-  const std::vector<unsigned char> bytes(spec.begin(), spec.end());
   return fmt::format(
       "family={} decimate={} threads={} sigma={} refine_edges={} sharpening={} hamming={} "
       "subpixel={} margin={} board={:016x}",
       o.family, o.quad_decimate, o.threads, o.quad_sigma, o.refine_edges, o.decode_sharpening,
-      o.max_hamming, o.subpixel_refine, o.min_decision_margin, content_hash(bytes));
+      o.max_hamming, o.subpixel_refine, o.min_decision_margin,
+      content_hash(target_to_yaml(board.spec)));
 }
 
-std::uint64_t content_hash(const std::vector<unsigned char>& bytes) {
+std::uint64_t content_hash(std::string_view bytes) {
   std::uint64_t h = 0xcbf29ce484222325ULL;
-  for (const unsigned char b : bytes) {
-    h ^= b;
+  for (const char c : bytes) {
+    h ^= static_cast<unsigned char>(c);
     h *= 0x100000001b3ULL;
   }
   return h;
@@ -157,7 +145,7 @@ DetectionRecord read_detection_record(const std::filesystem::path& file,
 
 const RecordedDetection* matching_entry(const DetectionRecord& record,
                                         const std::filesystem::path& image,
-                                        const std::vector<unsigned char>& bytes) {
+                                        std::string_view bytes) {
   const auto it = record.find(image.filename().string());
   if (it == record.end() || it->second.size != bytes.size() ||
       it->second.hash != content_hash(bytes))

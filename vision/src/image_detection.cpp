@@ -1,10 +1,9 @@
 #include "robocal/vision/image_detection.hpp"
 
 #include <fmt/core.h>
+#include "robocal/core/files.hpp"
 #include "robocal/core/parallel.hpp"
 
-#include <fstream>
-#include <iterator>
 #include <memory>
 #include <mutex>
 #include <utility>
@@ -56,11 +55,11 @@ std::string wrong_size(const DetectionRequest& request, int width, int height) {
 // The recorded detection of the request's image, when the file is the one it was made from.
 const RecordedDetection* recorded_detection(const DetectionRequest& request) {
   if (request.record == nullptr || request.record->empty()) return nullptr;
-  std::ifstream in(request.image, std::ios::binary);
-  if (!in) return nullptr;
-  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
-                                         std::istreambuf_iterator<char>());
-  return matching_entry(*request.record, request.image, bytes);
+  try {
+    return matching_entry(*request.record, request.image, core::read_text_file(request.image));
+  } catch (const std::exception&) {
+    return nullptr;  // unreadable: the detection says why
+  }
 }
 
 // One image: read, size checked, the board detected, or (an AprilTag board and a `reference`

@@ -243,7 +243,8 @@ TEST(DetectionRecord, TakenForTheSameImageAndDetectorOnly) {
   const std::string signature = rv::detection_signature(board, rv::detector_options_for(board));
   const rv::DetectionRecord record = {
       {"cam0_0.png",
-       {png.size(), rv::content_hash(png), view.image.cols, view.image.rows, marked}}};
+       {png.size(), rv::content_hash(std::string(png.begin(), png.end())), view.image.cols,
+        view.image.rows, marked}}};
   std::ofstream(dir / rv::kDetectionRecordFile) << rv::detection_record_to_json(signature, record);
 
   const rv::DetectionRecord read =

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace robocal::vision {
@@ -37,7 +38,7 @@ using DetectionRecord = std::map<std::string, RecordedDetection>;
 std::string detection_signature(const TargetBoard& board, const AprilTagDetectorOptions& options);
 
 // FNV-1a 64 of a byte string (an encoded image as written).
-std::uint64_t content_hash(const std::vector<unsigned char>& bytes);
+std::uint64_t content_hash(std::string_view bytes);
 
 // The record's file text (JSON).
 std::string detection_record_to_json(const std::string& signature, const DetectionRecord& record);
@@ -49,8 +50,7 @@ DetectionRecord read_detection_record(const std::filesystem::path& file,
 
 // The entry's detection when `image` is the file it was made from (same size and hash).
 const RecordedDetection* matching_entry(const DetectionRecord& record,
-                                        const std::filesystem::path& image,
-                                        const std::vector<unsigned char>& bytes);
+                                        const std::filesystem::path& image, std::string_view bytes);
 
 // File name of a pose folder's record (app/SESSION.md).
 inline constexpr const char* kDetectionRecordFile = "detections.json";
