@@ -52,6 +52,7 @@ struct Occluder {
   double radius = 0.0;
   Eigen::Vector2d half_size = Eigen::Vector2d::Zero();
   double level = 0.0;
+  bool operator==(const Occluder&) const = default;
 };
 
 struct RenderOptions {
@@ -70,6 +71,7 @@ struct RenderOptions {
   double shot_noise_gain = 0.0;  // electrons per DN; shot-noise variance = signal / gain (0: off)
   int bit_depth = 8;             // 8 or 16
   std::uint64_t seed = 1;        // noise seed: same seed, same image
+  bool operator==(const RenderOptions&) const = default;
 };
 
 struct CornerTruth {
