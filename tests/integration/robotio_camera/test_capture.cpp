@@ -155,21 +155,26 @@ std::vector<int> targets_moved_to(const GantryCell& cell,
   return order;
 }
 
+// Captures `targets`; at the moves numbered in `swinging` (the first visits of those poses), the
+// first shot series sees the board swing by 1.5-6 mm between shots.
+CaptureResult capture_with_swings(const fs::path& session, GantryCell& cell,
+                                  const std::vector<Eigen::VectorXd>& targets,
+                                  const std::set<int>& swinging) {
+  CameraRig rig(cell, 64);
+  cell.before_move = [&cell, swinging](int move) {
+    if (swinging.count(move) != 0) cell.wobble(4);
+  };
+  CaptureOptions options;
+  options.session_start_ns = host_time_ns();
+  return capture_poses(session, targets, cell, rig.capture, board(), options);
+}
+
 TEST(Capture, TargetMovingBetweenShotsIsRejectedAndRetaken) {
   SKIP_WITHOUT_NETNS();
   const fs::path session = fresh_dir("retake");
   GantryCell cell;
-  CameraRig rig(cell, 64);
   const auto targets = gantry_targets(3);
-  cell.before_move = [&](int move) {
-    if (move == 1) {
-      // Pose 1: the first shot series sees the board swing by 1.5-6 mm between shots.
-      cell.wobble(4);
-    }
-  };
-  CaptureOptions options;
-  options.session_start_ns = host_time_ns();
-  const CaptureResult result = capture_poses(session, targets, cell, rig.capture, board(), options);
+  const CaptureResult result = capture_with_swings(session, cell, targets, {1});
   ASSERT_TRUE(result.complete) << result.stop_reason;
   EXPECT_EQ(result.poses[0].retakes, 0);
   EXPECT_GE(result.poses[1].retakes, 1);
@@ -193,14 +198,8 @@ TEST(Capture, RetakesFollowTheMotionsMadeAndThePlanGoesOn) {
   SKIP_WITHOUT_NETNS();
   const fs::path session = fresh_dir("retake_path");
   GantryCell cell;
-  CameraRig rig(cell, 64);
   const auto targets = gantry_targets(5);
-  cell.before_move = [&](int move) {
-    if (move == 1 || move == 2) cell.wobble(4);  // poses 1 and 2, first visits
-  };
-  CaptureOptions options;
-  options.session_start_ns = host_time_ns();
-  const CaptureResult result = capture_poses(session, targets, cell, rig.capture, board(), options);
+  const CaptureResult result = capture_with_swings(session, cell, targets, {1, 2});
   ASSERT_TRUE(result.complete) << result.stop_reason;
   expect_complete_poses(session, targets, 2);
   const std::vector<int> order = targets_moved_to(cell, targets);

@@ -17,19 +17,29 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Three poses of the gantry captured into a fresh temporary folder `name`.
+struct CapturedSession {
+  fs::path dir;
+  std::vector<Eigen::VectorXd> targets = testing::gantry_targets(3);
+  vision::TargetBoard board =
+      vision::load_target_file(testing::testdata("vision/apriltag_4x3.yaml"));
+  CaptureResult result;
+  explicit CapturedSession(const std::string& name) : dir(fs::temp_directory_path() / name) {
+    fs::remove_all(dir);
+    testing::GantryCell cell;
+    testing::CameraRig rig(cell, 8);
+    CaptureOptions options;
+    options.session_start_ns = host_time_ns();
+    result = capture_poses(dir, targets, cell, rig.capture, board, options);
+  }
+};
+
 TEST(CaptureSessionFormat, ThePipelinesSessionReaderLoadsEveryCapturedPose) {
   SKIP_WITHOUT_NETNS();
-  const fs::path dir = fs::temp_directory_path() / "robocal_capture_session_format";
-  fs::remove_all(dir);
-  testing::GantryCell cell;
-  testing::CameraRig rig(cell, 8);
-  const auto targets = testing::gantry_targets(3);
-  CaptureOptions options;
-  options.session_start_ns = host_time_ns();
-  const CaptureResult result = capture_poses(
-      dir, targets, cell, rig.capture,
-      vision::load_target_file(testing::testdata("vision/apriltag_4x3.yaml")), options);
-  ASSERT_TRUE(result.complete) << result.stop_reason;
+  const CapturedSession captured("robocal_capture_session_format");
+  ASSERT_TRUE(captured.result.complete) << captured.result.stop_reason;
+  const fs::path& dir = captured.dir;
+  const auto& targets = captured.targets;
 
   app::Session session;
   session.dir = dir;
@@ -55,15 +65,11 @@ TEST(CaptureSessionFormat, ThePipelinesSessionReaderLoadsEveryCapturedPose) {
 // second refined from it), so measure can take them instead of detecting again.
 TEST(CaptureSessionFormat, RecordedDetectionsEqualDetectingTheWrittenImagesAgain) {
   SKIP_WITHOUT_NETNS();
-  const fs::path dir = fs::temp_directory_path() / "robocal_capture_detection_record";
-  fs::remove_all(dir);
-  testing::GantryCell cell;
-  testing::CameraRig rig(cell, 8);
-  const auto targets = testing::gantry_targets(3);
-  const vision::TargetBoard board =
-      vision::load_target_file(testing::testdata("vision/apriltag_4x3.yaml"));
-  const CaptureResult result = capture_poses(dir, targets, cell, rig.capture, board);
-  ASSERT_TRUE(result.complete) << result.stop_reason;
+  const CapturedSession captured("robocal_capture_detection_record");
+  ASSERT_TRUE(captured.result.complete) << captured.result.stop_reason;
+  const fs::path& dir = captured.dir;
+  const auto& targets = captured.targets;
+  const vision::TargetBoard& board = captured.board;
 
   const std::string signature =
       vision::detection_signature(board, vision::detector_options_for(board));
