@@ -10,6 +10,8 @@
 #include <opencv2/aruco/charuco.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 
 #include "target_boards.hpp"
@@ -385,6 +387,51 @@ TEST(Renderer, NoiseStatistics) {
       cov += (dn.at<double>(v, u) - mean[0]) * (dn.at<double>(v, u + 1) - mean[0]);
   cov /= dn.rows * (dn.cols - 1);
   EXPECT_LT(std::abs(cov) / 29.0, 0.02);
+}
+
+// The read noise is normal into its tails: counts in half-sigma bins out to 4.5 sigma and beyond
+// match the normal distribution's (chi-square, 19 degrees of freedom), on a full-size frame.
+TEST(Renderer, ReadNoiseIsNormalIntoTheTails) {
+  constexpr double level = 128.0, sigma = 8.0, scale = 257.0;  // 16 bit: 1/257 DN per step
+  const cv::Mat flat(1200, 1600, CV_32F, cv::Scalar(level));
+  rv::RenderOptions opt;
+  opt.read_noise = sigma;
+  opt.bit_depth = 16;
+  opt.seed = 11;
+  const cv::Mat out = rv::sensor_readout(flat, opt);
+  // Bin edges halfway between readout steps, so rounding never moves a value across one.
+  std::vector<double> edges;
+  for (int j = -9; j <= 9; ++j)
+    edges.push_back((std::round((level + 0.5 * j * sigma) * scale) + 0.5) / scale);
+  std::vector<double> count(edges.size() + 1, 0.0);
+  for (int v = 0; v < out.rows; ++v)
+    for (int u = 0; u < out.cols; ++u) {
+      const double dn = out.at<std::uint16_t>(v, u) / scale;
+      count[std::upper_bound(edges.begin(), edges.end(), dn) - edges.begin()] += 1.0;
+    }
+  const double n = static_cast<double>(out.total());
+  const auto cdf = [&](double dn) {
+    return 0.5 * std::erfc(-(dn - level) / sigma / std::sqrt(2.0));
+  };
+  double chi2 = 0.0;
+  for (std::size_t b = 0; b < count.size(); ++b) {
+    const double lo = b == 0 ? 0.0 : cdf(edges[b - 1]);
+    const double hi = b == edges.size() ? 1.0 : cdf(edges[b]);
+    const double expected = n * (hi - lo);
+    chi2 += (count[b] - expected) * (count[b] - expected) / expected;
+  }
+  EXPECT_LT(chi2, 43.8) << "chi-square, 19 degrees of freedom (0.1 % level)";
+  // Beyond 4.5 sigma each side: about 6.5 expected; a generator with clipped tails has none.
+  EXPECT_GT(count.front(), 0.0);
+  EXPECT_GT(count.back(), 0.0);
+  // Pixels a row apart are as uncorrelated as neighbours in a row.
+  double cov = 0.0;
+  for (int v = 0; v + 1 < out.rows; ++v)
+    for (int u = 0; u < out.cols; ++u)
+      cov += (out.at<std::uint16_t>(v, u) / scale - level) *
+             (out.at<std::uint16_t>(v + 1, u) / scale - level);
+  cov /= (out.rows - 1) * out.cols;
+  EXPECT_LT(std::abs(cov) / (sigma * sigma), 5.0 / std::sqrt(n));
 }
 
 TEST(Renderer, LevelsLightingAndVignetting) {
