@@ -19,10 +19,12 @@
 #include "summary/validation_summary.hpp"
 
 #include <fmt/core.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <array>
 #include <fstream>
+#include <future>
 #include <optional>
 #include <random>
 
@@ -329,6 +331,12 @@ nlohmann::json collection_overhead(const nlohmann::json& summary, double render_
            "where the capture waited for them"}};
 }
 
+// Work done while the robot collects yields to the collection: this thread (and any it starts)
+// runs at the lowest priority, on the machine's idle time.
+void run_in_background() {
+  (void)::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 19);
+}
+
 // The controller's simulated motion time logged since `first` motions (homing left out).
 double motion_seconds_since(const fs::path& log, std::size_t first) {
   const std::vector<double> motions = robotio::simulated_motion_seconds(log);
@@ -397,6 +405,16 @@ int run_live_demo(const LiveDemoOptions& o) {
                              : setup / "calibration" / "intrinsics";
   const auto intrinsics = calibrate_before_collection(specs, lc, views, setup, log, report);
   if (!intrinsics) return kExitFailure;
+  // The rig from its views while the robot collects (the machine waits on the robot most of that
+  // time): measure takes it if nothing it was made from changed.
+  std::vector<std::string> names;
+  for (const auto& spec : specs) names.push_back(spec.name);
+  std::future<CalibratedRig> early_rig =
+      std::async(std::launch::async, [&names, &intrinsics, &lc, views, threads = o.threads] {
+        run_in_background();
+        return calibrate_rig_before_measure(names, *intrinsics, views.parent_path() / "rig",
+                                            lc.cell.calibration_board, threads);
+      });
 
   stage(log, "live: plan");
   const fs::path plan_file = setup / "plan.yaml";
@@ -476,11 +494,19 @@ int run_live_demo(const LiveDemoOptions& o) {
                collected.message.empty() ? "" : ": " + collected.message);
     return collect_exit_code(collected);
   }
+  // Before the calibration views move into the session: the rig reads them.
+  std::optional<CalibratedRig> rig;
+  try {
+    rig = early_rig.get();
+  } catch (const std::exception& e) {
+    say(log, "the rig could not be calibrated while collecting ({}): measure calibrates it\n",
+        e.what());
+  }
   complete_session(lc, o, setup, session, truth_log);
   sim.stop();
 
   fmt::print(out, "\nmeasure: cameras, rig and end-effector poses from the recorded images\n");
-  report["measure"] = measure_session(session, "", log, {}, *intrinsics);
+  report["measure"] = measure_session(session, "", log, {}, *intrinsics, rig ? &*rig : nullptr);
   if (report["measure"]["status"] != "ok") return kExitFailure;
   fmt::print(out, "\nidentify\n");
   report["identify"] = identify_session(session, "", log, o.route, true);

@@ -46,11 +46,65 @@ bool from_files(const IntrinsicsStep& step, const std::vector<fs::path>& files) 
                      [&](const vision::CalibrationView& v) { return stems.count(v.name) != 0; });
 }
 
+// Whether `early` was made from these very inputs (the same camera models and corner sigmas,
+// the same view files).
+bool made_from(const CalibratedRig& early, const std::vector<vision::RigCamera>& cameras,
+               const std::vector<double>& corner_sigma, const std::vector<ImageSet>& views) {
+  if (early.cameras.size() != cameras.size() || early.corner_sigma_px != corner_sigma ||
+      early.files != rig_view_files(views))
+    return false;
+  for (std::size_t c = 0; c < cameras.size(); ++c) {
+    const vision::CameraModel& a = early.cameras[c].model;
+    const vision::CameraModel& b = cameras[c].model;
+    if (early.cameras[c].name != cameras[c].name || a.kind != b.kind || a.width != b.width ||
+        a.height != b.height || a.params != b.params)
+      return false;
+  }
+  return true;
+}
+
 }  // namespace
+
+void rig_inputs(const std::vector<std::string>& names,
+                const std::vector<vision::IntrinsicCalibrationResult>& intrinsics,
+                std::vector<vision::RigCamera>& cameras, std::vector<double>& corner_sigma_px) {
+  cameras.clear();
+  corner_sigma_px.clear();
+  for (std::size_t c = 0; c < names.size(); ++c) {
+    cameras.push_back({names[c], intrinsics[c].camera, Eigen::Isometry3d::Identity(),
+                       Eigen::Matrix<double, 6, 6>::Zero()});
+    corner_sigma_px.push_back(std::max(intrinsics[c].residual_sigma_px, 0.01));
+  }
+}
+
+std::vector<std::string> rig_view_files(const std::vector<ImageSet>& views) {
+  std::vector<std::string> files;
+  for (const ImageSet& v : views)
+    for (const auto& frames : v.frames_of_camera)
+      for (const fs::path& f : frames) files.push_back(v.name + "/" + f.filename().string());
+  return files;
+}
+
+CalibratedRig calibrate_rig_before_measure(const std::vector<std::string>& names,
+                                           const CalibratedIntrinsics& intrinsics,
+                                           const fs::path& rig_views,
+                                           const vision::TargetBoard& board, int threads) {
+  std::vector<vision::IntrinsicCalibrationResult> results;
+  for (const std::string& n : names) results.push_back(intrinsics.at(n).result);
+  CalibratedRig out;
+  rig_inputs(names, results, out.cameras, out.corner_sigma_px);
+  const auto views = scan_image_folder(rig_views, names);
+  out.files = rig_view_files(views);
+  RigStepOptions options;
+  options.corner_sigma_px = out.corner_sigma_px;
+  out.step = calibrate_rig_from_views(out.cameras, board, views, options, {nullptr, threads});
+  return out;
+}
 
 nlohmann::json measure_session(const fs::path& dir, const std::string& robot_override,
                                const PipelineLog& log, const GateOptions& gates,
-                               const CalibratedIntrinsics& calibrated) {
+                               const CalibratedIntrinsics& calibrated,
+                               const CalibratedRig* early_rig) {
   const Session s = load_session(dir);
   const ResultsLayout results{dir};
   const SessionRobot robot = session_robot(s, robot_override);
@@ -79,6 +133,7 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   stage(log, "measure: intrinsics");
   std::vector<vision::RigCamera> rig_cameras;
   std::vector<double> corner_sigma;
+  std::vector<vision::IntrinsicCalibrationResult> results_of;  // per camera
   nlohmann::json intrinsics = nlohmann::json::array();
   // The cameras calibrated before from these very views keep that result; the others are
   // calibrated here, side by side.
@@ -127,25 +182,29 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
                {"warnings", result.warnings},
                {"camera_file", relative_to(camera_file, dir)}});
     intrinsics.push_back(cj);
-    rig_cameras.push_back({names[c], result.camera, Eigen::Isometry3d::Identity(),
-                           Eigen::Matrix<double, 6, 6>::Zero()});
-    corner_sigma.push_back(std::max(result.residual_sigma_px, 0.01));
+    results_of.push_back(result);
   }
   report["intrinsics"] = intrinsics;
+  rig_inputs(names, results_of, rig_cameras, corner_sigma);
 
   // 2. Rig: the cameras' relative poses from views they share (rig frame = first camera).
   stage(log, "measure: rig");
   const auto rig_sets = scan_image_folder(s.path(s.rig_views), names);
   RigStepOptions rig_options;
   rig_options.corner_sigma_px = corner_sigma;
-  const RigStep rig_step =
-      calibrate_rig_from_views(rig_cameras, cal_board, rig_sets, rig_options, step_log(log));
+  const bool rig_reused =
+      early_rig != nullptr && made_from(*early_rig, rig_cameras, corner_sigma, rig_sets);
+  if (rig_reused) say(log, "  rig: calibrated before measure from these views\n");
+  const RigStep rig_step = rig_reused ? early_rig->step
+                                      : calibrate_rig_from_views(rig_cameras, cal_board, rig_sets,
+                                                                 rig_options, step_log(log));
   const auto& rig = rig_step.result;
   double sigma_sum = 0;
   for (double x : corner_sigma) sigma_sum += x;
   nlohmann::json rig_json = rig_file_json(rig, names[0], s.calibration_target,
                                           sigma_sum / static_cast<double>(corner_sigma.size()));
   rig_json["views"] = rig_sets.size();
+  if (rig_reused) rig_json["calibrated"] = "before measure, from these views";
   rig_json["problems"] = nlohmann::json::array();
   for (const auto& view : rig_step.problems)
     for (const auto& p : view)

@@ -68,12 +68,38 @@ nlohmann::json simulate_session(const SimulateOptions& options, const PipelineLo
 // live demo calibrates them before collection, for the settled-frame test).
 using CalibratedIntrinsics = std::map<std::string, IntrinsicsStep>;
 
+// The rig calibrated from the rig views before measure (the live demo does it while the robot
+// collects), with what it was made from: the cameras (intrinsics, identity poses), the corner
+// sigma per camera, and each view's image files by name (view folder / file).
+struct CalibratedRig {
+  std::vector<vision::RigCamera> cameras;
+  std::vector<double> corner_sigma_px;
+  std::vector<std::string> files;
+  RigStep step;
+};
+
+// The rig's inputs as measure makes them from the intrinsics: each camera at the identity, its
+// corner sigma the calibration's residual sigma (at least 0.01 px).
+void rig_inputs(const std::vector<std::string>& names,
+                const std::vector<vision::IntrinsicCalibrationResult>& intrinsics,
+                std::vector<vision::RigCamera>& cameras, std::vector<double>& corner_sigma_px);
+// The rig views' image files by name ("view_000/cam0.png", ...), as CalibratedRig::files.
+std::vector<std::string> rig_view_files(const std::vector<ImageSet>& views);
+// The rig calibrated from `rig_views` (a session's rig folder layout) with measure's inputs for
+// `intrinsics`, silently and on `threads` workers.
+CalibratedRig calibrate_rig_before_measure(const std::vector<std::string>& names,
+                                           const CalibratedIntrinsics& intrinsics,
+                                           const std::filesystem::path& rig_views,
+                                           const vision::TargetBoard& board, int threads);
+
 // stages/measure.cpp. robot_override: a robot file to use instead of the session's (checked
 // against the session). `calibrated`: used instead of calibrating a camera again when computed
 // from the same image files (the same names, as many); otherwise the camera is calibrated.
+// `rig`: used instead of calibrating the rig again when made from the same inputs.
 nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
                                const PipelineLog& log, const GateOptions& gates = {},
-                               const CalibratedIntrinsics& calibrated = {});
+                               const CalibratedIntrinsics& calibrated = {},
+                               const CalibratedRig* rig = nullptr);
 // stages/identify.cpp. route: "pose" (from the measured 6-D poses), "pixel" or "both" (also
 // camera-in-the-loop from the corner pixels, started from the pose route's base-frame alignment;
 // both reported). priors: the robot file's tolerances as priors (MAP) on every geometric
