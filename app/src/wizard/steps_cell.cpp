@@ -10,6 +10,7 @@
 #include "robocal/vision/camera_io.hpp"
 #include "session/session_robot.hpp"
 #include "stages/measure_steps.hpp"
+#include "wizard/live_views.hpp"
 #include "wizard/step.hpp"
 
 #include <fmt/core.h>
@@ -17,7 +18,9 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <sstream>
 
 namespace robocal::app::wizard {
@@ -44,36 +47,23 @@ std::vector<fs::path> images_in(const fs::path& dir) {
   return files;
 }
 
-// The coverage of the image by board corners, as a character grid ('.' none ... '#' many).
-void print_coverage(std::FILE* out, const vision::CoverageMap& map) {
-  if (map.cols == 0) return;
-  fmt::print(out, "  coverage of the image by board corners (. none, : few, # many):\n");
-  for (int r = 0; r < map.rows; ++r) {
-    std::string line = "    ";
-    for (int c = 0; c < map.cols; ++c) {
-      const int n = map.corner_count[static_cast<std::size_t>(r * map.cols + c)];
-      line += n == 0 ? '.' : n < 10 ? ':' : '#';
-    }
-    fmt::print(out, "{}\n", line);
-  }
-}
-
 class IntrinsicsStep final : public Step {
  public:
   std::string key() const override { return "intrinsics"; }
   std::string title() const override { return "Camera intrinsics"; }
   std::string what() const override {
     return "Each camera's lens model (focal length, centre, distortion). Give a camera file you "
-           "already have, 'cell' for the file the cell names, or a folder of images of a board "
-           "held at many tilts and places: the wizard calibrates from them as `robocal "
-           "intrinsics` does, shows how well the image is covered, and explains a refusal.";
+           "already have, 'cell' for the file the cell names, 'live' to take views of the "
+           "calibration board now (held at many tilts and places; the wizard shows after each "
+           "view how the image is covered and what to add), or a folder of such images: the "
+           "wizard calibrates from them as `robocal intrinsics` does and explains a refusal.";
   }
   StepOutcome run(WizardContext& ctx) override {
     for (const std::string& cam : camera_names(ctx.state)) {
       for (;;) {
         const std::string key = "intrinsics." + cam;
         const std::string given = ctx.ask.ask(
-            key, fmt::format("Intrinsics of {} (camera file, image folder, or 'cell')", cam),
+            key, fmt::format("Intrinsics of {} (camera file, image folder, 'live' or 'cell')", cam),
             ctx.state.get(key, "cell"));
         if (given == "cell") {
           ctx.state.set(key, "cell");
@@ -90,17 +80,37 @@ class IntrinsicsStep final : public Step {
             continue;
           }
         }
-        if (!fs::is_directory(given)) {
+        std::string folder = given;
+        std::string board_file;
+        if (given == "live") {
+          board_file = ctx.ask.ask("intrinsics.board", "Target file of the calibration board",
+                                   ctx.state.get("cameras.target"));
+          ctx.state.set(key, "live");  // a resumed wizard offers to go on taking views
+          std::string why;
+          std::optional<fs::path> taken;
+          try {
+            const auto [width, height] = camera_frame_size(ctx.state);
+            taken = take_live_views(ctx, cam, camera_source(ctx.state, cam), load_board(board_file),
+                                    width, height, why);
+          } catch (const std::exception& e) {
+            say_check(ctx, false, fmt::format("{}: live views: {}", cam, e.what()),
+                      "check the board file and the camera (the cameras step), then retry");
+            continue;
+          }
+          if (!taken) return StepOutcome::stopped(why);
+          folder = taken->string();
+        }
+        if (!fs::is_directory(folder)) {
           say_check(ctx, false, fmt::format("'{}' is neither a camera file nor a folder", given),
-                    "give a camera file, a folder of board images, or 'cell'");
+                    "give a camera file, a folder of board images, 'live' or 'cell'");
           continue;
         }
-        const auto files = images_in(given);
-        const std::string board_file =
-            ctx.ask.ask("intrinsics.board", "Target file of the board in those images",
-                        ctx.state.get("cameras.target"));
+        const auto files = images_in(folder);
+        if (board_file.empty())
+          board_file = ctx.ask.ask("intrinsics.board", "Target file of the board in those images",
+                                   ctx.state.get("cameras.target"));
         if (files.empty()) {
-          say_check(ctx, false, given + ": no images (.png, .tif, .pgm, .jpg)",
+          say_check(ctx, false, folder + ": no images (.png, .tif, .pgm, .jpg)",
                     "take 20-40 images of the board: near and far, tilted 20-40 degrees, "
                     "reaching every corner of the image");
           continue;
@@ -120,7 +130,7 @@ class IntrinsicsStep final : public Step {
                     fmt::format("{}: calibrated from {} views, RMS {:.3f} px", cam,
                                 step.views.size(), r.rms_px));
           ctx.state.set(key, out.string());
-          ctx.state.set(key + ".views", fs::absolute(given).string());
+          ctx.state.set(key + ".views", fs::absolute(folder).string());
           break;
         }
         say_check(ctx, false, fmt::format("{}: calibration refused: {}", cam, r.reason),

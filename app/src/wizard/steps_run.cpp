@@ -5,6 +5,7 @@
 #include "live/collect.hpp"
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/held_out_errors.hpp"
+#include "robocal/core/files.hpp"
 #include "session/json_values.hpp"
 #include "session/results_files.hpp"
 #include "session/results_layout.hpp"
@@ -12,6 +13,7 @@
 #include "session/session_robot.hpp"
 #include "stages/export_stage.hpp"
 #include "stages/stages.hpp"
+#include "wizard/live_views.hpp"
 #include "wizard/step.hpp"
 
 #include <fmt/core.h>
@@ -130,6 +132,18 @@ bool has_images(const fs::path& dir) {
   return false;
 }
 
+// The calibration views the session lacks: each camera's intrinsic views, and (two or more
+// cameras) the rig views.
+std::vector<std::string> missing_views(const Session& s) {
+  std::vector<std::string> missing;
+  for (const auto& c : s.cameras)
+    if (!has_images(s.path(s.intrinsics_views) / c.name))
+      missing.push_back((s.path(s.intrinsics_views) / c.name).string());
+  if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
+    missing.push_back(s.path(s.rig_views).string());
+  return missing;
+}
+
 class IdentifyStep final : public Step {
  public:
   std::string key() const override { return "identify"; }
@@ -140,27 +154,67 @@ class IdentifyStep final : public Step {
            "robot's geometry is fitted to the measurements.";
   }
   StepOutcome run(WizardContext& ctx) override {
-    const Session s = load_session(ctx.state.session());
-    std::vector<std::string> missing;
-    for (const auto& c : s.cameras)
-      if (!has_images(s.path(s.intrinsics_views) / c.name))
-        missing.push_back((s.path(s.intrinsics_views) / c.name).string());
-    if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
-      missing.push_back(s.path(s.rig_views).string());
-    while (!missing.empty()) {
+    Session s = load_session(ctx.state.session());
+    // Views of a calibration board other than the one on the robot (the intrinsics step's
+    // board): the session names it, so measure detects that board in them.
+    const std::string board_file = ctx.state.get("intrinsics.board");
+    if (!board_file.empty() && fs::is_regular_file(board_file) &&
+        core::read_text_file(board_file) != core::read_text_file(s.path(s.calibration_target)) &&
+        s.calibration_target == s.ee_target) {
+      s.calibration_target = "targets/calibration.yaml";
+      core::write_file_atomic(s.path(s.calibration_target), core::read_text_file(board_file),
+                              core::Overwrite::kRefuse);
+      core::write_file_atomic(s.dir / "session.yaml", session_to_yaml(s));
+    }
+    // The views the intrinsics step calibrated each camera from (taken live, or a folder given
+    // there) are the session's intrinsic views: copied in where the session has none.
+    for (const auto& c : s.cameras) {
+      const fs::path from = ctx.state.get("intrinsics." + c.name + ".views");
+      const fs::path to = s.path(s.intrinsics_views) / c.name;
+      if (!from.empty() && has_images(from) && !has_images(to)) {
+        fs::create_directories(to.parent_path());
+        fs::copy(from, to, fs::copy_options::recursive | fs::copy_options::skip_existing);
+      }
+    }
+    for (std::vector<std::string> missing = missing_views(s); !missing.empty();
+         missing = missing_views(s)) {
       std::string list;
       for (const auto& m : missing) list += "\n    " + m;
       say_check(
           ctx, false,
           "the measurement needs calibration views that the session does not have yet:" + list,
-          "the wizard does not record calibration views live yet: give a folder that "
-          "holds them as app/SESSION.md lays them out (intrinsics/<camera>/*.png, "
-          "rig/view_NNN/<camera>.png, of the board on the end-effector) and the wizard "
-          "copies them into the session, or stop and resume later");
+          "answer 'live' to take the rig views now (the board held where the cameras see it "
+          "at once; intrinsic views come from the intrinsics step's 'live'), or give a folder "
+          "that holds them as app/SESSION.md lays them out (intrinsics/<camera>/*.png, "
+          "rig/view_NNN/<camera>.png) and the wizard copies them into the session, or stop "
+          "and resume later");
       const std::string views = ctx.ask.ask(
-          "identify.views", "Folder with the calibration views ('quit' to stop here)", "quit");
+          "identify.views",
+          "Folder with the calibration views, 'live' for rig views ('quit' to stop)", "quit");
       if (views == "quit")
         return StepOutcome::stopped("calibration views missing; the recorded poses are kept");
+      if (views == "live") {
+        if (has_images(s.path(s.rig_views))) {
+          fmt::print(ctx.out,
+                     "  the rig views are there; the intrinsic views are missing: take "
+                     "them with the intrinsics step (resume it) or give a folder\n");
+          continue;
+        }
+        std::vector<std::pair<std::string, std::string>> cameras;
+        for (const auto& c : s.cameras)
+          cameras.emplace_back(c.name, camera_source(ctx.state, c.name));
+        std::string why;
+        try {
+          const auto [width, height] = camera_frame_size(ctx.state);
+          if (!take_live_rig_views(ctx, cameras, load_board(s.path(s.calibration_target)), width,
+                                   height, s.path(s.rig_views), why))
+            return StepOutcome::stopped(why);
+        } catch (const std::exception& e) {
+          say_check(ctx, false, std::string("live rig views: ") + e.what(),
+                    "check the cameras (the cameras step) and the board file, then retry");
+        }
+        continue;
+      }
       if (!fs::is_directory(fs::path(views) / "intrinsics")) {
         fmt::print(ctx.out, "  {}: no intrinsics/ folder in it\n", views);
         continue;
@@ -171,12 +225,6 @@ class IdentifyStep final : public Step {
       for (const char* sub : {"intrinsics", "rig"})
         if (fs::is_directory(fs::path(views) / sub) && !fs::exists(into / sub))
           fs::copy(fs::path(views) / sub, into / sub, fs::copy_options::recursive);
-      missing.clear();
-      for (const auto& c : s.cameras)
-        if (!has_images(s.path(s.intrinsics_views) / c.name))
-          missing.push_back((s.path(s.intrinsics_views) / c.name).string());
-      if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
-        missing.push_back(s.path(s.rig_views).string());
     }
     PipelineLog log;
     log.out = ctx.out;

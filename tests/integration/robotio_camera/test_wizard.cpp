@@ -9,6 +9,7 @@
 #include "robotio_sim.hpp"
 #include "sim_camera_cell.hpp"
 
+#include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/pose.hpp"
 #include "robocal/vision/renderer.hpp"
 
@@ -17,12 +18,15 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -182,6 +186,26 @@ YAML::Node state_of(const fs::path& folder) {
   return YAML::LoadFile((folder / "wizard.yaml").string());
 }
 
+// What the cameras see: the board on the robot, or, while the operator holds the calibration
+// board in front of a camera (live calibration views), the pose the test gives it.
+class HeldOrMounted final : public TruePoseSource {
+ public:
+  explicit HeldOrMounted(TruePoseSource& robot) : robot_(robot) {}
+  Eigen::Isometry3d world_T_board() override {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return held_ ? *held_ : robot_.world_T_board();
+  }
+  void hold(std::optional<Eigen::Isometry3d> world_T_board) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    held_ = world_T_board;
+  }
+
+ private:
+  TruePoseSource& robot_;
+  std::mutex mutex_;
+  std::optional<Eigen::Isometry3d> held_;
+};
+
 class Wizard : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -193,11 +217,12 @@ class Wizard : public ::testing::Test {
     sim_ = std::make_unique<SimControllerProcess>(ROBOCAL_BINARY,
                                                   test::sim_args(log_, {"--seed", "5"}));
     truth_ = std::make_unique<SimControllerTruth>(sim_->pose(), mounting());
+    seen_ = std::make_unique<HeldOrMounted>(*truth_);
     board_ = dir_ / "board.yaml";
     write(board_, board_yaml());
     const vision::TargetBoard board = vision::load_target_file(board_);
     for (int c = 0; c < 2; ++c)
-      cameras_.push_back(std::make_unique<SimulatedGigECamera>(camera_spec(c), board, *truth_));
+      cameras_.push_back(std::make_unique<SimulatedGigECamera>(camera_spec(c), board, *seen_));
     const SafetyLimits l = test::delta_limits();
     write(dir_ / "cell.yaml", cell_yaml(board_, l.workspace_min, l.workspace_max));
     robot_ = dir_ / "linear_delta_board.yaml";
@@ -270,6 +295,7 @@ class Wizard : public ::testing::Test {
   std::string log_;
   std::unique_ptr<SimControllerProcess> sim_;
   std::unique_ptr<SimControllerTruth> truth_;
+  std::unique_ptr<HeldOrMounted> seen_;
   std::vector<std::unique_ptr<SimulatedGigECamera>> cameras_;
   int moves_before_ = 0;
 };
@@ -409,6 +435,167 @@ TEST_F(Wizard, KeystrokesOnATerminalCtrlCDuringCollectionAndResumeLoseNoPose) {
   EXPECT_EQ(fs::last_write_time(folder / "session" / "poses" / "pose_000" / "pose.yaml"), written);
   // Only the missing poses were driven to (the one cut short by Ctrl-C, if any, among them).
   EXPECT_EQ(moves_received(log_) - moves_at_stop, planned - recorded_before);
+}
+
+// The intrinsics step's live views on a terminal: each Enter takes a view of the board the
+// operator holds in front of cam0. A view without the board is not kept; views that all face the
+// line of sight get the advice to tilt the board; tilted views over the whole image calibrate the
+// camera, and
+// its focal length agrees with the simulated camera's within the calibration's own uncertainty.
+TEST_F(Wizard, LiveCalibrationViewsAreGuidedAndCalibrateTheCamera) {
+  const fs::path folder = dir_ / "w4";
+  const auto spec = camera_spec(0);
+  const auto held = [&](const Eigen::Isometry3d& camera_T_board) {
+    seen_->hold(spec.camera_T_world.inverse() * camera_T_board);
+  };
+  test::PtyProcess w(ROBOCAL_BINARY, {"wizard", folder.string()});
+  TYPE_AT(w, "Robot (library name or robot file)", robot_.string());
+  TYPE_AT(w, "Steps per mm", "");
+  TYPE_AT(w, "Steps per degree", "");
+  TYPE_AT(w, "Controller address", sim_->tcp());
+  TYPE_AT(w, "Home the robot now?", "");
+  TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
+  TYPE_AT(w, "Target file of the board", board_.string());
+  TYPE_AT(w, "Image size the cameras deliver", "640x480");
+  ASSERT_TRUE(w.expect("check: ok - every camera sees the whole board", 60s)) << w.output();
+  TYPE_AT(w, "Intrinsics of cam0", "live");
+  TYPE_AT(w, "Target file of the calibration board", board_.string());
+  // The board held out of the camera's view: nothing kept.
+  held(Eigen::Translation3d(0.0, 0.0, -1.0) * Eigen::Isometry3d::Identity());
+  TYPE_AT(w, "cam0 view 1: Enter", "");
+  ASSERT_TRUE(w.expect("no board in this view", 30s)) << w.output();
+  // Four views square to the line of sight: the focal length is weakly determined.
+  for (int k = 0; k < 4; ++k) {
+    held(board_in_view(spec.model, 160.0 + 320.0 * (k % 2), 120.0 + 240.0 * (k / 2), 0.09, 0.0,
+                       0.0));
+    TYPE_AT(w, fmt::format("cam0 view {}: Enter", k + 1), "");
+    ASSERT_TRUE(w.expect(fmt::format("view {} kept", k + 1), 30s)) << w.output();
+  }
+  ASSERT_TRUE(w.expect("only 0 views tilted", 30s)) << w.output();
+  ASSERT_TRUE(w.expect("advice: add views with the board tilted", 30s)) << w.output();
+  // Twelve tilted views over the image, at 7-11 cm, as the advice asks.
+  for (int k = 0; k < 12; ++k) {
+    held(board_in_view(spec.model, 110.0 + 140.0 * (k % 4), 100.0 + 140.0 * ((k / 4) % 3),
+                       0.07 + 0.02 * (k % 3), (20.0 + 10.0 * (k % 3)) * kPi / 180.0,
+                       (45.0 * k) * kPi / 180.0));
+    TYPE_AT(w, fmt::format("cam0 view {}: Enter", k + 5), "");
+    ASSERT_TRUE(w.expect(fmt::format("view {} kept", k + 5), 30s)) << w.output();
+  }
+  ASSERT_TRUE(w.expect("so far: focal length", 30s)) << w.output();
+  TYPE_AT(w, "cam0 view 17: Enter", "done");
+  ASSERT_TRUE(w.expect("cam0: calibrated from 16 views", 60s)) << w.output();
+  ASSERT_TRUE(w.expect("Intrinsics of cam1", 60s)) << w.output();
+  w.type("\x04");  // Ctrl-D at the prompt: the operator stops here
+  (void)w.wait(30s);
+  seen_->hold(std::nullopt);
+
+  std::size_t kept = 0;
+  for (const auto& e : fs::directory_iterator(folder / "calibration" / "intrinsics" / "cam0"))
+    kept += e.path().extension() == ".png" ? 1 : 0;
+  EXPECT_EQ(kept, 16u);
+  // The last guidance calibrated these same 16 views: its focal length and sigma.
+  const std::string out = w.output();
+  const auto at = out.rfind("so far: focal length ");
+  ASSERT_NE(at, std::string::npos) << out;
+  double fx_so_far = 0.0;
+  double sigma = 0.0;
+  ASSERT_EQ(std::sscanf(out.c_str() + at, "so far: focal length %lf ± %lf px", &fx_so_far, &sigma),
+            2)
+      << out.substr(at, 80);
+  const auto file = state_of(folder)["values"]["intrinsics.cam0"].as<std::string>();
+  const vision::CameraModel calibrated = vision::load_camera_file(file);
+  EXPECT_GT(sigma, 0.0);
+  EXPECT_LT(std::abs(calibrated.params[0] - spec.model.params[0]), 4.0 * sigma)
+      << "calibrated " << calibrated.params[0] << " true " << spec.model.params[0] << " sigma "
+      << sigma;
+  EXPECT_EQ(moves_received(log_), moves_before_);  // nothing moved
+}
+
+// The whole flow with calibration views taken only live, on a terminal: each camera's intrinsic
+// views in the intrinsics step, the rig views (the board held where both cameras see it; a view
+// only one camera sees is not kept) in the identify step, which puts them all into the session
+// and identifies the robot from them.
+TEST_F(Wizard, LiveViewsCarryTheFlowToTheIdentification) {
+  const fs::path folder = dir_ / "w5";
+  test::PtyProcess w(ROBOCAL_BINARY, {"wizard", folder.string()});
+  TYPE_AT(w, "Robot (library name or robot file)", robot_.string());
+  TYPE_AT(w, "Steps per mm", "");
+  TYPE_AT(w, "Steps per degree", "");
+  TYPE_AT(w, "Controller address", sim_->tcp());
+  TYPE_AT(w, "Home the robot now?", "");
+  TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
+  TYPE_AT(w, "Target file of the board", board_.string());
+  TYPE_AT(w, "Image size the cameras deliver", "640x480");
+  ASSERT_TRUE(w.expect("check: ok - every camera sees the whole board", 60s)) << w.output();
+  for (int c = 0; c < 2; ++c) {
+    const auto spec = camera_spec(c);
+    TYPE_AT(w, fmt::format("Intrinsics of cam{}", c), "live");
+    TYPE_AT(w, "Target file of the calibration board", "");  // default: the robot's board
+    for (int k = 0; k < 16; ++k) {
+      seen_->hold(spec.camera_T_world.inverse() *
+                  board_in_view(spec.model, 110.0 + 140.0 * (k % 4), 100.0 + 140.0 * ((k / 4) % 3),
+                                0.07 + 0.02 * (k % 3), (20.0 + 10.0 * (k % 3)) * kPi / 180.0,
+                                (45.0 * k + 20.0 * c) * kPi / 180.0));
+      TYPE_AT(w, fmt::format("cam{} view {}: Enter", c, k + 1), "");
+      ASSERT_TRUE(w.expect(fmt::format("view {} kept", k + 1), 30s)) << w.output();
+    }
+    TYPE_AT(w, fmt::format("cam{} view 17: Enter", c), "done");
+    ASSERT_TRUE(w.expect(fmt::format("cam{}: calibrated from 16 views", c), 60s)) << w.output();
+  }
+  seen_->hold(std::nullopt);  // the cameras see the board on the robot again
+  TYPE_AT(w, "Cell file", (dir_ / "cell.yaml").string());
+  TYPE_AT(w, "How many poses", "8");
+  TYPE_AT(w, "Candidate poses", "400");
+  ASSERT_TRUE(w.expect("Preview:", 120s)) << w.output();
+  if (w.output().find("the plan is NOT accepted") != std::string::npos)
+    TYPE_AT(w, "Use it anyway", "continue");
+  TYPE_AT(w, "Axis speed limit", "0.2");
+  TYPE_AT(w, "Axis acceleration limit", "4");
+  TYPE_AT(w, "may the robot move", "yes");
+  ASSERT_TRUE(w.expect("every planned pose is recorded", 240s)) << w.output();
+  // The identify step has each camera's views from the intrinsics step; the rig views are taken
+  // now, the board held 20-26 cm in front of the cameras.
+  TYPE_AT(w, "Folder with the calibration views, 'live'", "live");
+  const auto spec0 = camera_spec(0);
+  seen_->hold(spec0.camera_T_world.inverse() *
+              board_in_view(spec0.model, 40.0, 240.0, 0.09, 0.0, 0.0));  // cam0 only
+  TYPE_AT(w, "rig view 1: Enter", "");
+  ASSERT_TRUE(w.expect("not kept (two or more cameras must see it)", 30s)) << w.output();
+  for (int k = 0; k < 8; ++k) {
+    seen_->hold(spec0.camera_T_world.inverse() *
+                board_in_view(spec0.model, 300.0 + 20.0 * (k % 3), 220.0 + 20.0 * (k % 2),
+                              0.2 + 0.02 * (k % 4), (15.0 + 5.0 * (k % 3)) * kPi / 180.0,
+                              60.0 * k * kPi / 180.0));
+    TYPE_AT(w, fmt::format("rig view {}: Enter", k + 1), "");
+    ASSERT_TRUE(w.expect(fmt::format("rig view {} kept", k + 1), 30s)) << w.output();
+  }
+  seen_->hold(std::nullopt);
+  TYPE_AT(w, "rig view 9: Enter", "done");
+  ASSERT_TRUE(w.expect("check: ok - the geometry is identified", 240s)) << w.output();
+  ASSERT_TRUE(w.expect("Hold out every K-th measured pose", 60s)) << w.output();
+  w.type("\x04");  // the operator stops before the validation
+  (void)w.wait(30s);
+
+  const fs::path session = folder / "session";
+  for (const std::string cam : {"cam0", "cam1"}) {
+    std::size_t views = 0;
+    for (const auto& e : fs::directory_iterator(session / "calibration" / "intrinsics" / cam))
+      views += e.path().extension() == ".png" ? 1 : 0;
+    EXPECT_EQ(views, 16u) << cam;
+  }
+  std::size_t rig_views = 0;
+  for (const auto& e : fs::directory_iterator(session / "calibration" / "rig"))
+    rig_views += fs::exists(e.path() / "cam0.png") && fs::exists(e.path() / "cam1.png") ? 1 : 0;
+  EXPECT_EQ(rig_views, 8u);
+  // The rig measured from the live views against the simulated cameras' true placement.
+  const auto rig = nlohmann::json::parse(std::ifstream(session / "results" / "rig.json"));
+  const Eigen::Vector3d true_baseline =
+      (camera_spec(1).camera_T_world * spec0.camera_T_world.inverse()).translation();
+  const double sigma = rig["cameras"][1]["baseline_sigma_m"].get<double>();
+  EXPECT_GT(sigma, 0.0);
+  EXPECT_LT(std::abs(rig["cameras"][1]["baseline_m"].get<double>() - true_baseline.norm()),
+            4.0 * sigma)
+      << rig.dump();
 }
 
 TEST_F(Wizard, BadInputAtAStepIsExplainedAndNothingMoves) {
