@@ -408,6 +408,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   // The rig from its views while the robot collects (the machine waits on the robot most of that
   // time): measure takes it if nothing it was made from changed.
   std::vector<std::string> names;
+  names.reserve(specs.size());
   for (const auto& spec : specs) names.push_back(spec.name);
   std::future<CalibratedRig> early_rig =
       std::async(std::launch::async, [&names, &intrinsics, &lc, views, threads = o.threads] {

@@ -90,6 +90,7 @@ CalibratedRig calibrate_rig_before_measure(const std::vector<std::string>& names
                                            const fs::path& rig_views,
                                            const vision::TargetBoard& board, int threads) {
   std::vector<vision::IntrinsicCalibrationResult> results;
+  results.reserve(names.size());
   for (const std::string& n : names) results.push_back(intrinsics.at(n).result);
   CalibratedRig out;
   rig_inputs(names, results, out.cameras, out.corner_sigma_px);
