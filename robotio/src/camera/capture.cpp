@@ -113,9 +113,8 @@ struct MotionVerdict {
   std::vector<std::vector<std::optional<vision::TargetDetection>>> detections;
 };
 
-// One camera's part of the settled-frame test, with its detection of every shot (by shot; none
-// for a shot measure would not read as it is, see keep), which the pose's folder records for
-// measure.
+// One camera's part of the settled-frame test, with the detections it made (by shot; shots it
+// did not need to detect have none), which the pose's folder records for measure.
 struct CameraMotion {
   int corners = 0;
   bool moving = false;
@@ -141,25 +140,11 @@ CameraMotion check_camera_motion(const ShotSeries& shots, std::size_t c,
   keep(0, first_detection);
   const vision::CameraFrame first = vision::camera_frame(first_detection);
   out.corners = static_cast<int>(first.corners.size());
-  // A camera that cannot take part in the test (the board out of its view, as most cameras of
-  // an array at any pose) still has its later shots detected and recorded, as measure would
-  // detect them (refined where the first shot had tags, else in full), here while the robot
-  // moves on instead of in measure.
-  const auto record_later_shots = [&] {
-    for (std::size_t k = 1; k < shots.size(); ++k) {
-      const cv::Mat gray = gray_8bit(shots[k][c].image);
-      keep(k, first_detection.status == vision::DetectionStatus::kRejected
-                  ? vision::detect_target(gray, board, detector)
-                  : detect_again(gray, board, first_detection, detector));
-    }
-  };
   if (first.corners.size() < 4 || shots.size() < 2) {
-    record_later_shots();
     return out;
   }
   const vision::PoseMeasurement reference = vision::measure_target_pose(rig, points, {first});
   if (reference.status != vision::PoseStatus::kOk) {
-    record_later_shots();
     return out;
   }
   for (std::size_t k = 1; k < shots.size(); ++k) {
