@@ -23,10 +23,13 @@
 #include <unistd.h>
 
 #include <array>
+#include <atomic>
 #include <fstream>
 #include <future>
 #include <optional>
 #include <random>
+#include <set>
+#include <thread>
 
 namespace robocal::app {
 
@@ -331,6 +334,45 @@ nlohmann::json collection_overhead(const nlohmann::json& summary, double render_
            "where the capture waited for them"}};
 }
 
+// What is done while the robot collects.
+struct EarlyWork {
+  CalibratedRig rig;
+  EarlyDetections detections;
+};
+
+// Sets `flag` when it goes out of scope: the background work ends with the collection, however
+// run_live_demo returns.
+struct CollectionEnds {
+  explicit CollectionEnds(std::atomic<bool>& f) : flag(f) {}
+  std::atomic<bool>& flag;
+  CollectionEnds(const CollectionEnds&) = delete;
+  CollectionEnds& operator=(const CollectionEnds&) = delete;
+  CollectionEnds(CollectionEnds&&) = delete;
+  CollectionEnds& operator=(CollectionEnds&&) = delete;
+  ~CollectionEnds() { flag = true; }
+};
+
+// Each pose folder collect writes (whole at once: it renames its staging folder), as it appears,
+// until `collected` is set and a last look is taken: the shots measure would detect in full.
+EarlyDetections detect_while_collecting(const fs::path& poses, const vision::TargetBoard& board,
+                                        const std::atomic<bool>& collected) {
+  EarlyDetections out;
+  std::set<std::string> seen;
+  for (;;) {
+    const bool last_look = collected.load();
+    std::error_code ec;
+    if (fs::is_directory(poses, ec))
+      for (const auto& e : fs::directory_iterator(poses, ec)) {
+        const std::string name = e.path().filename().string();
+        if (!e.is_directory() || !seen.insert(name).second) continue;
+        vision::DetectionRecord found = detect_unrecorded_shots(e.path(), board);
+        if (!found.empty()) out[name] = std::move(found);
+      }
+    if (last_look) return out;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+}
+
 // Work done while the robot collects yields to the collection: this thread (and any it starts)
 // runs at the lowest priority, on the machine's idle time.
 void run_in_background() {
@@ -405,17 +447,26 @@ int run_live_demo(const LiveDemoOptions& o) {
                              : setup / "calibration" / "intrinsics";
   const auto intrinsics = calibrate_before_collection(specs, lc, views, setup, log, report);
   if (!intrinsics) return kExitFailure;
-  // The rig from its views while the robot collects (the machine waits on the robot most of that
-  // time): measure takes it if nothing it was made from changed.
+  // While the robot collects (the machine waits on it most of that time), at the lowest priority:
+  // the rig from its views, then the pose images measure would detect in full (the later shots
+  // of cameras that did not see the board), as collect writes each pose. Measure takes what
+  // nothing has changed since.
   std::vector<std::string> names;
   names.reserve(specs.size());
   for (const auto& spec : specs) names.push_back(spec.name);
-  std::future<CalibratedRig> early_rig =
-      std::async(std::launch::async, [&names, &intrinsics, &lc, views, threads = o.threads] {
+  std::atomic<bool> collection_over{false};
+  std::future<EarlyWork> early =
+      std::async(std::launch::async, [&names, &intrinsics, &lc, &collection_over, views, session,
+                                      threads = o.threads, ee_board = files.ee_target] {
         run_in_background();
-        return calibrate_rig_before_measure(names, *intrinsics, views.parent_path() / "rig",
-                                            lc.cell.calibration_board, threads);
+        EarlyWork work;
+        work.rig = calibrate_rig_before_measure(names, *intrinsics, views.parent_path() / "rig",
+                                                lc.cell.calibration_board, threads);
+        work.detections =
+            detect_while_collecting(session / "poses", load_board(ee_board), collection_over);
+        return work;
       });
+  const CollectionEnds collection_ends(collection_over);  // whatever way this function ends
 
   stage(log, "live: plan");
   const fs::path plan_file = setup / "plan.yaml";
@@ -496,9 +547,10 @@ int run_live_demo(const LiveDemoOptions& o) {
     return collect_exit_code(collected);
   }
   // Before the calibration views move into the session: the rig reads them.
-  std::optional<CalibratedRig> rig;
+  collection_over = true;
+  std::optional<EarlyWork> work;
   try {
-    rig = early_rig.get();
+    work = early.get();
   } catch (const std::exception& e) {
     say(log, "the rig could not be calibrated while collecting ({}): measure calibrates it\n",
         e.what());
@@ -507,7 +559,9 @@ int run_live_demo(const LiveDemoOptions& o) {
   sim.stop();
 
   fmt::print(out, "\nmeasure: cameras, rig and end-effector poses from the recorded images\n");
-  report["measure"] = measure_session(session, "", log, {}, *intrinsics, rig ? &*rig : nullptr);
+  report["measure"] =
+      measure_session(session, "", log, {}, *intrinsics, work ? &work->rig : nullptr,
+                      work ? &work->detections : nullptr);
   if (report["measure"]["status"] != "ok") return kExitFailure;
   fmt::print(out, "\nidentify\n");
   report["identify"] = identify_session(session, "", log, o.route, true);

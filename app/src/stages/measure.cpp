@@ -14,12 +14,15 @@
 #include "robocal/calib/plausibility.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/vision/camera_io.hpp"
+#include "robocal/vision/image_detection.hpp"
 #include "robocal/vision/intrinsics_pipeline.hpp"
 #include "robocal/vision/measurement_gate.hpp"
+#include "robocal/vision/target_detection.hpp"
 
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <memory>
 #include <set>
 
 namespace robocal::app {
@@ -102,10 +105,40 @@ CalibratedRig calibrate_rig_before_measure(const std::vector<std::string>& names
   return out;
 }
 
+vision::DetectionRecord detect_unrecorded_shots(const fs::path& pose_folder,
+                                                const vision::TargetBoard& board) {
+  const vision::AprilTagDetectorOptions options = vision::detector_options_for(board);
+  const vision::DetectionRecord record = vision::read_detection_record(
+      pose_folder / vision::kDetectionRecordFile, vision::detection_signature(board, options));
+  vision::DetectionRecord out;
+  std::unique_ptr<vision::AprilTagDetector> detector;
+  for (const auto& [file, entry] : record) {
+    // A first shot (CAMERA_0.png) that showed nothing: measure detects the later ones in full.
+    const auto stem = file.size() > 6 ? file.substr(0, file.size() - 6) : std::string();
+    if (stem.empty() || file.substr(file.size() - 6) != "_0.png" ||
+        entry.detection.status != vision::DetectionStatus::kRejected)
+      continue;
+    for (int shot = 1;; ++shot) {
+      const std::string later = fmt::format("{}_{}.png", stem, shot);
+      const fs::path path = pose_folder / later;
+      if (!fs::exists(path)) break;
+      if (record.count(later) != 0) continue;
+      const std::string bytes = core::read_text_file(path);
+      const vision::LoadedImage image = vision::load_gray_image(path);
+      if (!image.error.empty()) continue;
+      if (!detector) detector = std::make_unique<vision::AprilTagDetector>(options);
+      out[later] = {bytes.size(), vision::content_hash(bytes), image.gray.cols, image.gray.rows,
+                    vision::detect_target(image.gray, board, *detector)};
+    }
+  }
+  return out;
+}
+
 nlohmann::json measure_session(const fs::path& dir, const std::string& robot_override,
                                const PipelineLog& log, const GateOptions& gates,
                                const CalibratedIntrinsics& calibrated,
-                               const CalibratedRig* early_rig) {
+                               const CalibratedRig* early_rig,
+                               const EarlyDetections* early_detections) {
   const Session s = load_session(dir);
   const ResultsLayout results{dir};
   const SessionRobot robot = session_robot(s, robot_override);
@@ -233,8 +266,8 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   const auto sets = scan_image_folder(s.path(s.poses), names);  // same folders, same order
   PoseStepOptions pose_options;
   pose_options.corner_sigma_px = corner_sigma;
-  const auto measured_images =
-      measure_board_poses(measured_rig, ee_board, sets, pose_options, step_log(log));
+  const auto measured_images = measure_board_poses(measured_rig, ee_board, sets, pose_options,
+                                                   step_log(log), early_detections);
 
   // Plausibility of the board fits (vision/measurement_gate.hpp): the whole session, then single
   // poses whose cameras disagree.

@@ -139,10 +139,10 @@ RigStep calibrate_rig_from_views(const std::vector<vision::RigCamera>& cameras,
   return out;
 }
 
-std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>& rig,
-                                            const vision::TargetBoard& board,
-                                            const std::vector<ImageSet>& poses,
-                                            const PoseStepOptions& options, const StepLog& log) {
+std::vector<PoseImages> measure_board_poses(
+    const std::vector<vision::RigCamera>& rig, const vision::TargetBoard& board,
+    const std::vector<ImageSet>& poses, const PoseStepOptions& options, const StepLog& log,
+    const std::map<std::string, vision::DetectionRecord>* early) {
   const std::size_t n_cams = rig.size();
   std::vector<PoseImages> out(poses.size());
   // One series per pose and camera: its frames show one still view, so after the first the
@@ -165,6 +165,9 @@ std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>
             frames.front().parent_path() / vision::kDetectionRecordFile, signature);
         break;
       }
+    if (early == nullptr) continue;
+    if (const auto e = early->find(poses[p].name); e != early->end())
+      records[p].insert(e->second.begin(), e->second.end());  // the folder's own entries first
   }
   for (std::size_t p = 0; p < poses.size(); ++p) {
     std::size_t n_frames = 0;

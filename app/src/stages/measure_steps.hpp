@@ -5,6 +5,7 @@
 #include "cli/progress.hpp"
 #include "session/image_folders.hpp"
 
+#include "robocal/vision/detection_record.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
 #include "robocal/vision/observations.hpp"
 #include "robocal/vision/pose_measurement.hpp"
@@ -13,6 +14,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -80,9 +82,11 @@ struct PoseImages {
   std::vector<int> out_of_view;
   vision::PoseMeasurement measurement;
 };
-std::vector<PoseImages> measure_board_poses(const std::vector<vision::RigCamera>& rig,
-                                            const vision::TargetBoard& board,
-                                            const std::vector<ImageSet>& poses,
-                                            const PoseStepOptions& options, const StepLog& log);
+// `early`: detections made before (by pose folder name), taken like the pose folders' own
+// records: an entry only for the very file it was made from.
+std::vector<PoseImages> measure_board_poses(
+    const std::vector<vision::RigCamera>& rig, const vision::TargetBoard& board,
+    const std::vector<ImageSet>& poses, const PoseStepOptions& options, const StepLog& log,
+    const std::map<std::string, vision::DetectionRecord>* early = nullptr);
 
 }  // namespace robocal::app

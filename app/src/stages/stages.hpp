@@ -92,6 +92,18 @@ CalibratedRig calibrate_rig_before_measure(const std::vector<std::string>& names
                                            const std::filesystem::path& rig_views,
                                            const vision::TargetBoard& board, int threads);
 
+// Detections of pose images made before measure (the live demo makes them while the robot
+// collects: the later shots of the cameras whose first shot showed no board, which collect's
+// settled-frame test leaves out), by pose folder name; measure takes an entry only for the very
+// image it was made from.
+using EarlyDetections = std::map<std::string, vision::DetectionRecord>;
+
+// The detections measure would make of the images in `pose_folder` that its record leaves out
+// and that measure would detect in full (a later shot of a camera whose first shot showed no
+// board), as record entries.
+vision::DetectionRecord detect_unrecorded_shots(const std::filesystem::path& pose_folder,
+                                                const vision::TargetBoard& board);
+
 // stages/measure.cpp. robot_override: a robot file to use instead of the session's (checked
 // against the session). `calibrated`: used instead of calibrating a camera again when computed
 // from the same image files (the same names, as many); otherwise the camera is calibrated.
@@ -99,7 +111,8 @@ CalibratedRig calibrate_rig_before_measure(const std::vector<std::string>& names
 nlohmann::json measure_session(const std::filesystem::path& dir, const std::string& robot_override,
                                const PipelineLog& log, const GateOptions& gates = {},
                                const CalibratedIntrinsics& calibrated = {},
-                               const CalibratedRig* rig = nullptr);
+                               const CalibratedRig* rig = nullptr,
+                               const EarlyDetections* early_detections = nullptr);
 // stages/identify.cpp. route: "pose" (from the measured 6-D poses), "pixel" or "both" (also
 // camera-in-the-loop from the corner pixels, started from the pose route's base-frame alignment;
 // both reported). priors: the robot file's tolerances as priors (MAP) on every geometric
