@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 
+#include <numbers>
 #include <stdexcept>
 #include <vector>
 
@@ -26,6 +27,18 @@ double set_fixed_frame_pose(const Mechanism& model, Eigen::VectorXd& params, int
     return true;
   };
   Eigen::Matrix<double, 6, 1> e;
+  // A target turned by about a half turn from the frame: there the rotation error's axis flips,
+  // the central differences below straddle the flip and Gauss-Newton goes nowhere ("remaining
+  // error 3.141593"), so the frame is first placed half way there (a quarter turn).
+  if (!pose_error(params, &e)) throw std::runtime_error("closure failed while placing a frame");
+  if (e.tail<3>().norm() > 0.75 * std::numbers::pi) {
+    const auto fk = forward_kinematics(model, params, actuator_readings, body);
+    Eigen::Isometry3d half_way = world_T_desired;
+    half_way.linear() = Eigen::Quaterniond(fk.pose.linear())
+                            .slerp(0.5, Eigen::Quaterniond(world_T_desired.linear()))
+                            .toRotationMatrix();
+    set_fixed_frame_pose(model, params, body, actuator_readings, half_way);
+  }
   for (int iteration = 0; iteration < 30; ++iteration) {
     if (!pose_error(params, &e)) throw std::runtime_error("closure failed while placing a frame");
     if (e.norm() < 1e-13) break;
