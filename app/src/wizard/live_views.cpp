@@ -12,7 +12,7 @@
 
 #include <algorithm>
 #include <chrono>
-#include <regex>
+#include <cstdio>
 #include <sstream>
 
 namespace robocal::app::wizard {
@@ -36,16 +36,19 @@ cv::Mat gray_8bit(const cv::Mat& image) {
 
 // The views already in `folder` (a resumed wizard), by file, and the next free view number.
 std::vector<fs::path> kept_views(const fs::path& folder, int* next_number) {
-  static const std::regex name(R"(view_(\d+)\.png)");
   std::vector<fs::path> files;
   *next_number = 0;
   if (!fs::is_directory(folder)) return files;
   for (const auto& e : fs::directory_iterator(folder)) {
-    std::smatch m;
+    // view_NNN.png: the number, and nothing after ".png".
     const std::string file = e.path().filename().string();
-    if (!std::regex_match(file, m, name)) continue;
+    int n = 0;
+    int end = 0;
+    if (std::sscanf(file.c_str(), "view_%d.png%n", &n, &end) != 1 ||
+        end != static_cast<int>(file.size()) || n < 0)
+      continue;
     files.push_back(e.path());
-    *next_number = std::max(*next_number, std::stoi(m[1].str()) + 1);
+    *next_number = std::max(*next_number, n + 1);
   }
   std::sort(files.begin(), files.end());
   return files;
