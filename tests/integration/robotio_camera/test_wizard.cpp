@@ -379,6 +379,35 @@ TEST_F(Wizard, AnswersFileDrivesTheFlowWithoutATerminal) {
     (pty).type(std::string(line) + "\r");                                          \
   } while (false)
 
+// The robot, controller and cameras steps as the operator of a good run answers them (defaults
+// where there are any); the cameras' check passes.
+void answer_robot_to_cameras(test::PtyProcess& w, const fs::path& robot, const std::string& link,
+                             const fs::path& board) {
+  TYPE_AT(w, "Robot (library name or robot file)", robot.string());
+  TYPE_AT(w, "Steps per mm", "");
+  TYPE_AT(w, "Steps per degree", "");
+  TYPE_AT(w, "Controller address", link);
+  TYPE_AT(w, "Home the robot now?", "");
+  TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
+  TYPE_AT(w, "Target file of the board", board.string());
+  TYPE_AT(w, "Image size the cameras deliver", "640x480");
+  ASSERT_TRUE(w.expect("check: ok - every camera sees the whole board", 60s)) << w.output();
+}
+
+// The cell, plan (8 poses from 400 candidates, taken even if not accepted) and safety steps, the
+// axes limited to `speed`, and the confirmation that lets the robot move.
+void answer_cell_to_safety(test::PtyProcess& w, const fs::path& cell, const std::string& speed) {
+  TYPE_AT(w, "Cell file", cell.string());
+  TYPE_AT(w, "How many poses", "8");
+  TYPE_AT(w, "Candidate poses", "400");
+  ASSERT_TRUE(w.expect("Preview:", 120s)) << w.output();
+  if (w.output().find("the plan is NOT accepted") != std::string::npos)
+    TYPE_AT(w, "Use it anyway", "continue");
+  TYPE_AT(w, "Axis speed limit", speed);
+  TYPE_AT(w, "Axis acceleration limit", "4");
+  TYPE_AT(w, "may the robot move", "yes");
+}
+
 TEST_F(Wizard, KeystrokesOnATerminalCtrlCDuringCollectionAndResumeLoseNoPose) {
   const fs::path folder = dir_ / "w2";
   int planned = 0;
@@ -388,26 +417,11 @@ TEST_F(Wizard, KeystrokesOnATerminalCtrlCDuringCollectionAndResumeLoseNoPose) {
     // A robot the library does not have: the step says so and asks again.
     TYPE_AT(w, "Robot (library name or robot file)", "no_such_robot");
     ASSERT_TRUE(w.expect("neither a file nor a library robot", 30s)) << w.output();
-    TYPE_AT(w, "Robot (library name or robot file)", robot_.string());
-    TYPE_AT(w, "Steps per mm", "");  // the default, 80
-    TYPE_AT(w, "Steps per degree", "");
-    TYPE_AT(w, "Controller address", sim_->tcp());
-    TYPE_AT(w, "Home the robot now?", "");  // default: no
-    TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
-    TYPE_AT(w, "Target file of the board", board_.string());
-    TYPE_AT(w, "Image size the cameras deliver", "640x480");
-    ASSERT_TRUE(w.expect("check: ok - every camera sees the whole board", 60s)) << w.output();
+    ASSERT_NO_FATAL_FAILURE(answer_robot_to_cameras(w, robot_, sim_->tcp(), board_));
     TYPE_AT(w, "Intrinsics of cam0", "");  // default: the cell's camera file
     TYPE_AT(w, "Intrinsics of cam1", "");
-    TYPE_AT(w, "Cell file", (dir_ / "cell.yaml").string());
-    TYPE_AT(w, "How many poses", "8");
-    TYPE_AT(w, "Candidate poses", "400");
-    ASSERT_TRUE(w.expect("Preview:", 120s)) << w.output();
-    if (w.output().find("the plan is NOT accepted") != std::string::npos)
-      TYPE_AT(w, "Use it anyway", "continue");
-    TYPE_AT(w, "Axis speed limit", "0.01");  // slow: the Ctrl-C lands mid-plan
-    TYPE_AT(w, "Axis acceleration limit", "4");
-    TYPE_AT(w, "may the robot move", "yes");
+    // Slow: the Ctrl-C lands mid-plan.
+    ASSERT_NO_FATAL_FAILURE(answer_cell_to_safety(w, dir_ / "cell.yaml", "0.01"));
     const auto end = std::chrono::steady_clock::now() + 180s;
     while (!fs::exists(folder / "session" / "poses" / "pose_001") &&
            std::chrono::steady_clock::now() < end)
@@ -449,15 +463,7 @@ TEST_F(Wizard, LiveCalibrationViewsAreGuidedAndCalibrateTheCamera) {
     seen_->hold(spec.camera_T_world.inverse() * camera_T_board);
   };
   test::PtyProcess w(ROBOCAL_BINARY, {"wizard", folder.string()});
-  TYPE_AT(w, "Robot (library name or robot file)", robot_.string());
-  TYPE_AT(w, "Steps per mm", "");
-  TYPE_AT(w, "Steps per degree", "");
-  TYPE_AT(w, "Controller address", sim_->tcp());
-  TYPE_AT(w, "Home the robot now?", "");
-  TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
-  TYPE_AT(w, "Target file of the board", board_.string());
-  TYPE_AT(w, "Image size the cameras deliver", "640x480");
-  ASSERT_TRUE(w.expect("check: ok - every camera sees the whole board", 60s)) << w.output();
+  ASSERT_NO_FATAL_FAILURE(answer_robot_to_cameras(w, robot_, sim_->tcp(), board_));
   TYPE_AT(w, "Intrinsics of cam0", "live");
   TYPE_AT(w, "Target file of the calibration board", board_.string());
   // The board held out of the camera's view: nothing kept.
@@ -518,15 +524,7 @@ TEST_F(Wizard, LiveCalibrationViewsAreGuidedAndCalibrateTheCamera) {
 TEST_F(Wizard, LiveViewsCarryTheFlowToTheIdentification) {
   const fs::path folder = dir_ / "w5";
   test::PtyProcess w(ROBOCAL_BINARY, {"wizard", folder.string()});
-  TYPE_AT(w, "Robot (library name or robot file)", robot_.string());
-  TYPE_AT(w, "Steps per mm", "");
-  TYPE_AT(w, "Steps per degree", "");
-  TYPE_AT(w, "Controller address", sim_->tcp());
-  TYPE_AT(w, "Home the robot now?", "");
-  TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
-  TYPE_AT(w, "Target file of the board", board_.string());
-  TYPE_AT(w, "Image size the cameras deliver", "640x480");
-  ASSERT_TRUE(w.expect("check: ok - every camera sees the whole board", 60s)) << w.output();
+  ASSERT_NO_FATAL_FAILURE(answer_robot_to_cameras(w, robot_, sim_->tcp(), board_));
   for (int c = 0; c < 2; ++c) {
     const auto spec = camera_spec(c);
     TYPE_AT(w, fmt::format("Intrinsics of cam{}", c), "live");
@@ -543,15 +541,7 @@ TEST_F(Wizard, LiveViewsCarryTheFlowToTheIdentification) {
     ASSERT_TRUE(w.expect(fmt::format("cam{}: calibrated from 16 views", c), 60s)) << w.output();
   }
   seen_->hold(std::nullopt);  // the cameras see the board on the robot again
-  TYPE_AT(w, "Cell file", (dir_ / "cell.yaml").string());
-  TYPE_AT(w, "How many poses", "8");
-  TYPE_AT(w, "Candidate poses", "400");
-  ASSERT_TRUE(w.expect("Preview:", 120s)) << w.output();
-  if (w.output().find("the plan is NOT accepted") != std::string::npos)
-    TYPE_AT(w, "Use it anyway", "continue");
-  TYPE_AT(w, "Axis speed limit", "0.2");
-  TYPE_AT(w, "Axis acceleration limit", "4");
-  TYPE_AT(w, "may the robot move", "yes");
+  ASSERT_NO_FATAL_FAILURE(answer_cell_to_safety(w, dir_ / "cell.yaml", "0.2"));
   ASSERT_TRUE(w.expect("every planned pose is recorded", 240s)) << w.output();
   // The identify step has each camera's views from the intrinsics step; the rig views are taken
   // now, the board held 20-26 cm in front of the cameras.
