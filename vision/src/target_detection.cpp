@@ -83,6 +83,11 @@ LoadedImage load_gray_image(const std::filesystem::path& path) {
     out.error = name + ": cannot decode image (unknown format or corrupt data)";
     return out;
   }
+  return gray_image(img, name);
+}
+
+LoadedImage gray_image(const cv::Mat& img, const std::string& name) {
+  LoadedImage out;
   if (img.depth() != CV_8U) {
     const int bits = img.depth() == CV_16U || img.depth() == CV_16S ? 16 : 32;
     out.error = fmt::format(

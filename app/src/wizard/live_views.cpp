@@ -7,8 +7,6 @@
 #include "session/session.hpp"
 
 #include <fmt/core.h>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -25,14 +23,6 @@ namespace {
 // told to aim for kSuggestedViews (near and far, tilted, over the whole image).
 constexpr std::size_t kFirstCheck = 4;
 constexpr std::size_t kSuggestedViews = 20;
-
-// The frame as the detector reads it: 8-bit gray.
-cv::Mat gray_8bit(const cv::Mat& image) {
-  cv::Mat gray = image;
-  if (gray.channels() == 3) cv::cvtColor(gray, gray, cv::COLOR_BGR2GRAY);
-  if (gray.depth() == CV_16U) gray.convertTo(gray, CV_8U, 1.0 / 257.0);
-  return gray;
-}
 
 // The views already in `folder` (a resumed wizard), by file, and the next free view number.
 std::vector<fs::path> kept_views(const fs::path& folder, int* next_number) {
@@ -136,13 +126,13 @@ std::optional<fs::path> take_live_views(WizardContext& ctx, const std::string& c
   int number = 0;
   std::vector<vision::CalibrationView> views;
   for (const fs::path& f : kept_views(folder, &number)) {
-    const cv::Mat image = cv::imread(f.string(), cv::IMREAD_UNCHANGED);
-    if (image.empty()) continue;
+    const vision::LoadedImage image = vision::load_gray_image(f);
+    if (!image.error.empty()) continue;
     if (width <= 0) {
-      width = image.cols;
-      height = image.rows;
+      width = image.gray.cols;
+      height = image.gray.rows;
     }
-    const auto d = vision::detect_target(gray_8bit(image), board, detector);
+    const auto d = vision::detect_target(image.gray, board, detector);
     if (d.status != vision::DetectionStatus::kRejected)
       views.push_back(vision::to_calibration_view(d, f.stem().string()));
   }
@@ -182,9 +172,14 @@ std::optional<fs::path> take_live_views(WizardContext& ctx, const std::string& c
       width = frame.image.cols;
       height = frame.image.rows;
     }
+    // The frame as measure will read its file: a frame it could not read is not kept.
+    const vision::LoadedImage gray = vision::gray_image(frame.image, camera);
+    if (!gray.error.empty()) {
+      fmt::print(ctx.out, "  not kept: {} (set the camera to 8-bit, e.g. Mono8)\n", gray.error);
+      continue;
+    }
     const robotio::LiveCheckReport checks = robotio::check_live_frame(frame.image, board, detector);
-    const vision::TargetDetection d =
-        vision::detect_target(gray_8bit(frame.image), board, detector);
+    const vision::TargetDetection d = vision::detect_target(gray.gray, board, detector);
     if (d.status == vision::DetectionStatus::kRejected) {
       fmt::print(ctx.out, "  no board in this view ({}): not kept. Hold the whole board in view.\n",
                  d.reason);
@@ -268,7 +263,13 @@ std::optional<fs::path> take_live_rig_views(
     int seeing = 0;
     for (std::size_t c = 0; c < sources.size(); ++c) {
       images.push_back(sources[c]->receive(std::chrono::milliseconds(5000)).image);
-      const auto d = vision::detect_target(gray_8bit(images.back()), board, detector);
+      // As measure will read the file; a frame it could not read does not count as seeing.
+      const vision::LoadedImage gray = vision::gray_image(images.back(), cameras[c].first);
+      if (!gray.error.empty()) {
+        fmt::print(ctx.out, "  {} (set the camera to 8-bit, e.g. Mono8)\n", gray.error);
+        continue;
+      }
+      const auto d = vision::detect_target(gray.gray, board, detector);
       if (d.status != vision::DetectionStatus::kRejected && d.corner_ids.size() >= 8) {
         ++seeing;
         seen_by += (seen_by.empty() ? "" : ", ") + cameras[c].first;

@@ -22,6 +22,9 @@ struct LoadedImage {
   std::string error;  ///< "<file>: <problem>", empty on success
 };
 LoadedImage load_gray_image(const std::filesystem::path& path);
+/// The same for an image already in memory (a camera's frame): what load_gray_image makes of the
+/// file it would be written to. `name` prefixes the error.
+LoadedImage gray_image(const cv::Mat& image, const std::string& name);
 
 enum class DetectionStatus { kFound, kPartial, kRejected };
 
