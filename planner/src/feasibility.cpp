@@ -268,8 +268,10 @@ bool FeasibilityChecker::segment_free(const Eigen::VectorXd& from, const Eigen::
     }
     seed = r.passive;
   }
-  // The motion must arrive on the same mode as the pose itself.
-  if (end_ref.ok() && (seed - end_ref.passive).cwiseAbs().maxCoeff() > 1e-6) {
+  // The motion must arrive on the same mode as the pose itself (a serial arm has no passive
+  // joints to compare).
+  if (end_ref.ok() && seed.size() > 0 && seed.size() == end_ref.passive.size() &&
+      (seed - end_ref.passive).cwiseAbs().maxCoeff() > 1e-6) {
     if (why != nullptr) *why = "the motion arrives on another assembly mode";
     return false;
   }

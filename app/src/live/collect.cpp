@@ -271,7 +271,7 @@ std::string describe(const CollectOptions& o, const CollectInputs& in, std::size
       "  robot:     {} ({} actuators), controller at {}\n"
       "  plan:      {} ({} poses, {} still to record)\n"
       "  cameras:   {}\n"
-      "  speed:     {} /s, acceleration {} /s^2 (actuator units: m or rad)\n"
+      "  speed:     {} /s, acceleration {} /s^2 (joint units: m or rad)\n"
       "  workspace: {}\n"
       "  obstacles: {} in the cell, clearance {} mm; every motion is checked before it is sent\n",
       in.model.name, static_cast<int>(in.model.actuated.size()), o.link, o.plan, in.targets.size(),

@@ -33,11 +33,19 @@ ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
   static const std::string kLetters = "XYZUVWABC";
   if (model.actuated.size() > kLetters.size())
     throw std::invalid_argument(model.name + ": more than 9 actuators cannot be G-code axes");
+  // Readings in encoder counts (the wire robot's branch) reach G-code through the robot file's
+  // nominal encoder scale: the firmware's axes are in millimetres and degrees of the joint.
+  const auto n = static_cast<Eigen::Index>(model.actuated.size());
+  const Eigen::VectorXd params = model.nominal_parameters();
+  const Eigen::VectorXd readings_per_unit =
+      calib::readings_from_joint_values(model, params, Eigen::VectorXd::Ones(n)) -
+      calib::readings_from_joint_values(model, params, Eigen::VectorXd::Zero(n));
   ActuatorAxes axes;
   for (std::size_t i = 0; i < model.actuated.size(); ++i) {
     axes.letters.push_back(kLetters[i]);
     const bool prismatic = model.bodies[model.actuated[i]].joint == calib::JointType::kPrismatic;
-    axes.unit_factor.push_back(prismatic ? 1000.0 : 180.0 / std::numbers::pi);
+    axes.unit_factor.push_back((prismatic ? 1000.0 : 180.0 / std::numbers::pi) /
+                               readings_per_unit[static_cast<Eigen::Index>(i)]);
     axes.steps_per_unit.push_back(prismatic ? steps_per_mm : steps_per_degree);
   }
   return axes;
@@ -303,7 +311,8 @@ void GcodeLink::do_stop(StopKind kind) {
   }
 }
 
-std::string GcodeLink::move_gcode(const Eigen::VectorXd& target, const MoveSpeed& speed) const {
+std::string GcodeLink::move_gcode(const Eigen::VectorXd& target, const MoveSpeed& speed,
+                                  double gcode_per_joint) const {
   const std::vector<long> counts = counts_for(target);
   std::string cmd = "G1";
   for (int i = 0; i < options_.axes.size(); ++i) {
@@ -312,8 +321,23 @@ std::string GcodeLink::move_gcode(const Eigen::VectorXd& target, const MoveSpeed
     cmd += fmt::format(" {}{:.6f}", options_.axes.letters[k],
                        static_cast<double>(counts[k]) / options_.axes.steps_per_unit[k]);
   }
-  cmd += fmt::format(" F{:.3f}", speed.speed * options_.axes.unit_factor[0] * 60.0);
+  cmd += fmt::format(" F{:.3f}", speed.speed * gcode_per_joint * 60.0);
   return cmd;
+}
+
+double GcodeLink::gcode_per_joint_unit(const Eigen::VectorXd& from,
+                                       const Eigen::VectorXd& to) const {
+  const std::vector<double>& f = options_.axes.unit_factor;
+  const Eigen::VectorXd& j = guard().joint_per_reading();
+  if (from.size() != to.size() || static_cast<std::size_t>(to.size()) != f.size())
+    return std::abs(f[0]) / j[0];
+  double joint = 0.0, gcode = 0.0;
+  for (Eigen::Index i = 0; i < to.size(); ++i) {
+    const double d = to[i] - from[i];
+    joint += d * d * j[i] * j[i];
+    gcode += d * d * f[static_cast<std::size_t>(i)] * f[static_cast<std::size_t>(i)];
+  }
+  return joint > 0.0 ? std::sqrt(gcode / joint) : std::abs(f[0]) / j[0];
 }
 
 void GcodeLink::do_home() {
@@ -325,7 +349,11 @@ void GcodeLink::do_home() {
 
 void GcodeLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
   status_.state = LinkState::kMoving;
-  const double accel = speed.acceleration * options_.axes.unit_factor[0];
+  // The firmware applies feed and acceleration to the G-code path's length; scaled by this move's
+  // ratio of G-code to joint length, it takes as long as `speed` along the joints (axes in degrees
+  // and millimetres together would otherwise take several times what the link waits).
+  const double per_joint = gcode_per_joint_unit(last_known(), target);
+  const double accel = speed.acceleration * per_joint;
   const milliseconds total = options_.reply_timeout * (options_.attempts + 1);
   for (int round = 0;; ++round) {
     try {
@@ -337,11 +365,11 @@ void GcodeLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
         exchange("M400", settle_silence(), milliseconds(120000), true);
         if (at_target(do_read(), target)) return;
       }
-      if (std::abs(accel - acceleration_sent_) > 1e-9) {
+      if (std::abs(accel - acceleration_sent_) > 1e-9 * accel) {
         exchange(fmt::format("M204 S{:.3f}", accel), options_.reply_timeout, total, true);
         acceleration_sent_ = accel;
       }
-      exchange(move_gcode(target, speed), options_.reply_timeout, total, true);
+      exchange(move_gcode(target, speed, per_joint), options_.reply_timeout, total, true);
       return;
     } catch (const LinkError&) {
       // A refusal by a connected controller is final; a lost connection is recovered.
@@ -435,9 +463,9 @@ bool GcodeLink::at_target(const ActuatorReadings& readings, const Eigen::VectorX
 
 double GcodeLink::expected_seconds(const Eigen::VectorXd& from, const Eigen::VectorXd& to,
                                    const MoveSpeed& speed) const {
-  const double f = options_.axes.unit_factor[0];
-  const double s =
-      trapezoid_seconds((to - from).norm() * f, speed.speed * f, speed.acceleration * f);
+  // The firmware's trapezoid in G-code units is this one scaled by gcode_per_joint_unit.
+  const double length = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
+  const double s = trapezoid_seconds(length, speed.speed, speed.acceleration);
   expected_move_seconds_ = s;
   return s;
 }

@@ -25,6 +25,11 @@ SafetyGuard::SafetyGuard(const calib::Mechanism& model, Eigen::VectorXd params, 
   const auto n = static_cast<Eigen::Index>(model.actuated.size());
   if (limits_.actuator_lower.size() != n || limits_.actuator_upper.size() != n)
     default_actuator_limits(model, params_, limits_);
+  // The encoder model is affine (q = scale * reading + offset): one reading per joint unit apart.
+  const Eigen::VectorXd per_unit =
+      calib::readings_from_joint_values(model, params_, Eigen::VectorXd::Ones(n)) -
+      calib::readings_from_joint_values(model, params_, Eigen::VectorXd::Zero(n));
+  joint_per_reading_ = per_unit.cwiseAbs().cwiseInverse();
 }
 
 void SafetyGuard::default_actuator_limits(const calib::Mechanism& model,
@@ -137,9 +142,21 @@ GuardVerdict SafetyGuard::check_move(const Eigen::VectorXd& from, const Eigen::V
   // the first read) only the target itself can be checked.
   const bool have_start = from.size() == n && from.allFinite();
   const Eigen::VectorXd start = have_start ? from : to;
-  double span = 0.0;
-  for (Eigen::Index i = 0; i < n; ++i) span = std::max(span, std::abs(to[i] - start[i]));
-  const int steps = std::max(1, static_cast<int>(std::ceil(span / limits_.path_step)));
+  double span = 0.0;  // joint units
+  for (Eigen::Index i = 0; i < n; ++i)
+    span = std::max(span, std::abs(to[i] - start[i]) * joint_per_reading_[i]);
+  const double step = limits_.path_step > 0.0 ? limits_.path_step : 1e-3;
+  // Bounded, so that a start reading far outside any limit cannot ask for billions of samples
+  // (the first sample then refuses it anyway).
+  constexpr double kMaxSamples = 1e6;
+  if (!(std::ceil(span / step) <= kMaxSamples)) {
+    v.reason = fmt::format(
+        "the path from {} to {} spans {:.6g} joint units: more than {:.0f} checked samples of "
+        "{:.3g}; move in shorter steps",
+        vec_text(start), vec_text(to), span, kMaxSamples, step);
+    return v;
+  }
+  const int steps = std::max(1, static_cast<int>(std::ceil(span / step)));
   calib::ClosureSolver solver(*model_, params_);
   Eigen::VectorXd passive;
   const int task_frame = model_->task.frame >= 0 ? model_->task.frame : model_->tool;
@@ -194,7 +211,8 @@ GuardVerdict SafetyGuard::check_move(const Eigen::VectorXd& from, const Eigen::V
         return v;
       }
     }
-    v.path.push_back(std::move(s));
+    v.samples = k + 1;
+    if (k == 0 || k == steps) v.path.push_back(std::move(s));
   }
   v.allowed = true;
   return v;

@@ -5,6 +5,8 @@
 #include "robocal/robotio/stop_signals.hpp"
 #include "robocal/robotio/task_space.hpp"
 #include "robotio_sim.hpp"
+
+#include <numbers>
 #include "scratch_dir.hpp"
 
 #include <gtest/gtest.h>
@@ -476,6 +478,73 @@ TEST_F(LinkTest, ConnectionRefusedNamesTheAddress) {
     EXPECT_NE(std::string(e.what()).find("refused"), std::string::npos) << e.what();
   }
 }
+
+// Axes in different units move at the joint speed asked. The modular arm's firmware axes are
+// degrees (two revolute joints) and millimetres (the prismatic one): a feed taken from one axis'
+// units alone made a long joint move take several times what the link waited for ("did not
+// settle"). The wire robot's branch is read in encoder counts: its G-code axes are the joints'
+// degrees. Each move's duration as the simulator planned it is checked against the trapezoid
+// over the joint-value change, written here.
+double joint_trapezoid(double length, double v, double a) {
+  return length >= v * v / a ? length / v + v / a : 2.0 * std::sqrt(length / a);
+}
+
+class MixedAxesTest : public ScratchDirTest, public ::testing::WithParamInterface<std::string> {
+ protected:
+  MixedAxesTest() : ScratchDirTest("robotio_axes_") {}
+};
+
+TEST_P(MixedAxesTest, MovesTakeTheTimeOfTheJointSpeedAsked) {
+  const calib::Mechanism model =
+      calib::load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/" + GetParam() + ".yaml");
+  const Eigen::VectorXd p = model.nominal_parameters();
+  const std::string log = file("sim.jsonl");
+  SimControllerProcess sim(ROBOCAL_BINARY, {"--robot", GetParam(), "--log", log, "--noise", "0",
+                                            "--backlash", "0", "--max-seconds", "300"});
+  robotio::SafetyLimits limits;
+  limits.max_speed = 4.0;
+  limits.max_acceleration = 40.0;
+  SafetyGuard guard(model, p, limits);
+  guard.arm("test: simulated cell, nothing can be hurt");
+  GcodeLink l(guard, link_options(model, sim.tcp()));
+  l.connect();
+  l.home();
+  const auto n = static_cast<Eigen::Index>(model.actuated.size());
+  Eigen::VectorXd q(n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    q[i] = model.bodies[model.actuated[static_cast<std::size_t>(i)]].home;
+  const Eigen::VectorXd home_q = q;
+  // Every actuator a tenth of its way towards its upper limit, then back half of that.
+  Eigen::VectorXd far = q;
+  for (Eigen::Index i = 0; i < n; ++i)
+    far[i] += 0.1 * (model.bodies[model.actuated[static_cast<std::size_t>(i)]].limits.upper - q[i]);
+  const MoveSpeed speed{0.5, 2.0};
+  for (const Eigen::VectorXd& target_q : {far, Eigen::VectorXd(0.5 * (far + home_q))}) {
+    const Eigen::VectorXd from_q = q;
+    const robotio::MoveResult r =
+        l.move_actuators(calib::readings_from_joint_values(model, p, target_q), speed);
+    ASSERT_TRUE(r.confirmed) << r.reason;
+    const auto starts = events(read_sim_log(log), "motion_start");
+    ASSERT_FALSE(starts.empty());
+    const double planned = starts.back()["duration_s"].get<double>();
+    EXPECT_NEAR(planned,
+                joint_trapezoid((target_q - from_q).norm(), speed.speed, speed.acceleration), 0.02)
+        << "move to " << target_q.transpose();
+    // The G-code target is the joint's millimetres or degrees.
+    const auto gcode = starts.back()["target"].get<std::vector<double>>();
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const bool prismatic = model.bodies[model.actuated[static_cast<std::size_t>(i)]].joint ==
+                             calib::JointType::kPrismatic;
+      EXPECT_NEAR(gcode[static_cast<std::size_t>(i)],
+                  target_q[i] * (prismatic ? 1000.0 : 180.0 / std::numbers::pi), 0.02)
+          << "axis " << i;
+    }
+    q = target_q;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Robots, MixedAxesTest,
+                         ::testing::Values("modular_arm", "wire_robot_branch"));
 
 }  // namespace
 }  // namespace robocal::test

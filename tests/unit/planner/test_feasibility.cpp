@@ -728,5 +728,37 @@ TEST(PlannerBadInput, MinCamerasBeyondTheCellsCameras) {
   }
 }
 
+// A serial arm has no passive joints to carry from one step of a motion to the next: the check
+// that the motion arrives on the pose's own mode has nothing to compare (it read an empty vector's
+// largest entry, and the modular arm's live demo crashed in its tour). Its motions are checked for
+// collision like any other: a motion from home to a pose a little away is free, and one whose end
+// leaves the actuator limits is refused with the reason.
+TEST(Planner, SerialArmMotionsAreCheckedWithoutPassiveJoints) {
+  const calib::Mechanism m = calib::load_robot_file(kData + "/robots/modular_arm.yaml");
+  ASSERT_TRUE(m.passive.empty());
+  const Eigen::VectorXd p = m.nominal_parameters();
+  const Cell cell = parse_cell_yaml(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [1.2, 0, 0.6], "
+      "look_at: [0.4, 0, 0.2]}}\n" +
+          std::string(kTarget),
+      "serial.yaml", kCells);
+  const FeasibilityChecker checker(m, p, cell, m.tool, feasibility_options_from_cell(cell));
+  const auto n = static_cast<Eigen::Index>(m.actuated.size());
+  Eigen::VectorXd home(n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    home[i] = m.bodies[m.actuated[static_cast<std::size_t>(i)]].home;
+  Eigen::VectorXd near = home;
+  near[0] += 0.3;
+  std::string why;
+  EXPECT_TRUE(checker.segment_free(calib::readings_from_joint_values(m, p, home),
+                                   calib::readings_from_joint_values(m, p, near), 0.01, &why))
+      << why;
+  Eigen::VectorXd beyond = home;
+  beyond[0] = m.bodies[m.actuated[0]].limits.upper + 0.2;
+  EXPECT_FALSE(checker.segment_free(calib::readings_from_joint_values(m, p, home),
+                                    calib::readings_from_joint_values(m, p, beyond), 0.01, &why));
+  EXPECT_FALSE(why.empty());
+}
+
 }  // namespace
 }  // namespace robocal::planner

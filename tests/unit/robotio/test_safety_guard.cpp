@@ -147,5 +147,33 @@ TEST(GuardModes, APathThroughASingularConfigurationIsRefused) {
   EXPECT_TRUE(before.allowed) << before.reason;
 }
 
+// Readings in encoder counts (the wire robot's branch: 268,000 per turn of j1) are sampled by
+// joint travel, not by count: a half-radian move of j1 is 500 samples of 1 mrad, where one sample
+// per count would be 21,000 closure solves and as many stored joint states.
+TEST(GuardUnits, EncoderCountReadingsAreSampledByJointTravel) {
+  const calib::Mechanism m =
+      calib::load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/wire_robot_branch.yaml");
+  const Eigen::VectorXd p = m.nominal_parameters();
+  Eigen::VectorXd home(static_cast<Eigen::Index>(m.actuated.size()));
+  for (std::size_t i = 0; i < m.actuated.size(); ++i)
+    home[static_cast<Eigen::Index>(i)] = m.bodies[m.actuated[i]].home;
+  Eigen::VectorXd turned = home;
+  turned[0] += 0.5;  // rad
+  const Eigen::VectorXd from = calib::readings_from_joint_values(m, p, home);
+  const Eigen::VectorXd to = calib::readings_from_joint_values(m, p, turned);
+  ASSERT_GT(std::abs(to[0] - from[0]), 2e4) << "j1 is not read in encoder counts";
+  robotio::SafetyLimits l;
+  l.max_speed = 1e5;
+  l.max_acceleration = 1e6;
+  SafetyGuard guard(m, p, l);
+  guard.set_dry_run(true);
+  const auto v = guard.check_move(from, to, {1e4, 1e5});
+  ASSERT_TRUE(v.allowed) << v.reason;
+  EXPECT_EQ(v.samples, 501);
+  ASSERT_EQ(v.path.size(), 2u) << "only the ends are kept";
+  EXPECT_TRUE(v.path.front().readings.isApprox(from));
+  EXPECT_TRUE(v.path.back().readings.isApprox(to));
+}
+
 }  // namespace
 }  // namespace robocal::test

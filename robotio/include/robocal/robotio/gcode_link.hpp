@@ -27,8 +27,10 @@ namespace robocal::robotio {
 // How actuator readings map to G-code axes: value_in_gcode_units = reading * unit_factor;
 // counts = value_in_gcode_units * steps_per_unit.
 struct ActuatorAxes {
-  std::string letters;              // one per actuator, e.g. "XYZ"
-  std::vector<double> unit_factor;  // reading -> G-code unit (1000 for m -> mm, 180/pi rad -> deg)
+  std::string letters;  // one per actuator, e.g. "XYZ"
+  // reading -> G-code unit: 1000 for m -> mm, 180/pi for rad -> deg, times the encoder scale
+  // for readings in counts
+  std::vector<double> unit_factor;
   std::vector<double> steps_per_unit;
   int size() const { return static_cast<int>(letters.size()); }
 };
@@ -95,7 +97,10 @@ class GcodeLink final : public RobotLink {
   void handshake();
   FirmwareInfo identify();
   void send_stop_during_wait();
-  std::string move_gcode(const Eigen::VectorXd& target, const MoveSpeed& speed) const;
+  std::string move_gcode(const Eigen::VectorXd& target, const MoveSpeed& speed,
+                         double gcode_per_joint) const;
+  // G-code path length per joint-space length of the straight move `from` -> `to`.
+  double gcode_per_joint_unit(const Eigen::VectorXd& from, const Eigen::VectorXd& to) const;
   ActuatorReadings parse_readings(const std::vector<std::string>& lines) const;
 
   GcodeLinkOptions options_;

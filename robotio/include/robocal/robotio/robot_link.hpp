@@ -75,6 +75,7 @@ class RobotLink {
   void stop(StopKind kind) { do_stop(kind); }
 
   SafetyGuard& guard() { return *guard_; }
+  const SafetyGuard& guard() const { return *guard_; }
   // Where the guard takes a path's start from: the last readings confirmed by the controller.
   const Eigen::VectorXd& last_known() const { return last_known_; }
 

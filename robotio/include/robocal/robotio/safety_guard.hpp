@@ -24,8 +24,10 @@
 
 namespace robocal::robotio {
 
-// Speed and acceleration along the actuator-space path, in actuator reading units per second
-// (m/s for prismatic, rad/s for revolute actuators) and per second squared.
+// Speed and acceleration along the actuator-space path, in joint units per second (m/s for
+// prismatic, rad/s for revolute actuators, whatever the readings' units: encoder counts are
+// converted by the robot file's encoder scale) and per second squared. The path's length is the
+// norm of its joint-value change.
 struct MoveSpeed {
   double speed = 0.0;
   double acceleration = 0.0;
@@ -47,17 +49,22 @@ struct SafetyLimits {
   Eigen::VectorXd actuator_lower, actuator_upper;  // readings; default: robot file joint limits
   Eigen::Vector3d workspace_min = Eigen::Vector3d::Constant(-1e300);  // task-frame position, m
   Eigen::Vector3d workspace_max = Eigen::Vector3d::Constant(1e300);
-  double max_speed = 0.0;         // reading units/s; must be set (> 0)
-  double max_acceleration = 0.0;  // reading units/s^2; must be set (> 0)
-  // Largest actuator change between two checked samples along a path (reading units).
+  double max_speed = 0.0;         // joint units/s (MoveSpeed); must be set (> 0)
+  double max_acceleration = 0.0;  // joint units/s^2; must be set (> 0)
+  // Largest joint change between two checked samples along a path, in joint units (rad or m),
+  // not readings: a robot read in encoder counts (the wire robot's 268,000 per turn) would
+  // otherwise be checked at tens of millions of samples per move.
   double path_step = 1e-3;
 };
 
 // The guard's decision for one move (also what dry runs report).
 struct GuardVerdict {
   bool allowed = false;
-  std::string reason;            // empty when allowed
-  std::vector<PathSample> path;  // the samples checked (start and target included)
+  std::string reason;  // empty when allowed
+  // The path's first and last samples (start and target). The samples between are checked and
+  // dropped: a long move has thousands of them, each with the robot's full joint state.
+  std::vector<PathSample> path;
+  int samples = 0;  // samples checked, path_step of joint travel apart
 };
 
 class SafetyGuard {
@@ -101,12 +108,15 @@ class SafetyGuard {
 
   const calib::Mechanism& model() const { return *model_; }
   const Eigen::VectorXd& params() const { return params_; }
+  // Joint units (rad or m) per reading unit of each actuator: |encoder scale| at params().
+  const Eigen::VectorXd& joint_per_reading() const { return joint_per_reading_; }
 
  private:
   std::optional<std::string> check_flags() const;
 
   const calib::Mechanism* model_;
   Eigen::VectorXd params_;
+  Eigen::VectorXd joint_per_reading_;  // |encoder scale| of each actuator at params_
   SafetyLimits limits_;
   ClearanceCheck clearance_;
   bool dry_run_ = false;
