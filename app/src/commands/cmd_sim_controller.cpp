@@ -53,6 +53,7 @@ struct SimCliOptions {
   unsigned fault_seed = 1;
   double slow_ms = 250.0;
   double max_seconds = 0.0;
+  bool exit_with_parent = false;
 };
 
 robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
@@ -115,6 +116,7 @@ int run_sim_controller(const SimCliOptions& o) {
   s.feed = o.feed;
   s.acceleration = o.acceleration;
   s.max_seconds = o.max_seconds;
+  s.exit_with_parent = o.exit_with_parent;
   s.seed = o.seed + 1;
   try {
     s.faults = robotio::parse_fault_spec(o.faults);
@@ -213,6 +215,9 @@ CommandSpec sim_controller_command() {
             cmd.add_option("--slow-ms", o->slow_ms, "Delay of a slow reply, ms");
             cmd.add_option("--max-seconds", o->max_seconds,
                            "Exit after this long (0 = until stopped)");
+            cmd.add_flag("--exit-with-parent", o->exit_with_parent,
+                         "Exit when standard input closes (a pipe from the starting process: "
+                         "robocal demo and the tests start it so)");
             return [o] { return run_sim_controller(*o); };
           }};
 }

@@ -25,10 +25,19 @@ SimControllerProcess::SimControllerProcess(const std::string& robocal,
   int pipe_fds[2];
   if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
     throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
+  // Its standard input is a pipe only this process writes to: when this process ends in any way
+  // (a crash included) the pipe closes and the simulator exits (--exit-with-parent).
+  int parent_fds[2];
+  if (::pipe2(parent_fds, O_CLOEXEC) != 0) {
+    ::close(pipe_fds[0]);
+    ::close(pipe_fds[1]);
+    throw std::runtime_error(std::string("pipe: ") + std::strerror(errno));
+  }
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, pipe_fds[1], 1);
-  std::vector<std::string> argv_s = {robocal, "sim-controller"};
+  posix_spawn_file_actions_adddup2(&actions, parent_fds[0], 0);
+  std::vector<std::string> argv_s = {robocal, "sim-controller", "--exit-with-parent"};
   argv_s.insert(argv_s.end(), args.begin(), args.end());
   std::vector<char*> argv;
   argv.reserve(argv_s.size() + 1);
@@ -37,9 +46,13 @@ SimControllerProcess::SimControllerProcess(const std::string& robocal,
   const int rc = ::posix_spawn(&pid_, robocal.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   ::close(pipe_fds[1]);
+  ::close(parent_fds[0]);
   out_ = pipe_fds[0];
+  parent_ = parent_fds[1];
   if (rc != 0) {
     ::close(out_);
+    ::close(parent_);
+    parent_ = -1;
     throw std::runtime_error(robocal + ": cannot start: " + std::strerror(rc));
   }
   std::string text;
@@ -85,6 +98,8 @@ void SimControllerProcess::signal(int sig) const {
 int SimControllerProcess::stop(std::chrono::milliseconds timeout) {
   if (out_ >= 0) ::close(out_);
   out_ = -1;
+  if (parent_ >= 0) ::close(parent_);
+  parent_ = -1;
   if (pid_ <= 0) return -1;
   ::kill(pid_, SIGTERM);
   int status = 0;

@@ -848,9 +848,10 @@ SimCounters SimController::counters() const {
 void SimController::run(const std::atomic<bool>& stop) {
   Impl& s = *impl_;
   const double end = s.options.max_seconds > 0.0 ? now_seconds() + s.options.max_seconds : 1e300;
+  bool parent_gone = false;
   while (!stop.load() && now_seconds() < end) {
     std::vector<pollfd> fds;
-    enum Src { kTcpListen, kPoseListen, kTcp, kPty, kPose };
+    enum Src { kTcpListen, kPoseListen, kTcp, kPty, kPose, kParent };
     std::vector<std::pair<Src, std::size_t>> src;
     auto add = [&](int fd, Src what, std::size_t i = 0) {
       if (fd < 0) return;
@@ -862,6 +863,7 @@ void SimController::run(const std::atomic<bool>& stop) {
     add(s.tcp.fd, kTcp);
     add(s.pty.fd, kPty);
     for (std::size_t i = 0; i < s.pose_clients.size(); ++i) add(s.pose_clients[i], kPose, i);
+    if (s.options.exit_with_parent) add(STDIN_FILENO, kParent);
     const double now = now_seconds();
     const double wait = std::max(0.0, std::min(s.next_event(now), end) - now);
     timespec ts{static_cast<time_t>(wait), static_cast<long>((wait - std::floor(wait)) * 1e9)};
@@ -888,14 +890,23 @@ void SimController::run(const std::atomic<bool>& stop) {
         case kPose:
           s.serve_pose(src[k].second);
           break;
+        case kParent: {
+          char buf[256];
+          if (::read(STDIN_FILENO, buf, sizeof buf) <= 0) parent_gone = true;
+          break;
+        }
       }
     }
+    if (parent_gone) break;
     const double after = now_seconds();
     s.advance_motion(after);
     s.process(s.tcp, after);
     s.process(s.pty, after);
   }
-  s.write_log({{"ev", "exit"}, {"lines", s.counters.lines}, {"motions", s.counters.motions}});
+  s.write_log({{"ev", "exit"},
+               {"lines", s.counters.lines},
+               {"motions", s.counters.motions},
+               {"parent_gone", parent_gone}});
 }
 
 }  // namespace robocal::robotio

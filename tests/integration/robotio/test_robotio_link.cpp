@@ -5,8 +5,6 @@
 #include "robocal/robotio/stop_signals.hpp"
 #include "robocal/robotio/task_space.hpp"
 #include "robotio_sim.hpp"
-
-#include <numbers>
 #include "scratch_dir.hpp"
 
 #include <gtest/gtest.h>
@@ -15,7 +13,11 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <sys/wait.h>
+
+#include <fstream>
 #include <map>
+#include <numbers>
 #include <optional>
 #include <ostream>
 #include <thread>
@@ -545,6 +547,55 @@ TEST_P(MixedAxesTest, MovesTakeTheTimeOfTheJointSpeedAsked) {
 
 INSTANTIATE_TEST_SUITE_P(Robots, MixedAxesTest,
                          ::testing::Values("modular_arm", "wire_robot_branch"));
+
+// A simulator outlives nothing: when the process that started it ends without stopping it (a
+// crash, SIGKILL; here _exit, which runs no destructor), it exits instead of serving on until
+// --max-seconds.
+class SimProcessTest : public ScratchDirTest {
+ protected:
+  SimProcessTest() : ScratchDirTest("robotio_simproc_") {}
+};
+
+TEST_F(SimProcessTest, ExitsWhenTheProcessThatStartedItEnds) {
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const std::string log = file("sim.jsonl");
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(fds[0]);
+    pid_t sim_pid = -1;
+    try {
+      // Never destroyed: the child ends as a crash would.
+      const auto* sim = new SimControllerProcess(ROBOCAL_BINARY, sim_args(log, {}));
+      sim_pid = sim->pid();
+    } catch (...) {
+    }
+    (void)!::write(fds[1], &sim_pid, sizeof sim_pid);
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  pid_t sim_pid = -1;
+  ASSERT_EQ(::read(fds[0], &sim_pid, sizeof sim_pid), static_cast<ssize_t>(sizeof sim_pid));
+  ::close(fds[0]);
+  ::waitpid(child, nullptr, 0);
+  ASSERT_GT(sim_pid, 0) << "the simulator did not start";
+  auto running = [&] {
+    std::ifstream stat("/proc/" + std::to_string(sim_pid) + "/stat");
+    std::string line;
+    std::getline(stat, line);
+    return !line.empty() && line.find(") Z") == std::string::npos;  // a zombie has exited
+  };
+  for (int i = 0; i < 500 && running(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const bool still = running();
+  if (still) ::kill(sim_pid, SIGKILL);
+  EXPECT_FALSE(still) << "the simulator kept serving after its parent ended";
+  bool logged = false;
+  for (const auto& e : events(read_sim_log(log), "exit"))
+    logged = e.contains("parent_gone") && e.at("parent_gone").get<bool>();
+  EXPECT_TRUE(logged);
+}
 
 }  // namespace
 }  // namespace robocal::test

@@ -74,7 +74,10 @@ struct SimOptions {
   double feed = 3000.0;               // default feed, G-code units/min
   double acceleration = 1000.0;       // default, G-code units/s^2
   double max_seconds = 0.0;           // exit after this long (0 = until stopped)
-  std::uint32_t seed = 1;             // actuator noise
+  // Exit when standard input closes: the process that started it (holding the pipe's other end)
+  // ended, even by a crash or SIGKILL, so no simulator is left serving.
+  bool exit_with_parent = false;
+  std::uint32_t seed = 1;  // actuator noise
   FaultPlan faults;
 };
 

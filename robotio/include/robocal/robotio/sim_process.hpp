@@ -34,6 +34,7 @@ class SimControllerProcess {
  private:
   pid_t pid_ = -1;
   int out_ = -1;
+  int parent_ = -1;  // write end of the simulator's standard input, never written
   std::string tcp_, pty_, pose_;
 };
 
