@@ -222,4 +222,19 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
   return res;
 }
 
+PlanResult plan_with_enough_candidates(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                                       const Cell& cell, PlanOptions& options,
+                                       std::size_t max_pool) {
+  PlanResult res = plan_measurements(model, params, cell, options);
+  const std::size_t want = 10 * options.selection.count;
+  if (res.pool.size() >= want || res.status == PlanStatus::kBadCell) return res;
+  const double rate = static_cast<double>(std::max<std::size_t>(res.pool.size(), 1)) /
+                      static_cast<double>(std::max<std::size_t>(res.counts.evaluated, 1));
+  const auto more = static_cast<std::size_t>(
+      std::min(static_cast<double>(max_pool), static_cast<double>(want) / rate));
+  if (more <= options.pool) return res;
+  options.pool = more;
+  return plan_measurements(model, params, cell, options);
+}
+
 }  // namespace robocal::planner

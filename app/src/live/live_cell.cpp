@@ -180,8 +180,13 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
       po.seed = seed + 7919U * static_cast<unsigned>(attempt % 3);
       po.order = order;
       po.selection.count = static_cast<std::size_t>(count);
-      const planner::PlanResult r =
+      planner::PlanResult r =
           planner::plan_measurements(library, library.nominal_parameters(), pcell, po);
+      // Where the cell sees so small a part of the robot's range that the pool cannot hold the
+      // poses asked (the wire robot's pair: one feasible candidate in 1500), sampled again as
+      // the offline demo does.
+      if (r.pool.size() < po.selection.count)
+        r = planner::plan_with_enough_candidates(library, library.nominal_parameters(), pcell, po);
       if ((r.status != planner::PlanStatus::kOk && r.status != planner::PlanStatus::kNotAccepted) ||
           static_cast<int>(r.poses.size()) != count) {
         why +=

@@ -385,20 +385,10 @@ std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int coun
   po.order = false;
   planner::PlanResult res;
   try {
-    res = planner::plan_measurements(cell.model, cell.nominal, cell.plan_cell, po);
-    // A cell that sees a small part of the robot's range: sample again, enough for a pool of
+    // A cell that sees a small part of the robot's range: sampled again, enough for a pool of
     // about ten times `count` feasible poses (at most 40 000 samples).
+    res = planner::plan_with_enough_candidates(cell.model, cell.nominal, cell.plan_cell, po);
     const std::size_t want = 10 * po.selection.count;
-    if (res.pool.size() < want && res.status != planner::PlanStatus::kBadCell) {
-      const double rate = static_cast<double>(std::max<std::size_t>(res.pool.size(), 1)) /
-                          static_cast<double>(std::max<std::size_t>(res.counts.evaluated, 1));
-      const auto more =
-          static_cast<std::size_t>(std::min(40000.0, static_cast<double>(want) / rate));
-      if (more > po.pool) {
-        po.pool = more;
-        res = planner::plan_measurements(cell.model, cell.nominal, cell.plan_cell, po);
-      }
-    }
     // A serial arm's board, in a random orientation from joint samples, faces the camera pair
     // at the cell's incidence and size almost never (UR5: 0 of 40 000): build the candidates in
     // task space instead (the board turned towards the cameras, IK on the intended mode), and

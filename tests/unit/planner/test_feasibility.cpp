@@ -760,5 +760,31 @@ TEST(Planner, SerialArmMotionsAreCheckedWithoutPassiveJoints) {
   EXPECT_FALSE(why.empty());
 }
 
+// A pool too small for the poses asked is sampled again at the size its feasible rate says holds
+// ten times as many: with the half-seeing camera and a 300-sample pool, the second pool's size is
+// the closed form min(40000, 10 n / rate) and it holds about ten times n feasible poses.
+TEST(Planner, TooSmallAPoolIsSampledAgainAtTheSizeItsRateAsks) {
+  const Delta& d = delta();
+  const Cell cell = parse_cell_yaml(
+      "cameras:\n  - {name: low, file: camera_1600x1200.yaml, pose: {position: [-0.75, 0, -2.4], "
+      "look_at: [-0.75, 0, -0.9]}}\n" +
+          std::string(kTarget),
+      "half.yaml", kCells);
+  PlanOptions o;
+  o.pool = 300;
+  o.order = false;
+  o.selection.count = 20;
+  const PlanResult first = plan_measurements(d.model, d.params, cell, o);
+  ASSERT_LT(first.pool.size(), 200u) << "the first pool already holds enough";
+  ASSERT_GT(first.pool.size(), 0u);
+  const double rate = static_cast<double>(first.pool.size()) / first.counts.evaluated;
+  const PlanResult again = plan_with_enough_candidates(d.model, d.params, cell, o);
+  EXPECT_EQ(o.pool, static_cast<std::size_t>(std::min(40000.0, 200.0 / rate)));
+  EXPECT_EQ(again.counts.evaluated, o.pool);
+  // Binomial: 200 expected feasible, 4 standard deviations either way.
+  EXPECT_NEAR(static_cast<double>(again.pool.size()), 200.0, 4.0 * std::sqrt(200.0));
+  EXPECT_EQ(again.poses.size(), 20u);
+}
+
 }  // namespace
 }  // namespace robocal::planner
