@@ -584,7 +584,16 @@ MotionCheck check_target_still(const PoseMeasurement& a, const PoseMeasurement& 
   d.tail<3>() = b.world_T_target.translation() - a.world_T_target.translation();
   out.rotation_rad = d.head<3>().norm();
   out.translation_m = d.tail<3>().norm();
-  const Matrix6d S = a.covariance_corner_noise + b.covariance_corner_noise;
+  // Each frame's corner noise as its own fit shows it (the variance of unit weight): the
+  // detector's sigma comes from the calibration views, and smaller or more oblique tags scatter
+  // more (the wire robot's poses: 2-3x the sigma, every second pose called moving while the
+  // robot stood still). Motion between frames leaves each frame's own fit unchanged, so it is
+  // still caught; a frame that fits worse than its sigma says is only trusted less.
+  auto unit_weight = [](const PoseMeasurement& m) {
+    return m.dof > 0 ? std::max(1.0, m.chi2 / m.dof) : 1.0;
+  };
+  const Matrix6d S =
+      unit_weight(a) * a.covariance_corner_noise + unit_weight(b) * b.covariance_corner_noise;
   const Eigen::LDLT<Matrix6d> ldlt(S);
   if (ldlt.info() != Eigen::Success || !(S.trace() > 0.0)) {
     out.chi2 = std::numeric_limits<double>::infinity();

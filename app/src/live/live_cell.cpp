@@ -114,6 +114,15 @@ LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robo
 
 namespace {
 
+// Where the controller's homing leaves the robot: the robot file's home joint values, read on
+// the nominal robot (the firmware's endstops are where it believes them).
+Eigen::VectorXd home_readings(const calib::Mechanism& library) {
+  Eigen::VectorXd home_q(static_cast<Eigen::Index>(library.actuated.size()));
+  for (std::size_t i = 0; i < library.actuated.size(); ++i)
+    home_q[static_cast<Eigen::Index>(i)] = library.bodies[library.actuated[i]].home;
+  return calib::readings_from_joint_values(library, library.nominal_parameters(), home_q);
+}
+
 // The fallback: poses of the nominal robot where both cameras (two of an array's) see the whole
 // board, chained so that the safety guard (the same one collect builds: limits, workspace, the
 // cell's collision scene) lets every motion through, starting from the controller's home.
@@ -136,10 +145,7 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
   const planner::CollisionScene scene(library, pcell, co);
   guard.set_clearance_check(cell_clearance_check(library, params, scene));
   guard.set_dry_run(true);
-  Eigen::VectorXd home_q(static_cast<Eigen::Index>(library.actuated.size()));
-  for (std::size_t i = 0; i < library.actuated.size(); ++i)
-    home_q[static_cast<Eigen::Index>(i)] = library.bodies[library.actuated[i]].home;
-  Eigen::VectorXd from = calib::readings_from_joint_values(library, params, home_q);
+  Eigen::VectorXd from = home_readings(library);
 
   std::mt19937 rng(seed + 101);
   const calib::MechanismPredictor predictor(cell.model, cell.target_frame);
@@ -180,6 +186,10 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
       po.seed = seed + 7919U * static_cast<unsigned>(attempt % 3);
       po.order = order;
       po.selection.count = static_cast<std::size_t>(count);
+      // The controller homes before collection: the tour starts at home, so the first motion
+      // is checked like the others (the UR5's first pose was reached through its wrist
+      // singularity, and the guard refused the move).
+      po.start = home_readings(library);
       planner::PlanResult r =
           planner::plan_measurements(library, library.nominal_parameters(), pcell, po);
       // Where the cell sees so small a part of the robot's range that the pool cannot hold the
