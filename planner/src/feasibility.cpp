@@ -288,7 +288,7 @@ std::vector<Candidate> FeasibilityChecker::sample(std::size_t count, std::mt1993
   for (std::size_t i = 0; i < count; ++i) {
     Eigen::VectorXd x(lo.size());
     for (Eigen::Index k = 0; k < lo.size(); ++k) x(k) = lo(k) + u(rng) * (hi(k) - lo(k));
-    Candidate c = evaluate(x);
+    Candidate c = evaluate(reach_.nearest_turn_to_home(x));
     if (counts != nullptr) counts->add(c);
     out.push_back(std::move(c));
   }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 
@@ -118,6 +119,32 @@ void ReachChecker::reading_limits(Eigen::VectorXd& lower, Eigen::VectorXd& upper
   const Eigen::VectorXd c = calib::readings_from_joint_values(*model_, params_, qhi);
   lower = a.cwiseMin(c);
   upper = a.cwiseMax(c);
+}
+
+Eigen::VectorXd ReachChecker::nearest_turn_to_home(const Eigen::VectorXd& readings) const {
+  const calib::Mechanism& model = *model_;
+  const auto n = static_cast<Eigen::Index>(model.actuated.size());
+  if (readings.size() != n) return readings;
+  Eigen::VectorXd home_q(n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    home_q(i) =
+        model.bodies[static_cast<std::size_t>(model.actuated[static_cast<std::size_t>(i)])].home;
+  const Eigen::VectorXd home = calib::readings_from_joint_values(model, params_, home_q);
+  // Readings per turn of each joint (the encoder model is affine).
+  const Eigen::VectorXd turn =
+      calib::readings_from_joint_values(model, params_, home_q.array() + 2.0 * std::numbers::pi) -
+      home;
+  Eigen::VectorXd lo, hi;
+  reading_limits(lo, hi);
+  Eigen::VectorXd out = readings;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const calib::Body& b =
+        model.bodies[static_cast<std::size_t>(model.actuated[static_cast<std::size_t>(i)])];
+    if (b.joint != calib::JointType::kRevolute || turn(i) == 0.0) continue;
+    const double turned = readings(i) - std::round((readings(i) - home(i)) / turn(i)) * turn(i);
+    if (turned >= lo(i) && turned <= hi(i)) out(i) = turned;
+  }
+  return out;
 }
 
 ReachResult ReachChecker::reach_check(const Eigen::VectorXd& readings,

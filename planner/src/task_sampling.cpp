@@ -126,7 +126,7 @@ std::vector<Candidate> sample_facing_cameras(const FeasibilityChecker& checker, 
       ik_seed.passive = seed.passive;
       const calib::IkResult r = calib::solve_ik(model, params, target, ik_seed, ik);
       if (r.ok()) {
-        c = checker.evaluate(r.actuator_readings);
+        c = checker.evaluate(reach.nearest_turn_to_home(r.actuator_readings));
       } else {
         c.readings = x;
         c.rejection = r.status == calib::SolveStatus::kOtherMode ? Rejection::kModeChange

@@ -26,6 +26,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <numbers>
 #include <random>
 #include <sstream>
 
@@ -784,6 +785,51 @@ TEST(Planner, TooSmallAPoolIsSampledAgainAtTheSizeItsRateAsks) {
   // Binomial: 200 expected feasible, 4 standard deviations either way.
   EXPECT_NEAR(static_cast<double>(again.pool.size()), 200.0, 4.0 * std::sqrt(200.0));
   EXPECT_EQ(again.poses.size(), 20u);
+}
+
+// A joint with more than a turn of range reaches a pose from either side: candidates are taken
+// within half a turn of home (the UR5's straight motion from home to a wrist value a turn away
+// swept through the wrist singularity), the pose unchanged. The Delta's arms, with less than a
+// turn, are left as they are.
+TEST(Planner, RevoluteActuatorsAreTakenWithinHalfATurnOfHome) {
+  const calib::Mechanism ur5 = calib::load_robot_file(kData + "/robots/ur5.yaml");
+  const Eigen::VectorXd p = ur5.nominal_parameters();
+  const ReachChecker reach(ur5, p, ReachOptions{});
+  Eigen::VectorXd lo, hi;
+  reach.reading_limits(lo, hi);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int turned = 0;
+  for (int t = 0; t < 200; ++t) {
+    Eigen::VectorXd x(lo.size());
+    for (Eigen::Index k = 0; k < lo.size(); ++k) x(k) = lo(k) + u(rng) * (hi(k) - lo(k));
+    const Eigen::VectorXd y = reach.nearest_turn_to_home(x);
+    for (Eigen::Index k = 0; k < x.size(); ++k) {
+      const double home = ur5.bodies[static_cast<std::size_t>(ur5.actuated[k])].home;
+      // Within half a turn of home, unless that value is outside the joint's limits (the
+      // elbow's +-pi): then left where it was.
+      const double turns = (x(k) - y(k)) / (2.0 * std::numbers::pi);
+      EXPECT_NEAR(turns, std::round(turns), 1e-12) << "not whole turns";
+      if (std::abs(y(k) - home) > std::numbers::pi + 1e-12) {
+        EXPECT_EQ(y(k), x(k)) << "joint " << k;
+        const double window = home + std::remainder(x(k) - home, 2.0 * std::numbers::pi);
+        EXPECT_TRUE(window < lo(k) || window > hi(k)) << "joint " << k;
+      }
+    }
+    turned += (x - y).norm() > 0.0 ? 1 : 0;
+    const Eigen::Isometry3d a = calib::forward_kinematics(ur5, p, x, ur5.tool).pose;
+    const Eigen::Isometry3d b = calib::forward_kinematics(ur5, p, y, ur5.tool).pose;
+    EXPECT_LT((a.matrix() - b.matrix()).cwiseAbs().maxCoeff(), 1e-9);
+  }
+  EXPECT_GT(turned, 100);
+  const Delta& d = delta();
+  const ReachChecker delta_reach(d.model, d.params, ReachOptions{});
+  delta_reach.reading_limits(lo, hi);
+  for (int t = 0; t < 50; ++t) {
+    Eigen::VectorXd x(lo.size());
+    for (Eigen::Index k = 0; k < lo.size(); ++k) x(k) = lo(k) + u(rng) * (hi(k) - lo(k));
+    EXPECT_EQ(delta_reach.nearest_turn_to_home(x), x);
+  }
 }
 
 }  // namespace

@@ -85,6 +85,11 @@ class ReachChecker {
   Eigen::VectorXd middle_readings() const;
   // Actuator reading ranges with the joint margin applied (lower, upper per actuator).
   void reading_limits(Eigen::VectorXd& lower, Eigen::VectorXd& upper) const;
+  // The same configuration with every revolute actuator turned by whole turns to within half a
+  // turn of its home value, where its limits (with margin) allow: a joint with more than a turn
+  // of range (the UR5's +-2 pi) reaches a pose from either side, and a straight motion from home
+  // to the far one sweeps through singular configurations (the UR5's wrist at 0) on the way.
+  Eigen::VectorXd nearest_turn_to_home(const Eigen::VectorXd& readings) const;
 
  private:
   const calib::Mechanism* model_;
