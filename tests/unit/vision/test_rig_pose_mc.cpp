@@ -113,6 +113,7 @@ TEST(PoseMeasurementMC, SettledFrameTestWithCornersNoisierThanTheirSigma) {
   std::mt19937_64 rng(23);
   auto noisy = [&](const Eigen::Isometry3d& pose) {
     std::vector<CameraFrame> frame;
+    frame.reserve(rig.size());
     for (const RigCamera& cam : rig)
       frame.push_back(
           simulate_frame(cam.model, cam.camera_T_world * pose, board, 0.25, rng, 2.0, 0.1));
