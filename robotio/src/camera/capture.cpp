@@ -457,7 +457,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
       stop_error += (stop_error.empty() ? "" : "; ") + std::string(failure.what());
     }
     result.stop_reason = stop_error.empty()
-                             ? reason + " (robot stopped; run capture again to resume)"
+                             ? reason + " (robot stopped; the poses recorded so far are kept)"
                              : reason + "; " + stop_error;
     result.camera_error = kind;
     result.seconds = seconds_since(started);
