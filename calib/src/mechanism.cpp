@@ -56,6 +56,20 @@ Eigen::VectorXd Mechanism::home_passive() const {
   return v;
 }
 
+Eigen::VectorXd Mechanism::home_actuated() const {
+  Eigen::VectorXd v(static_cast<Eigen::Index>(actuated.size()));
+  for (std::size_t i = 0; i < actuated.size(); ++i)
+    v[static_cast<Eigen::Index>(i)] = bodies[actuated[i]].home;
+  return v;
+}
+
+Eigen::VectorXd encoder_scales(const Mechanism& model, const Eigen::VectorXd& params) {
+  Eigen::VectorXd s(static_cast<Eigen::Index>(model.actuated.size()));
+  for (std::size_t i = 0; i < model.actuated.size(); ++i)
+    s[static_cast<Eigen::Index>(i)] = params[model.bodies[model.actuated[i]].encoder_scale_param];
+  return s;
+}
+
 JointState make_joint_state(const Mechanism& model, const Eigen::VectorXd& params,
                             const Eigen::VectorXd& actuator_readings,
                             const Eigen::VectorXd& passive) {

@@ -223,11 +223,12 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
 }
 
 PlanResult plan_with_enough_candidates(const calib::Mechanism& model, const Eigen::VectorXd& params,
-                                       const Cell& cell, PlanOptions& options,
+                                       const Cell& cell, PlanOptions& options, std::size_t enough,
                                        std::size_t max_pool) {
   PlanResult res = plan_measurements(model, params, cell, options);
   const std::size_t want = 10 * options.selection.count;
-  if (res.pool.size() >= want || res.status == PlanStatus::kBadCell) return res;
+  if (res.pool.size() >= (enough > 0 ? enough : want) || res.status == PlanStatus::kBadCell)
+    return res;
   const double rate = static_cast<double>(std::max<std::size_t>(res.pool.size(), 1)) /
                       static_cast<double>(std::max<std::size_t>(res.counts.evaluated, 1));
   const auto more = static_cast<std::size_t>(

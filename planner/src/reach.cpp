@@ -125,22 +125,18 @@ Eigen::VectorXd ReachChecker::nearest_turn_to_home(const Eigen::VectorXd& readin
   const calib::Mechanism& model = *model_;
   const auto n = static_cast<Eigen::Index>(model.actuated.size());
   if (readings.size() != n) return readings;
-  Eigen::VectorXd home_q(n);
-  for (Eigen::Index i = 0; i < n; ++i)
-    home_q(i) =
-        model.bodies[static_cast<std::size_t>(model.actuated[static_cast<std::size_t>(i)])].home;
-  const Eigen::VectorXd home = calib::readings_from_joint_values(model, params_, home_q);
-  // Readings per turn of each joint (the encoder model is affine).
+  const Eigen::VectorXd home =
+      calib::readings_from_joint_values(model, params_, model.home_actuated());
+  // Readings per turn of each joint.
   const Eigen::VectorXd turn =
-      calib::readings_from_joint_values(model, params_, home_q.array() + 2.0 * std::numbers::pi) -
-      home;
+      (2.0 * std::numbers::pi) * calib::encoder_scales(model, params_).cwiseInverse();
   Eigen::VectorXd lo, hi;
   reading_limits(lo, hi);
   Eigen::VectorXd out = readings;
   for (Eigen::Index i = 0; i < n; ++i) {
     const calib::Body& b =
         model.bodies[static_cast<std::size_t>(model.actuated[static_cast<std::size_t>(i)])];
-    if (b.joint != calib::JointType::kRevolute || turn(i) == 0.0) continue;
+    if (b.joint != calib::JointType::kRevolute || !std::isfinite(turn(i))) continue;
     const double turned = readings(i) - std::round((readings(i) - home(i)) / turn(i)) * turn(i);
     if (turned >= lo(i) && turned <= hi(i)) out(i) = turned;
   }

@@ -85,11 +85,8 @@ robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw InputError(e.what());
   }
-  Eigen::VectorXd home_q(static_cast<Eigen::Index>(r.model.actuated.size()));
-  for (std::size_t i = 0; i < r.model.actuated.size(); ++i)
-    home_q[static_cast<Eigen::Index>(i)] = r.model.bodies[r.model.actuated[i]].home;
   // The firmware's home position is where it believes the endstops are: nominal geometry.
-  r.home_readings = calib::readings_from_joint_values(r.model, nominal, home_q);
+  r.home_readings = calib::readings_from_joint_values(r.model, nominal, r.model.home_actuated());
   r.noise_sigma = o.noise;
   r.backlash = o.backlash;
   return r;

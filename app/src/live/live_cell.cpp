@@ -117,10 +117,8 @@ namespace {
 // Where the controller's homing leaves the robot: the robot file's home joint values, read on
 // the nominal robot (the firmware's endstops are where it believes them).
 Eigen::VectorXd home_readings(const calib::Mechanism& library) {
-  Eigen::VectorXd home_q(static_cast<Eigen::Index>(library.actuated.size()));
-  for (std::size_t i = 0; i < library.actuated.size(); ++i)
-    home_q[static_cast<Eigen::Index>(i)] = library.bodies[library.actuated[i]].home;
-  return calib::readings_from_joint_values(library, library.nominal_parameters(), home_q);
+  return calib::readings_from_joint_values(library, library.nominal_parameters(),
+                                           library.home_actuated());
 }
 
 // The fallback: poses of the nominal robot where both cameras (two of an array's) see the whole
@@ -190,13 +188,11 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
       // is checked like the others (the UR5's first pose was reached through its wrist
       // singularity, and the guard refused the move).
       po.start = home_readings(library);
-      planner::PlanResult r =
-          planner::plan_measurements(library, library.nominal_parameters(), pcell, po);
       // Where the cell sees so small a part of the robot's range that the pool cannot hold the
       // poses asked (the wire robot's pair: one feasible candidate in 1500), sampled again as
-      // the offline demo does.
-      if (r.pool.size() < po.selection.count)
-        r = planner::plan_with_enough_candidates(library, library.nominal_parameters(), pcell, po);
+      // the offline demo does; other robots' plans stay as they were.
+      const planner::PlanResult r = planner::plan_with_enough_candidates(
+          library, library.nominal_parameters(), pcell, po, po.selection.count);
       if ((r.status != planner::PlanStatus::kOk && r.status != planner::PlanStatus::kNotAccepted) ||
           static_cast<int>(r.poses.size()) != count) {
         why +=

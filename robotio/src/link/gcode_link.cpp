@@ -35,17 +35,13 @@ ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
     throw std::invalid_argument(model.name + ": more than 9 actuators cannot be G-code axes");
   // Readings in encoder counts (the wire robot's branch) reach G-code through the robot file's
   // nominal encoder scale: the firmware's axes are in millimetres and degrees of the joint.
-  const auto n = static_cast<Eigen::Index>(model.actuated.size());
-  const Eigen::VectorXd params = model.nominal_parameters();
-  const Eigen::VectorXd readings_per_unit =
-      calib::readings_from_joint_values(model, params, Eigen::VectorXd::Ones(n)) -
-      calib::readings_from_joint_values(model, params, Eigen::VectorXd::Zero(n));
+  const Eigen::VectorXd scale = calib::encoder_scales(model, model.nominal_parameters());
   ActuatorAxes axes;
   for (std::size_t i = 0; i < model.actuated.size(); ++i) {
     axes.letters.push_back(kLetters[i]);
     const bool prismatic = model.bodies[model.actuated[i]].joint == calib::JointType::kPrismatic;
-    axes.unit_factor.push_back((prismatic ? 1000.0 : 180.0 / std::numbers::pi) /
-                               readings_per_unit[static_cast<Eigen::Index>(i)]);
+    axes.unit_factor.push_back((prismatic ? 1000.0 : 180.0 / std::numbers::pi) *
+                               scale[static_cast<Eigen::Index>(i)]);
     axes.steps_per_unit.push_back(prismatic ? steps_per_mm : steps_per_degree);
   }
   return axes;

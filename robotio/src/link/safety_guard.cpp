@@ -25,11 +25,7 @@ SafetyGuard::SafetyGuard(const calib::Mechanism& model, Eigen::VectorXd params, 
   const auto n = static_cast<Eigen::Index>(model.actuated.size());
   if (limits_.actuator_lower.size() != n || limits_.actuator_upper.size() != n)
     default_actuator_limits(model, params_, limits_);
-  // The encoder model is affine (q = scale * reading + offset): one reading per joint unit apart.
-  const Eigen::VectorXd per_unit =
-      calib::readings_from_joint_values(model, params_, Eigen::VectorXd::Ones(n)) -
-      calib::readings_from_joint_values(model, params_, Eigen::VectorXd::Zero(n));
-  joint_per_reading_ = per_unit.cwiseAbs().cwiseInverse();
+  joint_per_reading_ = calib::encoder_scales(model, params_).cwiseAbs();
 }
 
 void SafetyGuard::default_actuator_limits(const calib::Mechanism& model,

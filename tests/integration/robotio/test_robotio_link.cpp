@@ -512,9 +512,7 @@ TEST_P(MixedAxesTest, MovesTakeTheTimeOfTheJointSpeedAsked) {
   l.connect();
   l.home();
   const auto n = static_cast<Eigen::Index>(model.actuated.size());
-  Eigen::VectorXd q(n);
-  for (Eigen::Index i = 0; i < n; ++i)
-    q[i] = model.bodies[model.actuated[static_cast<std::size_t>(i)]].home;
+  Eigen::VectorXd q = model.home_actuated();
   const Eigen::VectorXd home_q = q;
   // Every actuator a tenth of its way towards its upper limit, then back half of that.
   Eigen::VectorXd far = q;

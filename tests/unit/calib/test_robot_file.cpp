@@ -17,6 +17,29 @@ namespace {
 using testing::library;
 using testing::load;
 
+// The encoder scale as the encoder model applies it: one joint unit apart is 1 / scale readings
+// apart (the wire robot's j1: 2 pi / 268000 rad per count; the Delta's arms: 1). Home joint values
+// in actuator order, from the file.
+TEST(RobotFile, EncoderScalesAndHomeFollowTheEncoderModel) {
+  for (const std::string robot : {"wire_robot_branch", "rotary_delta", "ur5"}) {
+    const Mechanism m =
+        load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/" + robot + ".yaml");
+    const Eigen::VectorXd p = m.nominal_parameters();
+    const Eigen::VectorXd home = m.home_actuated();
+    ASSERT_EQ(home.size(), static_cast<Eigen::Index>(m.actuated.size()));
+    const Eigen::VectorXd apart = readings_from_joint_values(m, p, home.array() + 1.0) -
+                                  readings_from_joint_values(m, p, home);
+    const Eigen::VectorXd scale = encoder_scales(m, p);
+    for (Eigen::Index i = 0; i < home.size(); ++i) {
+      EXPECT_EQ(home[i], m.bodies[m.actuated[static_cast<std::size_t>(i)]].home) << robot;
+      EXPECT_NEAR(apart[i] * scale[i], 1.0, 1e-9) << robot << " actuator " << i;
+    }
+    if (robot == "wire_robot_branch") {
+      EXPECT_NEAR(scale[0], 2.0 * std::numbers::pi / (500.0 * 134.0 * 4.0), 1e-15);
+    }
+  }
+}
+
 TEST(RobotFile, EveryLibraryRobotLoadsWithNamedParameters) {
   for (const auto& robot : library()) {
     const Mechanism m = load(robot.file);

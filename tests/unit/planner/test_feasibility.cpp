@@ -744,10 +744,7 @@ TEST(Planner, SerialArmMotionsAreCheckedWithoutPassiveJoints) {
           std::string(kTarget),
       "serial.yaml", kCells);
   const FeasibilityChecker checker(m, p, cell, m.tool, feasibility_options_from_cell(cell));
-  const auto n = static_cast<Eigen::Index>(m.actuated.size());
-  Eigen::VectorXd home(n);
-  for (Eigen::Index i = 0; i < n; ++i)
-    home[i] = m.bodies[m.actuated[static_cast<std::size_t>(i)]].home;
+  const Eigen::VectorXd home = m.home_actuated();
   Eigen::VectorXd near = home;
   near[0] += 0.3;
   std::string why;

@@ -154,9 +154,7 @@ TEST(GuardUnits, EncoderCountReadingsAreSampledByJointTravel) {
   const calib::Mechanism m =
       calib::load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/wire_robot_branch.yaml");
   const Eigen::VectorXd p = m.nominal_parameters();
-  Eigen::VectorXd home(static_cast<Eigen::Index>(m.actuated.size()));
-  for (std::size_t i = 0; i < m.actuated.size(); ++i)
-    home[static_cast<Eigen::Index>(i)] = m.bodies[m.actuated[i]].home;
+  const Eigen::VectorXd home = m.home_actuated();
   Eigen::VectorXd turned = home;
   turned[0] += 0.5;  // rad
   const Eigen::VectorXd from = calib::readings_from_joint_values(m, p, home);

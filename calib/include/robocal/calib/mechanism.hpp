@@ -258,6 +258,8 @@ struct Mechanism {
   Eigen::VectorXd nominal_parameters() const;
   // Home joint values of the passive joints (generic seed).
   Eigen::VectorXd home_passive() const;
+  // Home joint values of the actuated joints (joint units, actuator order).
+  Eigen::VectorXd home_actuated() const;
 };
 
 // Joint variable of every body (q, joint units after the encoder model; 0 for fixed bodies).
@@ -271,6 +273,10 @@ struct JointState {
 JointState make_joint_state(const Mechanism& model, const Eigen::VectorXd& params,
                             const Eigen::VectorXd& actuator_readings,
                             const Eigen::VectorXd& passive);
+
+// Encoder scale of every actuator at `params` (joint units per reading unit, signed; 1 for
+// readings in rad or m, 2 pi / 268000 for the wire robot's counts).
+Eigen::VectorXd encoder_scales(const Mechanism& model, const Eigen::VectorXd& params);
 
 // Inverse of the encoder model: readings for actuator joint values q (joint units).
 Eigen::VectorXd readings_from_joint_values(const Mechanism& model, const Eigen::VectorXd& params,

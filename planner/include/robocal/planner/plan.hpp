@@ -78,11 +78,11 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
                              const Cell& cell, const PlanOptions& options);
 
 // plan_measurements, sampled again where the cell sees a small part of the robot's range: when
-// the feasible pool holds fewer than ten times the poses asked, the pool is resampled at the
-// size that the first pass's feasible rate says gives that many (at most `max_pool` samples).
-// `options.pool` becomes the size used.
+// the feasible pool holds fewer than `enough` candidates (0: ten times the poses asked), the pool
+// is resampled at the size that the first pass's feasible rate says holds ten times the poses
+// asked (at most `max_pool` samples). `options.pool` becomes the size used.
 PlanResult plan_with_enough_candidates(const calib::Mechanism& model, const Eigen::VectorXd& params,
                                        const Cell& cell, PlanOptions& options,
-                                       std::size_t max_pool = 40000);
+                                       std::size_t enough = 0, std::size_t max_pool = 40000);
 
 }  // namespace robocal::planner
