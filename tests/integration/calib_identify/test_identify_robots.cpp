@@ -65,21 +65,26 @@ TEST_F(DeltaFixture, ToolOffsetIsConfoundedWithBaseTranslation) {
 }
 
 // Full-pose observations of a representable truth are recovered exactly, with 3-D points too.
+// Representable by each route's own base set: points and full poses choose their gauge among
+// confounded parameters each for itself, and a truth perturbed in a parameter the other route
+// holds is only first-order representable (identification.hpp: redundancies are local). Which
+// one each route holds can change with the last bits of the rank test (this test failed on one
+// machine with the points' base set used for the poses: 3.3e-7 m, a minimum at cost 2.8e-4).
 TEST_F(DeltaFixture, NoiseFreeRecoveryWithPointsAndPoses) {
   const auto qs = sample_actuators(pred, {nominal}, 40, rng);
   const auto opt = solve_options_from_model(model, false);
   SimulationOptions sim;
   sim.add_noise = false;
-  const auto base =
-      identify(pred, nominal, simulate_measurements(pred, nominal, qs, sim, rng), opt);
-  Eigen::VectorXd truth = nominal;
   const Eigen::VectorXd sig = tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0);
   const Eigen::VectorXd perturbed = perturb_parameters(nominal, sig, rng);
-  for (std::size_t i : base.estimated)
-    truth(static_cast<Eigen::Index>(i)) = perturbed(static_cast<Eigen::Index>(i));
-  const auto held = sample_actuators(pred, {nominal, truth}, 40, rng);
   for (auto kind : {SimulatedObservation::kPoint, SimulatedObservation::kPose}) {
     sim.kind = kind;
+    const auto base =
+        identify(pred, nominal, simulate_measurements(pred, nominal, qs, sim, rng), opt);
+    Eigen::VectorXd truth = nominal;
+    for (std::size_t i : base.estimated)
+      truth(static_cast<Eigen::Index>(i)) = perturbed(static_cast<Eigen::Index>(i));
+    const auto held = sample_actuators(pred, {nominal, truth}, 40, rng);
     const auto meas = simulate_measurements(pred, truth, qs, sim, rng);
     const auto res = identify(pred, nominal, meas, opt);
     ASSERT_EQ(res.status, IdentificationStatus::kConverged) << res.message;
