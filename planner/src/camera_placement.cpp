@@ -132,6 +132,9 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   // Reachable, collision-free poses inside the workspace (visibility not yet asked).
   FeasibilityOptions no_sight = fo;
   no_sight.check_visibility = false;
+  // Placement is about what the cameras see of the working volume; the tolerance margin of the
+  // reach edge (feasibility test 5) is the plan's concern and would only cost time here.
+  no_sight.tolerance_draws = 0;
   const FeasibilityChecker reach(model, params, cell, frame, no_sight);
   std::mt19937 rng(options.seed);
   const std::vector<Eigen::Vector3d> outline = board_outline(cell.target.board);
@@ -303,8 +306,9 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   for (std::size_t k = 0; k < std::min<std::size_t>(6, tried.size()); ++k) {
     CameraPlacement pl = tried[k];
     const Cell placed = with_cameras(cell, pl);
-    const FeasibilityChecker checker(model, params, placed, frame,
-                                     feasibility_options_from_cell(placed));
+    FeasibilityOptions placed_options = feasibility_options_from_cell(placed);
+    placed_options.tolerance_draws = 0;  // as above
+    const FeasibilityChecker checker(model, params, placed, frame, placed_options);
     std::size_t seen = 0;
     for (const Eigen::VectorXd& x : configs) seen += checker.evaluate(x).feasible() ? 1 : 0;
     pl.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
@@ -342,6 +346,7 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       p.world_T_camera = cameras;
       const Cell placed = with_cameras(cell, p);
       FeasibilityOptions opts = feasibility_options_from_cell(placed);
+      opts.tolerance_draws = 0;       // as above
       opts.check_visibility = false;  // per-camera verdicts only
       const FeasibilityChecker checker(model, params, placed, frame, opts);
       std::vector<int> count(configs.size(), 0);

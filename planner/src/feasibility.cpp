@@ -5,7 +5,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace robocal::planner {
 
@@ -39,6 +43,8 @@ const char* to_string(Rejection r) {
       return "target too small in a required camera's image";
     case Rejection::kOccluded:
       return "line of sight blocked (obstacle or robot link)";
+    case Rejection::kTolerance:
+      return "reachable by the nominal robot only, not by one within its tolerances";
   }
   return "?";
 }
@@ -98,6 +104,50 @@ FeasibilityOptions feasibility_options_from_cell(const Cell& cell) {
   return o;
 }
 
+namespace {
+
+// Reach checkers of robots drawn within the tolerances (FeasibilityOptions::tolerance_draws): each
+// draw and its mirror image, so a reach edge is tested on both sides of the nominal model.
+std::vector<ReachChecker> tolerance_checkers(const calib::Mechanism& model,
+                                             const Eigen::VectorXd& params,
+                                             const FeasibilityOptions& options) {
+  std::vector<ReachChecker> out;
+  if (options.tolerance_draws <= 0 || options.tolerance_scale <= 0) return out;
+  Eigen::VectorXd sigma = Eigen::VectorXd::Zero(params.size());
+  if (options.tolerance_sigma.size() > 0) {
+    if (options.tolerance_sigma.size() != params.size())
+      throw std::invalid_argument(
+          "tolerance sigmas: " + std::to_string(options.tolerance_sigma.size()) + " for " +
+          std::to_string(params.size()) + " parameters");
+    sigma = options.tolerance_scale * options.tolerance_sigma.cwiseAbs();
+  } else {
+    for (std::size_t i = 0;
+         i < model.parameters.size() && i < static_cast<std::size_t>(sigma.size()); ++i) {
+      const calib::Parameter& p = model.parameters[i];
+      if (p.free && !p.exact)
+        sigma(static_cast<Eigen::Index>(i)) = options.tolerance_scale * p.sigma;
+    }
+  }
+  if (sigma.isZero()) return out;
+  // What a drawn robot must do is assemble on the intended mode. The singular band and the
+  // joint margins are the nominal check's soft keep-outs: applied again to every drawn robot they
+  // would widen by the tolerances for no gain (a real robot 0.007 from singular still moves).
+  ReachOptions reach = options.reach;
+  reach.min_relative_sigma = 0.0;
+  std::mt19937 rng(20261128);
+  std::normal_distribution<double> n(0.0, 1.0);
+  out.reserve(static_cast<std::size_t>(2 * options.tolerance_draws));
+  for (int d = 0; d < options.tolerance_draws; ++d) {
+    Eigen::VectorXd delta(sigma.size());
+    for (Eigen::Index i = 0; i < sigma.size(); ++i) delta(i) = sigma(i) * n(rng);
+    out.emplace_back(model, params + delta, reach);
+    out.emplace_back(model, params - delta, reach);
+  }
+  return out;
+}
+
+}  // namespace
+
 FeasibilityChecker::FeasibilityChecker(const calib::Mechanism& model, const Eigen::VectorXd& params,
                                        const Cell& cell, int frame,
                                        const FeasibilityOptions& options)
@@ -105,6 +155,7 @@ FeasibilityChecker::FeasibilityChecker(const calib::Mechanism& model, const Eige
       frame_(frame),
       options_(options),
       reach_(model, params, options.reach),
+      within_tolerance_(tolerance_checkers(model, params, options)),
       scene_(model, cell, options.collision),
       corners_(required_corner_points(cell.target.board, cell.visibility.corners)),
       outline_(board_outline(cell.target.board)),
@@ -225,6 +276,18 @@ Candidate FeasibilityChecker::evaluate(const Eigen::VectorXd& readings) const {
   if (options_.check_visibility && seen < needed_) {
     c.rejection = first_problem;
     c.detail = first_detail;
+    return c;
+  }
+  // Last, being the dearest: the same reach for robots within the tolerances, warm-started from
+  // the nominal assembly (so the branch test compares against the intended mode's answer).
+  for (std::size_t k = 0; k < within_tolerance_.size(); ++k) {
+    const ReachResult rk = within_tolerance_[k].reach_check(readings, r.passive);
+    if (rk.verdict == ReachVerdict::kNoAssembly || rk.verdict == ReachVerdict::kModeChange) {
+      c.rejection = Rejection::kTolerance;
+      c.detail = std::string("robot drawn within its tolerances #") + std::to_string(k + 1) + ": " +
+                 to_string(rk.verdict) + (rk.detail.empty() ? "" : " (" + rk.detail + ")");
+      return c;
+    }
   }
   return c;
 }

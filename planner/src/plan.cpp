@@ -124,8 +124,9 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
     return res;
   }
   res.frame = target_frame(model, cell);
-  const FeasibilityChecker checker(model, params, cell, res.frame,
-                                   feasibility_options_from_cell(cell));
+  FeasibilityOptions feasibility = feasibility_options_from_cell(cell);
+  feasibility.tolerance_sigma = options.tolerance_sigma;
+  const FeasibilityChecker checker(model, params, cell, res.frame, feasibility);
   const bool task_space = options.task_space && task_space_sampling_applies(checker);
   say("sampling " + std::to_string(options.pool) + " candidate poses in " +
       (task_space ? "task space (target turned towards the cameras)" : "joint space"));

@@ -97,8 +97,10 @@ double lowest_rigid_shape_point(const calib::Mechanism& model, const Eigen::Vect
 // samples for every placement compared).
 double placement_coverage(const SimulatedCell& cell, const planner::CameraPlacement& placement) {
   const planner::Cell placed = planner::with_cameras(cell.plan_cell, placement);
+  planner::FeasibilityOptions options = planner::feasibility_options_from_cell(placed);
+  options.tolerance_draws = 0;  // what the cameras see; the reach edge's margin is the plan's
   const planner::FeasibilityChecker checker(cell.model, cell.nominal, placed, cell.target_frame,
-                                            planner::feasibility_options_from_cell(placed));
+                                            options);
   std::mt19937 rng(17);
   // A serial arm's board faces every way in joint samples: measure with the task-space
   // candidates the poses will be planned from (plan_cell_poses).
@@ -373,9 +375,15 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   return cell;
 }
 
+Eigen::VectorXd truth_spread(const SimulatedCell& cell) {
+  return calib::tolerance_sigmas(cell.model, cell.options.length_sigma, cell.options.angle_sigma,
+                                 0.0, cell.options.unmodelled_seed != 0);
+}
+
 std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int count,
                                              std::mt19937& rng, std::string* summary) {
   planner::PlanOptions po;
+  po.tolerance_sigma = truth_spread(cell);
   po.selection.count = static_cast<std::size_t>(std::max(count, 1));
   // Joint-space samples: enough for a pool of many times `count` feasible poses on the robots
   // whose cells see a small part of their range.

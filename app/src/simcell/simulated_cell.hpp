@@ -112,6 +112,11 @@ CellOptions demo_cell_options(unsigned seed, bool quick, bool idealised_truth);
 SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptions& options,
                                   std::mt19937& rng);
 
+// The spread the cell's true robot is drawn from, per parameter (1 sigma; the unmodelled error's
+// held parameters too where the cell has it): how far the robot that moves may be from the
+// nominal one the poses are planned on (planner::PlanOptions::tolerance_sigma).
+Eigen::VectorXd truth_spread(const SimulatedCell& cell);
+
 // Actuator readings of `count` measurement poses planned on the cell's plan_cell (planner:
 // feasible on the nominal robot and seen whole by both cameras as placed, selected by
 // observability with the planner's default index, in selection order). Empty when nothing could be

@@ -4,6 +4,7 @@
 // camera model.
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/identification.hpp"
 #include "robocal/calib/inverse_kinematics.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
@@ -26,6 +27,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #include <numbers>
 #include <random>
 #include <sstream>
@@ -827,6 +829,83 @@ TEST(Planner, RevoluteActuatorsAreTakenWithinHalfATurnOfHome) {
     for (Eigen::Index k = 0; k < lo.size(); ++k) x(k) = lo(k) + u(rng) * (hi(k) - lo(k));
     EXPECT_EQ(delta_reach.nearest_turn_to_home(x), x);
   }
+}
+
+// The planner plans on the nominal robot; the real one is millimetres away. Gantry-Tau poses are
+// sampled over the whole range, and robots drawn at the robot file's tolerances (1 sigma per free
+// parameter, another seed than the planner's) assemble by calib's forward kinematics, or not, at
+// each candidate. Next to the reach edge (the carts' plane) a nominal-only plan puts poses the
+// real robot cannot reach; with feasibility's tolerance test they are gone.
+TEST(Planner, PosesNearTheReachEdgeAreReachedByRobotsWithinTheirTolerances) {
+  const calib::Mechanism gantry = calib::load_robot_file(kData + "/robots/gantry_tau.yaml");
+  const Eigen::VectorXd params = gantry.nominal_parameters();
+  const Cell cell = parse_cell_yaml(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [1.5, -0.5, -2], "
+      "look_at: [1.5, -0.5, 0]}}\n"
+      "target: {file: ../vision/apriltag_4x3.yaml, position: [0, 0, -0.06]}\n",
+      "gantry.yaml", kCells);
+  FeasibilityOptions nominal_only = feasibility_options_from_cell(cell);
+  nominal_only.check_visibility = false;  // reach is the question here
+  nominal_only.tolerance_draws = 0;
+  FeasibilityOptions within = nominal_only;
+  within.tolerance_draws = FeasibilityOptions{}.tolerance_draws;
+  ASSERT_GT(within.tolerance_draws, 0);
+  const FeasibilityChecker plain(gantry, params, cell, gantry.tool, nominal_only);
+  const FeasibilityChecker robust(gantry, params, cell, gantry.tool, within);
+
+  Eigen::VectorXd sigma = Eigen::VectorXd::Zero(params.size());
+  for (std::size_t i = 0; i < gantry.parameters.size(); ++i)
+    if (gantry.parameters[i].free && !gantry.parameters[i].exact)
+      sigma(static_cast<Eigen::Index>(i)) = gantry.parameters[i].sigma;
+  std::mt19937 truth_rng(4242);
+  std::vector<Eigen::VectorXd> truths;
+  for (int k = 0; k < 20; ++k)
+    truths.push_back(calib::perturb_parameters(params, sigma, truth_rng));
+  auto unreached_by = [&](const Candidate& c) {
+    int n = 0;
+    for (const Eigen::VectorXd& t : truths) {
+      const calib::ForwardResult f =
+          calib::forward_kinematics(gantry, t, c.readings, gantry.tool, c.passive);
+      n += f.closure.ok() && f.closure.mode.verdict != calib::ModeVerdict::kOther ? 0 : 1;
+    }
+    return n;
+  };
+
+  std::mt19937 rng_a(5), rng_b(5);
+  const std::vector<Candidate> a = plain.sample(3000, rng_a, nullptr);
+  const std::vector<Candidate> b = robust.sample(3000, rng_b, nullptr);
+  ASSERT_EQ(a.size(), b.size());
+  int plain_poses = 0, plain_misses = 0, robust_poses = 0, robust_misses = 0, removed = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    ASSERT_TRUE(a[i].readings.isApprox(b[i].readings));
+    if (!a[i].feasible()) {
+      // The tolerance test only ever removes more.
+      EXPECT_FALSE(b[i].feasible()) << a[i].readings.transpose();
+      continue;
+    }
+    const int misses = unreached_by(a[i]);
+    ++plain_poses;
+    plain_misses += misses;
+    if (b[i].feasible()) {
+      ++robust_poses;
+      robust_misses += misses;
+    } else {
+      EXPECT_EQ(b[i].rejection, Rejection::kTolerance) << b[i].detail;
+      ++removed;
+    }
+  }
+  const auto pairs = [&](int poses) { return static_cast<double>(poses * truths.size()); };
+  const double plain_rate = plain_misses / pairs(plain_poses);
+  const double robust_rate = robust_misses / pairs(robust_poses);
+  // The closed form of feasibility.hpp: at most 4 in 1000 at the edge itself, fewer inside.
+  EXPECT_LE(robust_rate, 4e-3) << robust_misses << " of " << pairs(robust_poses);
+  EXPECT_GT(plain_misses, 10 * std::max(robust_misses, 1))
+      << plain_misses << " of " << pairs(plain_poses);
+  // It removes the edge band, not the range: most of the nominal robot's poses stay.
+  EXPECT_GT(robust_poses, plain_poses * 3 / 4) << removed << " removed";
+  std::cout << "Gantry-Tau, " << truths.size() << " robots at 1 sigma: nominal-only poses "
+            << plain_poses << " (" << 100 * plain_rate << " % unreached), with the tolerance test "
+            << robust_poses << " (" << 100 * robust_rate << " % unreached)\n";
 }
 
 }  // namespace

@@ -31,7 +31,10 @@ struct PlanOptions {
   bool order = true;          // plan the tour
   // Sequential mode: actuator readings already measured; the plan proposes the next best poses.
   std::vector<Eigen::VectorXd> measured;
-  Eigen::VectorXd start;                             // current readings (tour start), optional
+  Eigen::VectorXd start;  // current readings (tour start), optional
+  // How far the real robot may be from nominal (FeasibilityOptions::tolerance_sigma): empty = the
+  // robot file's sigmas.
+  Eigen::VectorXd tolerance_sigma;
   std::function<void(const std::string&)> progress;  // optional, one line per stage
 };
 
