@@ -98,6 +98,15 @@ CameraPlacement grow_array(const CameraPlacement& first,
   return array;
 }
 
+// The cell's feasibility test without the tolerance margin of the reach edge (feasibility test
+// 5): placement asks what the cameras see of the working volume, where the real robot reaches
+// is the plan's concern, and the drawn robots would only cost time here.
+FeasibilityOptions placement_feasibility(const Cell& cell) {
+  FeasibilityOptions o = feasibility_options_from_cell(cell);
+  o.tolerance_draws = 0;
+  return o;
+}
+
 }  // namespace
 
 Cell with_cameras(const Cell& cell, const CameraPlacement& placement) {
@@ -128,13 +137,9 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     throw std::invalid_argument("camera placement needs one camera model (intrinsics)");
   const int frame = target_frame(model, cell);
   if (frame < 0) throw std::invalid_argument("the target's frame is not a body of the robot");
-  FeasibilityOptions fo = feasibility_options_from_cell(cell);
   // Reachable, collision-free poses inside the workspace (visibility not yet asked).
-  FeasibilityOptions no_sight = fo;
+  FeasibilityOptions no_sight = placement_feasibility(cell);
   no_sight.check_visibility = false;
-  // Placement is about what the cameras see of the working volume; the tolerance margin of the
-  // reach edge (feasibility test 5) is the plan's concern and would only cost time here.
-  no_sight.tolerance_draws = 0;
   const FeasibilityChecker reach(model, params, cell, frame, no_sight);
   std::mt19937 rng(options.seed);
   const std::vector<Eigen::Vector3d> outline = board_outline(cell.target.board);
@@ -306,9 +311,7 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   for (std::size_t k = 0; k < std::min<std::size_t>(6, tried.size()); ++k) {
     CameraPlacement pl = tried[k];
     const Cell placed = with_cameras(cell, pl);
-    FeasibilityOptions placed_options = feasibility_options_from_cell(placed);
-    placed_options.tolerance_draws = 0;  // as above
-    const FeasibilityChecker checker(model, params, placed, frame, placed_options);
+    const FeasibilityChecker checker(model, params, placed, frame, placement_feasibility(placed));
     std::size_t seen = 0;
     for (const Eigen::VectorXd& x : configs) seen += checker.evaluate(x).feasible() ? 1 : 0;
     pl.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
@@ -345,8 +348,7 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       CameraPlacement p;
       p.world_T_camera = cameras;
       const Cell placed = with_cameras(cell, p);
-      FeasibilityOptions opts = feasibility_options_from_cell(placed);
-      opts.tolerance_draws = 0;       // as above
+      FeasibilityOptions opts = placement_feasibility(placed);
       opts.check_visibility = false;  // per-camera verdicts only
       const FeasibilityChecker checker(model, params, placed, frame, opts);
       std::vector<int> count(configs.size(), 0);

@@ -636,6 +636,16 @@ TEST(PlannerCells, ProposedCamerasSeePartOfAnArmsRing) {
 namespace robocal::planner {
 namespace {
 
+// A Gantry-Tau cell: the board under the platform's 10 cm box, facing down; one camera below.
+Cell gantry_cell(const std::string& extra) {
+  return parse_cell_yaml(
+      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [1.5, -0.5, -2], "
+      "look_at: [1.5, -0.5, 0]}}\n"
+      "target: {file: ../vision/apriltag_4x3.yaml, position: [0, 0, -0.06]}\n" +
+          extra,
+      "gantry.yaml", kCells);
+}
+
 // A Gantry-Tau's platform travels 3 m along its guideways: one camera pair sees a small part of
 // the range, so the placement grows an array of pairs whose fields tile it (two cameras, any
 // two, see each covered pose) and whose stations share views, through which the rig's board
@@ -643,13 +653,7 @@ namespace {
 TEST(PlannerCells, AnArrayOfPairsTilesARangeOnePairCannotSee) {
   const calib::Mechanism gantry = calib::load_robot_file(kData + "/robots/gantry_tau.yaml");
   const Eigen::VectorXd params = gantry.nominal_parameters();
-  // The board under the platform's 10 cm box, facing down; cameras below.
-  const Cell cell = parse_cell_yaml(
-      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [1.5, -0.5, -2], "
-      "look_at: [1.5, -0.5, 0]}}\n"
-      "target: {file: ../vision/apriltag_4x3.yaml, position: [0, 0, -0.06]}\n"
-      "visibility: {min_image_size: 150}\n",
-      "gantry.yaml", kCells);
+  const Cell cell = gantry_cell("visibility: {min_image_size: 150}\n");
   PlacementOptions one;
   const CameraPlacement pair = propose_cameras(gantry, params, cell, one);
   ASSERT_EQ(pair.world_T_camera.size(), 2u);
@@ -839,11 +843,7 @@ TEST(Planner, RevoluteActuatorsAreTakenWithinHalfATurnOfHome) {
 TEST(Planner, PosesNearTheReachEdgeAreReachedByRobotsWithinTheirTolerances) {
   const calib::Mechanism gantry = calib::load_robot_file(kData + "/robots/gantry_tau.yaml");
   const Eigen::VectorXd params = gantry.nominal_parameters();
-  const Cell cell = parse_cell_yaml(
-      "cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: {position: [1.5, -0.5, -2], "
-      "look_at: [1.5, -0.5, 0]}}\n"
-      "target: {file: ../vision/apriltag_4x3.yaml, position: [0, 0, -0.06]}\n",
-      "gantry.yaml", kCells);
+  const Cell cell = gantry_cell("");
   FeasibilityOptions nominal_only = feasibility_options_from_cell(cell);
   nominal_only.check_visibility = false;  // reach is the question here
   nominal_only.tolerance_draws = 0;
