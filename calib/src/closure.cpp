@@ -266,7 +266,7 @@ struct ClosureSolver::Impl {
   // --warm: a perturbed Delta seeded with the design's answer took 7 steps to a configuration 45
   // mm from the sweep's reference, conditioning 0.066, and called it intended where the design is
   // near singular and the cold answer ambiguous). Warm solves along a path take one or two.
-  static constexpr int kWarmNewtonSteps = 5;
+  static constexpr int kWarmNewtonSteps = detail::kWarmNewtonSteps;
   void check_warm_against_design(const Eigen::VectorXd& readings, ClosureResult& r) {
     const bool near_singular =
         r.mode.conditioning >= 0.0 &&

@@ -4,6 +4,7 @@
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "small_lu.hpp"
 #include "task_rows.hpp"
 #include "tree_evaluator.hpp"
@@ -14,6 +15,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <utility>
@@ -172,6 +174,16 @@ struct Compensator::Impl {
   Counts counts;
   Eigen::VectorXd x;        // unknowns of the IK system
   Eigen::VectorXd passive;  // passive joints of a cold start, then of the nominal closure
+  // The fast answer's verdict is solve_ik's: the closure conditioning (carried along a path of
+  // targets as IkSolver carries it), and near a singularity of the design the general solver's
+  // design-branch check, which the fast path leaves to it.
+  bool differs_from_design = false;
+  bool nominal_differs_from_design = false;  // (a controller's model other than the file's)
+  detail::PathConditioning path_conditioning;
+  Eigen::MatrixXd closure_jacobian;
+  Eigen::VectorXd scratch_v, scratch_w;
+  std::unique_ptr<IkSolver> general;        // the general solver, built on its first use
+  std::unique_ptr<ClosureSolver> robot_fk;  // the calibrated FK of the design check, likewise
 
   static std::vector<int> ik_unknowns(const Mechanism& model) {
     std::vector<int> out(model.actuated);
@@ -187,6 +199,8 @@ struct Compensator::Impl {
         cal_closure(*mod.model, mod.calibrated, mod.model->passive, false) {
     // A command outside the joint limits is not a command the robot can execute.
     ik_options.respect_limits = true;
+    differs_from_design = detail::loops_differ_from_design(*m, mod.calibrated);
+    nominal_differs_from_design = detail::loops_differ_from_design(*m, mod.nominal);
     fast_ik = ik.square() && !ik.unknowns.empty();
     fast_fk = closure.square();
     const auto na = static_cast<Eigen::Index>(m->actuated.size());
@@ -248,8 +262,71 @@ struct Compensator::Impl {
       return true;
     }
     ++counts.general_ik;
-    out = solve_ik(*m, models.calibrated, target, seed, ik_options);
+    if (!general) general = std::make_unique<IkSolver>(*m, models.calibrated, ik_options);
+    out = general->solve(target, seed);
     return false;
+  }
+
+  // sigma_min / sigma_max of the closure Jacobian in the passive joints at the IK system's last
+  // evaluated state (-1 where the closure is not square), gated as IkSolver gates it.
+  double closure_conditioning() {
+    const double gate = m->assembly_mode.min_conditioning;
+    if (!passive_closure_jacobian(ik.ev)) return -1.0;
+    return path_conditioning(nullptr, closure_jacobian, scratch_v, scratch_w,
+                             2.0 * detail::kDesignCheckMargin * gate, gate,
+                             (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate);
+  }
+
+  // solve_ik's design-branch check (inverse_kinematics.cpp): near a singularity of the design a
+  // perturbed model's loops close in several configurations that keep every invariant, and
+  // Newton may have settled on one that the robot's forward kinematics (the design's answer
+  // followed to these parameters) does not give for the answer's readings: a controller sent
+  // them would put the tool elsewhere. True when FK puts the task frame where the IK system's
+  // last state (x) has it; `mode` then becomes FK's verdict. False: the general solver decides
+  // (Newton again from FK's configuration, or a refusal).
+  bool forward_kinematics_agrees(ModeCheck& mode) {
+    const auto na = static_cast<Eigen::Index>(m->actuated.size());
+    const auto np = static_cast<Eigen::Index>(m->passive.size());
+    if (!robot_fk) robot_fk = std::make_unique<ClosureSolver>(*m, models.calibrated);
+    const ClosureResult fk =
+        robot_fk->solve(readings_from_joint_values(*m, models.calibrated, x.head(na)), x.tail(np));
+    if (!fk.ok() || !fk.mode.acceptable() || fk.passive.size() != np) return false;
+    // The same task-frame pose (not the same passive values: a rod's idle turn about its own
+    // axis changes those and nothing else).
+    for (Eigen::Index i = 0; i < na; ++i)
+      cal_closure.q[m->actuated[static_cast<std::size_t>(i)]] = x[i];
+    Eigen::VectorXd r(np);
+    cal_closure.evaluate(fk.passive, r);
+    const detail::Rigid& by_fk = cal_closure.ev.pose(m->task.frame);
+    const detail::Rigid& by_ik = ik.ev.pose(m->task.frame);
+    constexpr double kSamePose = 1e-9;  // m, rad (as solve_ik's)
+    if ((by_fk.p - by_ik.p).norm() > kSamePose ||
+        rotation_log(by_fk.R.transpose() * by_ik.R).norm() > kSamePose)
+      return false;
+    mode = fk.mode;
+    return true;
+  }
+
+  // The nominal closure's state (last evaluated) is within the design check's band.
+  bool nominal_near_singular() {
+    if (!passive_closure_jacobian(closure.ev)) return false;
+    const double band = detail::kDesignCheckMargin * m->assembly_mode.min_conditioning;
+    return detail::gated_sigma_ratio(nullptr, closure_jacobian, scratch_v, scratch_w, 2.0 * band,
+                                     band, band)
+               .ratio < band;
+  }
+
+  // closure_jacobian <- d(closure rows)/d(passive joints) at ev's poses; false where not square.
+  bool passive_closure_jacobian(const detail::TreeEvaluator& ev) {
+    const auto np = static_cast<Eigen::Index>(m->passive.size());
+    if (np == 0 || ev.rows() != np) return false;
+    closure_jacobian.resize(np, np);
+    for (Eigen::Index j = 0; j < np; ++j)
+      ev.closure_column(m->passive[static_cast<std::size_t>(j)], 1.0,
+                        closure_jacobian.col(j).data());
+    scratch_v.resize(np);
+    scratch_w.resize(np);
+    return true;
   }
 
   // The calibrated IK by Newton from the caller's seed, or (none given, or it fails) from the
@@ -313,8 +390,22 @@ struct Compensator::Impl {
       const Body& b = m->bodies[static_cast<std::size_t>(ik.unknowns[static_cast<std::size_t>(i)])];
       if (x[i] < b.limits.lower || x[i] > b.limits.upper) return false;
     }
-    const ModeCheck mode = ik.mode();
-    if (!m->assembly_mode.invariants.empty() && !mode.acceptable()) return false;
+    ModeCheck mode = ik.mode();
+    if (!m->assembly_mode.invariants.empty()) {
+      if (!mode.acceptable()) return false;
+      if (np > 0) {
+        const double conditioning = closure_conditioning();
+        if (conditioning >= 0.0) {
+          mode = detail::check_mode(
+              *m, ik.q, [&](int b) -> const Eigen::Vector3d& { return ik.ev.pose(b).p; },
+              [&](int b) -> const Eigen::Matrix3d& { return ik.ev.pose(b).R; }, conditioning);
+          if (differs_from_design &&
+              conditioning < detail::kDesignCheckMargin * m->assembly_mode.min_conditioning &&
+              !forward_kinematics_agrees(mode))
+            return false;
+        }
+      }
+    }
     out.status = SolveStatus::kConverged;
     out.residual = residual;
     out.iterations = iterations;
@@ -348,6 +439,12 @@ struct Compensator::Impl {
     if (!newton(closure, passive, ClosureOptions{}.tolerance, 12, residual, iterations, given))
       return false;
     if (closure.mode().verdict == ModeVerdict::kOther) return false;
+    // As a warm closure solve of such a model (closure.cpp, check_warm_against_design): an answer
+    // near a singularity of its loops, or one Newton travelled to, is the general solver's to
+    // check against the design's answer.
+    if (nominal_differs_from_design &&
+        (iterations > detail::kWarmNewtonSteps || nominal_near_singular()))
+      return false;
     const detail::Rigid& F = closure.ev.pose(m->task.frame);
     pose = Eigen::Isometry3d::Identity();
     pose.linear() = F.R;

@@ -130,6 +130,10 @@ inline Eigen::VectorXd loop_parameters(const Mechanism& m, const Eigen::VectorXd
 // gives a silent wrong-mode answer.
 constexpr double kDesignCheckMargin = 2.5;
 
+// A warm answer Newton reached in more than this many steps travelled from its seed and is
+// checked like a nearly singular one (closure.cpp, check_warm_against_design, says why).
+constexpr int kWarmNewtonSteps = 5;
+
 // Whether the loops of `p` differ from the robot file's design (closure.hpp: cold solves of such
 // a model follow the design's answer).
 // (As loop_parameters(m, p) != m.nominal_parameters(), without building either: a one-shot

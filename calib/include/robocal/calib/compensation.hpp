@@ -66,8 +66,13 @@ CompensatedTarget compensate_target(const CompensationModels& models, const Task
 // answer is taken from the fast path only when it converges to the IK tolerance on an acceptable
 // assembly mode within the joint limits (and the nominal closure closes on a mode that is not
 // another one); otherwise the target goes through the general solver (solve_ik /
-// forward_kinematics with their re-seeding), as before. Keeps a pointer to `models.model`, which
-// must outlive it; not for use from two threads at once.
+// forward_kinematics with their re-seeding), as before. The fast answer is judged as solve_ik
+// judges its own: its verdict carries the closure conditioning (ambiguous near a singularity),
+// and where the calibrated loops are within the design check's band of a singularity its readings
+// must give the same tool pose through the robot's forward kinematics (the design's answer
+// followed to the calibrated parameters) — on the rotary Delta about half of the workspace lies in
+// that band, and such a target costs a cold forward kinematics more. Keeps a pointer to
+// `models.model`, which must outlive it; not for use from two threads at once.
 class Compensator {
  public:
   explicit Compensator(const CompensationModels& models);
