@@ -109,8 +109,9 @@ namespace {
 // Reach checkers of robots drawn within the tolerances (FeasibilityOptions::tolerance_draws): each
 // draw and its mirror image, so a reach edge is tested on both sides of the nominal model.
 std::vector<ReachChecker> tolerance_checkers(const calib::Mechanism& model,
-                                             const Eigen::VectorXd& params,
+                                             const ReachChecker& nominal,
                                              const FeasibilityOptions& options) {
+  const Eigen::VectorXd& params = nominal.params();
   std::vector<ReachChecker> out;
   if (options.tolerance_draws <= 0 || options.tolerance_scale <= 0) return out;
   Eigen::VectorXd sigma = Eigen::VectorXd::Zero(params.size());
@@ -140,8 +141,8 @@ std::vector<ReachChecker> tolerance_checkers(const calib::Mechanism& model,
   for (int d = 0; d < options.tolerance_draws; ++d) {
     Eigen::VectorXd delta(sigma.size());
     for (Eigen::Index i = 0; i < sigma.size(); ++i) delta(i) = sigma(i) * n(rng);
-    out.emplace_back(model, params + delta, reach);
-    out.emplace_back(model, params - delta, reach);
+    out.push_back(nominal.with_parameters(params + delta, reach));
+    out.push_back(nominal.with_parameters(params - delta, reach));
   }
   return out;
 }
@@ -155,7 +156,7 @@ FeasibilityChecker::FeasibilityChecker(const calib::Mechanism& model, const Eige
       frame_(frame),
       options_(options),
       reach_(model, params, options.reach),
-      within_tolerance_(tolerance_checkers(model, params, options)),
+      within_tolerance_(tolerance_checkers(model, reach_, options)),
       scene_(model, cell, options.collision),
       corners_(required_corner_points(cell.target.board, cell.visibility.corners)),
       outline_(board_outline(cell.target.board)),

@@ -99,6 +99,20 @@ ReachChecker::ReachChecker(const calib::Mechanism& model, const Eigen::VectorXd&
   }
 }
 
+ReachChecker::ReachChecker(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                           const ReachOptions& options, SharedCones /*tag*/)
+    : model_(&model),
+      params_(params),
+      options_(options),
+      solver_(model, params, solver_options()) {}
+
+ReachChecker ReachChecker::with_parameters(const Eigen::VectorXd& params,
+                                           const ReachOptions& options) const {
+  ReachChecker out(*model_, params, options, SharedCones{});
+  out.cones_ = cones_;
+  return out;
+}
+
 Eigen::VectorXd ReachChecker::middle_readings() const {
   Eigen::VectorXd lo, hi;
   reading_limits(lo, hi);

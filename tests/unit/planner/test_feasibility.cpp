@@ -29,6 +29,7 @@
 #include <functional>
 #include <iostream>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <sstream>
 
@@ -364,6 +365,43 @@ TEST(Planner, BallJointConeRemovesTheOuterRing) {
   std::sort(removed_r.begin(), removed_r.end());
   EXPECT_GT(removed_r.front(), 0.05);
   EXPECT_GT(removed_r[removed_r.size() / 2], 1.5 * kept_r[kept_r.size() / 2]);
+}
+
+// A robot drawn within the tolerances (feasibility test 5) keeps the ball-joint sockets' neutral
+// directions as built. It need not assemble at the middle of the actuator ranges, where the
+// nominal checker solves them: with rod 26 shortened by 0.5 m no rod reaches the plate there, and
+// solving again threw ("cannot assemble at the middle of its actuator ranges"), which would have
+// stopped the planning of the nominal robot. Its reach test then answers (cannot assemble), and a
+// feasibility checker whose tolerance draws include such robots is built and rejects every
+// candidate as unreachable within the tolerances.
+TEST(Planner, RobotsDrawnWithinTheTolerancesKeepTheNominalSocketCones) {
+  const calib::Mechanism& model = delta().model;
+  const Eigen::VectorXd& params = delta().params;
+  const ReachChecker nominal(model, params, ReachOptions{});
+  ASSERT_EQ(nominal.cones().size(), 5u);
+  const int rod = model.parameter_index("body26.d1");
+  ASSERT_GE(rod, 0);
+  Eigen::VectorXd shortened = params;
+  shortened[rod] -= 0.5;
+  EXPECT_THROW(ReachChecker(model, shortened, ReachOptions{}), std::invalid_argument);
+  const ReachChecker drawn = nominal.with_parameters(shortened, ReachOptions{});
+  ASSERT_EQ(drawn.cones().size(), nominal.cones().size());
+  for (std::size_t k = 0; k < drawn.cones().size(); ++k) {
+    EXPECT_EQ(drawn.cones()[k].cut, nominal.cones()[k].cut);
+    EXPECT_EQ(drawn.cones()[k].neutral, nominal.cones()[k].neutral);
+  }
+  EXPECT_EQ(drawn.reach_check(nominal.middle_readings()).verdict, ReachVerdict::kNoAssembly);
+  EXPECT_TRUE(nominal.reach_check(nominal.middle_readings()).ok());
+
+  Cell cell;
+  FeasibilityOptions options;
+  options.tolerance_sigma = Eigen::VectorXd::Zero(params.size());
+  options.tolerance_sigma[rod] = 10.0;  // every draw is 0.5 m or more off (2 sigma x 10 m x |N|)
+  std::optional<FeasibilityChecker> checker;
+  ASSERT_NO_THROW(checker.emplace(model, params, cell, model.tool, options));
+  const Candidate c = checker->evaluate(nominal.middle_readings());
+  EXPECT_FALSE(c.feasible());
+  EXPECT_EQ(c.rejection, Rejection::kTolerance);
 }
 
 // Every pose the planner calls reachable is on the intended assembly mode: the exact public check

@@ -78,6 +78,10 @@ class ReachChecker {
   // an interpolated motion; the branch test then compares against it.
   ReachResult reach_check(const Eigen::VectorXd& readings,
                           const Eigen::VectorXd& warm_seed = Eigen::VectorXd()) const;
+  // The same robot at other parameters (a robot drawn within the tolerances): its ball-joint
+  // cones keep this checker's neutral directions, those of the sockets as built, instead of being
+  // solved again at the middle of the actuator ranges, where a drawn robot need not assemble.
+  ReachChecker with_parameters(const Eigen::VectorXd& params, const ReachOptions& options) const;
   const std::vector<BallCone>& cones() const { return cones_; }
   const calib::Mechanism& model() const { return *model_; }
   const Eigen::VectorXd& params() const { return params_; }
@@ -92,6 +96,9 @@ class ReachChecker {
   Eigen::VectorXd nearest_turn_to_home(const Eigen::VectorXd& readings) const;
 
  private:
+  struct SharedCones {};  // with_parameters' constructor: the cones are copied, not solved
+  ReachChecker(const calib::Mechanism& model, const Eigen::VectorXd& params,
+               const ReachOptions& options, SharedCones /*tag*/);
   const calib::Mechanism* model_;
   Eigen::VectorXd params_;
   ReachOptions options_;
