@@ -189,7 +189,7 @@ struct ClosureSolver::Impl {
     // meets (the ambiguity gate, or the design check's for a model whose loops differ from the
     // design) is proved cleared or the exact ratio decides.
     const double gate = model->assembly_mode.min_conditioning;
-    const double upper = (differs_from_design_loops() ? detail::kDesignCheckMargin : 1.0) * gate;
+    const double upper = differs_from_design_loops() ? detail::design_check_band(*model) : gate;
     return path_conditioning(&ws.lu, ws.J, ws.g, ws.dx, 4.0 * gate, gate, upper);
   }
   detail::PathConditioning path_conditioning;
@@ -268,9 +268,7 @@ struct ClosureSolver::Impl {
   // near singular and the cold answer ambiguous). Warm solves along a path take one or two.
   static constexpr int kWarmNewtonSteps = detail::kWarmNewtonSteps;
   void check_warm_against_design(const Eigen::VectorXd& readings, ClosureResult& r) {
-    const bool near_singular =
-        r.mode.conditioning >= 0.0 &&
-        r.mode.conditioning < detail::kDesignCheckMargin * model->assembly_mode.min_conditioning;
+    const bool near_singular = detail::in_design_check_band(*model, r.mode.conditioning);
     const bool travelled = r.iterations > kWarmNewtonSteps;
     if (!options.enforce_mode || !r.ok() || !r.mode.acceptable() || !(near_singular || travelled) ||
         !differs_from_design_loops())

@@ -4,7 +4,6 @@
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/closure.hpp"
-#include "robocal/calib/kinematics.hpp"
 #include "small_lu.hpp"
 #include "task_rows.hpp"
 #include "tree_evaluator.hpp"
@@ -270,11 +269,9 @@ struct Compensator::Impl {
   // sigma_min / sigma_max of the closure Jacobian in the passive joints at the IK system's last
   // evaluated state (-1 where the closure is not square), gated as IkSolver gates it.
   double closure_conditioning() {
-    const double gate = m->assembly_mode.min_conditioning;
     if (!passive_closure_jacobian(ik.ev)) return -1.0;
-    return path_conditioning(nullptr, closure_jacobian, scratch_v, scratch_w,
-                             2.0 * detail::kDesignCheckMargin * gate, gate,
-                             (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate);
+    return detail::inverse_answer_conditioning(path_conditioning, closure_jacobian, scratch_v,
+                                               scratch_w, *m, differs_from_design);
   }
 
   // solve_ik's design-branch check (inverse_kinematics.cpp): near a singularity of the design a
@@ -291,18 +288,13 @@ struct Compensator::Impl {
     const ClosureResult fk =
         robot_fk->solve(readings_from_joint_values(*m, models.calibrated, x.head(na)), x.tail(np));
     if (!fk.ok() || !fk.mode.acceptable() || fk.passive.size() != np) return false;
-    // The same task-frame pose (not the same passive values: a rod's idle turn about its own
-    // axis changes those and nothing else).
     for (Eigen::Index i = 0; i < na; ++i)
       cal_closure.q[m->actuated[static_cast<std::size_t>(i)]] = x[i];
     Eigen::VectorXd r(np);
     cal_closure.evaluate(fk.passive, r);
     const detail::Rigid& by_fk = cal_closure.ev.pose(m->task.frame);
     const detail::Rigid& by_ik = ik.ev.pose(m->task.frame);
-    constexpr double kSamePose = 1e-9;  // m, rad (as solve_ik's)
-    if ((by_fk.p - by_ik.p).norm() > kSamePose ||
-        rotation_log(by_fk.R.transpose() * by_ik.R).norm() > kSamePose)
-      return false;
+    if (!detail::same_task_pose(by_fk.p, by_fk.R, by_ik.p, by_ik.R)) return false;
     mode = fk.mode;
     return true;
   }
@@ -310,7 +302,7 @@ struct Compensator::Impl {
   // The nominal closure's state (last evaluated) is within the design check's band.
   bool nominal_near_singular() {
     if (!passive_closure_jacobian(closure.ev)) return false;
-    const double band = detail::kDesignCheckMargin * m->assembly_mode.min_conditioning;
+    const double band = detail::design_check_band(*m);
     return detail::gated_sigma_ratio(nullptr, closure_jacobian, scratch_v, scratch_w, 2.0 * band,
                                      band, band)
                .ratio < band;
@@ -399,8 +391,7 @@ struct Compensator::Impl {
           mode = detail::check_mode(
               *m, ik.q, [&](int b) -> const Eigen::Vector3d& { return ik.ev.pose(b).p; },
               [&](int b) -> const Eigen::Matrix3d& { return ik.ev.pose(b).R; }, conditioning);
-          if (differs_from_design &&
-              conditioning < detail::kDesignCheckMargin * m->assembly_mode.min_conditioning &&
+          if (differs_from_design && detail::in_design_check_band(*m, conditioning) &&
               !forward_kinematics_agrees(mode))
             return false;
         }

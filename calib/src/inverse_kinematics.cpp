@@ -44,13 +44,6 @@ struct IkSystem {
   }
 };
 
-}  // namespace
-
-namespace {
-
-// Task-frame poses closer than this (m, rad) are the same answer.
-constexpr double kSamePose = 1e-9;
-
 // Deterministic multi-start seeds: uniform within the actuated joints' limits (home +- pi where
 // a limit is open).
 Eigen::VectorXd spread_seed(const Mechanism& model, std::mt19937& rng) {
@@ -298,11 +291,8 @@ IkResult IkSolver::Impl::solve(const TaskTarget& target, const IkSeed& seed) {
         ev.closure_column(model.passive[static_cast<std::size_t>(j)], 1.0, J.col(j).data());
     }
     Eigen::VectorXd v(np), w(np);
-    // As the closure solver's (closure.cpp, conditioning), the estimate trusted from twice the
-    // design check's threshold, and bounds carried along a path of warm solves.
-    const double gate = model.assembly_mode.min_conditioning;
-    return path_conditioning(nullptr, J, v, w, 2.0 * detail::kDesignCheckMargin * gate, gate,
-                             (differs_from_design ? detail::kDesignCheckMargin : 1.0) * gate);
+    return detail::inverse_answer_conditioning(path_conditioning, J, v, w, model,
+                                               differs_from_design);
   };
   // The verdict with the closure's conditioning, as forward kinematics reports it: an answer whose
   // loops are nearly singular is ambiguous even where every invariant keeps its sign.
@@ -314,9 +304,7 @@ IkResult IkSolver::Impl::solve(const TaskTarget& target, const IkSeed& seed) {
           model, q, [&](int b) -> const Eigen::Vector3d& { return ev.pose(b).p; },
           [&](int b) -> const Eigen::Matrix3d& { return ev.pose(b).R; }, conditioning);
   }
-  const bool near_design_singularity =
-      conditioning >= 0.0 &&
-      conditioning < detail::kDesignCheckMargin * model.assembly_mode.min_conditioning;
+  const bool near_design_singularity = detail::in_design_check_band(model, conditioning);
   if (near_design_singularity && differs_from_design) {
     // A perturbed model's loops can close in several configurations near a singularity of the
     // design (detail::kDesignCheckMargin), all satisfying the declared invariants, and the IK may
@@ -328,15 +316,13 @@ IkResult IkSolver::Impl::solve(const TaskTarget& target, const IkSeed& seed) {
       fk = closure_solver().solve(readings_from_joint_values(model, params, xs.head(na)),
                                   xs.tail(np));
       if (!fk.ok() || !fk.mode.acceptable()) return false;
-      // The same task-frame pose (not the same passive values: idle rotations of a rod about its
-      // own axis, or a turn of 2 pi, change those and nothing else).
       const Eigen::VectorXd readings = readings_from_joint_values(model, params, xs.head(na));
       const Eigen::Isometry3d by_fk = frame_pose(
           model, params, make_joint_state(model, params, readings, fk.passive), model.task.frame);
       const Eigen::Isometry3d by_ik = frame_pose(
           model, params, make_joint_state(model, params, readings, xs.tail(np)), model.task.frame);
-      return (by_fk.translation() - by_ik.translation()).norm() <= kSamePose &&
-             rotation_log(by_fk.linear().transpose() * by_ik.linear()).norm() <= kSamePose;
+      return detail::same_task_pose(by_fk.translation(), by_fk.linear(), by_ik.translation(),
+                                    by_ik.linear());
     };
     ClosureResult fk;
     bool agrees = fk_agrees(x, fk);

@@ -3,6 +3,8 @@
 // Eigen::Isometry3d poses of kinematics.hpp, or the solver's cached detail::Rigid poses), so the
 // solvers check every answer without converting or recomputing poses.
 #include "robocal/calib/assembly_mode.hpp"
+#include "robocal/calib/kinematics.hpp"
+#include "tree_evaluator.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -129,6 +131,37 @@ inline Eigen::VectorXd loop_parameters(const Mechanism& m, const Eigen::VectorXd
 // intended at 2.5 where 3 called them ambiguous, each within 1e-11 m of the reference. Neither
 // gives a silent wrong-mode answer.
 constexpr double kDesignCheckMargin = 2.5;
+
+// The design check's band of robot `m`, and whether a known conditioning (>= 0) lies in it.
+inline double design_check_band(const Mechanism& m) {
+  return kDesignCheckMargin * m.assembly_mode.min_conditioning;
+}
+inline bool in_design_check_band(const Mechanism& m, double conditioning) {
+  return conditioning >= 0.0 && conditioning < design_check_band(m);
+}
+
+// The closure conditioning of an inverse-kinematics answer (IkSolver, the Compensator's fast
+// path), from the passive columns J of the closure Jacobian (v, w: scratch): as the closure
+// solver's (closure.cpp, conditioning), the estimate trusted from twice the design check's band,
+// the thresholds the ambiguity gate and, for a model whose loops differ from the design, the band;
+// bounds carried along a path of warm solves by `path`.
+inline double inverse_answer_conditioning(PathConditioning& path, const Eigen::MatrixXd& J,
+                                          Eigen::VectorXd& v, Eigen::VectorXd& w,
+                                          const Mechanism& m, bool differs_from_design) {
+  const double gate = m.assembly_mode.min_conditioning;
+  return path(nullptr, J, v, w, 2.0 * design_check_band(m), gate,
+              differs_from_design ? design_check_band(m) : gate);
+}
+
+// The design-branch check's comparison (inverse kinematics, the Compensator): the task frame where
+// forward kinematics puts it for the answer's readings and where the answer has it are the same
+// pose, within 1e-9 m and rad (the same passive values are not asked: a rod's idle turn about its
+// own axis, or a turn of 2 pi, changes those and nothing else).
+inline bool same_task_pose(const Eigen::Vector3d& p_a, const Eigen::Matrix3d& R_a,
+                           const Eigen::Vector3d& p_b, const Eigen::Matrix3d& R_b) {
+  constexpr double kSamePose = 1e-9;
+  return (p_a - p_b).norm() <= kSamePose && rotation_log(R_a.transpose() * R_b).norm() <= kSamePose;
+}
 
 // A warm answer Newton reached in more than this many steps travelled from its seed and is
 // checked like a nearly singular one (closure.cpp, check_warm_against_design, says why).

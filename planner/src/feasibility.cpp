@@ -108,9 +108,9 @@ namespace {
 
 // Reach checkers of robots drawn within the tolerances (FeasibilityOptions::tolerance_draws): each
 // draw and its mirror image, so a reach edge is tested on both sides of the nominal model.
-std::vector<ReachChecker> tolerance_checkers(const calib::Mechanism& model,
-                                             const ReachChecker& nominal,
+std::vector<ReachChecker> tolerance_checkers(const ReachChecker& nominal,
                                              const FeasibilityOptions& options) {
+  const calib::Mechanism& model = nominal.model();
   const Eigen::VectorXd& params = nominal.params();
   std::vector<ReachChecker> out;
   if (options.tolerance_draws <= 0 || options.tolerance_scale <= 0) return out;
@@ -156,7 +156,7 @@ FeasibilityChecker::FeasibilityChecker(const calib::Mechanism& model, const Eige
       frame_(frame),
       options_(options),
       reach_(model, params, options.reach),
-      within_tolerance_(tolerance_checkers(model, reach_, options)),
+      within_tolerance_(tolerance_checkers(reach_, options)),
       scene_(model, cell, options.collision),
       corners_(required_corner_points(cell.target.board, cell.visibility.corners)),
       outline_(board_outline(cell.target.board)),
