@@ -26,6 +26,8 @@ find_package(nlohmann_json 3.11 REQUIRED)
 find_package(CLI11 2.1 REQUIRED)
 find_package(fmt 9 REQUIRED)
 find_package(spdlog 1.10 REQUIRED)
+# libpng directly for the capture's fast lossless writing (robotio/src/camera/png_encode.hpp).
+find_package(PNG 1.6 REQUIRED)
 # FCL ships a CMake config (target `fcl`, which links ccd and octomap).
 find_package(fcl 0.7 REQUIRED)
 find_package(PkgConfig REQUIRED)

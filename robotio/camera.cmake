@@ -9,10 +9,11 @@ robocal_library(robocal_robotio_camera
     src/camera/camera_simulated.cpp
     src/camera/camera_recorded.cpp
     src/camera/capture.cpp
+    src/camera/png_encode.cpp
     src/camera/camera_checks.cpp
     src/camera/capture_link.cpp
     src/camera/sim_truth.cpp
     src/camera/camera_open.cpp
   PUBLIC_DEPS robocal_vision robocal_robotio ${OpenCV_LIBS}
-  PRIVATE_DEPS PkgConfig::ARAVIS PkgConfig::LIBV4L2 fmt::fmt yaml-cpp
+  PRIVATE_DEPS PkgConfig::ARAVIS PkgConfig::LIBV4L2 PNG::PNG fmt::fmt yaml-cpp
     nlohmann_json::nlohmann_json)

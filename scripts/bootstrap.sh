@@ -8,6 +8,8 @@ packages=(
   build-essential cmake ninja-build pkg-config ccache git clang-format clang-tidy
   # vision and numerics
   libopencv-dev libopencv-contrib-dev libapriltag-dev libceres-dev libeigen3-dev
+  # the capture writes its PNG frames through libpng itself (OpenCV's writer is twice as slow)
+  libpng-dev
   # cameras: Aravis' pkg-config file needs libusb-1.0-0-dev, which libaravis-dev does not pull in
   libv4l-dev libaravis-dev libusb-1.0-0-dev
   # camera tests: a network namespace per test run (ip netns) for two fake GigE cameras
