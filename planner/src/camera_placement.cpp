@@ -3,6 +3,7 @@
 
 #include "robocal/planner/feasibility.hpp"
 #include "robocal/planner/plan.hpp"
+#include "robocal/planner/task_sampling.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -172,11 +173,24 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   // Quick visibility of the sampled boards from one camera: the outline inside the image
   // (border), within the maximum incidence and at least min_image_size (occlusion is left to
   // the full test of the chosen placement).
+  // A robot whose joints turn its target (fewer than six actuators, task_sampling.hpp: the wire
+  // robot's platform) has its board turned towards the camera before the test, as its planned
+  // poses will be; the full test below aims it the same way.
+  const bool turned = target_turned_by_joints(model, frame);
   auto camera_sees = [&](const Eigen::Isometry3d& wc) {
     std::vector<char> sees(boards.size(), 0);
     const Eigen::Isometry3d cw = wc.inverse();
     for (std::size_t b = 0; b < boards.size(); ++b) {
-      const Eigen::Isometry3d cb = cw * boards[b];
+      Eigen::Isometry3d board = boards[b];
+      if (turned) {
+        const Eigen::Vector3d centre = board * board_mid;
+        const Eigen::Vector3d face = -board.linear().col(2);
+        const Eigen::Matrix3d turn =
+            Eigen::Quaterniond::FromTwoVectors(face, wc.translation() - centre).toRotationMatrix();
+        board.linear() = turn * board.linear();
+        board.translation() = centre - board.linear() * board_mid;
+      }
+      const Eigen::Isometry3d cb = cw * board;
       const Eigen::Vector3d centre = cb * board_mid;
       const Eigen::Vector3d face = -cb.linear().col(2);
       if (std::acos(std::clamp(face.dot(-centre.normalized()), -1.0, 1.0)) >
@@ -246,11 +260,12 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   for (std::size_t k = 1; k < directions.size(); ++k)
     directions[k] = normals[(k - 1) * normals.size() / 16].normalized();
   // The target centres of the sampled poses whose board faces within 40 deg of `n`.
+  // (A target the joints turn can face any of them.)
   auto facing_centres = [&](const Eigen::Vector3d& n) {
     std::vector<Eigen::Vector3d> facing;
     facing.reserve(centres.size());
     for (std::size_t i = 0; i < centres.size(); ++i)
-      if (normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
+      if (turned || normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
         facing.push_back(centres[i]);
     return facing;
   };
@@ -313,7 +328,11 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     const Cell placed = with_cameras(cell, pl);
     const FeasibilityChecker checker(model, params, placed, frame, placement_feasibility(placed));
     std::size_t seen = 0;
-    for (const Eigen::VectorXd& x : configs) seen += checker.evaluate(x).feasible() ? 1 : 0;
+    for (const Eigen::VectorXd& x : configs)
+      seen +=
+          (turned ? evaluate_turned_towards_cameras(checker, x) : checker.evaluate(x)).feasible()
+              ? 1
+              : 0;
     pl.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
     if (pl.coverage > best.coverage + 1e-9) best = pl;
   }
@@ -353,7 +372,8 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       const FeasibilityChecker checker(model, params, placed, frame, opts);
       std::vector<int> count(configs.size(), 0);
       for (std::size_t i = 0; i < configs.size(); ++i) {
-        const Candidate cand = checker.evaluate(configs[i]);
+        const Candidate cand = turned ? evaluate_turned_towards_cameras(checker, configs[i])
+                                      : checker.evaluate(configs[i]);
         if (!cand.feasible()) continue;
         for (const CameraView& v : cand.views) count[i] += v.visible ? 1 : 0;
       }

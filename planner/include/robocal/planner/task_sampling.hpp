@@ -10,6 +10,13 @@
 // joint sample. The answer is evaluated by the same FeasibilityChecker::evaluate as a joint
 // sample: reach on the intended mode, collisions, visibility; a target pose without an IK answer
 // on the intended mode counts as "cannot assemble" / "only on another assembly mode".
+//
+// A robot with fewer than six actuators (the 4-DOF wire robot's branch: its platform's pitch
+// and yaw turn the board, but it cannot take an arbitrary pose) gets its candidates the same way
+// up to the face direction asked; then, instead of IK, its joints turn the printed face towards
+// that direction as far as they can (damped Gauss-Newton on the face direction from the joint
+// sample, every step on the intended mode), and the answer is evaluated as above. Joint samples
+// put its board at random angles: its camera pair saw the board whole at 1-2 % of them.
 #include "robocal/planner/feasibility.hpp"
 
 #include <cstddef>
@@ -19,11 +26,23 @@
 namespace robocal::planner {
 
 // True when task-space sampling applies: the model's task is the full pose (6 rows) of the
-// checker's measured frame, it has at least six actuators (any orientation can be asked for)
-// and the cell has required cameras.
+// checker's measured frame (its orientation is the robot's to set), it has at least two
+// actuators and the cell has required cameras.
 bool task_space_sampling_applies(const FeasibilityChecker& checker);
 
-// `count` candidates built as above, each evaluated (every one is counted in `counts`).
+// True when the robot's own joints turn its target but it has fewer than six actuators (a pose
+// task on `frame`): its candidates are aimed (above), not solved for a pose.
+bool target_turned_by_joints(const calib::Mechanism& model, int frame);
+
+// The candidate at `readings` with the target's face turned, without random tilt, towards the
+// cameras of the checker's cell that can see its centre (aimed as above), then evaluated; the
+// readings as they are where none can, or where turning leaves the intended mode. For
+// target_turned_by_joints robots (the camera placement's coverage test).
+Candidate evaluate_turned_towards_cameras(const FeasibilityChecker& checker,
+                                          const Eigen::VectorXd& readings);
+
+// `count` candidates built as above, each evaluated (every one is counted in `counts`). In a
+// camera array (the cell asks for some of its cameras), a candidate faces those that can see it.
 std::vector<Candidate> sample_facing_cameras(const FeasibilityChecker& checker, std::size_t count,
                                              std::mt19937& rng, FeasibilityCounts* counts);
 
