@@ -10,6 +10,7 @@
 #include "robocal/planner/collision_scene.hpp"
 #include "robocal/planner/plan.hpp"
 #include "robocal/planner/plan_output.hpp"
+#include "robocal/planner/task_sampling.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/target_io.hpp"
@@ -192,6 +193,10 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
       // within that spread are left out (a Gantry-Tau pose 0.09 from its carts' plane stopped
       // seed 3's collection at pose 22).
       po.tolerance_sigma = truth_spread(cell);
+      // A robot whose own joints turn its board (fewer than six actuators: the wire robot's
+      // platform) has it turned towards the cameras, as the offline demo does; in joint space
+      // its board faces them at a few per cent of the samples.
+      po.task_space = planner::target_turned_by_joints(library, library.task.frame);
       // Where the cell sees so small a part of the robot's range that the pool cannot hold the
       // poses asked (the wire robot's pair: one feasible candidate in 1500), sampled again as
       // the offline demo does; other robots' plans stay as they were.
