@@ -477,11 +477,6 @@ std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int cou
                                               std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   const Eigen::Vector2d c = board_centre(cell.calibration_board);
-  // Rotation taking the board's z to the direction away from the cameras (identity when they
-  // look straight up, as for the Delta).
-  const Eigen::Matrix3d facing =
-      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -cell.placement.view_direction)
-          .toRotationMatrix();
   // Where the board is held: a pair's look-at point; for an array, every station's and the
   // midpoints of neighbouring stations (the views that chain one station's cameras to the
   // next's), taken in turn.
@@ -521,20 +516,24 @@ std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int cou
     }
     return anchor.station_a < 0 || (seeing >= 2 && in_a && in_b);
   };
-  // The face towards the cameras the anchor joins: an array's stations need not look from one
+  // Rotation taking the board's z to the direction away from the cameras the anchor joins
+  // (identity when they look straight up, as for the Delta): a pair's viewing direction; in an
+  // array, the way to the joined stations' cameras. An array's stations need not look from one
   // side (the wire robot's look at its ring from several), and a board turned to the first
   // station's side is edge-on to the others.
   auto facing_for = [&](const Anchor& anchor) -> Eigen::Matrix3d {
-    if (anchor.station_a < 0) return facing;
-    Eigen::Vector3d eyes = Eigen::Vector3d::Zero();
-    int n = 0;
-    for (std::size_t k = 0; k < cell.cameras.size(); ++k) {
-      const int station = static_cast<int>(k) / per;
-      if (station != anchor.station_a && station != anchor.station_b) continue;
-      eyes += cell.placement.world_T_camera[k].translation();
-      ++n;
+    Eigen::Vector3d towards = cell.placement.view_direction;
+    if (anchor.station_a >= 0) {
+      Eigen::Vector3d eyes = Eigen::Vector3d::Zero();
+      int n = 0;
+      for (std::size_t k = 0; k < cell.cameras.size(); ++k) {
+        const int station = static_cast<int>(k) / per;
+        if (station != anchor.station_a && station != anchor.station_b) continue;
+        eyes += cell.placement.world_T_camera[k].translation();
+        ++n;
+      }
+      towards = (eyes / std::max(n, 1) - anchor.at).normalized();
     }
-    const Eigen::Vector3d towards = (eyes / std::max(n, 1) - anchor.at).normalized();
     return Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -towards)
         .toRotationMatrix();
   };
