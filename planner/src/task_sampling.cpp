@@ -82,13 +82,17 @@ std::optional<Eigen::VectorXd> aim_face(const ReachChecker& reach, int frame,
 
 }  // namespace
 
-bool task_space_sampling_applies(const FeasibilityChecker& checker) {
-  const calib::Mechanism& model = checker.reach().model();
+bool target_turnable(const calib::Mechanism& model, int frame) {
   // Two actuators at least: with six or more the target is put at the pose asked (IK); with
   // fewer (the 4-DOF wire robot's branch) it cannot take an arbitrary pose, and its face is
   // turned towards the cameras as far as its joints allow (aim_face).
-  return model.task.type == calib::TaskType::kPose && model.task.frame == checker.frame() &&
-         model.actuated.size() >= 2 && !checker.cell().required_cameras().empty();
+  return model.task.type == calib::TaskType::kPose && model.task.frame == frame &&
+         model.actuated.size() >= 2;
+}
+
+bool task_space_sampling_applies(const FeasibilityChecker& checker) {
+  return target_turnable(checker.reach().model(), checker.frame()) &&
+         !checker.cell().required_cameras().empty();
 }
 
 namespace {
@@ -146,8 +150,7 @@ Eigen::Vector3d mean_of(const std::vector<Eigen::Vector3d>& points) {
 }  // namespace
 
 bool target_turned_by_joints(const calib::Mechanism& model, int frame) {
-  return model.task.type == calib::TaskType::kPose && model.task.frame == frame &&
-         model.actuated.size() >= 2 && model.actuated.size() < 6;
+  return target_turnable(model, frame) && model.actuated.size() < 6;
 }
 
 Candidate evaluate_turned_towards_cameras(const FeasibilityChecker& checker,

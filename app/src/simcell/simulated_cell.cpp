@@ -416,7 +416,7 @@ std::vector<Eigen::VectorXd> plan_cell_poses(const SimulatedCell& cell, int coun
     // the intended mode, or, with fewer than six actuators, as far as the joints turn it), and
     // keep whichever pool is larger. The planner's verdicts stand either way.
     if (res.pool.size() < want && res.status != planner::PlanStatus::kBadCell &&
-        cell.model.task.type == calib::TaskType::kPose && cell.model.actuated.size() >= 2) {
+        planner::target_turnable(cell.model, cell.target_frame)) {
       planner::PlanOptions task = po;
       task.task_space = true;
       task.pool = std::max<std::size_t>(4000, 60 * po.selection.count);

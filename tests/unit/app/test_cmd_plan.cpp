@@ -23,21 +23,26 @@ namespace fs = std::filesystem;
 using robocal::test::CliRun;
 constexpr auto& run = robocal::test::run_robocal_captured;
 
+// A fresh folder `name` in the temp dir holding cell.yaml with `yaml`.
+fs::path cell_folder(const std::string& name, const std::string& yaml) {
+  const fs::path dir = fs::temp_directory_path() / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  robocal::core::write_file_atomic(dir / "cell.yaml", yaml);
+  return dir;
+}
+
 // A Gantry-Tau cell: one camera (whose model the suggestion uses), the board under the
 // platform's box, facing down.
 fs::path gantry_cell() {
-  const fs::path dir = fs::temp_directory_path() / "robocal_plan_cli";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
   const std::string data = ROBOCAL_TESTDATA_DIR;
-  robocal::core::write_file_atomic(
-      dir / "cell.yaml",
+  return cell_folder(
+      "robocal_plan_cli",
       "cameras:\n  - {name: a, file: " + data +
           "/cells/camera_1600x1200.yaml, pose: {position: [1.5, -0.5, -2], look_at: [1.5, "
           "-0.5, 0]}}\ntarget: {file: " +
           data + "/vision/apriltag_4x3.yaml, position: [0, 0, -0.06]}\n" +
           "visibility: {min_image_size: 150}\n");
-  return dir;
 }
 
 nlohmann::json suggestion(const fs::path& dir, const std::string& max_cameras) {
@@ -105,12 +110,9 @@ namespace {
 // joint space, 31 of this cell's 600 candidates are feasible (most turned away from the pair);
 // turned, 210.
 TEST(PlanCli, AWireRobotsBoardIsTurnedTowardsTheCameras) {
-  const fs::path dir = fs::temp_directory_path() / "robocal_plan_cli_wire";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
   const std::string data = ROBOCAL_TESTDATA_DIR;
-  robocal::core::write_file_atomic(
-      dir / "cell.yaml",
+  const fs::path dir = cell_folder(
+      "robocal_plan_cli_wire",
       "cameras:\n"
       "  - {name: a, file: " +
           data +

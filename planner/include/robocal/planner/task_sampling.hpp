@@ -25,9 +25,12 @@
 
 namespace robocal::planner {
 
-// True when task-space sampling applies: the model's task is the full pose (6 rows) of the
-// checker's measured frame (its orientation is the robot's to set), it has at least two
-// actuators and the cell has required cameras.
+// True when the robot sets the target's orientation: its task is the full pose (6 rows) of
+// `frame`, with at least two actuators.
+bool target_turnable(const calib::Mechanism& model, int frame);
+
+// True when task-space sampling applies: target_turnable on the checker's measured frame, and
+// the cell has required cameras.
 bool task_space_sampling_applies(const FeasibilityChecker& checker);
 
 // True when the robot's own joints turn its target but it has fewer than six actuators (a pose
