@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numbers>
 #include <optional>
@@ -42,6 +43,17 @@ struct PatternIndex {
       for (int j = j0; j <= j1; ++j)
         for (int i = i0; i <= i1; ++i) cells[static_cast<size_t>(j * nx + i)].push_back(k);
     }
+    for (const PatternPatch& p : b.patches) inverse_module.push_back(1.0 / p.module);
+    for (std::size_t a = 0; a < b.patches.size(); ++a)
+      for (std::size_t c = a + 1; c < b.patches.size(); ++c) {
+        const PatternPatch& p = b.patches[a];
+        const PatternPatch& r = b.patches[c];
+        const bool overlap_x =
+            std::max(p.x0, r.x0) < std::min(p.x0 + p.nx * p.module, r.x0 + r.nx * r.module);
+        const bool overlap_y =
+            std::max(p.y0, r.y0) < std::min(p.y0 + p.ny * p.module, r.y0 + r.ny * r.module);
+        if (overlap_x && overlap_y) patches_apart = false;
+      }
   }
   int cell_x(double x) const {
     return std::clamp(static_cast<int>(std::floor((x - x0) / cell)), 0, nx - 1);
@@ -63,6 +75,47 @@ struct PatternIndex {
 
   // Fraction of the convex quad q (board coordinates) covered by black modules.
   double black_fraction(const std::array<Eigen::Vector2d, 4>& q) const;
+
+  // The module a board point lies in, as black_at finds it: -1 where none (paper). A footprint
+  // whose four corners share a module lies inside it (both are convex).
+  std::int64_t module_at(double x, double y) const {
+    for (int k : cells[static_cast<size_t>(cell_y(y) * nx + cell_x(x))]) {
+      const PatternPatch& p = board->patches[static_cast<size_t>(k)];
+      // A multiplication where black_at divides: a point on a module's side may land in its
+      // neighbour, and inside_module then leaves it to black_fraction.
+      const double per_module = inverse_module[static_cast<size_t>(k)];
+      const double u = (x - p.x0) * per_module, v = (y - p.y0) * per_module;
+      if (u < 0 || v < 0 || u >= p.nx || v >= p.ny) continue;
+      return (static_cast<std::int64_t>(k) << 32) |
+             static_cast<std::int64_t>(static_cast<int>(v) * p.nx + static_cast<int>(u));
+    }
+    return -1;
+  }
+
+  // black_fraction(q) for a footprint whose corners all lie in `module` (module_at), without its
+  // search: 1 or 0 where q keeps a margin from the module's sides (so black_fraction's own
+  // rounding finds that module alone, and no other patch's), nullopt otherwise. Most pixels of
+  // a near board are such footprints.
+  std::optional<double> inside_module(const std::array<Eigen::Vector2d, 4>& q,
+                                      std::int64_t module) const {
+    const PatternPatch& p = board->patches[static_cast<size_t>(module >> 32)];
+    const auto index = static_cast<int>(module & 0xffffffff);
+    const double m = p.module;
+    const double rx0 = p.x0 + (index % p.nx) * m, ry0 = p.y0 + (index / p.nx) * m;
+    const double rx1 = rx0 + m, ry1 = ry0 + m;
+    const double margin = 1e-9 * m;
+    for (const Eigen::Vector2d& c : q)
+      if (!(c.x() >= rx0 + margin && c.x() <= rx1 - margin && c.y() >= ry0 + margin &&
+            c.y() <= ry1 - margin))
+        return std::nullopt;
+    if (p.black[static_cast<size_t>(index)]) return 1.0;
+    if (patches_apart) return 0.0;
+    return std::nullopt;  // another patch may overlap this white module
+  }
+
+  // No two patches overlap (true of every board target.hpp builds): a white module is white.
+  bool patches_apart = true;
+  std::vector<double> inverse_module;  // 1 / module side, per patch
 };
 
 // Area and centroid of a simple polygon.
@@ -260,6 +313,7 @@ Eigen::Vector2d plane_point(const TargetGeometry& g, const Eigen::Vector3d& ray)
 struct CornerHit {
   int target = -1;  // -1: no target, -2: invalid ray
   Eigen::Vector2d xy = Eigen::Vector2d::Zero();
+  std::int64_t module = -1;  // PatternIndex::module_at(xy) on the target (render_scene's corners)
 };
 
 CornerHit nearest_hit(const std::vector<TargetGeometry>& geo,
@@ -412,6 +466,74 @@ CameraRays precompute_rays(const CameraModel& camera) {
 
 namespace {
 
+// The pixel corners whose rays may meet a target: columns i0..i1, rows j0..j1 of the ray grid
+// (empty when i0 > i1); every other ray misses every target, so render_scene need not trace it.
+struct CornerWindow {
+  int i0 = 0, i1 = -1, j0 = 0, j1 = -1;
+  [[nodiscard]] bool contains(int i, int j) const {
+    return i >= i0 && i <= i1 && j >= j0 && j <= j1;
+  }
+};
+
+// The window from the papers' outlines projected by the camera model (32 points a side, grown by
+// two pixels), then checked: no ray on the ring of corners just outside it meets a target. The
+// corners a target's rays meet form one connected region (the camera model maps the paper's
+// visible part continuously), so a region that left the window would cross that ring. Anything
+// doubtful (a paper point behind the camera or off the model, a ray on the ring that meets a
+// target) gives the whole grid: the window only ever saves work.
+CornerWindow corner_window(const CameraRays& rays, const std::vector<TargetGeometry>& geo,
+                           const std::vector<RenderTarget>& targets) {
+  const CornerWindow whole{0, rays.cols - 1, 0, rays.rows - 1};
+  constexpr int kPerSide = 32;
+  double u0 = std::numeric_limits<double>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    if (!geo[k].faces_camera) continue;  // intersect() never meets it
+    const TargetBoard& b = targets[k].board;
+    const std::array<Eigen::Vector2d, 4> paper = {
+        b.extent_min, Eigen::Vector2d(b.extent_max.x(), b.extent_min.y()), b.extent_max,
+        Eigen::Vector2d(b.extent_min.x(), b.extent_max.y())};
+    for (std::size_t side = 0; side < 4; ++side)
+      for (int n = 0; n < kPerSide; ++n) {
+        const Eigen::Vector2d xy =
+            paper[side] + (paper[(side + 1) % 4] - paper[side]) * (double(n) / kPerSide);
+        const Eigen::Vector3d p = targets[k].camera_T_board * Eigen::Vector3d(xy.x(), xy.y(), 0.0);
+        if (!(p.z() > 0.0)) return whole;
+        const std::optional<Eigen::Vector2d> px = project(rays.camera, p);
+        if (!px || !px->allFinite()) return whole;
+        u0 = std::min(u0, px->x());
+        u1 = std::max(u1, px->x());
+        v0 = std::min(v0, px->y());
+        v1 = std::max(v1, px->y());
+      }
+  }
+  if (!(u0 <= u1)) return {};  // no target faces the camera
+  // Corner (i, j) lies at pixel coordinates (i - 1/2, j - 1/2).
+  const auto index = [](double x, double lo, double hi) {
+    return static_cast<int>(std::clamp(x + 0.5, lo, hi));
+  };
+  CornerWindow w;
+  w.i0 = index(std::floor(u0) - 2.0, -1.0, rays.cols);
+  w.i1 = index(std::ceil(u1) + 2.0, -1.0, rays.cols);
+  w.j0 = index(std::floor(v0) - 2.0, -1.0, rays.rows);
+  w.j1 = index(std::ceil(v1) + 2.0, -1.0, rays.rows);
+  const auto meets = [&](int i, int j) {
+    if (i < 0 || j < 0 || i >= rays.cols || j >= rays.rows) return false;
+    const Eigen::Vector3d& ray =
+        rays.rays[static_cast<size_t>(j) * static_cast<size_t>(rays.cols) + static_cast<size_t>(i)];
+    return nearest_hit(geo, targets, ray).target >= 0;
+  };
+  // The ring: rows j0 - 1 and j1 + 1, columns i0 - 1 and i1 + 1 (outside the grid: nothing).
+  for (int i = w.i0 - 1; i <= w.i1 + 1; ++i)
+    if (meets(i, w.j0 - 1) || meets(i, w.j1 + 1)) return whole;
+  for (int j = w.j0; j <= w.j1; ++j)
+    if (meets(w.i0 - 1, j) || meets(w.i1 + 1, j)) return whole;
+  w.i0 = std::max(w.i0, 0);
+  w.j0 = std::max(w.j0, 0);
+  w.i1 = std::min(w.i1, rays.cols - 1);
+  w.j1 = std::min(w.j1, rays.rows - 1);
+  return w;
+}
+
 SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTarget>& targets,
                              const RenderOptions& o, bool with_subcells) {
   const int W = rays.cols - 1, H = rays.rows - 1;
@@ -439,16 +561,36 @@ SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTar
     return rays
         .rays[static_cast<size_t>(j) * static_cast<size_t>(rays.cols) + static_cast<size_t>(i)];
   };
-  for (int i = 0; i <= W; ++i)
-    upper[static_cast<size_t>(i)] = nearest_hit(geo, targets, ray_at(i, 0));
+  // A pixel corner's hit and the module it lies in (shared by the four pixels around it). Outside
+  // the window no ray meets a target: only whether the ray is valid is left to tell.
+  const CornerWindow window = corner_window(rays, geo, targets);
+  const auto corner_hit = [&](int i, int j) {
+    if (!window.contains(i, j)) {
+      CornerHit miss;
+      if (!ray_at(i, j).allFinite()) miss.target = -2;
+      return miss;
+    }
+    CornerHit h = nearest_hit(geo, targets, ray_at(i, j));
+    if (h.target >= 0)
+      h.module = index[static_cast<size_t>(h.target)].module_at(h.xy.x(), h.xy.y());
+    return h;
+  };
+  // black_fraction, or its answer without the search where the four corners share a module.
+  const auto black_of = [](const PatternIndex& pattern, const std::array<Eigen::Vector2d, 4>& q,
+                           std::int64_t m0, std::int64_t m1, std::int64_t m2, std::int64_t m3) {
+    if (m0 >= 0 && m0 == m1 && m0 == m2 && m0 == m3)
+      if (const std::optional<double> uniform = pattern.inside_module(q, m0)) return *uniform;
+    return pattern.black_fraction(q);
+  };
+  std::vector<std::int64_t> submodule(static_cast<size_t>((s + 1) * (s + 1)));
+  for (int i = 0; i <= W; ++i) upper[static_cast<size_t>(i)] = corner_hit(i, 0);
   // r_corner: from the image centre to the centre of a corner pixel.
   const double half_diag2 =
       std::max(0.25 * (double(W - 1) * (W - 1) + double(H - 1) * (H - 1)), 1e-9);
   constexpr int kSuper = 8;
 
   for (int j = 0; j < H; ++j) {
-    for (int i = 0; i <= W; ++i)
-      lower[static_cast<size_t>(i)] = nearest_hit(geo, targets, ray_at(i, j + 1));
+    for (int i = 0; i <= W; ++i) lower[static_cast<size_t>(i)] = corner_hit(i, j + 1);
     float* row = img.ptr<float>(j);
     for (int i = 0; i < W; ++i) {
       const CornerHit* c[4] = {&upper[static_cast<size_t>(i)], &upper[static_cast<size_t>(i + 1)],
@@ -460,7 +602,8 @@ SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTar
         if (t0 >= 0) {
           const PatternIndex& pattern = index[static_cast<size_t>(t0)];
           const std::array<Eigen::Vector2d, 4> q = {c[0]->xy, c[1]->xy, c[2]->xy, c[3]->xy};
-          const double black = pattern.black_fraction(q);
+          const double black =
+              black_of(pattern, q, c[0]->module, c[1]->module, c[2]->module, c[3]->module);
           value = o.white_level - contrast * black;
           if (with_subcells && black > 0.0 && black < 1.0) {
             // An edge crosses the pixel: the black fraction of each sub-cell, whose corners
@@ -470,19 +613,25 @@ SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTar
             for (int b = 0; b <= s; ++b)
               for (int a = 0; a <= s; ++a) {
                 const double fx = double(a) / s, fy = double(b) / s;
-                subcorner[static_cast<size_t>(b * (s + 1) + a)] = plane_point(
-                    g, (1 - fy) * ((1 - fx) * ray_at(i, j) + fx * ray_at(i + 1, j)) +
-                           fy * ((1 - fx) * ray_at(i, j + 1) + fx * ray_at(i + 1, j + 1)));
+                const Eigen::Vector2d& xy = subcorner[static_cast<size_t>(b * (s + 1) + a)] =
+                    plane_point(g,
+                                (1 - fy) * ((1 - fx) * ray_at(i, j) + fx * ray_at(i + 1, j)) +
+                                    fy * ((1 - fx) * ray_at(i, j + 1) + fx * ray_at(i + 1, j + 1)));
+                submodule[static_cast<size_t>(b * (s + 1) + a)] = pattern.module_at(xy.x(), xy.y());
               }
             for (int b = 0; b < s; ++b)
               for (int a = 0; a < s; ++a) {
                 const auto corner = [&](int da, int db) {
                   return subcorner[static_cast<size_t>((b + db) * (s + 1) + a + da)];
                 };
+                const auto module = [&](int da, int db) {
+                  return submodule[static_cast<size_t>((b + db) * (s + 1) + a + da)];
+                };
                 const std::array<Eigen::Vector2d, 4> qs = {corner(0, 0), corner(1, 0), corner(1, 1),
                                                            corner(0, 1)};
-                subcell[static_cast<size_t>(b * s + a)] =
-                    static_cast<float>(o.white_level - contrast * pattern.black_fraction(qs));
+                subcell[static_cast<size_t>(b * s + a)] = static_cast<float>(
+                    o.white_level - contrast * black_of(pattern, qs, module(0, 0), module(1, 0),
+                                                        module(1, 1), module(0, 1)));
               }
             edge = true;
           }
@@ -649,11 +798,17 @@ cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma) {
       }
     }
   }
+  // Columns in the same order as one loop over x (the sums are the same to the last bit), the
+  // mirror looked up only where it is one.
+  const int inner_end = std::max(r, W + r);
   for (int y = 0; y < H + 2 * r; ++y) {
     const int iy = cv::borderInterpolate(y - r, H, cv::BORDER_REFLECT);
     const float* src = grown.ptr<float>(y);
     float* dst = out.ptr<float>(iy);
-    for (int x = 0; x < W + 2 * r; ++x)
+    for (int x = 0; x < std::min(r, W + 2 * r); ++x)
+      dst[cv::borderInterpolate(x - r, W, cv::BORDER_REFLECT)] += src[x];
+    for (int x = r; x < inner_end; ++x) dst[x - r] += src[x];
+    for (int x = inner_end; x < W + 2 * r; ++x)
       dst[cv::borderInterpolate(x - r, W, cv::BORDER_REFLECT)] += src[x];
   }
   return out;

@@ -556,3 +556,82 @@ TEST(Renderer, BlurActsBeforeThePixelsIntegrate) {
   // The check is sensitive: the same images from pixel means alone show the aliasing.
   EXPECT_GT(pixel_means_only, 5e-3);
 }
+
+namespace {
+
+// What the camera sees along pixel point `px`, from the test's own ray casting and the board's
+// printed modules: 0 black module, 1 white (module or paper), 2 no paper (background).
+int seen_at(const rv::CameraModel& cam, const rv::TargetBoard& board,
+            const Eigen::Isometry3d& camera_T_board, const Eigen::Vector2d& px) {
+  const auto ray = rv::unproject(cam, px);
+  if (!ray) return 2;
+  const Eigen::Isometry3d board_T_camera = camera_T_board.inverse();
+  const Eigen::Vector3d o = board_T_camera.translation();
+  const Eigen::Vector3d d = board_T_camera.linear() * *ray;
+  if (!(o.z() < 0.0) || !(d.z() > 0.0)) return 2;  // printed side faces -z
+  const Eigen::Vector3d p = o + (-o.z() / d.z()) * d;
+  if (p.x() < board.extent_min.x() || p.y() < board.extent_min.y() ||
+      p.x() > board.extent_max.x() || p.y() > board.extent_max.y())
+    return 2;
+  for (const rv::PatternPatch& patch : board.patches) {
+    const double u = (p.x() - patch.x0) / patch.module, v = (p.y() - patch.y0) / patch.module;
+    if (u < 0 || v < 0 || u >= patch.nx || v >= patch.ny) continue;
+    if (patch.black[static_cast<size_t>(static_cast<int>(v) * patch.nx + static_cast<int>(u))])
+      return 0;
+  }
+  return 1;
+}
+
+}  // namespace
+
+// Every pixel against 12 x 12 rays of its own: a pixel all of whose rays see one thing has that
+// level (to the share a sliver between the rays can hold), a pixel that sees black and white
+// lies between them as the share of its rays says. A board crossing the image border: the
+// renderer traces only the rays near the paper, and a pixel off it must read the background.
+TEST(Renderer, EveryPixelIsTheShareOfWhatItsFootprintSees) {
+  const auto cam = rv::make_camera(rv::CameraKind::kPinholeRadtan, 240, 180, 260, 260, 119.5, 89.5,
+                                   {-0.08, 0.02, 0.0005, -0.0003, 0.0});
+  const rv::TargetBoard board = rt::apriltag_grid_board(4, 3, 0.05);
+  const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitY()) *
+                                Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitX()))
+                                   .toRotationMatrix();
+  for (const double shift : {0.0, 0.12}) {  // whole, then cut by the image's right border
+    Eigen::Isometry3d pose = rt::centred_board_pose(board, tilt, 0.6);
+    pose.translation().x() += shift;
+    rv::RenderOptions opt;
+    const cv::Mat img = rv::render_ideal(rv::precompute_rays(cam), {{board, pose}}, opt);
+    const double level[3] = {opt.black_level, opt.white_level, opt.background_level};
+    constexpr int kRays = 12;
+    int uniform = 0, mixed = 0, background = 0;
+    for (int v = 0; v < cam.height; ++v)
+      for (int u = 0; u < cam.width; ++u) {
+        int count[3] = {0, 0, 0};
+        for (int b = 0; b < kRays; ++b)
+          for (int a = 0; a < kRays; ++a)
+            ++count[seen_at(
+                cam, board, pose,
+                Eigen::Vector2d(u - 0.5 + (a + 0.5) / kRays, v - 0.5 + (b + 0.5) / kRays))];
+        const double value = img.at<float>(v, u);
+        SCOPED_TRACE(testing::Message()
+                     << "shift " << shift << ", pixel (" << u << ", " << v << "): black "
+                     << count[0] << ", white " << count[1] << ", off the paper " << count[2]);
+        const int all = kRays * kRays;
+        for (int k = 0; k < 3; ++k)
+          if (count[k] == all) {
+            // A sliver between two rows of rays holds at most a twelfth of the pixel.
+            EXPECT_NEAR(value, level[k], std::abs(level[1] - level[0]) / kRays);
+            ++(k == 2 ? background : uniform);
+          }
+        if (count[2] == 0 && count[0] > 0 && count[1] > 0) {
+          const double expected = level[1] - (level[1] - level[0]) * count[0] / double(all);
+          EXPECT_NEAR(value, expected, 2.0 * (level[1] - level[0]) / kRays);
+          EXPECT_GT(value, level[0]);
+          EXPECT_LT(value, level[1]);
+          ++mixed;
+        }
+      }
+    EXPECT_GT(uniform, 5000);
+    EXPECT_GT(mixed, 1000);
+    EXPECT_GT(background, 1000);
+  }
+}
