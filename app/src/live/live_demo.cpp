@@ -576,7 +576,7 @@ int run_live_demo(const LiveDemoOptions& o) {
     fmt::print(out,
                "\n  collection, per pose: {:.0f} ms = robot motion {:.0f} + rendering {:.0f} + "
                "robocal's own {:.0f} (of which waiting for frames beyond rendering {:.0f}, for "
-               "the previous pose's check and writing {:.0f}; these took {:.0f} and {:.0f} ms "
+               "earlier poses' checks and writing {:.0f}; these took {:.0f} and {:.0f} ms "
                "while the robot moved)\n",
                ov.value("capture_s_per_pose", 0.0) * 1e3,
                ov.value("simulated_motion_s_per_pose", 0.0) * 1e3,

@@ -352,9 +352,13 @@ CaptureResult capture_poses(const fs::path& session_dir,
   // The board's detector, as measure builds it: the detections it makes are recorded for measure.
   const vision::AprilTagDetectorOptions detector_options = vision::detector_options_for(board);
   const std::string detector_signature = vision::detection_signature(board, detector_options);
-  std::vector<std::unique_ptr<vision::AprilTagDetector>> detectors;
-  for (std::size_t c = 0; c < cameras.size(); ++c) {
-    detectors.push_back(std::make_unique<vision::AprilTagDetector>(detector_options));
+  // One detector per camera for each pose in flight: two poses' tests may run at once.
+  const auto in_flight_limit = static_cast<std::size_t>(std::max(1, options.poses_in_flight));
+  std::vector<std::vector<std::unique_ptr<vision::AprilTagDetector>>> detectors(in_flight_limit);
+  for (auto& set : detectors) {
+    for (std::size_t c = 0; c < cameras.size(); ++c) {
+      set.push_back(std::make_unique<vision::AprilTagDetector>(detector_options));
+    }
   }
 
   CaptureResult result;
@@ -380,8 +384,9 @@ CaptureResult capture_poses(const fs::path& session_dir,
     }
   }
 
-  // The motion check and the writing of one pose run while the robot moves to the next one (at
-  // most one pose in flight). A pose whose target moved is taken again as soon as that is known:
+  // The motion check and the writing of a pose run while the robot moves on (at most
+  // options.poses_in_flight poses in flight). A pose whose target moved is taken again as soon as
+  // that is known:
   // the robot goes back along the motions it made to reach it (each was planned and checked; a
   // new straight motion from elsewhere might not be safe, and the guard would refuse it), takes
   // it again, and returns the same way to go on with the plan.
@@ -405,10 +410,13 @@ CaptureResult capture_poses(const fs::path& session_dir,
     }
     queue.insert(queue.begin(), steps.begin(), steps.end());
   };
-  std::future<TakenPose> in_flight;
-  const auto check_and_write = [&](TakenPose taken) {
+  std::deque<std::future<TakenPose>> in_flight;  // oldest first
+  std::size_t launched = 0;
+  // `slot`: the detector set of this pose; the pose that used it last is settled (FIFO, at most
+  // in_flight_limit at once).
+  const auto check_and_write = [&](TakenPose taken, std::size_t slot) {
     auto t = Clock::now();
-    taken.verdict = check_motion(taken.shots, cameras, board, points, detectors,
+    taken.verdict = check_motion(taken.shots, cameras, board, points, detectors[slot],
                                  options.motion_false_alarm, options.workers);
     taken.report.check_s += seconds_since(t);
     taken.report.motion_chi2 = taken.verdict.chi2;
@@ -425,12 +433,14 @@ CaptureResult capture_poses(const fs::path& session_dir,
     taken.written = true;
     return taken;
   };
-  // Collects the pose in flight; a rejected one is taken again next (plan_retake).
-  const auto settle_in_flight = [&] {
-    if (!in_flight.valid()) {
+  // Collects the oldest pose in flight; a rejected one is taken again next (plan_retake).
+  const auto settle_oldest = [&] {
+    if (in_flight.empty()) {
       return;
     }
-    TakenPose done = in_flight.get();  // rethrows a write failure
+    std::future<TakenPose> oldest = std::move(in_flight.front());
+    in_flight.pop_front();
+    TakenPose done = oldest.get();  // rethrows a write failure
     if (done.written) {
       result.poses.push_back(done.report);
       if (options.on_pose_recorded) options.on_pose_recorded(done.report);
@@ -446,11 +456,13 @@ CaptureResult capture_poses(const fs::path& session_dir,
     } catch (const std::exception& failure) {
       stop_error = failure.what();
     }
-    // The pose in flight was taken whole: let it finish writing.
-    try {
-      settle_in_flight();
-    } catch (const std::exception& failure) {
-      stop_error += (stop_error.empty() ? "" : "; ") + std::string(failure.what());
+    // The poses in flight were taken whole: let them finish writing.
+    while (!in_flight.empty()) {
+      try {
+        settle_oldest();
+      } catch (const std::exception& failure) {
+        stop_error += (stop_error.empty() ? "" : "; ") + std::string(failure.what());
+      }
     }
     result.stop_reason = stop_error.empty()
                              ? reason + " (robot stopped; the poses recorded so far are kept)"
@@ -459,10 +471,10 @@ CaptureResult capture_poses(const fs::path& session_dir,
     result.seconds = seconds_since(started);
   };
 
-  while (!queue.empty() || in_flight.valid()) {
+  while (!queue.empty() || !in_flight.empty()) {
     if (queue.empty()) {
       try {
-        settle_in_flight();
+        settle_oldest();
       } catch (const std::exception& failure) {
         stop(failure.what(), std::nullopt);
         return result;
@@ -509,7 +521,9 @@ CaptureResult capture_poses(const fs::path& session_dir,
         taken.before = taken.after;
       }
       t = Clock::now();
-      settle_in_flight();
+      while (in_flight.size() >= in_flight_limit) {
+        settle_oldest();
+      }
       taken.report.wait_s = seconds_since(t);
     } catch (const CameraError& camera_error) {
       stop(fmt::format("pose {}: {}", taken.report.name, camera_error.what()), camera_error.kind());
@@ -518,7 +532,8 @@ CaptureResult capture_poses(const fs::path& session_dir,
       stop(fmt::format("pose {}: {}", taken.report.name, other.what()), std::nullopt);
       return result;
     }
-    in_flight = std::async(std::launch::async, check_and_write, std::move(taken));
+    in_flight.push_back(std::async(std::launch::async, check_and_write, std::move(taken),
+                                   launched++ % in_flight_limit));
   }
   std::sort(result.poses.begin(), result.poses.end(),
             [](const auto& a, const auto& b) { return a.index < b.index; });

@@ -5,7 +5,7 @@
 // session format (app/SESSION.md). The first shot of each camera is searched for the target in
 // full; the later shots only refine its tags where the first had them (an AprilTag board:
 // vision::redetect_apriltag_board), which is all the settled-frame test needs. That test and the
-// writing of a pose run while the robot moves to the next one.
+// writing of a pose run while the robot moves on (CaptureOptions::poses_in_flight).
 //
 // Every file of a pose is written into a staging folder, which is renamed to poses/pose_NNN only
 // when complete. A pose folder therefore either exists whole or not at all, and a capture started
@@ -74,6 +74,11 @@ struct CaptureOptions {
   // Threads for the settled-frame test and the writing of a pose, which run while the robot moves
   // to the next one: with several cameras one thread outlasts a short move.
   int workers = 2;
+  // Poses whose test and writing may still run when the robot is at the next one: with two, a
+  // short move is made up by a long one (a camera array's test takes most of an average move,
+  // and waiting for it after each short move was most of robocal's time per pose). A pose found
+  // moving is taken again all the same: the robot goes back along the moves it made.
+  int poses_in_flight = 2;
   // Observers (progress display, tests): every file written into staging, every pose done.
   std::function<void(const std::filesystem::path&)> on_file_written;
   // Called on the calling thread once a pose is recorded (its folder renamed into place).
@@ -95,8 +100,9 @@ struct PoseCaptureReport {
   double grab_s = 0.0;        // waiting for frames (camera exposure / render / transfer)
   double check_s = 0.0;       // detection and the settled-frame test
   double write_s = 0.0;       // writing the pose folder (images, pose.yaml, rename)
-  // Waiting, after this pose's frames were taken, for the previous pose's check and writing to
-  // finish: the part of check_s and write_s that the next motion did not hide.
+  // Waiting, after this pose's frames were taken, for earlier poses' checks and writing to
+  // finish (the oldest, while poses_in_flight are in flight): the part of their check_s and
+  // write_s that the motions did not hide.
   double wait_s = 0.0;
 };
 
