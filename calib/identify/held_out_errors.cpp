@@ -1,6 +1,7 @@
 #include "robocal/calib/held_out_errors.hpp"
 
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -53,6 +54,23 @@ HeldOutErrors held_out_errors(const std::vector<Eigen::Vector3d>& predicted,
     out.registered = position_error_stats(out.registered_points, truth);
   }
   return out;
+}
+
+std::optional<Eigen::Isometry3d> realised_frame(const std::vector<Eigen::Vector3d>& measured,
+                                                const std::vector<Eigen::Vector3d>& truth) {
+  if (measured.size() != truth.size())
+    throw std::invalid_argument("realised_frame: one measured position per true position needed");
+  if (truth.size() < 3) return std::nullopt;
+  Eigen::Matrix3Xd M(3, static_cast<Eigen::Index>(measured.size()));
+  Eigen::Matrix3Xd T(3, M.cols());
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    M.col(static_cast<Eigen::Index>(i)) = measured[i];
+    T.col(static_cast<Eigen::Index>(i)) = truth[i];
+  }
+  const Eigen::Matrix3Xd spread = T.colwise() - T.rowwise().mean();
+  const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::Matrix3Xd>(spread).singularValues();
+  if (!(s(1) > 1e-3 * s(0))) return std::nullopt;
+  return Eigen::Isometry3d(Eigen::umeyama(T, M, false));
 }
 
 }  // namespace robocal::calib

@@ -46,6 +46,21 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
                "(line above: from measured 6-D poses)\n",
                v["calibrated_pixels"].at("rms_m").get<double>() * 1e6,
                v["calibrated_pixels"].at("max_m").get<double>() * 1e6);
+  if (v.contains("camera_frame") && v["camera_frame"].contains("held_out_in_true_frame")) {
+    const auto& f = v["camera_frame"];
+    const auto& in_true = f["held_out_in_true_frame"];
+    fmt::print(
+        out,
+        "  (in camera 0's frame as its calibration placed it, {:.1f} µrad and {:.1f} µm from "
+        "the true one; against the true frame, which no measurement sees: calibrated {:.1f} "
+        "µm RMS{})\n",
+        f.value("turn_rad", 0.0) * 1e6, f.value("shift_m", 0.0) * 1e6,
+        in_true.at("calibrated").at("rms_m").get<double>() * 1e6,
+        in_true.contains("calibrated_pixels")
+            ? fmt::format(", from pixels {:.1f} µm",
+                          in_true["calibrated_pixels"].at("rms_m").get<double>() * 1e6)
+            : std::string());
+  }
   // Configurations drawn from the truth where a model cannot answer: failures, never dropped
   // silently.
   if (v.contains("unanswered")) {
