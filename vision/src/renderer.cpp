@@ -101,7 +101,8 @@ struct PatternIndex {
     const PatternPatch& p = board->patches[static_cast<size_t>(module >> 32)];
     const auto index = static_cast<int>(module & 0xffffffff);
     const double m = p.module;
-    const double rx0 = p.x0 + (index % p.nx) * m, ry0 = p.y0 + (index / p.nx) * m;
+    const int column = index % p.nx, row = index / p.nx;  // as black_fraction's i, j
+    const double rx0 = p.x0 + column * m, ry0 = p.y0 + row * m;
     const double rx1 = rx0 + m, ry1 = ry0 + m;
     const double margin = 1e-9 * m;
     for (const Eigen::Vector2d& c : q)

@@ -124,6 +124,7 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
     if (const auto realised = calib::realised_frame(measured, expected)) {
       frame_T_world = *realised * cam0_T_world;
       std::vector<Eigen::Vector3d> carried;
+      carried.reserve(expected.size());
       for (const auto& e : expected) carried.emplace_back(*realised * e);
       const auto in_frame = calib::position_error_stats(measured, carried);
       const double turn = Eigen::AngleAxisd(realised->linear()).angle();
