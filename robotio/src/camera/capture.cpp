@@ -17,6 +17,7 @@
 #include <future>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <system_error>
 
@@ -410,6 +411,15 @@ CaptureResult capture_poses(const fs::path& session_dir,
     }
     queue.insert(queue.begin(), steps.begin(), steps.end());
   };
+  // Poses in flight write side by side; the observer hears of their files one at a time.
+  std::mutex observer_mutex;
+  CaptureOptions writing = options;
+  if (options.on_file_written) {
+    writing.on_file_written = [&observer_mutex, &options](const fs::path& file) {
+      const std::lock_guard lock(observer_mutex);
+      options.on_file_written(file);
+    };
+  }
   std::deque<std::future<TakenPose>> in_flight;  // oldest first
   std::size_t launched = 0;
   // `slot`: the detector set of this pose; the pose that used it last is settled (FIFO, at most
@@ -428,7 +438,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
     taken.report.still_moving = taken.moving;
     t = Clock::now();
     write_pose(staging, poses_dir, taken.report.name, taken.shots, cameras, taken.before,
-               taken.after, taken.report, taken.verdict, detector_signature, options);
+               taken.after, taken.report, taken.verdict, detector_signature, writing);
     taken.report.write_s = seconds_since(t);
     taken.written = true;
     return taken;

@@ -79,7 +79,8 @@ struct CaptureOptions {
   // and waiting for it after each short move was most of robocal's time per pose). A pose found
   // moving is taken again all the same: the robot goes back along the moves it made.
   int poses_in_flight = 2;
-  // Observers (progress display, tests): every file written into staging, every pose done.
+  // Observers (progress display, tests): every file written into staging (on the writing
+  // threads, one call at a time), every pose done.
   std::function<void(const std::filesystem::path&)> on_file_written;
   // Called on the calling thread once a pose is recorded (its folder renamed into place).
   std::function<void(const PoseCaptureReport&)> on_pose_recorded;
