@@ -1,7 +1,10 @@
 #include "robocal/vision/apriltag_detector.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 
@@ -19,6 +22,44 @@ extern "C" {
 }
 
 namespace robocal::vision {
+
+double pixel_noise_sigma(const cv::Mat& gray) {
+  if (gray.empty() || gray.type() != CV_8UC1)
+    throw std::invalid_argument("pixel noise: needs a non-empty 8-bit single-channel image");
+  std::array<std::int64_t, 256> count{};
+  for (int r = 0; r < gray.rows; ++r) {
+    const std::uint8_t* row = gray.ptr<std::uint8_t>(r);
+    for (int c = 1; c < gray.cols; ++c)
+      ++count[static_cast<std::size_t>(std::abs(row[c] - row[c - 1]))];
+  }
+  std::int64_t total = 0;
+  for (const std::int64_t n : count) total += n;
+  if (total == 0) return 0.0;
+  // The first integer k with at least half the pairs at |d| <= k. Modelling d as a continuous
+  // Gaussian difference rounded to whole DN, P(|d| <= k) = erf((k + 1/2) / (sd sqrt 2)), which
+  // gives its sigma sd; the rounding of each pixel added 1/12 DN^2 of variance to it.
+  std::int64_t within = 0;
+  std::size_t k = 0;
+  while (2 * (within + count[k]) < total) within += count[k++];
+  const double fraction = static_cast<double>(within + count[k]) / static_cast<double>(total);
+  if (fraction >= 1.0) return 0.0;
+  // erf(x) = fraction, by bisection (erf is increasing; fraction in [1/2, 1)).
+  double lo = 0.0;
+  double hi = 6.0;
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (std::erf(mid) < fraction ? lo : hi) = mid;
+  }
+  const double sd = (static_cast<double>(k) + 0.5) / (std::sqrt(2.0) * 0.5 * (lo + hi));
+  return std::sqrt(std::max(0.0, 0.5 * (sd * sd - 2.0 / 12.0)));
+}
+
+int min_white_black_diff_for(double noise_sigma, double min_decision_margin) {
+  constexpr int kLibraryDefault = 5;
+  const double wanted = 8.0 * std::max(0.0, noise_sigma);
+  const double ceiling = std::max<double>(kLibraryDefault, 2.0 * min_decision_margin);
+  return static_cast<int>(std::lround(std::clamp<double>(wanted, kLibraryDefault, ceiling)));
+}
 
 struct AprilTagDetector::Impl {
   AprilTagDetectorOptions options;
@@ -77,6 +118,10 @@ struct AprilTagDetector::Impl {
     check_image(gray);
     image_u8_t image{gray.cols, gray.rows, static_cast<int32_t>(gray.step[0]),
                      const_cast<uint8_t*>(gray.ptr<uint8_t>(0))};
+    detector->qtp.min_white_black_diff =
+        options.min_white_black_diff > 0
+            ? options.min_white_black_diff
+            : min_white_black_diff_for(pixel_noise_sigma(gray), options.min_decision_margin);
     zarray_t* found = apriltag_detector_detect(detector, &image);
     std::vector<TagDetection> out;
     out.reserve(static_cast<size_t>(zarray_size(found)));
@@ -116,6 +161,9 @@ AprilTagDetector::AprilTagDetector(AprilTagDetectorOptions options)
   }
   if (options.threads < 1 || options.threads > 64) {
     throw std::invalid_argument("AprilTag threads must be in [1, 64]");
+  }
+  if (options.min_white_black_diff < 0 || options.min_white_black_diff > 255) {
+    throw std::invalid_argument("AprilTag min_white_black_diff must be in [0, 255] (0: automatic)");
   }
   if (options.max_hamming < 0 || options.max_hamming > 2) {
     throw std::invalid_argument("AprilTag max_hamming must be 0, 1 or 2");

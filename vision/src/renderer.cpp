@@ -1,5 +1,7 @@
 #include "robocal/vision/renderer.hpp"
 
+#include "robocal/core/parallel.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -535,8 +537,40 @@ CornerWindow corner_window(const CameraRays& rays, const std::vector<TargetGeome
   return w;
 }
 
+// The lighting and vignetting factor of pixel (i, j) of a W x H image; half_diag2 is
+// pixel_gain_scale(W, H).
+double pixel_gain_scale(int W, int H) {
+  // r_corner: from the image centre to the centre of a corner pixel.
+  return std::max(0.25 * (double(W - 1) * (W - 1) + double(H - 1) * (H - 1)), 1e-9);
+}
+double pixel_gain(int i, int j, int W, int H, double half_diag2, const RenderOptions& o) {
+  double gain = 1.0 + o.lighting_gradient.x() * ((i + 0.5) / W - 0.5) +
+                o.lighting_gradient.y() * ((j + 0.5) / H - 0.5);
+  if (o.vignetting != 0.0) {
+    const double du = i - 0.5 * (W - 1), dv = j - 0.5 * (H - 1);
+    gain *= 1.0 - o.vignetting * (du * du + dv * dv) / half_diag2;
+  }
+  return gain;
+}
+
+// The light of a scene without targets: every pixel as render_scene gives one no target meets.
+cv::Mat background_light(int W, int H, const RenderOptions& o) {
+  cv::Mat img(H, W, CV_32F);
+  const double half_diag2 = pixel_gain_scale(W, H);
+  for (int j = 0; j < H; ++j) {
+    float* row = img.ptr<float>(j);
+    for (int i = 0; i < W; ++i)
+      row[i] = static_cast<float>(o.background_level * pixel_gain(i, j, W, H, half_diag2, o));
+  }
+  return img;
+}
+
+// The pixels of `background` (background_light(W, H, o), given to save its computation) with
+// those a target may be seen in rendered over it. `changed` (when not null): the rectangle of
+// pixels that may differ from the background (occluders aside).
 SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTarget>& targets,
-                             const RenderOptions& o, bool with_subcells) {
+                             const RenderOptions& o, bool with_subcells,
+                             const cv::Mat* background = nullptr, cv::Rect* changed = nullptr) {
   const int W = rays.cols - 1, H = rays.rows - 1;
   if (W <= 0 || H <= 0) throw std::invalid_argument("render: empty camera rays");
   std::vector<TargetGeometry> geo;
@@ -552,12 +586,13 @@ SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTar
   scene.subcells = with_subcells ? o.blur_subcells : 1;
   const int s = scene.subcells;
   if (s < 1 || s > 8) throw std::invalid_argument("blur_subcells must be in 1..8");
+  if (o.threads < 1 || o.threads > 64) throw std::invalid_argument("threads must be in 1..64");
   with_subcells = with_subcells && s > 1;
-  scene.pixels.create(H, W, CV_32F);
+  if (background != nullptr &&
+      (background->rows != H || background->cols != W || background->type() != CV_32F))
+    throw std::invalid_argument("render: the background light does not match the camera");
+  scene.pixels = background != nullptr ? background->clone() : background_light(W, H, o);
   cv::Mat& img = scene.pixels;
-  std::vector<Eigen::Vector2d> subcorner(static_cast<size_t>((s + 1) * (s + 1)));
-  std::vector<float> subcell(static_cast<size_t>(s * s));
-  std::vector<CornerHit> upper(static_cast<size_t>(W + 1)), lower(static_cast<size_t>(W + 1));
   auto ray_at = [&](int i, int j) -> const Eigen::Vector3d& {
     return rays
         .rays[static_cast<size_t>(j) * static_cast<size_t>(rays.cols) + static_cast<size_t>(i)];
@@ -583,116 +618,141 @@ SceneIrradiance render_scene(const CameraRays& rays, const std::vector<RenderTar
       if (const std::optional<double> uniform = pattern.inside_module(q, m0)) return *uniform;
     return pattern.black_fraction(q);
   };
-  std::vector<std::int64_t> submodule(static_cast<size_t>((s + 1) * (s + 1)));
-  for (int i = 0; i <= W; ++i) upper[static_cast<size_t>(i)] = corner_hit(i, 0);
-  // r_corner: from the image centre to the centre of a corner pixel.
-  const double half_diag2 =
-      std::max(0.25 * (double(W - 1) * (W - 1) + double(H - 1) * (H - 1)), 1e-9);
+  const double half_diag2 = pixel_gain_scale(W, H);
   constexpr int kSuper = 8;
+  // The pixels with a corner in the window (pixel (i, j) has corners i, i + 1 and j, j + 1);
+  // every other pixel's four corners miss: it keeps the background's light.
+  const int pi0 = std::max(0, window.i0 - 1), pi1 = std::min(W - 1, window.i1);
+  const int pj0 = std::max(0, window.j0 - 1), pj1 = std::min(H - 1, window.j1);
+  const bool any = pi0 <= pi1 && pj0 <= pj1;
 
-  for (int j = 0; j < H; ++j) {
-    for (int i = 0; i <= W; ++i) lower[static_cast<size_t>(i)] = corner_hit(i, j + 1);
-    float* row = img.ptr<float>(j);
-    for (int i = 0; i < W; ++i) {
-      const CornerHit* c[4] = {&upper[static_cast<size_t>(i)], &upper[static_cast<size_t>(i + 1)],
-                               &lower[static_cast<size_t>(i + 1)], &lower[static_cast<size_t>(i)]};
-      double value;
-      bool edge = false;  // subcell holds this pixel's sub-cell means
-      const int t0 = c[0]->target;
-      if (t0 == c[1]->target && t0 == c[2]->target && t0 == c[3]->target) {
-        if (t0 >= 0) {
-          const PatternIndex& pattern = index[static_cast<size_t>(t0)];
-          const std::array<Eigen::Vector2d, 4> q = {c[0]->xy, c[1]->xy, c[2]->xy, c[3]->xy};
-          const double black =
-              black_of(pattern, q, c[0]->module, c[1]->module, c[2]->module, c[3]->module);
-          value = o.white_level - contrast * black;
-          if (with_subcells && black > 0.0 && black < 1.0) {
-            // An edge crosses the pixel: the black fraction of each sub-cell, whose corners
-            // are the board points of bilinearly interpolated corner rays (their footprints
-            // tile the pixel's exactly: a plane cuts the span of two rays in a straight line).
-            const TargetGeometry& g = geo[static_cast<size_t>(t0)];
-            for (int b = 0; b <= s; ++b)
-              for (int a = 0; a <= s; ++a) {
-                const double fx = double(a) / s, fy = double(b) / s;
-                const Eigen::Vector2d& xy = subcorner[static_cast<size_t>(b * (s + 1) + a)] =
-                    plane_point(g,
-                                (1 - fy) * ((1 - fx) * ray_at(i, j) + fx * ray_at(i + 1, j)) +
-                                    fy * ((1 - fx) * ray_at(i, j + 1) + fx * ray_at(i + 1, j + 1)));
-                submodule[static_cast<size_t>(b * (s + 1) + a)] = pattern.module_at(xy.x(), xy.y());
-              }
+  // Rows j0 .. j1 - 1, with their own edge pixels: bands of rows are independent (a band traces
+  // its first row of corners again), and joined in order they are the whole image's.
+  struct Band {
+    std::vector<int> edge_pixels;
+    std::vector<float> subcell_values;
+  };
+  const auto render_band = [&](int j0, int j1, Band& band) {
+    std::vector<Eigen::Vector2d> subcorner(static_cast<size_t>((s + 1) * (s + 1)));
+    std::vector<float> subcell(static_cast<size_t>(s * s));
+    std::vector<std::int64_t> submodule(static_cast<size_t>((s + 1) * (s + 1)));
+    std::vector<CornerHit> upper(static_cast<size_t>(W + 1)), lower(static_cast<size_t>(W + 1));
+    for (int i = pi0; i <= pi1 + 1; ++i) upper[static_cast<size_t>(i)] = corner_hit(i, j0);
+    for (int j = j0; j < j1; ++j) {
+      for (int i = pi0; i <= pi1 + 1; ++i) lower[static_cast<size_t>(i)] = corner_hit(i, j + 1);
+      float* row = img.ptr<float>(j);
+      for (int i = pi0; i <= pi1; ++i) {
+        const CornerHit* c[4] = {&upper[static_cast<size_t>(i)], &upper[static_cast<size_t>(i + 1)],
+                                 &lower[static_cast<size_t>(i + 1)],
+                                 &lower[static_cast<size_t>(i)]};
+        double value;
+        bool edge = false;  // subcell holds this pixel's sub-cell means
+        const int t0 = c[0]->target;
+        if (t0 == c[1]->target && t0 == c[2]->target && t0 == c[3]->target) {
+          if (t0 >= 0) {
+            const PatternIndex& pattern = index[static_cast<size_t>(t0)];
+            const std::array<Eigen::Vector2d, 4> q = {c[0]->xy, c[1]->xy, c[2]->xy, c[3]->xy};
+            const double black =
+                black_of(pattern, q, c[0]->module, c[1]->module, c[2]->module, c[3]->module);
+            value = o.white_level - contrast * black;
+            if (with_subcells && black > 0.0 && black < 1.0) {
+              // An edge crosses the pixel: the black fraction of each sub-cell, whose corners
+              // are the board points of bilinearly interpolated corner rays (their footprints
+              // tile the pixel's exactly: a plane cuts the span of two rays in a straight line).
+              const TargetGeometry& g = geo[static_cast<size_t>(t0)];
+              for (int b = 0; b <= s; ++b)
+                for (int a = 0; a <= s; ++a) {
+                  const double fx = double(a) / s, fy = double(b) / s;
+                  const Eigen::Vector2d& xy = subcorner[static_cast<size_t>(b * (s + 1) + a)] =
+                      plane_point(
+                          g, (1 - fy) * ((1 - fx) * ray_at(i, j) + fx * ray_at(i + 1, j)) +
+                                 fy * ((1 - fx) * ray_at(i, j + 1) + fx * ray_at(i + 1, j + 1)));
+                  submodule[static_cast<size_t>(b * (s + 1) + a)] =
+                      pattern.module_at(xy.x(), xy.y());
+                }
+              for (int b = 0; b < s; ++b)
+                for (int a = 0; a < s; ++a) {
+                  const auto corner = [&](int da, int db) {
+                    return subcorner[static_cast<size_t>((b + db) * (s + 1) + a + da)];
+                  };
+                  const auto module = [&](int da, int db) {
+                    return submodule[static_cast<size_t>((b + db) * (s + 1) + a + da)];
+                  };
+                  const std::array<Eigen::Vector2d, 4> qs = {corner(0, 0), corner(1, 0),
+                                                             corner(1, 1), corner(0, 1)};
+                  subcell[static_cast<size_t>(b * s + a)] = static_cast<float>(
+                      o.white_level - contrast * black_of(pattern, qs, module(0, 0), module(1, 0),
+                                                          module(1, 1), module(0, 1)));
+                }
+              edge = true;
+            }
+          } else {
+            value = o.background_level;
+          }
+        } else if (t0 == -2 || c[1]->target == -2 || c[2]->target == -2 || c[3]->target == -2) {
+          value = o.background_level;  // outside the model's invertible field
+        } else {
+          // Silhouette of a target or several targets: supersample interpolated rays.
+          const Eigen::Vector3d& r00 = ray_at(i, j);
+          const Eigen::Vector3d& r10 = ray_at(i + 1, j);
+          const Eigen::Vector3d& r01 = ray_at(i, j + 1);
+          const Eigen::Vector3d& r11 = ray_at(i + 1, j + 1);
+          double sum = 0;
+          std::fill(subcell.begin(), subcell.end(), 0.0f);
+          for (int sy = 0; sy < kSuper; ++sy) {
+            const double fy = (sy + 0.5) / kSuper;
+            for (int sx = 0; sx < kSuper; ++sx) {
+              const double fx = (sx + 0.5) / kSuper;
+              const Eigen::Vector3d ray =
+                  ((1 - fy) * ((1 - fx) * r00 + fx * r10) + fy * ((1 - fx) * r01 + fx * r11))
+                      .normalized();
+              const CornerHit h = nearest_hit(geo, targets, ray);
+              double sample = o.background_level;
+              if (h.target >= 0)
+                sample = index[static_cast<size_t>(h.target)].black_at(h.xy.x(), h.xy.y())
+                             ? o.black_level
+                             : o.white_level;
+              sum += sample;
+              // Sample (sx, sy) falls in sub-cell (sx s / kSuper, sy s / kSuper); with s <= kSuper
+              // every sub-cell gets (kSuper / s)^2 samples or, for s not dividing kSuper, 1-4.
+              subcell[static_cast<size_t>((sy * s / kSuper) * s + sx * s / kSuper)] +=
+                  static_cast<float>(sample);
+            }
+          }
+          value = sum / (kSuper * kSuper);
+          if (with_subcells) {
             for (int b = 0; b < s; ++b)
               for (int a = 0; a < s; ++a) {
-                const auto corner = [&](int da, int db) {
-                  return subcorner[static_cast<size_t>((b + db) * (s + 1) + a + da)];
-                };
-                const auto module = [&](int da, int db) {
-                  return submodule[static_cast<size_t>((b + db) * (s + 1) + a + da)];
-                };
-                const std::array<Eigen::Vector2d, 4> qs = {corner(0, 0), corner(1, 0), corner(1, 1),
-                                                           corner(0, 1)};
-                subcell[static_cast<size_t>(b * s + a)] = static_cast<float>(
-                    o.white_level - contrast * black_of(pattern, qs, module(0, 0), module(1, 0),
-                                                        module(1, 1), module(0, 1)));
+                const int na = (a + 1) * kSuper / s - a * kSuper / s;  // samples per column
+                const int nb = (b + 1) * kSuper / s - b * kSuper / s;
+                subcell[static_cast<size_t>(b * s + a)] /= static_cast<float>(na * nb);
               }
             edge = true;
           }
-        } else {
-          value = o.background_level;
         }
-      } else if (t0 == -2 || c[1]->target == -2 || c[2]->target == -2 || c[3]->target == -2) {
-        value = o.background_level;  // outside the model's invertible field
-      } else {
-        // Silhouette of a target or several targets: supersample interpolated rays.
-        const Eigen::Vector3d& r00 = ray_at(i, j);
-        const Eigen::Vector3d& r10 = ray_at(i + 1, j);
-        const Eigen::Vector3d& r01 = ray_at(i, j + 1);
-        const Eigen::Vector3d& r11 = ray_at(i + 1, j + 1);
-        double sum = 0;
-        std::fill(subcell.begin(), subcell.end(), 0.0f);
-        for (int sy = 0; sy < kSuper; ++sy) {
-          const double fy = (sy + 0.5) / kSuper;
-          for (int sx = 0; sx < kSuper; ++sx) {
-            const double fx = (sx + 0.5) / kSuper;
-            const Eigen::Vector3d ray =
-                ((1 - fy) * ((1 - fx) * r00 + fx * r10) + fy * ((1 - fx) * r01 + fx * r11))
-                    .normalized();
-            const CornerHit h = nearest_hit(geo, targets, ray);
-            double sample = o.background_level;
-            if (h.target >= 0)
-              sample = index[static_cast<size_t>(h.target)].black_at(h.xy.x(), h.xy.y())
-                           ? o.black_level
-                           : o.white_level;
-            sum += sample;
-            // Sample (sx, sy) falls in sub-cell (sx s / kSuper, sy s / kSuper); with s <= kSuper
-            // every sub-cell gets (kSuper / s)^2 samples or, for s not dividing kSuper, 1-4.
-            subcell[static_cast<size_t>((sy * s / kSuper) * s + sx * s / kSuper)] +=
-                static_cast<float>(sample);
-          }
-        }
-        value = sum / (kSuper * kSuper);
-        if (with_subcells) {
-          for (int b = 0; b < s; ++b)
-            for (int a = 0; a < s; ++a) {
-              const int na = (a + 1) * kSuper / s - a * kSuper / s;  // samples per column
-              const int nb = (b + 1) * kSuper / s - b * kSuper / s;
-              subcell[static_cast<size_t>(b * s + a)] /= static_cast<float>(na * nb);
-            }
-          edge = true;
+        const double gain = pixel_gain(i, j, W, H, half_diag2, o);
+        row[i] = static_cast<float>(value * gain);
+        if (edge) {
+          band.edge_pixels.push_back(j * W + i);
+          for (const float v : subcell) band.subcell_values.push_back(static_cast<float>(v * gain));
         }
       }
-      double gain = 1.0 + o.lighting_gradient.x() * ((i + 0.5) / W - 0.5) +
-                    o.lighting_gradient.y() * ((j + 0.5) / H - 0.5);
-      if (o.vignetting != 0.0) {
-        const double du = i - 0.5 * (W - 1), dv = j - 0.5 * (H - 1);
-        gain *= 1.0 - o.vignetting * (du * du + dv * dv) / half_diag2;
-      }
-      row[i] = static_cast<float>(value * gain);
-      if (edge) {
-        scene.edge_pixels.push_back(j * W + i);
-        for (const float v : subcell) scene.subcell_values.push_back(static_cast<float>(v * gain));
-      }
+      std::swap(upper, lower);
     }
-    std::swap(upper, lower);
+  };
+  const int rows = any ? pj1 - pj0 + 1 : 0;
+  const int bands = std::clamp(o.threads, 1, std::max(rows, 1));
+  std::vector<Band> band(static_cast<size_t>(bands));
+  if (any)
+    core::parallel_for(bands, bands, [&](int b) {
+      render_band(pj0 + rows * b / bands, pj0 + rows * (b + 1) / bands,
+                  band[static_cast<size_t>(b)]);
+    });
+  if (changed != nullptr) *changed = any ? cv::Rect(pi0, pj0, pi1 - pi0 + 1, rows) : cv::Rect();
+  for (const Band& b : band) {
+    scene.edge_pixels.insert(scene.edge_pixels.end(), b.edge_pixels.begin(), b.edge_pixels.end());
+    scene.subcell_values.insert(scene.subcell_values.end(), b.subcell_values.begin(),
+                                b.subcell_values.end());
   }
 
   // Occluders: 4x4 supersampled coverage of the shape, painted over the scene (and over the
@@ -762,7 +822,13 @@ std::vector<float> substrip_weights(int s, int r, double sigma) {
 // the pixel-to-pixel kernel (Gaussian convolved with two pixel boxes, separable); an edge pixel
 // spreads each of its sub-cells with that sub-cell's exact kernel. Beyond the image border the
 // scene is taken as the mirror image of the scene inside (cv::BORDER_REFLECT).
-cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma) {
+// `blurred_background` (when given): this blur of the scene's pixels outside `changed`, i.e. of
+// a scene that differs from it only there; the rest is taken from it. The filter's sums are the
+// same for a part of an image as for the whole (OpenCV reads a part's surroundings from the
+// whole), so the result is the same to the bit.
+cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma,
+                             const cv::Mat* blurred_background = nullptr,
+                             const cv::Rect& changed = {}) {
   const cv::Mat& pixels = scene.pixels;
   const int W = pixels.cols, H = pixels.rows;
   const int r = static_cast<int>(std::ceil(5.0 * sigma)) + 1;  // the kernel below 1e-6
@@ -772,7 +838,22 @@ cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma) {
   for (const int k : scene.edge_pixels) uniform.at<float>(k / W, k % W) = 0.0f;
   cv::Mat out;
   const cv::Mat kernel(taps, 1, CV_32F, const_cast<float*>(pixel_kernel.data()));
-  cv::sepFilter2D(uniform, out, CV_32F, kernel, kernel, cv::Point(-1, -1), 0.0, cv::BORDER_REFLECT);
+  if (blurred_background != nullptr) {
+    out = blurred_background->clone();
+    // Pixels farther than r from every changed one see only the background.
+    const cv::Rect near =
+        cv::Rect(changed.x - r, changed.y - r, changed.width + 2 * r, changed.height + 2 * r) &
+        cv::Rect(0, 0, W, H);
+    if (!changed.empty() && !near.empty()) {
+      cv::Mat part;
+      cv::sepFilter2D(uniform(near), part, CV_32F, kernel, kernel, cv::Point(-1, -1), 0.0,
+                      cv::BORDER_REFLECT);
+      part.copyTo(out(near));
+    }
+  } else {
+    cv::sepFilter2D(uniform, out, CV_32F, kernel, kernel, cv::Point(-1, -1), 0.0,
+                    cv::BORDER_REFLECT);
+  }
   if (scene.edge_pixels.empty()) return out;
 
   const int s = scene.subcells;
@@ -838,6 +919,7 @@ namespace {
 void check_sensor_options(const RenderOptions& o) {
   if (o.bit_depth != 8 && o.bit_depth != 16)
     throw std::invalid_argument("bit_depth must be 8 or 16");
+  if (o.threads < 1 || o.threads > 64) throw std::invalid_argument("threads must be in 1..64");
 }
 
 }  // namespace
@@ -861,28 +943,34 @@ cv::Mat sensor_readout(const cv::Mat& img, const RenderOptions& o) {
   const double read_var = o.read_noise * o.read_noise;
   const double per_gain = o.shot_noise_gain > 0.0 ? 1.0 / o.shot_noise_gain : 0.0;
   const std::uint64_t seed = splitmix64(o.seed);
-  // A row at a time: the normal draws first, then the arithmetic, which vectorises.
-  std::vector<double> z(static_cast<std::size_t>(img.cols), 0.0);
-  std::vector<double> level(static_cast<std::size_t>(img.cols));
-  for (int v = 0; v < img.rows; ++v) {
-    const float* in = img.ptr<float>(v);
-    const auto row_start = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(img.cols);
-    if (noisy) pixel_normals(seed, row_start, z);
-    // Pixel k's noise: variance read_var + signal / gain, its draw depending only on (seed, k).
-    for (std::size_t u = 0; u < level.size(); ++u) {
-      const double x = in[u];
-      level[u] = (x + std::sqrt(read_var + std::max(x, 0.0) * per_gain) * z[u]) * scale;
+  // A row at a time: the normal draws first, then the arithmetic, which vectorises. Bands of
+  // rows on o.threads workers (each pixel's value depends on that pixel alone).
+  const auto read_rows = [&](int v0, int v1) {
+    std::vector<double> z(static_cast<std::size_t>(img.cols), 0.0);
+    std::vector<double> level(static_cast<std::size_t>(img.cols));
+    for (int v = v0; v < v1; ++v) {
+      const float* in = img.ptr<float>(v);
+      const auto row_start = static_cast<std::uint64_t>(v) * static_cast<std::uint64_t>(img.cols);
+      if (noisy) pixel_normals(seed, row_start, z);
+      // Pixel k's noise: variance read_var + signal / gain, its draw depending only on (seed, k).
+      for (std::size_t u = 0; u < level.size(); ++u) {
+        const double x = in[u];
+        level[u] = (x + std::sqrt(read_var + std::max(x, 0.0) * per_gain) * z[u]) * scale;
+      }
+      if (o.bit_depth == 16) {
+        auto* row = out.ptr<std::uint16_t>(v);
+        for (std::size_t u = 0; u < level.size(); ++u)
+          row[u] = static_cast<std::uint16_t>(readout_step(level[u], max_value));
+      } else {
+        auto* row = out.ptr<std::uint8_t>(v);
+        for (std::size_t u = 0; u < level.size(); ++u)
+          row[u] = static_cast<std::uint8_t>(readout_step(level[u], max_value));
+      }
     }
-    if (o.bit_depth == 16) {
-      auto* row = out.ptr<std::uint16_t>(v);
-      for (std::size_t u = 0; u < level.size(); ++u)
-        row[u] = static_cast<std::uint16_t>(readout_step(level[u], max_value));
-    } else {
-      auto* row = out.ptr<std::uint8_t>(v);
-      for (std::size_t u = 0; u < level.size(); ++u)
-        row[u] = static_cast<std::uint8_t>(readout_step(level[u], max_value));
-    }
-  }
+  };
+  const int bands = std::clamp(o.threads, 1, std::max(img.rows, 1));
+  core::parallel_for(bands, bands,
+                     [&](int b) { read_rows(img.rows * b / bands, img.rows * (b + 1) / bands); });
   return out;
 }
 
@@ -948,7 +1036,14 @@ bool same_scene_options(const RenderOptions& a, RenderOptions b) {
   b.shot_noise_gain = a.shot_noise_gain;
   b.bit_depth = a.bit_depth;
   b.seed = a.seed;
+  b.threads = a.threads;
   return a == b;
+}
+
+// Options that give the same light where no target is seen, blurred.
+bool same_background(const RenderOptions& a, const RenderOptions& b) {
+  return a.background_level == b.background_level && a.lighting_gradient == b.lighting_gradient &&
+         a.vignetting == b.vignetting && a.blur_sigma == b.blur_sigma;
 }
 
 }  // namespace
@@ -1019,13 +1114,43 @@ cv::Mat StillSceneRenderer::render(const std::vector<RenderTarget>& all_targets,
     }
   }
   if (irradiance.empty()) {
-    irradiance = blurred_irradiance(render_irradiance(rays_, targets, options), options);
+    irradiance = light_of(targets, options);
     const std::lock_guard lock(mutex_);
     last_poses_ = std::move(poses);
     last_options_ = options;
     last_irradiance_ = irradiance;
   }
   return sensor_readout(irradiance, options);
+}
+
+// Occluders are painted anywhere in the image: a scene with them is rendered whole.
+cv::Mat StillSceneRenderer::light_of(const std::vector<RenderTarget>& targets,
+                                     const RenderOptions& options) {
+  if (!options.occluders.empty())
+    return blurred_irradiance(render_irradiance(rays_, targets, options), options);
+  std::shared_ptr<const Background> background;
+  {
+    const std::lock_guard lock(mutex_);
+    if (background_ && same_background(background_->options, options)) background = background_;
+  }
+  if (!background) {
+    auto fresh = std::make_shared<Background>();
+    fresh->options = options;
+    fresh->light = background_light(rays_.cols - 1, rays_.rows - 1, options);
+    if (options.blur_sigma > 0.0) {
+      SceneIrradiance empty;
+      empty.pixels = fresh->light;
+      fresh->blurred = blur_before_sampling(empty, options.blur_sigma);
+    }
+    background = fresh;
+    const std::lock_guard lock(mutex_);
+    background_ = std::move(fresh);
+  }
+  cv::Rect changed;
+  const SceneIrradiance scene =
+      render_scene(rays_, targets, options, options.blur_sigma > 0.0, &background->light, &changed);
+  if (!(options.blur_sigma > 0.0)) return scene.pixels;
+  return blur_before_sampling(scene, options.blur_sigma, &background->blurred, changed);
 }
 
 long StillSceneRenderer::reused() const {

@@ -73,12 +73,16 @@ LiveCell make_live_cell(const LiveDemoOptions& o, const std::string& robot_file)
   return c;
 }
 
-std::vector<LiveCameraSpec> camera_specs(const SimulatedCell& cell, unsigned seed) {
+std::vector<LiveCameraSpec> camera_specs(const SimulatedCell& cell, unsigned seed, int threads) {
   std::vector<LiveCameraSpec> specs;
   for (std::size_t c = 0; c < cell.cameras.size(); ++c) {
     LiveCameraSpec s{fmt::format("cam{}", c), cell.cameras[c].model, cell.cameras[c].camera_T_world,
                      cell.options.render};
     s.render.seed = 1000003ULL * (seed + 1) + 7919ULL * c;
+    // Each camera renders its frame on a thread of its own; a frame split in bands of rows as
+    // well keeps both cores busy when one camera sees the board close up and the others little
+    // (a pose waits for its slowest camera's frame).
+    s.render.threads = threads;
     specs.push_back(s);
   }
   return specs;
@@ -421,7 +425,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   stage(log, "live: cell");
   const LiveCell lc = make_live_cell(o, robot_file);
   const LiveCellFiles files = write_live_cell(lc.cell, robot_file, setup);
-  const auto specs = camera_specs(lc.cell, o.seed);
+  const auto specs = camera_specs(lc.cell, o.seed, o.threads);
 
   // The true robot in its own process: every true parameter given, so its geometry is the
   // offline demo's (its elastic sag is added where the cameras look: SaggingBoard).

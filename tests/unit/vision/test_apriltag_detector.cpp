@@ -59,10 +59,10 @@ struct Scene {
   rt::TagGridRenderer renderer{rt::TagGrid{4, 3, 50.0, 12.5, 0}};
 
   cv::Mat render(double tilt_deg, double blur, double noise, unsigned seed,
-                 std::vector<rt::SyntheticTag>* truth, double u = 319.5, double v = 255.5) const {
+                 std::vector<rt::SyntheticTag>* truth, double u = 319.5, double v = 255.5,
+                 rt::SyntheticImageOptions opt = {}) const {
     const auto [r, t] =
         rt::look_at_pose(cam, renderer.board_size() / 2, 600.0, tilt_deg, 30.0, 8.0, u, v);
-    rt::SyntheticImageOptions opt;
     opt.blur_sigma = blur;
     opt.noise_sigma = noise;
     opt.seed = seed;
@@ -302,6 +302,76 @@ TEST(EdgeFit, UnbiasedUnderAGainRampAlongAndAcrossTheEdge) {
   }
 }
 
+// The noise estimate, against Gaussian noise of known sigma added and rounded to whole DN: on a
+// flat grey image it is the noise's alone (3 %); on rendered tag views (edges, blurred
+// transitions, a flat background) the edges' pairs lift the median by up to ~8 % at low noise,
+// which the 8-sigma threshold built on it does not notice (10 %).
+TEST(PixelNoise, RecoversTheSigmaOfTheNoiseAddedToAScene) {
+  Scene scene;
+  for (const double sigma : {1.0, 2.0, 4.0, 8.0}) {
+    cv::Mat noise(480, 640, CV_64FC1);
+    cv::RNG rng(11);
+    rng.fill(noise, cv::RNG::NORMAL, 100.0, sigma);
+    cv::Mat flat;
+    noise.convertTo(flat, CV_8UC1);  // rounds to the nearest DN
+    EXPECT_NEAR(rv::pixel_noise_sigma(flat), sigma, 0.03 * sigma) << "flat, sigma " << sigma;
+    std::vector<rt::SyntheticTag> truth;
+    const cv::Mat image = scene.render(30.0, 0.8, sigma, 7, &truth);
+    EXPECT_NEAR(rv::pixel_noise_sigma(image), sigma, 0.10 * sigma) << "tags, sigma " << sigma;
+  }
+  std::vector<rt::SyntheticTag> truth;
+  EXPECT_LT(rv::pixel_noise_sigma(scene.render(30.0, 0.8, 0.0, 7, &truth)), 0.3);
+  EXPECT_EQ(rv::pixel_noise_sigma(cv::Mat(20, 1, CV_8UC1, cv::Scalar(9))), 0.0);
+}
+
+TEST(PixelNoise, ThresholdIsEightSigmaBetweenTheLibraryDefaultAndTheKeptContrast) {
+  EXPECT_EQ(rv::min_white_black_diff_for(0.0, 20.0), 5);
+  EXPECT_EQ(rv::min_white_black_diff_for(0.5, 20.0), 5);
+  EXPECT_EQ(rv::min_white_black_diff_for(2.0, 20.0), 16);
+  EXPECT_EQ(rv::min_white_black_diff_for(3.0, 20.0), 24);
+  EXPECT_EQ(rv::min_white_black_diff_for(10.0, 20.0), 40);
+  EXPECT_EQ(rv::min_white_black_diff_for(10.0, 1.0), 5);
+}
+
+// The threshold taken from the image's noise only spares the quad search the noise: every tag
+// the library's fixed default (5 DN) finds is found, with the same corners, down to tags of
+// 60 DN contrast (a decision margin near the 20 kept).
+TEST(AprilTagDetector, NoiseAdaptiveThresholdFindsWhatTheLibraryDefaultFinds) {
+  Scene scene;
+  rv::AprilTagDetectorOptions fixed;
+  fixed.min_white_black_diff = 5;
+  rv::AprilTagDetector by_default(fixed);
+  rv::AprilTagDetector adaptive;
+  fixed.min_white_black_diff = 110;  // above 60 DN of contrast and its noise
+  rv::AprilTagDetector too_high(fixed);
+  int tags = 0;
+  for (const double contrast : {200.0, 60.0})
+    for (const double noise : {2.0, 4.0})
+      for (const double tilt : {0.0, 40.0, 60.0}) {
+        rt::SyntheticImageOptions look;
+        look.black = 120.0 - contrast / 2;
+        look.white = 120.0 + contrast / 2;
+        std::vector<rt::SyntheticTag> truth;
+        const cv::Mat image = scene.render(tilt, 0.8, noise, 3, &truth, 319.5, 255.5, look);
+        // The case is one where the thresholds differ.
+        ASSERT_GE(rv::min_white_black_diff_for(rv::pixel_noise_sigma(image), 20.0), 15);
+        const auto a = by_default.detect(image);
+        const auto b = adaptive.detect(image);
+        ASSERT_EQ(a.size(), b.size())
+            << "contrast " << contrast << " noise " << noise << " tilt " << tilt;
+        for (std::size_t k = 0; k < a.size(); ++k) {
+          EXPECT_EQ(a[k].id, b[k].id);
+          for (std::size_t c = 0; c < 4; ++c) EXPECT_EQ(a[k].corners[c], b[k].corners[c]);
+        }
+        tags += static_cast<int>(b.size());
+        // A threshold above the contrast loses the tags: the comparison can tell.
+        if (contrast < 70.0) {
+          EXPECT_LT(too_high.detect(image).size(), b.size());
+        }
+      }
+  EXPECT_GE(tags, 12 * 12 - 8);  // nearly all of the 12 tags of every view
+}
+
 TEST(AprilTagDetector, RejectsWrongImageTypeAndBadOptions) {
   rv::AprilTagDetector detector;
   EXPECT_THROW(detector.detect(cv::Mat()), std::invalid_argument);
@@ -313,6 +383,11 @@ TEST(AprilTagDetector, RejectsWrongImageTypeAndBadOptions) {
   bad = {};
   bad.quad_decimate = 0.5f;
   EXPECT_THROW(rv::AprilTagDetector{bad}, std::invalid_argument);
+  bad = {};
+  bad.min_white_black_diff = -1;
+  EXPECT_THROW(rv::AprilTagDetector{bad}, std::invalid_argument);
+  EXPECT_THROW((void)rv::pixel_noise_sigma(cv::Mat(50, 50, CV_8UC3, cv::Scalar(0))),
+               std::invalid_argument);
   // A blank image is valid input with no tags in it.
   EXPECT_TRUE(detector.detect(cv::Mat(64, 64, CV_8UC1, cv::Scalar(128))).empty());
 }

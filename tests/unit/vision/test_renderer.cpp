@@ -286,6 +286,47 @@ TEST(Renderer, DeterministicWithSeed) {
   EXPECT_GT(cv::norm(a, c, cv::NORM_L1), 1000.0);
 }
 
+// Bands of rows on several workers give the image of one worker, bit for bit: the scene's light
+// and its edge pixels' sub-cells (their order too, which the blur sums in), and the readout.
+TEST(Renderer, AnyNumberOfThreadsGivesTheSameImage) {
+  const auto cam =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto board = april_board();
+  const std::vector<rv::RenderTarget> targets = {
+      {board, rt::tilted_board_pose(board, 0.3, 35, 20, 5)}};
+  const auto rays = rv::precompute_rays(cam);
+  rv::RenderOptions opt;
+  opt.read_noise = 2.0;
+  opt.shot_noise_gain = 4.0;
+  opt.blur_sigma = 0.8;
+  opt.vignetting = 0.1;
+  rv::Occluder finger;
+  finger.center = Eigen::Vector2d(150.3, 118.7);
+  finger.radius = 12.0;
+  finger.level = 5.0;
+  opt.occluders.push_back(finger);
+  const rv::SceneIrradiance one = rv::render_irradiance(rays, targets, opt);
+  const cv::Mat image = rv::render(rays, targets, opt).image;
+  ASSERT_GT(one.edge_pixels.size(), 1000u);
+  for (const int threads : {2, 3, 7}) {
+    opt.threads = threads;
+    const rv::SceneIrradiance many = rv::render_irradiance(rays, targets, opt);
+    EXPECT_EQ(cv::norm(many.pixels, one.pixels, cv::NORM_INF), 0.0) << threads;
+    EXPECT_EQ(many.edge_pixels, one.edge_pixels) << threads;
+    EXPECT_EQ(many.subcell_values, one.subcell_values) << threads;
+    EXPECT_EQ(cv::norm(rv::render(rays, targets, opt).image, image, cv::NORM_INF), 0.0) << threads;
+  }
+  // A still camera's second frame with another number of workers is the same scene.
+  rv::StillSceneRenderer camera(rays);
+  opt.threads = 1;
+  (void)camera.render(targets, opt);
+  opt.threads = 2;
+  EXPECT_EQ(cv::norm(camera.render(targets, opt), image, cv::NORM_INF), 0.0);
+  EXPECT_EQ(camera.reused(), 1);
+  opt.threads = 0;
+  EXPECT_THROW((void)rv::render(rays, targets, opt), std::invalid_argument);
+}
+
 // A still scene shot again draws only new noise: every frame equals render()'s bit for bit, and
 // only a frame of the very same scene (pose and levels) reuses the last one's light.
 TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
@@ -343,6 +384,32 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
       EXPECT_GT(hi - lo, 100.0);
     }
   }
+}
+
+// A camera keeps the light where no target is seen from frame to frame: only the pixels around
+// the board are rendered and blurred again. Every frame is still render()'s, bit for bit, as the
+// board moves (near the image border too) and as the background's level changes (an exposure).
+TEST(Renderer, StillSceneRendererKeepsTheBackgroundOnlyWhileItIsTheSame) {
+  const auto cam =
+      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto board = april_board();
+  rv::RenderOptions opt;
+  opt.read_noise = 2.0;
+  opt.blur_sigma = 0.8;
+  opt.vignetting = 0.15;
+  opt.lighting_gradient = Eigen::Vector2d(0.05, -0.03);
+  rv::StillSceneRenderer camera(rv::precompute_rays(cam));
+  for (int k = 0; k < 8; ++k) {
+    // The board 0.5 m away, moving right and down until it leaves the image's corner.
+    Eigen::Isometry3d pose = rt::tilted_board_pose(board, 0.5, 20, 10 * k, 0);
+    pose.translation() += Eigen::Vector3d(0.04 * k, 0.03 * k, 0.0);
+    opt.background_level = k < 5 ? 60.0 : 45.0;
+    opt.seed = static_cast<std::uint64_t>(k + 1);
+    const std::vector<rv::RenderTarget> targets = {{board, pose}};
+    const cv::Mat expected = rv::render(camera.rays(), targets, opt).image;
+    EXPECT_EQ(cv::norm(camera.render(targets, opt), expected, cv::NORM_INF), 0.0) << "frame " << k;
+  }
+  EXPECT_EQ(camera.reused(), 0);
 }
 
 // The readout rounds half away from zero and clamps to the sensor's range, as std::round would.

@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <utility>
@@ -71,6 +72,10 @@ struct RenderOptions {
   double shot_noise_gain = 0.0;  // electrons per DN; shot-noise variance = signal / gain (0: off)
   int bit_depth = 8;             // 8 or 16
   std::uint64_t seed = 1;        // noise seed: same seed, same image
+  // Workers for one image (bands of rows); the image is the same for any number. More than one
+  // where a single camera's frame is awaited (a live camera), one where frames are rendered in
+  // parallel already.
+  int threads = 1;
   bool operator==(const RenderOptions&) const = default;
 };
 
@@ -128,8 +133,11 @@ RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& tar
 // away, or its paper lies outside the cone or the four side planes that hold every ray) is left
 // out of the scene first,
 // so every frame of a camera in an array that does not see the board is the same empty scene.
-// Either way the image equals render()'s exactly, at the cost of the readout alone. Thread-safe;
-// one object per camera.
+// Either way the image equals render()'s exactly, at the cost of the readout alone. Any other
+// frame keeps the light where no target can be seen from the camera's last frame with the same
+// background (level, lighting, vignetting, blur): only the pixels around the targets are rendered
+// and blurred again, and the image is still render()'s to the bit. Thread-safe; one object per
+// camera.
 class StillSceneRenderer {
  public:
   explicit StillSceneRenderer(CameraRays rays);
@@ -141,6 +149,8 @@ class StillSceneRenderer {
 
  private:
   [[nodiscard]] bool may_be_seen(const RenderTarget& target) const;
+  // The blurred light of the scene (blurred_irradiance(render_irradiance(...))).
+  cv::Mat light_of(const std::vector<RenderTarget>& targets, const RenderOptions& options);
 
   CameraRays rays_;
   double widest_ray_ = 0.0;  // largest angle of a ray from the optical axis, rad
@@ -152,6 +162,13 @@ class StillSceneRenderer {
   std::optional<RenderOptions> last_options_;
   cv::Mat last_irradiance_;
   long reused_ = 0;
+  // The scene without targets: its light and that light blurred, for `options`.
+  struct Background {
+    RenderOptions options;
+    cv::Mat light;
+    cv::Mat blurred;
+  };
+  std::shared_ptr<const Background> background_;
 };
 
 }  // namespace robocal::vision
