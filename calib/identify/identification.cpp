@@ -3,6 +3,8 @@
 #include "robocal/calib/conventions.hpp"
 #include "robocal/calib/gauge_choice.hpp"
 
+#include "robocal/core/parallel.hpp"
+
 #include <ceres/ceres.h>
 #include <fmt/core.h>
 
@@ -52,9 +54,42 @@ class PoseCost final : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    const auto P = static_cast<Eigen::Index>(model_.parameter_count());
-    const Eigen::VectorXd params = Eigen::Map<const Eigen::VectorXd>(parameters[0], P);
     const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+    if (ahead_at(parameters[0], want_jacobian)) {
+      if (!ahead_.ok) return false;
+      std::copy(ahead_.residuals.begin(), ahead_.residuals.end(), residuals);
+      if (want_jacobian) std::copy(ahead_.jacobian.begin(), ahead_.jacobian.end(), jacobians[0]);
+      return true;
+    }
+    return compute(parameters[0], residuals, want_jacobian ? jacobians[0] : nullptr);
+  }
+
+  // Evaluates the block at `params` ahead of Ceres' call for it (EvaluateAhead: the poses on
+  // several threads), unless that is done already.
+  void evaluate_ahead(const double* params, bool with_jacobian) const {
+    if (ahead_at(params, with_jacobian)) return;
+    const auto P = model_.parameter_count();
+    ahead_.params.assign(params, params + P);
+    ahead_.with_jacobian = with_jacobian;
+    ahead_.residuals.resize(static_cast<std::size_t>(num_residuals()));
+    ahead_.jacobian.resize(with_jacobian ? static_cast<std::size_t>(num_residuals()) * P : 0);
+    ahead_.ok =
+        compute(params, ahead_.residuals.data(), with_jacobian ? ahead_.jacobian.data() : nullptr);
+  }
+
+ private:
+  // Whether the block was evaluated ahead at exactly `params` (with its Jacobian if wanted).
+  bool ahead_at(const double* params, bool with_jacobian) const {
+    return !ahead_.params.empty() && (ahead_.with_jacobian || !with_jacobian) &&
+           std::equal(ahead_.params.begin(), ahead_.params.end(), params);
+  }
+
+  // The block's residuals and, when `jacobian` is not null, its row-major Jacobian.
+  bool compute(const double* parameters, double* residuals, double* jacobian) const {
+    const auto P = static_cast<Eigen::Index>(model_.parameter_count());
+    const Eigen::VectorXd params = Eigen::Map<const Eigen::VectorXd>(parameters, P);
+    const bool want_jacobian = jacobian != nullptr;
+    double* jacobians[] = {jacobian};
     FramePrediction pred;
     std::string why;
     if (!model_.predict(params, pose_.actuators, slot_, want_jacobian, pred, why)) return false;
@@ -115,10 +150,36 @@ class PoseCost final : public ceres::CostFunction {
     return true;
   }
 
- private:
   const FramePredictor& model_;
   const PoseMeasurement& pose_;
   int slot_;
+  struct Ahead {
+    std::vector<double> params;  // where (empty: nowhere yet)
+    bool with_jacobian = false;
+    bool ok = false;
+    std::vector<double> residuals;
+    std::vector<double> jacobian;  // row-major, residuals x parameters
+  };
+  mutable Ahead ahead_;  // written by one worker at a time, read after it joined
+};
+
+// Evaluates every pose's block on `threads` workers before each of Ceres' evaluations, which
+// then only copies them (Ceres' own threads would sum the cost and gradient in an order that
+// changes from run to run; this keeps the solve the same to the bit for any number of threads).
+class EvaluateAhead final : public ceres::EvaluationCallback {
+ public:
+  EvaluateAhead(std::vector<const PoseCost*> costs, const double* params, int threads)
+      : costs_(std::move(costs)), params_(params), threads_(threads) {}
+  void PrepareForEvaluation(bool evaluate_jacobians, bool /*new_evaluation_point*/) override {
+    core::parallel_for(static_cast<int>(costs_.size()), threads_, [&](int i) {
+      costs_[static_cast<std::size_t>(i)]->evaluate_ahead(params_, evaluate_jacobians);
+    });
+  }
+
+ private:
+  std::vector<const PoseCost*> costs_;
+  const double* params_;  // the problem's parameter block, which Ceres updates before calling
+  int threads_;
 };
 
 class DistanceCost final : public ceres::CostFunction {
@@ -420,6 +481,7 @@ void add_noise_warnings(const NoiseEstimate& noise, bool applied,
 // The assembled least-squares problem over the accepted poses (cost functions owned here so
 // they can be evaluated outside Ceres for Jacobians and diagnostics).
 struct Assembly {
+  int threads = 1;  // workers for the pose blocks (evaluate_all, EvaluateAhead)
   std::vector<const PoseMeasurement*> poses;
   std::vector<std::unique_ptr<ceres::CostFunction>> pose_costs;
   std::vector<std::unique_ptr<ceres::CostFunction>> distance_costs;
@@ -492,23 +554,42 @@ bool evaluate_all(const Assembly& as, const Eigen::VectorXd& params, bool with_j
   r.resize(as.rows);
   if (with_jacobian) J.resize(as.rows, P);
   const double* blocks[] = {params.data()};
-  int row = 0;
-  auto run = [&](const ceres::CostFunction& cost) {
+  // Each block into its own buffers (the pose blocks on as.threads workers), then stacked.
+  struct Block {
+    bool ok = false;
+    Eigen::VectorXd r;
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J;
+  };
+  const auto evaluate = [&](const ceres::CostFunction& cost, Block& b) {
     const int m = cost.num_residuals();
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> Jb(m, P);
-    double* jac[] = {Jb.data()};
-    if (!cost.Evaluate(blocks, r.data() + row, with_jacobian ? jac : nullptr)) return false;
-    if (with_jacobian) J.middleRows(row, m) = Jb;
+    b.r.resize(m);
+    if (with_jacobian) b.J.resize(m, P);
+    double* jac[] = {b.J.data()};
+    b.ok = cost.Evaluate(blocks, b.r.data(), with_jacobian ? jac : nullptr);
+  };
+  std::vector<Block> pose_blocks(as.pose_costs.size());
+  core::parallel_for(static_cast<int>(pose_blocks.size()), as.threads, [&](int i) {
+    evaluate(*as.pose_costs[static_cast<std::size_t>(i)], pose_blocks[static_cast<std::size_t>(i)]);
+  });
+  int row = 0;
+  const auto stack = [&](const Block& b) {
+    if (!b.ok) return false;
+    const auto m = static_cast<int>(b.r.size());
+    r.segment(row, m) = b.r;
+    if (with_jacobian) J.middleRows(row, m) = b.J;
     row += m;
     return true;
   };
-  for (const auto& c : as.pose_costs) {
+  for (const Block& b : pose_blocks) {
     const int start = row;
-    if (!run(*c)) return false;
+    if (!stack(b)) return false;
     if (pose_rows) pose_rows->push_back({start, row - start});
   }
-  for (const auto& c : as.distance_costs)
-    if (!run(*c)) return false;
+  for (const auto& c : as.distance_costs) {
+    Block b;
+    evaluate(*c, b);
+    if (!stack(b)) return false;
+  }
   return true;
 }
 
@@ -664,7 +745,10 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     if (!ids.insert(pose.id).second)
       return invalid(fmt::format("pose id '{}' appears more than once", pose.id));
 
+  if (options.threads < 1 || options.threads > 64)
+    return invalid(fmt::format("threads must be in 1..64 (got {})", options.threads));
   Assembly as;
+  as.threads = model.thread_safe() ? options.threads : 1;
   std::map<std::string, int> slot_of;
   std::vector<Eigen::Vector3d> measured_pts;
   std::vector<Eigen::Vector3d> predicted_pts;
@@ -913,6 +997,10 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     ceres::Problem::Options popt;
     popt.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     popt.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+    std::vector<const PoseCost*> ahead;
+    for (const auto& c : as.pose_costs) ahead.push_back(dynamic_cast<const PoseCost*>(c.get()));
+    EvaluateAhead evaluate_ahead(std::move(ahead), x.data(), as.threads);
+    if (as.threads > 1) popt.evaluation_callback = &evaluate_ahead;
     ceres::Problem problem(popt);
     std::vector<std::unique_ptr<ceres::CostFunction>> scaled;
     int first_row = 0;

@@ -41,37 +41,34 @@ bool MechanismPredictor::predict(const Eigen::VectorXd& params, const Eigen::Vec
     why = "non-finite parameters or readings";
     return false;
   }
-  // Seed: this pose's solution at the NOMINAL parameters (cold start from the closed form, cached
-  // per slot). Seeding every parameter vector from the same nominal solution makes the prediction
-  // a deterministic function of the parameters on one assembly branch: warm-starting from the
-  // previous trial point instead lets a large trial step hop to a neighbouring branch (the plate
-  // ball joint modelled as three revolutes has two nearby branches once its offsets are nonzero),
-  // which the identification then cannot undo.
-  Eigen::VectorXd seed;
-  if (slot >= 0 && static_cast<std::size_t>(slot) < seeds_.size() &&
-      seeds_[static_cast<std::size_t>(slot)].size() > 0 &&
-      seed_readings_[static_cast<std::size_t>(slot)] == actuators) {
-    seed = seeds_[static_cast<std::size_t>(slot)];
-  } else {
-    if (!nominal_solver_) nominal_solver_.emplace(model_, model_.nominal_parameters(), options_);
-    const ClosureResult nominal = nominal_solver_->solve(actuators);
-    if (nominal.ok()) seed = nominal.passive;
-    if (slot >= 0) {
-      const auto s = static_cast<std::size_t>(slot);
-      if (s >= seeds_.size()) {
-        seeds_.resize(s + 1);
-        seed_readings_.resize(s + 1);
+  const Eigen::VectorXd seed = seed_for(actuators, slot);
+  std::unique_ptr<Solver> lease;
+  {
+    const std::lock_guard lock(pool_mutex_);
+    // The solver set up for these parameters, if one is idle; else any.
+    for (auto it = idle_solvers_.begin(); it != idle_solvers_.end(); ++it)
+      if ((*it)->params.size() == params.size() && (*it)->params == params) {
+        lease = std::move(*it);
+        idle_solvers_.erase(it);
+        break;
       }
-      seeds_[s] = seed;
-      seed_readings_[s] = actuators;
+    if (!lease && !idle_solvers_.empty()) {
+      lease = std::move(idle_solvers_.back());
+      idle_solvers_.pop_back();
     }
   }
-  if (!solver_ || solver_params_.size() != params.size() || solver_params_ != params) {
-    solver_.emplace(model_, params, options_);
-    solver_params_ = params;
+  if (!lease) lease = std::make_unique<Solver>();
+  if (!lease->solver || lease->params.size() != params.size() || lease->params != params) {
+    lease->solver.emplace(model_, params, options_);
+    lease->params = params;
   }
-  ClosureResult closure = solver_->solve(actuators, seed);
-  if (!closure.ok() && seed.size() > 0) closure = solver_->solve(actuators);  // cold restart
+  const auto give_back = [&] {
+    const std::lock_guard lock(pool_mutex_);
+    idle_solvers_.push_back(std::move(lease));
+  };
+  ClosureResult closure = lease->solver->solve(actuators, seed);
+  if (!closure.ok() && seed.size() > 0) closure = lease->solver->solve(actuators);  // cold restart
+  give_back();
   if (!closure.ok()) {
     why = closure.status == SolveStatus::kOtherMode
               ? fmt::format("closure {}: {}", to_string(closure.status), closure.mode.describe())
@@ -83,6 +80,34 @@ bool MechanismPredictor::predict(const Eigen::VectorXd& params, const Eigen::Vec
   out.pose = frame_pose(model_, params, state, frame_);
   if (with_jacobian) out.jacobian = parameter_jacobian(model_, params, state, actuators, frame_);
   return true;
+}
+
+// Seed: this pose's solution at the NOMINAL parameters (cold start from the closed form, cached
+// per slot). Seeding every parameter vector from the same nominal solution makes the prediction
+// a deterministic function of the parameters on one assembly branch: warm-starting from the
+// previous trial point instead lets a large trial step hop to a neighbouring branch (the plate
+// ball joint modelled as three revolutes has two nearby branches once its offsets are nonzero),
+// which the identification then cannot undo.
+Eigen::VectorXd MechanismPredictor::seed_for(const Eigen::VectorXd& actuators, int slot) const {
+  const std::lock_guard lock(seed_mutex_);
+  if (slot >= 0 && static_cast<std::size_t>(slot) < seeds_.size() &&
+      seeds_[static_cast<std::size_t>(slot)].size() > 0 &&
+      seed_readings_[static_cast<std::size_t>(slot)] == actuators)
+    return seeds_[static_cast<std::size_t>(slot)];
+  Eigen::VectorXd seed;
+  if (!nominal_solver_) nominal_solver_.emplace(model_, model_.nominal_parameters(), options_);
+  const ClosureResult nominal = nominal_solver_->solve(actuators);
+  if (nominal.ok()) seed = nominal.passive;
+  if (slot >= 0) {
+    const auto s = static_cast<std::size_t>(slot);
+    if (s >= seeds_.size()) {
+      seeds_.resize(s + 1);
+      seed_readings_.resize(s + 1);
+    }
+    seeds_[s] = seed;
+    seed_readings_[s] = actuators;
+  }
+  return seed;
 }
 
 SolveOptions solve_options_from_model(const Mechanism& model, bool use_priors) {

@@ -176,6 +176,7 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   // priors 46 µm, 0.26 mm). The base frame has no prior: world <-> robot is genuinely unknown
   // in the cameras' world.
   calib::SolveOptions solve_options = calib::solve_options_from_model(model, priors);
+  solve_options.threads = log.threads;
   if (priors)
     for (std::size_t i = 0; i < model.parameters.size(); ++i) {
       const int body = model.parameters[i].body;

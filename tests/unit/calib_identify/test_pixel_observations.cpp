@@ -2,12 +2,17 @@
 // (against central differences), recovery of the robot and the camera poses from noise-free
 // pixels, covariance consistent with the spread of noisy estimates, and the refusals.
 #include "robocal/calib/identification.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/pixel_observations.hpp"
+#include "robocal/calib/robot_file.hpp"
 
 #include "pixel_fixture.hpp"
 
 #include <gtest/gtest.h>
 #include <Eigen/Cholesky>
+
+#include <random>
+#include <string>
 
 namespace {
 
@@ -291,6 +296,50 @@ TEST(PixelObservation, MalformedPixelGroupsExcludeTheirPoseWithAReason) {
   EXPECT_THROW(
       PixelGroup::from_covariance(0, {PixelObservation{}}, Eigen::MatrixXd::Identity(3, 3)),
       std::invalid_argument);
+}
+
+// Pose blocks evaluated on two workers (SolveOptions::threads) give the one-worker estimate to the
+// bit: the Delta's closed loops through MechanismPredictor's shared solver pool, watched by two
+// cameras, its geometry and the second camera's pose estimated from noisy pixels.
+TEST(PixelObservation, TwoWorkersGiveTheOneWorkerEstimateToTheBit) {
+  const Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const Eigen::VectorXd sigmas = tolerance_sigmas(model, 2e-4, 2e-3);
+  Eigen::VectorXd truth = model.nominal_parameters();
+  for (Eigen::Index i = 0; i < truth.size(); ++i) truth(i) += sigmas(i) * n01(rng);
+  const auto run = [&](int threads) {
+    const MechanismPredictor robot(model);  // fresh caches for each run
+    const auto actuators = sample_actuators(robot, {model.nominal_parameters(), truth}, 24, rng);
+    std::vector<Eigen::Vector3d> tool;
+    for (const auto& a : actuators) {
+      FramePrediction p;
+      std::string why;
+      EXPECT_TRUE(robot.predict(truth, a, -1, false, p, why)) << why;
+      tool.push_back(p.pose.translation());
+    }
+    const CameraRigPredictor rig(robot, cameras_below(tool, 2));
+    std::mt19937 noise(9);
+    const Measurements m = simulate_pixel_measurements(rig, rig.initial_parameters(truth),
+                                                       actuators, planar_target(), {}, noise);
+    SolveOptions options = rig.solve_options(solve_options_from_model(model, true));
+    options.threads = threads;
+    EXPECT_TRUE(rig.thread_safe());
+    return identify(rig, rig.initial_parameters(model.nominal_parameters()), m, options);
+  };
+  std::mt19937 start = rng;
+  const IdentificationResult one = run(1);
+  rng = start;  // the same poses for both
+  const IdentificationResult two = run(2);
+  ASSERT_EQ(one.status, IdentificationStatus::kConverged) << one.message;
+  EXPECT_EQ(two.status, one.status);
+  EXPECT_EQ(two.iterations, one.iterations);
+  EXPECT_EQ(two.final_cost, one.final_cost);
+  ASSERT_EQ(two.estimate.size(), one.estimate.size());
+  for (Eigen::Index i = 0; i < one.estimate.size(); ++i)
+    EXPECT_EQ(two.estimate(i), one.estimate(i)) << i;
+  EXPECT_EQ(two.uncertainty.covariance, one.uncertainty.covariance);
 }
 
 }  // namespace

@@ -55,6 +55,9 @@ class BedPlanePredictor final : public FramePredictor {
     return params(static_cast<Eigen::Index>(inner_count_) + 1);
   }
 
+  // Its own parts are pure; the robot's predictor decides.
+  bool thread_safe() const override { return inner_.thread_safe(); }
+
  private:
   const FramePredictor& inner_;
   std::size_t inner_count_ = 0;

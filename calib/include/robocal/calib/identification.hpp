@@ -57,6 +57,10 @@ class FramePredictor {
   // solved (closure fails, singular configuration).
   virtual bool predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators, int slot,
                        bool with_jacobian, FramePrediction& out, std::string& why) const = 0;
+  // Whether predict, pixel_residual and probe_residual may be called from several threads at
+  // once (SolveOptions::threads evaluates poses in parallel only then), each call's answer the
+  // same as from one thread.
+  virtual bool thread_safe() const { return false; }
   // Pixel observations (camera-in-the-loop): the whitened residual of `obs` for the measured
   // frame `frame` predicted at `params` and, when `jacobian` is not null, its exact
   // 2 × parameter_count derivative (then `frame` must carry its jacobian). Only a predictor that
@@ -167,6 +171,9 @@ struct SolveOptions {
   double gradient_tolerance = 1e-14;
   double parameter_tolerance = 1e-13;
   int max_iterations = 200;
+  // Workers that evaluate the poses' residuals and Jacobians (when the predictor is
+  // thread_safe()); the estimate is the same to the bit for any number.
+  int threads = 1;
   // The stated measurement noise (σ in the file, detector covariances) is only a guess unless
   // this is set: by default the noise scale of every observation type is estimated from the
   // residuals (noise_estimate.hpp) and the covariance, intervals and predicted accuracy are scaled

@@ -9,6 +9,8 @@
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/mechanism.hpp"
 
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -26,18 +28,31 @@ class MechanismPredictor final : public FramePredictor {
   bool predict(const Eigen::VectorXd& params, const Eigen::VectorXd& actuators, int slot,
                bool with_jacobian, FramePrediction& out, std::string& why) const override;
 
+  // A solve's answer depends on its parameters, readings and seed alone (not on which solver
+  // of the pool ran it, nor what it solved before).
+  bool thread_safe() const override { return true; }
+
   const Mechanism& model() const { return model_; }
   int frame() const { return frame_; }
 
  private:
+  // The seed of a pose slot: its solution at the nominal parameters (cached per slot).
+  Eigen::VectorXd seed_for(const Eigen::VectorXd& actuators, int slot) const;
+
   const Mechanism& model_;
   int frame_;
   ClosureOptions options_;
-  // Caches (single-threaded use): the closure solver for the last parameter vector, one for the
-  // nominal parameters, and each pose slot's nominal solution (the seed for every parameter
-  // vector, see predict()).
-  mutable std::optional<ClosureSolver> solver_;
-  mutable Eigen::VectorXd solver_params_;
+  // Caches, shared by the threads that call predict: closure solvers, each set up for the
+  // parameter vector it last solved at (one per thread at a time, from a pool, so that a thread
+  // finds one set up for the parameters being evaluated), one for the nominal parameters, and each
+  // pose slot's nominal solution (the seed for every parameter vector, see predict()).
+  struct Solver {
+    std::optional<ClosureSolver> solver;
+    Eigen::VectorXd params;
+  };
+  mutable std::mutex pool_mutex_;
+  mutable std::vector<std::unique_ptr<Solver>> idle_solvers_;
+  mutable std::mutex seed_mutex_;
   mutable std::optional<ClosureSolver> nominal_solver_;
   mutable std::vector<Eigen::VectorXd> seeds_;
   mutable std::vector<Eigen::VectorXd> seed_readings_;

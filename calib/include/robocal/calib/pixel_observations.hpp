@@ -89,6 +89,9 @@ class CameraRigPredictor final : public FramePredictor {
   // `camera_start_sigma` > 0 (m and rad, for the pose parameters).
   SolveOptions solve_options(const SolveOptions& robot, double camera_start_sigma = 0.0) const;
 
+  // Its own parts are pure; the robot's predictor decides.
+  bool thread_safe() const override { return robot_.thread_safe(); }
+
  private:
   const FramePredictor& robot_;
   std::vector<ObservingCamera> cameras_;
