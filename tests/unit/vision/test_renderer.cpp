@@ -190,6 +190,17 @@ namespace {
 rv::TargetBoard april_board() {
   return rt::apriltag_grid_board(4, 3, 0.03, 20);
 }
+// A small camera and a sensor with read and shot noise behind a 0.8 px lens blur.
+rv::CameraModel small_camera() {
+  return rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+}
+rv::RenderOptions noisy_blurred() {
+  rv::RenderOptions opt;
+  opt.read_noise = 2.0;
+  opt.shot_noise_gain = 4.0;
+  opt.blur_sigma = 0.8;
+  return opt;
+}
 }  // namespace
 
 TEST(Renderer, AprilTagDecodesRenderWithTruthCorners) {
@@ -268,15 +279,11 @@ TEST(Renderer, CharucoDecodesRender) {
 }
 
 TEST(Renderer, DeterministicWithSeed) {
-  const auto cam =
-      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto cam = small_camera();
   const auto board = april_board();
   std::vector<rv::RenderTarget> targets = {{board, rt::tilted_board_pose(board, 0.3, 10, 10, 0)}};
   const auto rays = rv::precompute_rays(cam);
-  rv::RenderOptions opt;
-  opt.read_noise = 2.0;
-  opt.shot_noise_gain = 4.0;
-  opt.blur_sigma = 0.8;
+  rv::RenderOptions opt = noisy_blurred();
   opt.seed = 42;
   const cv::Mat a = rv::render(rays, targets, opt).image;
   const cv::Mat b = rv::render(rays, targets, opt).image;
@@ -289,16 +296,12 @@ TEST(Renderer, DeterministicWithSeed) {
 // Bands of rows on several workers give the image of one worker, bit for bit: the scene's light
 // and its edge pixels' sub-cells (their order too, which the blur sums in), and the readout.
 TEST(Renderer, AnyNumberOfThreadsGivesTheSameImage) {
-  const auto cam =
-      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto cam = small_camera();
   const auto board = april_board();
   const std::vector<rv::RenderTarget> targets = {
       {board, rt::tilted_board_pose(board, 0.3, 35, 20, 5)}};
   const auto rays = rv::precompute_rays(cam);
-  rv::RenderOptions opt;
-  opt.read_noise = 2.0;
-  opt.shot_noise_gain = 4.0;
-  opt.blur_sigma = 0.8;
+  rv::RenderOptions opt = noisy_blurred();
   opt.vignetting = 0.1;
   rv::Occluder finger;
   finger.center = Eigen::Vector2d(150.3, 118.7);
@@ -330,8 +333,7 @@ TEST(Renderer, AnyNumberOfThreadsGivesTheSameImage) {
 // A still scene shot again draws only new noise: every frame equals render()'s bit for bit, and
 // only a frame of the very same scene (pose and levels) reuses the last one's light.
 TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
-  const auto cam =
-      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto cam = small_camera();
   const auto board = april_board();
   const Eigen::Isometry3d a = rt::tilted_board_pose(board, 0.3, 10, 10, 0);
   Eigen::Isometry3d b = a;
@@ -351,10 +353,7 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
     return pose;
   };
   const Eigen::Isometry3d below = at_elevation(30.0), at_edge = at_elevation(20.0);
-  rv::RenderOptions opt;
-  opt.read_noise = 2.0;
-  opt.shot_noise_gain = 4.0;
-  opt.blur_sigma = 0.8;
+  rv::RenderOptions opt = noisy_blurred();
   rv::StillSceneRenderer camera(rv::precompute_rays(cam));
   struct Frame {
     Eigen::Isometry3d pose;
@@ -390,8 +389,7 @@ TEST(Renderer, StillSceneRendererEqualsRenderFrameByFrame) {
 // the board are rendered and blurred again. Every frame is still render()'s, bit for bit, as the
 // board moves (near the image border too) and as the background's level changes (an exposure).
 TEST(Renderer, StillSceneRendererKeepsTheBackgroundOnlyWhileItIsTheSame) {
-  const auto cam =
-      rv::make_camera(rv::CameraKind::kPinholeRadtan, 320, 240, 300, 300, 159.5, 119.5);
+  const auto cam = small_camera();
   const auto board = april_board();
   rv::RenderOptions opt;
   opt.read_noise = 2.0;
