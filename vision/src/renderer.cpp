@@ -537,12 +537,14 @@ CornerWindow corner_window(const CameraRays& rays, const std::vector<TargetGeome
   return w;
 }
 
-// The lighting and vignetting factor of pixel (i, j) of a W x H image; half_diag2 is
-// pixel_gain_scale(W, H).
+// The square of r_corner, from the image centre to the centre of a corner pixel (vignetting's
+// unit radius).
 double pixel_gain_scale(int W, int H) {
-  // r_corner: from the image centre to the centre of a corner pixel.
   return std::max(0.25 * (double(W - 1) * (W - 1) + double(H - 1) * (H - 1)), 1e-9);
 }
+// The lighting and vignetting factor of pixel (i, j) of a W x H image; half_diag2 is
+// pixel_gain_scale(W, H). render_scene and background_light share it, so the background they
+// give is the same to the bit.
 double pixel_gain(int i, int j, int W, int H, double half_diag2, const RenderOptions& o) {
   double gain = 1.0 + o.lighting_gradient.x() * ((i + 0.5) / W - 0.5) +
                 o.lighting_gradient.y() * ((j + 0.5) / H - 0.5);
