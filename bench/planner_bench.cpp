@@ -14,7 +14,9 @@
 //    same noise seed per trial) and identified (robot-file free set, automatic base set);
 //  - held-out error: RMS position error of the identified model against the truth over 300
 //    feasible poses of another pool (noise-free).
-//  - also the 'task' criterion (mean predicted position variance over the pool, I-optimal).
+//  - also the 'task' criterion (mean predicted position variance over the pool, I-optimal);
+//  - the bound: the continuous I-optimal design over the pool (see continuous_task_bound), the
+//    lowest predicted held-out RMS any `count` poses from that pool can give.
 // Reported: median over trials of each design's held-out RMS, ratio planned/random per index;
 // per trial the identification status with the number of estimated parameters ("est=") and
 // those its relinearisation added ("relin+").
@@ -101,6 +103,43 @@ double held_out_error(const calib::MechanismPredictor& pred, const Eigen::Vector
   return calib::validate(pred, nominal, res.estimate, held.poses).after.position_rms;
 }
 
+// Lower bound of the mean predicted position variance tr(W M^-1) that any design of `count`
+// poses drawn from the pool can reach. Relaxed to weights on the pool (a design of m poses is the
+// weights k_i/m, and M = m * M(w)), phi(w) = tr(W M(w)^-1) is convex, so with
+// d_i = tr(J_i^T J_i M^-1 W M^-1) (its negative gradient) phi* >= 2 phi(w) - max_i d_i holds at
+// every w: a certified bound while the multiplicative algorithm (w_i *= sqrt(d_i / phi)) moves
+// w towards the optimum. Returned as the RMS position error (m) of `count` poses.
+double continuous_task_bound(const ObservabilityModel& obs, std::size_t count) {
+  const std::size_t n = obs.poses();
+  const auto L = static_cast<Eigen::Index>(obs.columns());
+  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(L, L);
+  std::vector<Eigen::MatrixXd> info(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto J = obs.rows.middleRows<6>(static_cast<Eigen::Index>(6 * i));
+    const auto Jp = obs.rows.middleRows<3>(static_cast<Eigen::Index>(6 * i));
+    W.noalias() += Jp.transpose() * Jp;
+    info[i] = J.transpose() * J;
+  }
+  W /= static_cast<double>(n);
+  Eigen::VectorXd w = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(n), 1.0 / n);
+  double lower = 0.0;
+  for (int it = 0; it < 3000; ++it) {
+    Eigen::MatrixXd M = Eigen::MatrixXd::Zero(L, L);
+    for (std::size_t i = 0; i < n; ++i) M.noalias() += w(static_cast<Eigen::Index>(i)) * info[i];
+    const Eigen::MatrixXd Minv = M.ldlt().solve(Eigen::MatrixXd::Identity(L, L));
+    const Eigen::MatrixXd G = Minv * W * Minv;
+    const double phi = (W * Minv).trace();
+    Eigen::VectorXd d(static_cast<Eigen::Index>(n));
+    for (std::size_t i = 0; i < n; ++i)
+      d(static_cast<Eigen::Index>(i)) = info[i].cwiseProduct(G).sum();
+    lower = std::max(lower, 2.0 * phi - d.maxCoeff());
+    if (d.maxCoeff() < phi * 1.001) break;
+    for (Eigen::Index i = 0; i < w.size(); ++i) w(i) *= std::sqrt(d(i) / phi);
+    w /= w.sum();
+  }
+  return obs.position_sigma * std::sqrt(std::max(lower, 0.0) / static_cast<double>(count));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -138,6 +177,7 @@ int main(int argc, char** argv) {
   std::map<std::string, std::vector<double>> conds;
   std::map<std::string, std::vector<double>> predicted;
   std::map<std::string, double> select_time;
+  std::vector<double> bounds;  // per trial, continuous_task_bound
   nlohmann::json per_trial = nlohmann::json::array();
   std::size_t feasible_total = 0;
   FeasibilityCounts first_counts;
@@ -165,6 +205,8 @@ int main(int argc, char** argv) {
     feasible_total += pool.size();
     const ObservabilityModel obs = build_observability_model(pred, nominal, pool);
     nlohmann::json row;
+    bounds.push_back(continuous_task_bound(obs, count));
+    row["bound_rms_um"] = 1e6 * bounds.back();
     row["trial"] = t;
     row["feasible"] = pool.size();
     for (const std::string& d : designs) {
@@ -222,6 +264,10 @@ int main(int argc, char** argv) {
     }
   }
   if (!speed_only) {
+    // What no design of `count` poses from the pool can beat (predicted): the ratio the planned
+    // designs could reach at best against the random ones' median held-out error.
+    out["bound"] = {{"median_rms_um", median(bounds) * 1e6},
+                    {"ratio_to_random", random_median > 0 ? median(bounds) / random_median : 0.0}};
     out["comparison"] = summary;
     out["best_index"] = best;
     out["per_trial"] = per_trial;
