@@ -709,11 +709,13 @@ namespace {
 // One solve. The identifiability analysis is done at `linearisation` (the nominal model for the
 // first solve, the first estimate for the relinearised one); the parameters in `keep` are
 // estimated whatever the analysis says (they are visited first, so the analysis only adds to
-// them). Priors, pose exclusion and result.nominal refer to `nominal`.
+// them). Priors, pose exclusion and result.nominal refer to `nominal`. With `only_if_added`, it
+// stops once the analysis has chosen the estimated set when that set adds nothing to `keep`: the
+// relinearisation keeps the first estimate then, whatever a solve would give.
 IdentificationResult identify_at(const FramePredictor& model, const Eigen::VectorXd& nominal,
                                  const Eigen::VectorXd& linearisation,
                                  const Measurements& measurements, const SolveOptions& options,
-                                 const std::vector<std::size_t>& keep) {
+                                 const std::vector<std::size_t>& keep, bool only_if_added = false) {
   const auto t0 = std::chrono::steady_clock::now();
   IdentificationResult result;
   const std::size_t P = model.parameter_count();
@@ -965,6 +967,11 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
       if (estimate_it[k]) result.estimated.push_back(candidates[k]);
   }
   if (result.estimated.empty()) return invalid("no identifiable parameter among the candidates");
+  if (only_if_added &&
+      std::all_of(result.estimated.begin(), result.estimated.end(), [&](std::size_t i) {
+        return std::find(keep.begin(), keep.end(), i) != keep.end();
+      }))
+    return result;
 
   // 3. Ceres problem over the full vector with the non-estimated entries held constant.
   std::vector<int> held;
@@ -1356,7 +1363,7 @@ IdentificationResult relinearise_once(const FramePredictor& model, const Eigen::
   // iterations over 35 000 equations took up to 3 minutes).
   again.max_iterations = std::min(options.max_iterations, options.relinearise_max_iterations);
   IdentificationResult second =
-      identify_at(model, nominal, first.estimate, measurements, again, first.estimated);
+      identify_at(model, nominal, first.estimate, measurements, again, first.estimated, true);
   RelinearisationReport report;
   report.attempted = true;
   for (std::size_t i : second.estimated)
