@@ -1,5 +1,6 @@
 #include "stages/measure_steps.hpp"
 
+#include "robocal/core/parallel.hpp"
 #include "robocal/vision/image_detection.hpp"
 #include "robocal/vision/intrinsics_pipeline.hpp"
 
@@ -210,7 +211,9 @@ std::vector<PoseImages> measure_board_poses(
     }
   }
   const auto points = board_points(board);
-  for (auto& pose : out) {
+  // Each pose's fit is its own (a pure function of its frames): side by side, the same answers.
+  core::parallel_for(static_cast<int>(out.size()), log.threads, [&](int p) {
+    PoseImages& pose = out[static_cast<std::size_t>(p)];
     if (pose.frames.empty()) {
       pose.measurement.status = vision::PoseStatus::kNotSeen;
       pose.measurement.message = "no images";
@@ -218,7 +221,7 @@ std::vector<PoseImages> measure_board_poses(
       pose.measurement =
           vision::measure_settled_pose(rig, points, pose.frames, options.measurement);
     }
-  }
+  });
   return out;
 }
 
