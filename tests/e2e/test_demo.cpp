@@ -129,12 +129,14 @@ TEST(DemoEndToEnd, DefaultDeltaSeed1ReachesItsDocumentedFigure) {
   // bench_corner_bias corner error 0.0154 vs 0.0151 px RMS), this seed's figures went from
   // 25.4 / 29.6 µm over all, 16.0 / 17.8 µm inside the measured region, to 43.7 / 50.3 and
   // 25.9 / 23.9 µm (seeds 2 and 3: 37.9 / 35.5 and 24.0 / 30.1 µm, from 25.8 / 27.5 and
-  // 25.3 / 22.1). The bounds guard this draw with a 1.25 margin.
-  EXPECT_LT(v["calibrated"]["rms_m"].get<double>(), 1.25 * 43.7e-6);
-  EXPECT_LT(v["calibrated_pixels"]["rms_m"].get<double>(), 1.25 * 50.3e-6);
+  // 25.3 / 22.1). Since then the planner's tolerance test changed the plan and the held-out
+  // errors are taken in camera 0's frame as calibrated: 31.6 / 30.6 µm over all, 9.3 / 5.9 µm
+  // inside (twenty-eighth session). The bounds guard this draw with a 1.25 margin.
+  EXPECT_LT(v["calibrated"]["rms_m"].get<double>(), 1.25 * 31.6e-6);
+  EXPECT_LT(v["calibrated_pixels"]["rms_m"].get<double>(), 1.25 * 30.6e-6);
   const auto& inside = v["held_out_by_region"]["inside"];
-  EXPECT_LT(inside["calibrated"]["rms_m"].get<double>(), 1.25 * 25.9e-6);
-  EXPECT_LT(inside["calibrated_pixels"]["rms_m"].get<double>(), 1.25 * 23.9e-6);
+  EXPECT_LT(inside["calibrated"]["rms_m"].get<double>(), 1.25 * 9.3e-6);
+  EXPECT_LT(inside["calibrated_pixels"]["rms_m"].get<double>(), 1.25 * 5.9e-6);
   std::filesystem::remove_all(dir);
 }
 
