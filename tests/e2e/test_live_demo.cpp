@@ -93,18 +93,20 @@ TEST(LiveDemo, QuickRunCalibratesTheSimulatedRobotAgainstTheSimulatorsTruth) {
   // The measured board poses against the simulator's truth channel, every pose matched.
   const nlohmann::json& v = report["validate"];
   EXPECT_EQ(v["measured_poses_vs_truth"].value("poses", 0), 20);
-  EXPECT_LT(v["measured_poses_vs_truth"].value("rms_m", 1.0), 150e-6);
+  // Seed 1 (twenty-eighth session): 32.0 µm RMS; every bound below is 1.25 times that run's.
+  EXPECT_LT(v["measured_poses_vs_truth"].value("rms_m", 1.0), 1.25 * 32.0e-6);
 
-  // Held-out configurations of the true robot the fit never saw (500): the calibrated model
-  // within 85 µm RMS inside the measured region (seed 1: 57.5 µm) and 140 µm over the whole
-  // workspace (97.4 µm; outside the 20 measured poses it extrapolates), at least 20x better than
-  // the nominal model (58x).
+  // Held-out configurations of the true robot the fit never saw (500), seed 1: the calibrated
+  // model 5.2 µm RMS inside the measured region and 75.6 µm over the whole workspace (outside
+  // the 20 measured poses it extrapolates), 74.9 times better than the nominal model. (When
+  // these bounds were 85 µm, 140 µm and 20 times, the same run gave 57.5 µm, 97.4 µm and 58
+  // times.)
   EXPECT_TRUE(v.value("improved", false));
   const double calibrated = v["calibrated"].value("rms_m", 1.0);
   const double nominal = v["nominal"].value("rms_m", 0.0);
-  EXPECT_LT(calibrated, 140e-6);
-  EXPECT_GT(nominal / calibrated, 20.0);
-  EXPECT_LT(v["held_out_by_region"]["inside"]["calibrated"].value("rms_m", 1.0), 85e-6);
+  EXPECT_LT(calibrated, 1.25 * 75.6e-6);
+  EXPECT_GT(nominal / calibrated, 74.9 / 1.25);
+  EXPECT_LT(v["held_out_by_region"]["inside"]["calibrated"].value("rms_m", 1.0), 1.25 * 5.2e-6);
   EXPECT_GE(v["held_out_by_region"]["inside"]["calibrated"].value("poses", 0), 50);
 }
 
