@@ -35,7 +35,9 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   const double calibrated = report["validate"]["calibrated"]["rms_m"];
   EXPECT_GE(report["validate"]["held_out_poses"].get<int>(), 150);
   EXPECT_GT(nominal, 5e-4) << "the perturbed robot should be millimetres off nominally";
-  EXPECT_LT(calibrated, 1.5 * 63.2e-6) << "calibrated error against truth";
+  // 1.25x what this configuration reaches (twenty-eighth session: 37.6 µm; the bound was 1.5 x
+  // 63.2 µm, an older plan's figure in the true camera frame).
+  EXPECT_LT(calibrated, 1.25 * 37.6e-6) << "calibrated error against truth";
   EXPECT_LT(calibrated, nominal / 10.0);
   // The worst held-out configurations, worst first; the first is the pose route's max unless the
   // pixel route is worse there.
