@@ -483,7 +483,7 @@ void add_noise_warnings(const NoiseEstimate& noise, bool applied,
 struct Assembly {
   int threads = 1;  // workers for the pose blocks (evaluate_all, EvaluateAhead)
   std::vector<const PoseMeasurement*> poses;
-  std::vector<std::unique_ptr<ceres::CostFunction>> pose_costs;
+  std::vector<std::unique_ptr<PoseCost>> pose_costs;
   std::vector<std::unique_ptr<ceres::CostFunction>> distance_costs;
   std::vector<std::string> distance_labels;
   int rows = 0;
@@ -1005,7 +1005,8 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     popt.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     popt.loss_function_ownership = ceres::TAKE_OWNERSHIP;
     std::vector<const PoseCost*> ahead;
-    for (const auto& c : as.pose_costs) ahead.push_back(dynamic_cast<const PoseCost*>(c.get()));
+    ahead.reserve(as.pose_costs.size());
+    for (const auto& c : as.pose_costs) ahead.push_back(c.get());
     EvaluateAhead evaluate_ahead(std::move(ahead), x.data(), as.threads);
     if (as.threads > 1) popt.evaluation_callback = &evaluate_ahead;
     ceres::Problem problem(popt);
