@@ -4,6 +4,7 @@
 #include "live/collect.hpp"
 #include "live/live_cameras.hpp"
 #include "live/live_cell.hpp"
+#include "live/truth_log.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/robotio/sim_process.hpp"
 #include "robocal/robotio/sim_truth.hpp"
@@ -24,7 +25,6 @@
 
 #include <array>
 #include <atomic>
-#include <fstream>
 #include <future>
 #include <optional>
 #include <random>
@@ -180,58 +180,6 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
   for (auto& s : src) s->close();
   report["calibration_views"] = total;
 }
-
-// The truth after every motion, as the simulator's truth channel gives it, with the readings the
-// controller reported then (kept beside the session while collecting, so a resumed collection
-// keeps what was seen before). A recorded pose is matched to it by its readings.
-struct TruthLog {
-  fs::path path;
-  void append(const Eigen::VectorXd& readings, const robotio::TruePoseReading& r,
-              double sag) const {
-    const Eigen::Isometry3d p = elastic_deflection(r.base_T_task, sag);
-    const Eigen::Quaterniond q(p.linear());
-    const std::vector<double> read(readings.data(), readings.data() + readings.size());
-    const nlohmann::json j = {
-        {"readings", read},
-        {"t", {p.translation().x(), p.translation().y(), p.translation().z()}},
-        {"q", {q.w(), q.x(), q.y(), q.z()}},
-        {"actuators_true", r.actuators_true}};
-    std::ofstream(path, std::ios::app) << j.dump() << "\n";
-  }
-  // The truth of each recorded pose: the last motion that ended at its readings.
-  [[nodiscard]] std::vector<TruthPose> match(const fs::path& session) const {
-    std::vector<std::pair<Eigen::VectorXd, TruthPose>> seen;
-    std::ifstream in(path);
-    std::string line;
-    while (std::getline(in, line)) {
-      const auto j = nlohmann::json::parse(line, nullptr, false);
-      if (j.is_discarded()) continue;
-      const auto read = j.at("readings").get<std::vector<double>>();
-      const auto a = j.at("actuators_true").get<std::vector<double>>();
-      TruthPose t;
-      t.true_actuators =
-          Eigen::Map<const Eigen::VectorXd>(a.data(), static_cast<Eigen::Index>(a.size()));
-      t.world_T_board.linear() =
-          Eigen::Quaterniond(j["q"][0], j["q"][1], j["q"][2], j["q"][3]).toRotationMatrix();
-      t.world_T_board.translation() = Eigen::Vector3d(j["t"][0], j["t"][1], j["t"][2]);
-      seen.emplace_back(
-          Eigen::Map<const Eigen::VectorXd>(read.data(), static_cast<Eigen::Index>(read.size())),
-          t);
-    }
-    std::vector<TruthPose> out;
-    for (const PoseRecord& p : load_pose_records(load_session(session))) {
-      if (!p.problem.empty()) continue;
-      for (auto it = seen.rbegin(); it != seen.rend(); ++it)
-        if (it->first.size() == p.actuators.size() &&
-            (it->first - p.actuators).norm() <= 1e-12 * (1.0 + p.actuators.norm())) {
-          out.push_back(it->second);
-          out.back().pose = p.name;
-          break;
-        }
-    }
-    return out;
-  }
-};
 
 // The intrinsics from the calibration views, before anything moves (the planner and the
 // settled-frame test use them): the cell's camera files get the calibrated models in place of
