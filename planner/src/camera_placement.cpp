@@ -6,7 +6,10 @@
 #include "robocal/planner/task_sampling.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
+#include <iomanip>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -341,11 +344,18 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
                                 "'s reachable poses");
   const Eigen::Vector3d c = best.look_at, n = best.view_direction;
   CameraPlacement out = best;
+  // Millimetre-rounded figures: a direction read off a drawing, not the solver's last bits.
+  const auto xyz = [](const Eigen::Vector3d& v) {
+    const auto at = [&](int i) { return std::abs(v[i]) < 5e-4 ? 0.0 : v[i]; };  // no "-0.000"
+    std::array<char, 96> text{};
+    std::snprintf(text.data(), text.size(), "[%.3f, %.3f, %.3f]", at(0), at(1), at(2));
+    return std::string(text.data());
+  };
   std::ostringstream s;
-  s << ncam << " camera(s) " << out.distance << " m from the point they look at (" << c.transpose()
-    << "), looking along " << (-n).transpose() << ", baseline " << out.baseline
-    << " m; they see the target at " << std::lround(100 * out.coverage) << " % of "
-    << configs.size() << " reachable sampled poses";
+  s << ncam << " camera(s) " << std::fixed << std::setprecision(3) << out.distance
+    << " m from the point they look at (" << xyz(c) << " m), looking along " << xyz(-n) << ", "
+    << out.baseline << " m apart; they see the target at " << std::lround(100 * out.coverage)
+    << " % of " << configs.size() << " reachable sampled poses";
   out.summary = s.str();
   if (options.max_cameras >= 2 * ncam && ncam >= 2 && out.coverage < options.min_coverage) {
     // Candidate stations: the tried placements, and pairs looking along the first station's

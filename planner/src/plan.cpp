@@ -187,7 +187,7 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
   }
   if (options.order) {
     say("ordering " + std::to_string(chosen.size()) +
-        " poses (nearest neighbour + 2-opt, every motion checked)");
+        " poses into a short tour, every motion checked for collisions");
     const double step = options.motion_step;
     res.tour = plan_tour(
         chosen,

@@ -503,8 +503,8 @@ Selection select_poses(const ObservabilityModel& model, const SelectionOptions& 
       << sel.values.condition_number << (sel.accepted ? " <= " : " > ") << options.max_condition
       << (sel.accepted ? " (accepted)"
                        : " (REJECTED: the set cannot separate every identifiable parameter well)")
-      << "; predicted position error " << sel.predicted_rms * 1e6 << " um RMS, "
-      << sel.predicted_max * 1e6 << " um max over the working volume";
+      << "; predicted position error " << sel.predicted_rms * 1e6 << " µm RMS, "
+      << sel.predicted_max * 1e6 << " µm max over the working volume";
   if (sel.values.rank < L)
     msg << "; rank " << sel.values.rank << " of " << L << " identifiable parameters";
   sel.message = msg.str();

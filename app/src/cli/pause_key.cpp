@@ -5,6 +5,8 @@
 #include <poll.h>
 #include <unistd.h>
 
+#include <cstdio>
+
 namespace robocal::app {
 
 PauseKey::PauseKey() {
@@ -34,7 +36,14 @@ void PauseKey::watch() {
     char key = 0;
     if ((p.revents & POLLIN) == 0) continue;
     if (::read(STDIN_FILENO, &key, 1) != 1) return;  // end of input: nothing more to watch
-    if (key == 'p' || key == 'P' || key == ' ') robotio::StopSignals::toggle_pause();
+    if (key == 'p' || key == 'P' || key == ' ') {
+      robotio::StopSignals::toggle_pause();
+      // Said at once: the pause itself waits for the pose in progress to be recorded.
+      std::fputs(robotio::StopSignals::paused()
+                     ? "\r\n[p] pausing after the pose in progress...\r\n"
+                     : "\r\n[p] going on...\r\n",
+                 stderr);
+    }
   }
 }
 

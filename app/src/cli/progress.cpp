@@ -49,10 +49,12 @@ void ProgressBar::draw(bool final_line) {
     const int filled = static_cast<int>(fraction * kBarWidth);
     const double elapsed = seconds_since(start_);
     const double eta = done_ > 0 ? elapsed * (1.0 - fraction) / fraction : 0.0;
-    fmt::print(stream_, "\r\033[K{} [{}{}] {}/{} {:3.0f}%  eta {:.0f} s", label_,
+    // No estimate before the first item is done (nothing to extrapolate from).
+    const std::string left = done_ > 0 ? fmt::format("eta {:.0f} s", eta) : "eta --";
+    fmt::print(stream_, "\r\033[K{} [{}{}] {}/{} {:3.0f}%  {}", label_,
                std::string(static_cast<std::size_t>(filled), '#'),
                std::string(static_cast<std::size_t>(kBarWidth - filled), '.'), done_, total_,
-               100.0 * fraction, eta);
+               100.0 * fraction, left);
     std::fflush(stream_);
     return;
   }

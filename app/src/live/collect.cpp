@@ -5,6 +5,7 @@
 #include "cli/pause_key.hpp"
 #include "cli/progress.hpp"
 #include "live/cell_clearance.hpp"
+#include "live/sim_camera.hpp"
 #include "robocal/calib/frame_placement.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/core/files.hpp"
@@ -28,6 +29,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <iostream>
 #include <memory>
@@ -153,7 +155,8 @@ CollectInputs read_inputs(const CollectOptions& o) {
     }
     if (!seen.insert(c.name).second) throw InputError("--camera " + c.name + " is given twice");
     try {
-      if (!o.open_camera) (void)robotio::parse_camera_source(c.source);
+      if (!o.open_camera && c.source.rfind("sim:", 0) != 0)
+        (void)robotio::parse_camera_source(c.source);
     } catch (const std::invalid_argument& e) {
       throw InputError(std::string("--camera ") + c.name + ": " + e.what());
     }
@@ -301,6 +304,7 @@ nlohmann::json dry_run(const CollectInputs& in, SafetyGuard& guard, const Collec
   nlohmann::json refused = nlohmann::json::array();
   Eigen::VectorXd from = in.targets.front();
   double path = 0.0;
+  double seconds = 0.0;
   for (std::size_t i = 0; i < in.targets.size(); ++i) {
     const robotio::GuardVerdict v =
         guard.check_move(from, in.targets[i], {o.speed, o.acceleration});
@@ -309,6 +313,9 @@ nlohmann::json dry_run(const CollectInputs& in, SafetyGuard& guard, const Collec
       if (out) fmt::print(out, "  pose {:3}: REFUSED: {}\n", i, v.reason);
     } else {
       path += (in.targets[i] - from).norm();
+      // Every actuator moves at the limit; the motion lasts as long as the longest travel.
+      seconds +=
+          motion_seconds((in.targets[i] - from).cwiseAbs().maxCoeff(), o.speed, o.acceleration);
       from = in.targets[i];
     }
   }
@@ -317,6 +324,7 @@ nlohmann::json dry_run(const CollectInputs& in, SafetyGuard& guard, const Collec
   r["motions_checked"] = in.targets.size();
   r["refused"] = refused;
   r["actuator_path_length"] = path;
+  r["motion_seconds"] = seconds;
   if (out)
     fmt::print(out,
                "dry run: {} motions checked by the safety guard (limits, workspace, obstacles), "
@@ -338,8 +346,8 @@ OpenCameras open_cameras(const CollectOptions& o, const CollectInputs& in, std::
   for (std::size_t i = 0; i < in.cell.cameras.size(); ++i) {
     const planner::CellCamera& cell_camera = in.cell.cameras[i];
     const CollectCamera& given = o.cameras[static_cast<std::size_t>(in.camera_of[i])];
-    auto source = o.open_camera ? o.open_camera(given)
-                                : robotio::open_camera_source(given.source, cell_camera.name);
+    auto source =
+        o.open_camera ? o.open_camera(given) : open_camera(given.source, cell_camera.name);
     const robotio::Region region = source->region();
     if (region.width != cell_camera.model.width || region.height != cell_camera.model.height)
       source->set_region({0, 0, cell_camera.model.width, cell_camera.model.height});
@@ -521,13 +529,20 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
                  "collection stopped: {}\nThe robot was stopped. Every recorded pose is complete "
                  "on disk. To go on, run the same command with --resume.\n",
                  result.stop_reason);
-    else
+    else if (o.say_next_step)
       fmt::print(out,
                  "next: calibration views for the intrinsics and rig (app/SESSION.md), then "
                  "`robocal measure {}`\n",
                  o.session.string());
   }
   return finished(std::move(res));
+}
+
+double motion_seconds(double distance, double speed, double acceleration) {
+  if (distance <= 0.0) return 0.0;
+  const double ramp = speed / acceleration;  // time to reach the speed
+  if (distance >= speed * ramp) return distance / speed + ramp;
+  return 2.0 * std::sqrt(distance / acceleration);
 }
 
 int collect_exit_code(const CollectOutcome& outcome) {

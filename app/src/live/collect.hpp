@@ -49,6 +49,7 @@ struct CollectOptions {
   bool dry_run = false;       // check every motion through the guard; move nothing
   bool resume = false;        // continue an interrupted session at the next unrecorded pose
   bool yes = false;           // the operator's confirmation given on the command line
+  bool say_next_step = true;  // print what to run next (not inside the wizard, which goes on)
   // Opens a camera's source instead of robotio::open_camera_source (the live demo's cameras
   // rendered in-process where no GigE address is left for them); empty: open_camera_source.
   std::function<std::unique_ptr<robotio::CameraSource>(const CollectCamera&)> open_camera;
@@ -72,5 +73,10 @@ CollectOutcome collect_session(const CollectOptions& options, const PipelineLog&
 // 0 complete (or a dry run whose motions all passed), 1 stopped early, refused, failed or
 // cancelled (what is recorded stays), 130 / 143 interrupted by SIGINT / SIGTERM.
 int collect_exit_code(const CollectOutcome& outcome);
+
+// The time a motion of `distance` (actuator units) takes from standstill to standstill at
+// `speed` and `acceleration`: a trapezoidal profile, or a triangle when it is too short to
+// reach the speed.
+double motion_seconds(double distance, double speed, double acceleration);
 
 }  // namespace robocal::app

@@ -84,6 +84,9 @@ class InProcessCamera final : public robotio::CameraSource {
   robotio::Frame receive(std::chrono::milliseconds timeout) override;
   void stop() override;
   void close() override;
+  // Keeps what the board and the truth source belong to alive as long as the camera (a camera
+  // opened on its own, e.g. sim:FILE, owns its cell and its truth channel).
+  void keep_alive(std::shared_ptr<const void> owner) { owner_ = std::move(owner); }
 
  private:
   void check_open() const;
@@ -99,6 +102,8 @@ class InProcessCamera final : public robotio::CameraSource {
   std::uint64_t frames_ = 0;
   std::future<cv::Mat> pending_;
   std::shared_ptr<robotio::RenderBusyClock> busy_;
+  std::shared_ptr<const void>
+      owner_;  // released after the destructor waited for the frame in flight
 };
 
 // The cameras of the cell showing one board, served as GigE where possible.

@@ -1,5 +1,7 @@
 #include "wizard/live_views.hpp"
 
+#include "live/sim_camera.hpp"
+
 #include "robocal/robotio/camera_checks.hpp"
 #include "robocal/robotio/camera_open.hpp"
 #include "robocal/vision/image_detection.hpp"
@@ -11,6 +13,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <sstream>
 
 namespace robocal::app::wizard {
@@ -93,6 +96,45 @@ std::pair<int, int> camera_frame_size(const WizardState& s) {
   return {width, height};
 }
 
+namespace {
+
+// Two views whose shared corners lie this close (median, px) show the board in the same place:
+// a second copy adds nothing to the calibration (and counts as a view where none was added).
+constexpr double kSameViewPx = 3.0;
+
+// The kept view that `view` repeats (its name), if any.
+std::optional<std::string> same_view_as(const vision::CalibrationView& view,
+                                        const std::vector<vision::CalibrationView>& kept) {
+  for (const auto& k : kept) {
+    std::map<int, Eigen::Vector2d> at;
+    for (std::size_t i = 0; i < k.corner_ids.size(); ++i) at[k.corner_ids[i]] = k.pixels[i];
+    std::vector<double> moved;
+    for (std::size_t i = 0; i < view.corner_ids.size(); ++i) {
+      const auto it = at.find(view.corner_ids[i]);
+      if (it != at.end()) moved.push_back((it->second - view.pixels[i]).norm());
+    }
+    if (moved.size() * 2 < view.corner_ids.size()) continue;  // mostly other corners
+    std::nth_element(moved.begin(), moved.begin() + static_cast<long>(moved.size() / 2),
+                     moved.end());
+    if (moved[moved.size() / 2] < kSameViewPx) return k.name;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::unique_ptr<robotio::CameraSource> open_camera_at(const std::string& source,
+                                                      const std::string& camera, int width,
+                                                      int height) {
+  auto cam = open_camera(source, camera);
+  const robotio::CameraInfo info = cam->info();
+  const robotio::Region wanted = width > 0
+                                     ? robotio::Region{0, 0, width, height}
+                                     : robotio::Region{0, 0, info.sensor_width, info.sensor_height};
+  if (cam->region() != wanted) cam->set_region(wanted);
+  return cam;
+}
+
 void print_coverage(std::FILE* out, const vision::CoverageMap& map) {
   if (map.cols == 0) return;
   fmt::print(out, "  coverage of the image by board corners (. none, : few, # many):\n");
@@ -117,8 +159,7 @@ std::optional<fs::path> take_live_views(WizardContext& ctx, const std::string& c
   }
   const fs::path folder = ctx.state.folder / "calibration" / "intrinsics" / camera;
   fs::create_directories(folder);
-  auto cam = robotio::open_camera_source(source, camera);
-  if (width > 0) cam->set_region({0, 0, width, height});
+  auto cam = open_camera_at(source, camera, width, height);
   cam->start(robotio::TriggerMode::kSoftware);
   vision::AprilTagDetector detector(vision::detector_options_for(board));
 
@@ -189,9 +230,18 @@ std::optional<fs::path> take_live_views(WizardContext& ctx, const std::string& c
       if (!k.ok && k.name != "target" && k.name != "corners")
         fmt::print(ctx.out, "  {}: {}{}\n", k.name, k.summary,
                    k.advice.empty() ? "" : " - " + k.advice);
+    vision::CalibrationView view = vision::to_calibration_view(d, "");
+    if (const auto same = same_view_as(view, views)) {
+      fmt::print(ctx.out,
+                 "  not kept: the board has not moved since {} (its corners within {:.0f} px); "
+                 "move or tilt it before the next view\n",
+                 *same, kSameViewPx);
+      continue;
+    }
     const std::string name = fmt::format("view_{:03d}", number++);
     write_image_atomic(folder / (name + ".png"), frame.image);
-    views.push_back(vision::to_calibration_view(d, name));
+    view.name = name;
+    views.push_back(std::move(view));
     fmt::print(ctx.out, "  view {} kept: {} corners ({})\n", views.size(), d.corner_ids.size(),
                (folder / (name + ".png")).string());
     show_guidance(ctx, views, width, height);
@@ -211,8 +261,7 @@ std::optional<fs::path> take_live_rig_views(
   }
   std::vector<std::unique_ptr<robotio::CameraSource>> sources;
   for (const auto& [name, source] : cameras) {
-    sources.push_back(robotio::open_camera_source(source, name));
-    if (width > 0) sources.back()->set_region({0, 0, width, height});
+    sources.push_back(open_camera_at(source, name, width, height));
     sources.back()->start(robotio::TriggerMode::kSoftware);
   }
   const auto stop_all = [&] {

@@ -9,11 +9,13 @@
 // with every view kept, and a resumed wizard goes on numbering after them.
 #include "wizard/step.hpp"
 
+#include "robocal/robotio/camera_source.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
 #include "robocal/vision/target.hpp"
 
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -28,6 +30,12 @@ void print_coverage(std::FILE* out, const vision::CoverageMap& map);
 // none) and the frame size it set (cameras.size WIDTHxHEIGHT; 0 x 0 for 'keep').
 std::string camera_source(const WizardState& s, const std::string& camera);
 std::pair<int, int> camera_frame_size(const WizardState& s);
+
+// Opens `source` (live/sim_camera.hpp: aravis:, v4l2:, sim:) delivering frames of width x height,
+// or of its whole sensor when width is 0 (a camera keeps the region its last user set).
+std::unique_ptr<robotio::CameraSource> open_camera_at(const std::string& source,
+                                                      const std::string& camera, int width,
+                                                      int height);
 
 // Takes views of `board` from the camera `camera` (opened from `source`, e.g. aravis:ID; frames
 // of width x height when width > 0). Returns the folder of kept views after 'done', or nullopt

@@ -127,7 +127,8 @@ std::string Prompter::ask(const std::string& key, const std::string& question,
                                key, question, key));
   }
   used_.insert(key);
-  std::string value = read_line(fmt::format("{}: ", shown));
+  // The key as an answers file names it, so that a run can be scripted from what was asked.
+  std::string value = read_line(fmt::format("{} ({}): ", shown, key));
   if (value.empty()) value = default_value;
   given_[key] = value;
   return value;

@@ -7,6 +7,7 @@
 #include "robocal/planner/cell.hpp"
 #include "robocal/planner/plan.hpp"
 #include "robocal/planner/plan_output.hpp"
+#include "robocal/planner/task_sampling.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "session/session_robot.hpp"
 #include "stages/measure_steps.hpp"
@@ -19,6 +20,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <optional>
 #include <sstream>
@@ -47,13 +49,46 @@ std::vector<fs::path> images_in(const fs::path& dir) {
   return files;
 }
 
+// Whether the wizard's cell (the cell step's) gives `camera` a camera file.
+bool cell_names_camera_file(const WizardState& s, const std::string& camera) {
+  const fs::path cell = s.folder / "cell.yaml";
+  if (!fs::is_regular_file(cell)) return false;
+  try {
+    for (const auto& c : YAML::LoadFile(cell.string())["cameras"])
+      if (c["name"].as<std::string>("") == camera && c["file"]) return true;
+  } catch (const YAML::Exception&) {
+    // The cell step reads the cell and says what is wrong with it.
+  }
+  return false;
+}
+
+// The board in the calibration images: kept in the wizard's state, since the identify step
+// names it in the session (measure detects it in the calibration views).
+std::string ask_calibration_board(const WizardContext& ctx) {
+  for (;;) {
+    const std::string file =
+        ctx.ask.ask("intrinsics.board", "Target file of the calibration board in the images",
+                    ctx.state.get("intrinsics.board", ctx.state.get("cameras.target")));
+    try {
+      (void)load_board(file);
+      ctx.state.set("intrinsics.board", fs::absolute(file).string());
+      ctx.state.save();
+      return file;
+    } catch (const InputError& e) {
+      say_check(ctx, false, e.what(), "give the target file of the board held in the images");
+    }
+  }
+}
+
 class IntrinsicsStep final : public Step {
  public:
   std::string key() const override { return "intrinsics"; }
   std::string title() const override { return "Camera intrinsics"; }
   std::string what() const override {
-    return "Each camera's lens model (focal length, centre, distortion). Give a camera file you "
-           "already have, 'cell' for the file the cell names, 'live' to take views of the "
+    return "Each camera's lens model (focal length, centre, distortion), used to plan the poses "
+           "and to check the frames (the identify step calibrates it again from the calibration "
+           "views). Give a camera file you already have, 'cell' for the file the cell names, "
+           "'live' to take views of the "
            "calibration board now (held at many tilts and places; the wizard shows after each "
            "view how the image is covered and what to add), or a folder of such images: the "
            "wizard calibrates from them as `robocal intrinsics` does and explains a refusal.";
@@ -62,9 +97,11 @@ class IntrinsicsStep final : public Step {
     for (const std::string& cam : camera_names(ctx.state)) {
       for (;;) {
         const std::string key = "intrinsics." + cam;
+        // The cell file's camera file where it names one (the lens' datasheet values are
+        // enough to plan: the identify step calibrates every camera from its views again).
         const std::string given = ctx.ask.ask(
             key, fmt::format("Intrinsics of {} (camera file, image folder, 'live' or 'cell')", cam),
-            ctx.state.get(key, "cell"));
+            ctx.state.get(key, cell_names_camera_file(ctx.state, cam) ? "cell" : "live"));
         if (given == "cell") {
           ctx.state.set(key, "cell");
           break;
@@ -83,8 +120,7 @@ class IntrinsicsStep final : public Step {
         std::string folder = given;
         std::string board_file;
         if (given == "live") {
-          board_file = ctx.ask.ask("intrinsics.board", "Target file of the calibration board",
-                                   ctx.state.get("cameras.target"));
+          board_file = ask_calibration_board(ctx);
           ctx.state.set(key, "live");  // a resumed wizard offers to go on taking views
           std::string why;
           std::optional<fs::path> taken;
@@ -106,9 +142,7 @@ class IntrinsicsStep final : public Step {
           continue;
         }
         const auto files = images_in(folder);
-        if (board_file.empty())
-          board_file = ctx.ask.ask("intrinsics.board", "Target file of the board in those images",
-                                   ctx.state.get("cameras.target"));
+        if (board_file.empty()) board_file = ask_calibration_board(ctx);
         if (files.empty()) {
           say_check(ctx, false, folder + ": no images (.png, .tif, .pgm, .jpg)",
                     "take 20-40 images of the board: near and far, tilted 20-40 degrees, "
@@ -195,6 +229,12 @@ class CellStep final : public Step {
           ctx.ask.ask("cell.file", "Cell file (cameras, obstacles, workspace, target)",
                       ctx.state.get("cell.file"));
       planner::Cell cell;
+      if (file.empty() || !fs::is_regular_file(file)) {
+        say_check(ctx, false, file.empty() ? "no cell file given" : file + ": no such file",
+                  "give the path of the cell file (planner/README.md; the library's cells are in "
+                  "testdata/cells/)");
+        continue;
+      }
       try {
         const fs::path out = ctx.state.folder / "cell.yaml";
         core::write_file_atomic(out, wizard_cell(ctx.state, file));
@@ -245,6 +285,20 @@ class CellStep final : public Step {
   }
 };
 
+// A whole number of at least 1 for `key`, asked again (on a terminal) until one is given.
+std::size_t ask_count(const WizardContext& ctx, const std::string& key, const std::string& question,
+                      const std::string& default_value) {
+  for (;;) {
+    const std::string text = ctx.ask.ask(key, question, default_value);
+    char* end = nullptr;
+    const long long v = std::strtoll(text.c_str(), &end, 10);
+    if (end != text.c_str() && *end == '\0' && v >= 1 && v <= 1000000)
+      return static_cast<std::size_t>(v);
+    say_check(ctx, false, fmt::format("'{}' is not a whole number of 1 or more", text),
+              "give a number such as " + default_value);
+  }
+}
+
 class PlanStep final : public Step {
  public:
   std::string key() const override { return "plan"; }
@@ -257,10 +311,12 @@ class PlanStep final : public Step {
   StepOutcome run(WizardContext& ctx) override {
     const calib::Mechanism model = load_robot(ctx.state.get("robot.file"));
     for (;;) {
-      const std::string count =
-          ctx.ask.ask("plan.count", "How many poses", ctx.state.get("plan.count", "30"));
-      const std::string pool = ctx.ask.ask("plan.pool", "Candidate poses to choose from",
-                                           ctx.state.get("plan.pool", "3000"));
+      const std::size_t count =
+          ask_count(ctx, "plan.count", "How many poses", ctx.state.get("plan.count", "30"));
+      const std::size_t pool = ask_count(ctx, "plan.pool", "Candidate poses to choose from",
+                                         ctx.state.get("plan.pool", "3000"));
+      ctx.state.set("plan.count", std::to_string(count));
+      ctx.state.set("plan.pool", std::to_string(pool));
       planner::Cell cell;
       try {
         const fs::path cell_out = ctx.state.folder / "cell.yaml";
@@ -270,11 +326,19 @@ class PlanStep final : public Step {
         return StepOutcome::stopped(std::string("the cell file no longer reads: ") + e.what());
       }
       planner::PlanOptions po;
-      po.selection.count = static_cast<std::size_t>(std::stoul(count));
-      po.pool = static_cast<std::size_t>(std::stoul(pool));
+      po.selection.count = count;
+      po.pool = pool;
+      // The collection homes the robot first: the tour starts there, so that the first motion
+      // is checked like the others.
+      po.start = calib::readings_from_joint_values(model, model.nominal_parameters(),
+                                                   model.home_actuated());
+      // A robot whose own joints turn the board (fewer than six actuators) is planned with its
+      // board turned towards the cameras; in joint space it faces them at a few per cent of
+      // the samples.
+      po.task_space = planner::target_turned_by_joints(model, model.task.frame);
       po.progress = [&](const std::string& line) { fmt::print(ctx.out, "  plan: {}\n", line); };
-      const planner::PlanResult plan =
-          planner::plan_measurements(model, model.nominal_parameters(), cell, po);
+      const planner::PlanResult plan = planner::plan_with_enough_candidates(
+          model, model.nominal_parameters(), cell, po, po.selection.count);
       fmt::print(ctx.out, "{}\n", plan.counts.summary());
       if (plan.poses.empty() || plan.status == planner::PlanStatus::kBadCell) {
         say_check(ctx, false, "no plan: " + plan.message,
@@ -291,11 +355,11 @@ class PlanStep final : public Step {
       core::write_file_atomic(yaml, planner::plan_to_yaml(model, cell, plan, po));
       core::write_file_atomic(svg, planner::plan_to_svg(cell, plan));
       fmt::print(ctx.out,
-                 "Plan: {} poses, predicted position error {:.1f} um RMS ({:.1f} um max), "
-                 "condition number {:.0f}\n{}\nPreview: {} (open it in a browser)\n",
+                 "Plan: {} poses; the calibration they allow should place the board within "
+                 "{:.1f} µm RMS ({:.1f} µm at worst) over the poses the cameras see.\n"
+                 "Preview: {} (open it in a browser)\n",
                  plan.poses.size(), plan.selection.predicted_rms * 1e6,
-                 plan.selection.predicted_max * 1e6, plan.selection.values.condition_number,
-                 plan.selection.message, svg.string());
+                 plan.selection.predicted_max * 1e6, svg.string());
       for (const auto& w : plan.warnings) fmt::print(ctx.out, "  warning: {}\n", w);
       ctx.state.set("plan.file", yaml.string());
       ctx.state.set("plan.poses", std::to_string(plan.poses.size()));

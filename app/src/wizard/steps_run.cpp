@@ -17,6 +17,7 @@
 #include "wizard/step.hpp"
 
 #include <fmt/core.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -32,6 +33,22 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// A first run's speed: slow enough to stop by hand, fast enough that a plan of 30 poses takes
+// minutes (rotary axes: 0.25 rad/s moves a 0.5 m arm's end at 0.12 m/s; linear axes 50 mm/s).
+bool robot_has_linear_axes(const WizardState& s) {
+  const calib::Mechanism model = load_robot(s.get("robot.file"));
+  for (const int a : model.actuated)
+    if (model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic)
+      return true;
+  return false;
+}
+std::string default_speed(const WizardState& s) {
+  return robot_has_linear_axes(s) ? "0.05" : "0.25";
+}
+std::string default_acceleration(const WizardState& s) {
+  return robot_has_linear_axes(s) ? "0.5" : "2";
+}
+
 CollectOptions collect_options(const WizardState& s) {
   CollectOptions o;
   o.session = s.session();
@@ -41,8 +58,8 @@ CollectOptions collect_options(const WizardState& s) {
   o.link = s.get("controller.link");
   o.steps_per_mm = std::stod(s.get("controller.steps_per_mm", "80"));
   o.steps_per_degree = std::stod(s.get("controller.steps_per_degree", "100"));
-  o.speed = std::stod(s.get("safety.speed", "0.02"));
-  o.acceleration = std::stod(s.get("safety.acceleration", "0.5"));
+  o.speed = std::stod(s.get("safety.speed", default_speed(s)));
+  o.acceleration = std::stod(s.get("safety.acceleration", default_acceleration(s)));
   std::istringstream in(s.get("cameras.list"));
   std::string item;
   while (in >> item) {
@@ -50,7 +67,15 @@ CollectOptions collect_options(const WizardState& s) {
     o.cameras.push_back({item.substr(0, eq), item.substr(eq + 1)});
   }
   o.yes = true;  // the wizard asked (safety step, and again before a resumed collection)
+  o.say_next_step = false;
   return o;
+}
+
+// How long the plan's motions take at the speed asked, in words.
+std::string duration_words(double seconds) {
+  if (seconds < 90) return fmt::format("{:.0f} s", seconds);
+  if (seconds < 5400) return fmt::format("{:.0f} min", seconds / 60);
+  return fmt::format("{:.1f} h", seconds / 3600);
 }
 
 class SafetyStep final : public Step {
@@ -64,12 +89,17 @@ class SafetyStep final : public Step {
   }
   StepOutcome run(WizardContext& ctx) override {
     for (;;) {
+      const bool linear = robot_has_linear_axes(ctx.state);
       ctx.state.set("safety.speed",
-                    ctx.ask.ask("safety.speed", "Axis speed limit (m/s, or rad/s for rotary axes)",
-                                ctx.state.get("safety.speed", "0.02")));
-      ctx.state.set("safety.acceleration",
-                    ctx.ask.ask("safety.acceleration", "Axis acceleration limit (per s^2)",
-                                ctx.state.get("safety.acceleration", "0.5")));
+                    ctx.ask.ask("safety.speed",
+                                linear ? "Axis speed limit (m/s)" : "Axis speed limit (rad/s)",
+                                ctx.state.get("safety.speed", default_speed(ctx.state))));
+      ctx.state.set(
+          "safety.acceleration",
+          ctx.ask.ask(
+              "safety.acceleration",
+              linear ? "Axis acceleration limit (m/s²)" : "Axis acceleration limit (rad/s²)",
+              ctx.state.get("safety.acceleration", default_acceleration(ctx.state))));
       CollectOptions o = collect_options(ctx.state);
       o.dry_run = true;
       PipelineLog log;
@@ -85,14 +115,22 @@ class SafetyStep final : public Step {
         continue;
       }
       say_check(ctx, true, "every planned motion passes the safety guard");
+      const double seconds = dry.summary.value("motion_seconds", 0.0);
+      fmt::print(ctx.out,
+                 "At this speed the robot's motions take about {} in all (homing and the "
+                 "cameras' time at each pose come on top); 'speed' below sets another.\n",
+                 duration_words(seconds));
       fmt::print(ctx.out,
                  "Before the robot moves: is the cell clear of people and loose objects, is the "
                  "emergency stop in reach? During the collection Ctrl-C stops the robot at once "
                  "(resume later with `robocal wizard --resume {}`); kill -USR1 pauses.\n",
                  ctx.state.folder.string());
-      if (!ctx.ask.confirm("safety.confirm", "The cell is clear: may the robot move", false))
-        return StepOutcome::stopped("not confirmed: nothing moved");
-      return StepOutcome::done();
+      // No default: moving the robot is the operator's decision, typed.
+      const std::string answer = ctx.ask.choose(
+          "safety.confirm", "The cell is clear: may the robot move (or another speed, or stop)",
+          {"yes", "speed", "no"}, "");
+      if (answer == "no") return StepOutcome::stopped("not confirmed: nothing moved");
+      if (answer == "yes") return StepOutcome::done();
     }
   }
 };
@@ -107,12 +145,22 @@ class CollectionStep final : public Step {
            "whole or not at all, so an interruption loses nothing.";
   }
   StepOutcome run(WizardContext& ctx) override {
+    const bool resume = fs::exists(ctx.state.session() / "session.yaml");
+    if (resume) {
+      // A resumed collection may go on at another speed (the safety step's limits, asked again).
+      ctx.state.set("safety.speed",
+                    ctx.ask.ask("collection.speed",
+                                robot_has_linear_axes(ctx.state) ? "Axis speed limit (m/s)"
+                                                                 : "Axis speed limit (rad/s)",
+                                ctx.state.get("safety.speed", default_speed(ctx.state))));
+      ctx.state.save();
+      if (ctx.ask.choose("collection.continue",
+                         "Continue the interrupted collection (the robot moves again)",
+                         {"yes", "no"}, "") != "yes")
+        return StepOutcome::stopped("not confirmed: nothing moved");
+    }
     CollectOptions o = collect_options(ctx.state);
-    o.resume = fs::exists(o.session / "session.yaml");
-    if (o.resume &&
-        !ctx.ask.confirm("collection.continue",
-                         "Continue the interrupted collection (the robot moves again)", false))
-      return StepOutcome::stopped("not confirmed: nothing moved");
+    o.resume = resume;
     PipelineLog log;
     log.out = ctx.out;
     const CollectOutcome r = collect_session(o, log);
@@ -142,6 +190,22 @@ std::vector<std::string> missing_views(const Session& s) {
   if (s.cameras.size() > 1 && !has_images(s.path(s.rig_views)))
     missing.push_back(s.path(s.rig_views).string());
   return missing;
+}
+
+// A folder of calibration views laid out as app/SESSION.md says (intrinsics/ and rig/ inside):
+// the one the intrinsics step's image folders came from (FOLDER/intrinsics/<camera>), if any;
+// otherwise 'live' at a terminal, 'quit' without one.
+std::string views_folder_guess(const WizardState& state) {
+  for (const auto& [key, value] : state.values) {
+    if (key.rfind("intrinsics.", 0) != 0 || key.size() < 6 ||
+        key.compare(key.size() - 6, 6, ".views") != 0)
+      continue;
+    const fs::path folder = fs::path(value).parent_path().parent_path();
+    if (fs::path(value).parent_path().filename() == "intrinsics" &&
+        fs::is_directory(folder / "rig"))
+      return folder.string();
+  }
+  return ::isatty(STDIN_FILENO) != 0 ? "live" : "quit";
 }
 
 class IdentifyStep final : public Step {
@@ -180,17 +244,15 @@ class IdentifyStep final : public Step {
          missing = missing_views(s)) {
       std::string list;
       for (const auto& m : missing) list += "\n    " + m;
-      say_check(
-          ctx, false,
-          "the measurement needs calibration views that the session does not have yet:" + list,
-          "answer 'live' to take the rig views now (the board held where the cameras see it "
-          "at once; intrinsic views come from the intrinsics step's 'live'), or give a folder "
-          "that holds them as app/SESSION.md lays them out (intrinsics/<camera>/*.png, "
-          "rig/view_NNN/<camera>.png) and the wizard copies them into the session, or stop "
-          "and resume later");
-      const std::string views = ctx.ask.ask(
-          "identify.views",
-          "Folder with the calibration views, 'live' for rig views ('quit' to stop)", "quit");
+      fmt::print(ctx.out,
+                 "The measurement needs calibration views the session does not have yet:{}\n"
+                 "Give a folder that holds them as app/SESSION.md lays them out "
+                 "(intrinsics/<camera>/*.png, rig/view_NNN/<camera>.png; the wizard copies "
+                 "them into the session), 'live' to take the rig views now (the board held "
+                 "where the cameras see it at once), or 'quit' to stop and resume later.\n",
+                 list);
+      const std::string views = ctx.ask.ask("identify.views", "Folder with the calibration views",
+                                            views_folder_guess(ctx.state));
       if (views == "quit")
         return StepOutcome::stopped("calibration views missing; the recorded poses are kept");
       if (views == "live") {
@@ -431,7 +493,7 @@ class ExportStep final : public Step {
       try {
         const auto r = compensate_session(o, PipelineLog{nullptr});
         say_check(ctx, true,
-                  fmt::format("{} moves rewritten to {} (largest correction {:.1f} um)",
+                  fmt::format("{} moves rewritten to {} (largest correction {:.1f} µm)",
                               r.value("moves", 0), o.out.string(),
                               r.value("max_correction_m", 0.0) * 1e6));
         return true;

@@ -12,13 +12,16 @@
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/vision/apriltag_detector.hpp"
 #include "session/session_robot.hpp"
+#include "wizard/live_views.hpp"
 #include "wizard/step.hpp"
 
 #include <fmt/core.h>
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -118,6 +121,19 @@ class RobotStep final : public Step {
   }
 };
 
+// A positive number for `key`, asked again (on a terminal) until one is given.
+double ask_positive(const WizardContext& ctx, const std::string& key, const std::string& question,
+                    const std::string& default_value) {
+  for (;;) {
+    const std::string text = ctx.ask.ask(key, question, default_value);
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (end != text.c_str() && *end == '\0' && std::isfinite(v) && v > 0) return v;
+    say_check(ctx, false, fmt::format("'{}' is not a positive number", text),
+              "give the number the firmware uses, e.g. 80");
+  }
+}
+
 class ControllerStep final : public Step {
  public:
   std::string key() const override { return "controller"; }
@@ -129,12 +145,28 @@ class ControllerStep final : public Step {
   }
   StepOutcome run(WizardContext& ctx) override {
     const calib::Mechanism model = load_robot(ctx.state.get("robot.file"));
-    const double steps_mm = std::stod(ctx.ask.ask("controller.steps_per_mm",
-                                                  "Steps per mm of the axes (the firmware's M92)",
-                                                  ctx.state.get("controller.steps_per_mm", "80")));
+    // The firmware's steps per unit turn actuator units into G-code axis units: asked only for
+    // the kinds of axes this robot has.
+    bool prismatic = false;
+    bool revolute = false;
+    for (const int a : model.actuated) {
+      const bool p =
+          model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic;
+      prismatic = prismatic || p;
+      revolute = revolute || !p;
+    }
+    const double steps_mm =
+        prismatic ? ask_positive(ctx, "controller.steps_per_mm",
+                                 "Steps per mm of the linear axes (the firmware's M92; M503 "
+                                 "prints it)",
+                                 ctx.state.get("controller.steps_per_mm", "80"))
+                  : std::stod(ctx.state.get("controller.steps_per_mm", "80"));
     const double steps_deg =
-        std::stod(ctx.ask.ask("controller.steps_per_degree", "Steps per degree (rotary axes)",
-                              ctx.state.get("controller.steps_per_degree", "100")));
+        revolute ? ask_positive(ctx, "controller.steps_per_degree",
+                                "Steps per degree of the rotary axes (the firmware's M92; M503 "
+                                "prints it)",
+                                ctx.state.get("controller.steps_per_degree", "100"))
+                 : std::stod(ctx.state.get("controller.steps_per_degree", "100"));
     ctx.state.set("controller.steps_per_mm", fmt::format("{}", steps_mm));
     ctx.state.set("controller.steps_per_degree", fmt::format("{}", steps_deg));
     for (;;) {
@@ -202,18 +234,23 @@ std::vector<CameraEntry> parse_cameras(const std::string& text) {
   return out;
 }
 
-// Opens each camera, checks one frame; true when every check passed.
-bool check_cameras(const WizardContext& ctx, const std::vector<CameraEntry>& cams,
-                   const vision::TargetBoard& board, int width, int height) {
-  bool all_ok = true;
+// What the cameras' check found: every camera opened, and every check passed.
+struct CameraCheck {
+  bool opened = true;
+  bool ok = true;
+};
+
+// Opens each camera (at width x height, or its full sensor when width is 0), checks one frame.
+CameraCheck check_cameras(const WizardContext& ctx, const std::vector<CameraEntry>& cams,
+                          const vision::TargetBoard& board, int width, int height) {
+  CameraCheck result;
   vision::AprilTagDetectorOptions dopt;
   dopt.family = board.spec.family;
   vision::AprilTagDetector detector(dopt);
   for (const auto& c : cams) {
     try {
-      auto cam = robotio::open_camera_source(c.source, c.name);
+      auto cam = open_camera_at(c.source, c.name, width, height);
       const auto info = cam->info();
-      if (width > 0) cam->set_region({0, 0, width, height});
       cam->start(robotio::TriggerMode::kSoftware);
       const robotio::Frame frame = cam->grab(std::chrono::milliseconds(5000));
       cam->stop();
@@ -230,13 +267,14 @@ bool check_cameras(const WizardContext& ctx, const std::vector<CameraEntry>& cam
         fmt::print(ctx.out, "  {:<10} {}  {}\n", k.name, k.ok ? "ok     " : "PROBLEM", k.summary);
         if (!k.ok && !k.advice.empty()) fmt::print(ctx.out, "             advice: {}\n", k.advice);
       }
-      all_ok = all_ok && report.ok();
+      result.ok = result.ok && report.ok();
     } catch (const std::exception& e) {
       fmt::print(ctx.out, "{}: cannot open {}: {}\n", c.name, c.source, e.what());
-      all_ok = false;
+      result.opened = false;
+      result.ok = false;
     }
   }
-  return all_ok;
+  return result;
 }
 
 class CamerasStep final : public Step {
@@ -253,7 +291,10 @@ class CamerasStep final : public Step {
     int k = 0;
     for (const auto& c : robotio::discover_aravis_cameras())
       found += fmt::format("{}cam{}=aravis:{}", found.empty() ? "" : " ", k++, c.id);
-    fmt::print(ctx.out, "Cameras found: {}\n", found.empty() ? "(none through Aravis)" : found);
+    fmt::print(ctx.out, "Cameras found: {}\n",
+               found.empty() ? "none through Aravis (GigE Vision, USB3 Vision); give yours as "
+                               "NAME=SOURCE"
+                             : found);
     for (;;) {
       const std::string list =
           ctx.ask.ask("cameras.list", "Cameras as NAME=SOURCE, separated by spaces",
@@ -263,8 +304,9 @@ class CamerasStep final : public Step {
           ctx.state.get("cameras.target"));
       const std::string size = ctx.ask.ask(
           "cameras.size",
-          "Image size the cameras deliver, WIDTHxHEIGHT as their intrinsics ('keep': as set now)",
-          ctx.state.get("cameras.size", "keep"));
+          "Image size the cameras deliver, WIDTHxHEIGHT as their intrinsics ('full': the whole "
+          "sensor)",
+          ctx.state.get("cameras.size", "full"));
       std::vector<CameraEntry> cams;
       vision::TargetBoard board;
       int width = 0;
@@ -272,7 +314,7 @@ class CamerasStep final : public Step {
       try {
         cams = parse_cameras(list);
         board = load_board(target);
-        if (size != "keep" &&
+        if (size != "full" && size != "keep" &&
             (std::sscanf(size.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0))
           throw InputError(fmt::format("'{}': give the size as WIDTHxHEIGHT, e.g. 1280x960", size));
       } catch (const InputError& e) {
@@ -284,12 +326,18 @@ class CamerasStep final : public Step {
       ctx.state.set("cameras.size", size);
       ctx.state.set("cameras.target", fs::absolute(target).string());
       for (;;) {
-        const bool ok = check_cameras(ctx, cams, board, width, height);
+        const CameraCheck check = check_cameras(ctx, cams, board, width, height);
+        const bool ok = check.ok;
         say_check(ctx, ok,
-                  ok ? "every camera sees the whole board, sharp and well exposed"
-                     : "a camera is not ready (above)",
-                  "move the robot or the camera until the board is in view, focus, adjust the "
-                  "exposure or the light, then retry");
+                  ok             ? "every camera sees the whole board, sharp and well exposed"
+                  : check.opened ? "a camera is not ready (above)"
+                                 : "a camera cannot be opened (above)",
+                  check.opened
+                      ? "move the robot or the camera until the board is in view, focus, adjust "
+                        "the exposure or the light, then retry"
+                      : "check the camera's cable and power and its NAME=SOURCE (aravis:ID as "
+                        "listed above, v4l2:/dev/videoN: ls /dev/video*), then retry or give the "
+                        "list again ('quit', then resume)");
         if (ok) return StepOutcome::done();
         const std::string c =
             ctx.ask.choose("cameras.problem", "Retry the check, continue anyway, or stop here",

@@ -25,8 +25,8 @@ std::vector<std::unique_ptr<Step>> all_steps() {
   s.push_back(robot_step());
   s.push_back(controller_step());
   s.push_back(cameras_step());
-  s.push_back(intrinsics_step());
   s.push_back(cell_step());
+  s.push_back(intrinsics_step());
   s.push_back(plan_step());
   s.push_back(safety_step());
   s.push_back(collection_step());

@@ -4,6 +4,8 @@
 
 #include <cstring>
 #include <exception>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace robocal::robotio {
@@ -60,6 +62,22 @@ FakeGigECamera::FakeGigECamera(const std::string& address, const std::string& se
   // samples in a live Gantry-Tau's collection, taken from the renderer). 100 Hz: at most 10 ms
   // to the exposure, a tenth of a core.
   arv_fake_camera_set_trigger_frequency(static_cast<ArvFakeCamera*>(fake_), 100.0);
+}
+
+void FakeGigECamera::set_sensor_size(int width, int height) {
+  if (width <= 0 || height <= 0 || width > ARV_FAKE_CAMERA_SENSOR_WIDTH ||
+      height > ARV_FAKE_CAMERA_SENSOR_HEIGHT)
+    throw std::invalid_argument("fake camera " + serial_ + ": sensor " + std::to_string(width) +
+                                "x" + std::to_string(height) + " outside 1x1 .. 2048x2048");
+  auto* fake = static_cast<ArvFakeCamera*>(fake_);
+  const auto w = static_cast<guint32>(width);
+  const auto h = static_cast<guint32>(height);
+  arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_WIDTH, w);
+  arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_SENSOR_HEIGHT, h);
+  arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_X_OFFSET, 0);
+  arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_Y_OFFSET, 0);
+  arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_WIDTH, w);
+  arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, h);
 }
 
 FakeGigECamera::~FakeGigECamera() {

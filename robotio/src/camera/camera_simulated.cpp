@@ -19,6 +19,7 @@ SimulatedGigECamera::SimulatedGigECamera(SimulatedCameraSpec spec, vision::Targe
   server_ = std::make_unique<FakeGigECamera>(
       spec_.address, spec_.serial,
       [this](const FakeFrameRequest& request) { return render_frame(request); });
+  server_->set_sensor_size(spec_.model.width, spec_.model.height);
 }
 
 void RenderBusyClock::begin() {

@@ -52,6 +52,11 @@ class FakeGigECamera {
   // The camera vanishes (cable pulled): it stops answering and streaming. Idempotent.
   void disconnect();
 
+  // The sensor the camera reports (SensorWidth / SensorHeight, at most 2048 x 2048, Aravis'
+  // fake sensor), with its region set to the whole of it: a camera whose lens model covers
+  // fewer pixels than the fake sensor says so to the clients that ask for the full frame.
+  void set_sensor_size(int width, int height);
+
   // Aravis' fill callback (ArvBuffer*, this, exposure, gain, ArvPixelFormat); not for callers.
   static void fill(void* buffer, void* self, std::uint32_t exposure_us, std::uint32_t gain,
                    std::uint32_t pixel_format);

@@ -1,0 +1,229 @@
+#include "live/sim_cell.hpp"
+
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "live/live_cameras.hpp"
+#include "live/live_cell.hpp"
+#include "live/sim_camera.hpp"
+#include "live/simulated_setup.hpp"
+#include "robocal/core/files.hpp"
+#include "robocal/robotio/sim_process.hpp"
+#include "robocal/robotio/sim_truth.hpp"
+#include "session/results_files.hpp"
+#include "session/results_layout.hpp"
+#include "session/session_robot.hpp"
+
+#include <fmt/core.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <fstream>
+#include <thread>
+
+namespace robocal::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::atomic<bool> g_cell_stop{false};
+extern "C" void on_cell_signal(int /*signal*/) {
+  g_cell_stop = true;
+}
+
+// The folder's identity: a folder made for another robot or seed is not reused.
+std::string identity(const SimCellOptions& o, const std::string& robot_file) {
+  return fmt::format("robot: {}\nseed: {}\nquick: {}\n", fs::absolute(robot_file).string(), o.seed,
+                     o.quick);
+}
+
+void prepare_folder(const SimCellOptions& o, const std::string& robot_file,
+                    const SimCellLayout& at) {
+  const fs::path id = at.simulator() / "cell_identity.yaml";
+  if (fs::exists(at.dir) && !fs::is_empty(at.dir)) {
+    if (!fs::exists(id))
+      throw InputError(at.dir.string() +
+                       ": exists and is not a sim-cell folder; give a new folder with --out");
+    if (core::read_text_file(id) != identity(o, robot_file))
+      throw InputError(fmt::format(
+          "{}: holds a simulated cell of another robot or seed ({}); give a new folder with --out",
+          at.dir.string(), id.string()));
+  }
+  fs::create_directories(at.simulator());
+  core::write_file_atomic(id, identity(o, robot_file));
+}
+
+// The true robot and cameras, where validation (never the pipeline) reads them: copied into a
+// recorded session's truth/ folder, `robocal validate` compares the calibration with them.
+void write_simulator_truth(const LiveCell& lc, const SimCellLayout& at) {
+  TruthFile truth;
+  truth.elastic_sag = lc.cell.elastic_sag;
+  truth.nominal = lc.cell.nominal;
+  truth.truth = lc.cell.truth;
+  for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
+    truth.cameras.push_back(
+        {fmt::format("cam{}", c), lc.cell.cameras[c].model, lc.cell.cameras[c].camera_T_world});
+  truth.perturbation = {{"length_sigma_m", lc.cell.options.length_sigma},
+                        {"angle_sigma_rad", lc.cell.options.angle_sigma},
+                        {"source", "robocal sim-cell: the simulated controller's true robot"}};
+  write_truth(ResultsLayout{at.simulator()}, lc.cell.model, truth);
+}
+
+// Whether `pid` still runs (a child that ended and was not yet waited for is a zombie: 'Z').
+bool process_running(pid_t pid) {
+  std::ifstream in(fmt::format("/proc/{}/stat", pid));
+  std::string stat;
+  std::getline(in, stat);
+  const auto close = stat.rfind(')');
+  return close != std::string::npos && close + 2 < stat.size() && stat[close + 2] != 'Z';
+}
+
+struct Answer {
+  std::string key, question, value;
+};
+
+// What to answer in the wizard, where the wizard has no default that fits this cell.
+std::vector<Answer> wizard_answers(const SimCellOptions& o, const SimCellLayout& at,
+                                   const std::string& link, const std::string& cameras,
+                                   const std::vector<std::string>& names) {
+  std::vector<Answer> a = {{"robot.model", "Robot", o.robot},
+                           {"controller.link", "Controller address", link},
+                           {"cameras.list", "Cameras", cameras},
+                           {"cameras.target", "Target file of the board on the end-effector",
+                            (at.cell_dir() / "end_effector.yaml").string()}};
+  for (const auto& n : names)
+    a.push_back(
+        {"intrinsics." + n, "Intrinsics of " + n, (at.views() / "intrinsics" / n).string()});
+  a.push_back({"intrinsics.board", "Target file of the calibration board",
+               (at.cell_dir() / "calibration.yaml").string()});
+  a.push_back({"cell.file", "Cell file", (at.cell_dir() / "cell.yaml").string()});
+  a.push_back({"identify.views", "Folder with the calibration views", at.views().string()});
+  return a;
+}
+
+std::string answers_yaml(const std::vector<Answer>& answers) {
+  std::string text =
+      "# Answers for `robocal wizard --answers THIS_FILE` on this simulated cell (the wizard\n"
+      "# asks the rest, each with a default). Written by robocal sim-cell.\n";
+  for (const auto& a : answers) text += fmt::format("{}: \"{}\"\n", a.key, a.value);
+  return text;
+}
+
+}  // namespace
+
+int run_sim_cell(const SimCellOptions& o) {
+  if (o.seed == 0) throw InputError("--seed must be 1 or more (0 would be the nominal robot)");
+  if (o.tcp_port < 0 || o.tcp_port > 65535)
+    throw InputError(
+        fmt::format("--port {}: give a TCP port 1-65535, or 0 for any free one", o.tcp_port));
+  const std::string robot_file = resolve_robot(o.robot);
+  const SimCellLayout at{fs::absolute(
+      o.out.empty() ? fmt::format("sim-cell-{}-seed{}", fs::path(o.robot).stem().string(), o.seed)
+                    : o.out)};
+  prepare_folder(o, robot_file, at);
+  std::FILE* out = stdout;
+  const PipelineLog log{out, nullptr, 2};
+  fmt::print(out, "robocal sim-cell: a simulated {} (seed {}) in {}\n", o.robot, o.seed,
+             at.dir.string());
+
+  LiveDemoOptions lo;
+  lo.robot = o.robot;
+  lo.seed = o.seed;
+  lo.quick = o.quick;
+  const LiveCell lc = make_live_cell(lo, robot_file);
+  const LiveCellFiles files = write_live_cell(lc.cell, robot_file, at.cell_dir());
+  // The true geometry is the simulator's, not the operator's: out of the cell's folder.
+  const fs::path truth_txt = at.simulator() / "true_parameters.txt";
+  fs::rename(files.perturbation, truth_txt);
+  // The same robot and seed give the same truth: a reused folder keeps the one it has.
+  if (!fs::exists(ResultsLayout{at.simulator()}.truth())) write_simulator_truth(lc, at);
+  const auto specs = camera_specs(lc.cell, o.seed, 2);
+  if (!fs::exists(at.views() / "done")) {
+    fmt::print(out, "calibration images: the board held in front of the cameras ({} views)\n",
+               lc.intrinsic_views.empty() ? 0 : lc.intrinsic_views.front().size());
+    nlohmann::json ignored;
+    take_calibration_views(lc, specs, o.gige, at.views(), log, ignored);
+    core::write_file_atomic(at.views() / "done", "ok\n");
+  }
+
+  std::vector<std::string> args = {
+      "--robot",         robot_file,
+      "--seed",          std::to_string(o.seed),
+      "--perturbation",  truth_txt.string(),
+      "--firmware",      o.firmware,
+      "--tcp-port",      std::to_string(o.tcp_port),
+      "--pty-link",      (at.simulator() / "tty").string(),
+      "--log",           (at.simulator() / "sim-controller.jsonl").string(),
+      "--busy-interval", "1"};
+  robotio::SimControllerProcess sim(robocal_binary(), args);
+  robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
+  SaggingBoard seen(truth, lc.cell.elastic_sag);
+  LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("S{}-", ::getpid()));
+  std::string camera_list;
+  std::vector<std::string> names;
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    std::string source = cams.source(c);
+    if (!cams.served(c)) {
+      const fs::path file = at.simulator() / (specs[c].name + ".camera.yaml");
+      core::write_file_atomic(
+          file, sim_camera_yaml({robot_file, o.seed, o.quick, false, specs[c].name, sim.pose()}));
+      source = "sim:" + file.string();
+    }
+    camera_list += (camera_list.empty() ? "" : " ") + specs[c].name + "=" + source;
+    names.push_back(specs[c].name);
+  }
+  const auto answers = wizard_answers(o, at, sim.tcp(), camera_list, names);
+  core::write_file_atomic(at.answers(), answers_yaml(answers));
+
+  fmt::print(out, "\ncontroller: {} firmware, G-code at {} (serial: {})\n", o.firmware, sim.tcp(),
+             (at.simulator() / "tty").string());
+  for (std::size_t c = 0; c < specs.size(); ++c)
+    fmt::print(out, "camera {}: {}\n", specs[c].name,
+               cams.served(c) ? fmt::format("GigE Vision through Aravis' fake camera on {}",
+                                            live_camera_address(c))
+                              : std::string("rendered by the program that opens it (sim:)"));
+  if (specs.size() > 1 && !cams.served(1) && cams.served(0))
+    fmt::print(out,
+               "  (only 127.0.0.1 serves a fake GigE camera here; as root, `ip addr add "
+               "127.0.0.2/32 dev lo` gives the second camera an address of its own)\n");
+  else
+    for (const auto& n : cams.notes()) fmt::print(out, "  {}\n", n);
+  fmt::print(out,
+             "\nIn another terminal, run `robocal wizard FOLDER` and answer (Enter takes the "
+             "default elsewhere):\n");
+  for (const auto& a : answers) fmt::print(out, "  {:<46} {}\n", a.question + ":", a.value);
+  fmt::print(out,
+             "or give these answers at once: robocal wizard FOLDER --answers {}\n"
+             "The simulator's true robot (for `robocal validate` after the wizard): copy {} into "
+             "the wizard's session folder.\n"
+             "ready: Ctrl-C stops the cell\n",
+             at.answers().string(), (at.simulator() / "truth").string());
+  std::fflush(out);
+
+  g_cell_stop = false;
+  struct sigaction sa {};
+  sa.sa_handler = on_cell_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  const auto start = std::chrono::steady_clock::now();
+  while (!g_cell_stop) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    if (o.max_seconds > 0 &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() >
+            o.max_seconds)
+      break;
+    if (!process_running(sim.pid())) {
+      fmt::print(stderr, "sim-cell: the simulated controller (pid {}) ended; stopping the cell\n",
+                 sim.pid());
+      return kExitFailure;
+    }
+  }
+  fmt::print(out, "sim-cell: stopped\n");
+  sim.stop();
+  return kExitOk;
+}
+
+}  // namespace robocal::app
