@@ -79,7 +79,7 @@ void FeasibilityCounts::add(const Candidate& c) {
   if (example.find(c.rejection) == example.end()) example[c.rejection] = c.detail;
 }
 
-std::string FeasibilityCounts::summary() const {
+std::string FeasibilityCounts::summary(bool examples) const {
   std::ostringstream s;
   s << "of " << evaluated << " candidates " << feasible << " are feasible";
   if (!removed.empty()) {
@@ -88,7 +88,8 @@ std::string FeasibilityCounts::summary() const {
     for (const auto& [why, n] : removed) {
       s << (first ? " " : "; ") << n << " " << to_string(why);
       const auto ex = example.find(why);
-      if (ex != example.end() && !ex->second.empty()) s << " (e.g. " << ex->second << ")";
+      if (examples && ex != example.end() && !ex->second.empty())
+        s << " (e.g. " << ex->second << ")";
       first = false;
     }
   }

@@ -266,7 +266,20 @@ bool operator_confirms(const CollectOptions& o, std::FILE* out) {
   return answer == "yes";
 }
 
-std::string describe(const CollectOptions& o, const CollectInputs& in, std::size_t remaining) {
+// The unit of the robot's actuator readings: rad (revolute), m (prismatic) or both.
+std::string actuator_unit(const calib::Mechanism& model) {
+  bool linear = false;
+  bool rotary = false;
+  for (const int a : model.actuated) {
+    const bool p = model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic;
+    linear = linear || p;
+    rotary = rotary || !p;
+  }
+  return linear && rotary ? "m or rad" : linear ? "m" : "rad";
+}
+
+std::string describe(const CollectOptions& o, const CollectInputs& in, std::size_t remaining,
+                     double motion_seconds) {
   std::string cams;
   for (const auto& c : o.cameras)
     cams += fmt::format("{}{} ({})", cams.empty() ? "" : ", ", c.name, c.source);
@@ -274,11 +287,12 @@ std::string describe(const CollectOptions& o, const CollectInputs& in, std::size
       "  robot:     {} ({} actuators), controller at {}\n"
       "  plan:      {} ({} poses, {} still to record)\n"
       "  cameras:   {}\n"
-      "  speed:     {} /s, acceleration {} /s^2 (joint units: m or rad)\n"
+      "  speed:     {} {}/s, acceleration {} {}/s² (the plan's motions: about {:.0f} s)\n"
       "  workspace: {}\n"
       "  obstacles: {} in the cell, clearance {} mm; every motion is checked before it is sent\n",
       in.model.name, static_cast<int>(in.model.actuated.size()), o.link, o.plan, in.targets.size(),
-      remaining, cams.empty() ? "(none)" : cams, o.speed, o.acceleration,
+      remaining, cams.empty() ? "(none)" : cams, o.speed, actuator_unit(in.model), o.acceleration,
+      actuator_unit(in.model), motion_seconds,
       in.cell.workspace.declared
           ? fmt::format("x {:.3f}..{:.3f}, y {:.3f}..{:.3f}, z {:.3f}..{:.3f} m",
                         in.cell.workspace.min.x(), in.cell.workspace.max.x(),
@@ -409,6 +423,23 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
     r.update(dry_run(in, guard, o, out, res.status));
     return finished(std::move(res));
   }
+  // Every motion of the plan through the guard before anything connects or moves: a pose the
+  // guard refuses stops the collection here, not after homing and the poses before it.
+  std::string plan_verdict;
+  const nlohmann::json plan_check = dry_run(in, guard, o, nullptr, plan_verdict);
+  guard.set_dry_run(false);
+  if (plan_verdict != "dry_run_ok") {
+    const nlohmann::json& first = plan_check.at("refused").front();
+    res.status = "refused";
+    res.message = fmt::format(
+        "the safety guard refuses {} of the plan's {} motions before anything moved; the first, "
+        "to pose {}: {} (check the plan and the cell, or the speed)",
+        plan_check.at("refused").size(), in.targets.size(), first.at("pose").get<int>(),
+        first.at("reason").get<std::string>());
+    r["refused"] = plan_check.at("refused");
+    if (out) fmt::print(out, "collect: {}\n", res.message);
+    return finished(std::move(res));
+  }
 
   // The session folder is checked first (file problems are exit 3, before any connection), and
   // nothing is created or moved until the controller and every camera answer.
@@ -445,7 +476,8 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   const std::size_t already = recorded_on_disk(o.session, in.targets.size());
   if (out) {
     fmt::print(out, "{} collection in {}:\n{}", o.resume ? "Continuing the" : "Starting a",
-               o.session.string(), describe(o, in, in.targets.size() - already));
+               o.session.string(), describe(o, in, in.targets.size() - already,
+                        plan_check.value("motion_seconds", 0.0)));
   }
   if (already == in.targets.size()) {
     res.status = "ok";

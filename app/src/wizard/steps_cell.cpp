@@ -336,10 +336,14 @@ class PlanStep final : public Step {
       // board turned towards the cameras; in joint space it faces them at a few per cent of
       // the samples.
       po.task_space = planner::target_turned_by_joints(model, model.task.frame);
-      po.progress = [&](const std::string& line) { fmt::print(ctx.out, "  plan: {}\n", line); };
+      // The planner's own lines name its methods and constraints' internals: the operator sees
+      // what it does, and the count of candidates each constraint removed below.
+      po.progress = [](const std::string& /*line*/) {};
+      fmt::print(ctx.out, "Choosing {} poses among {} candidates...\n", count, pool);
+      std::fflush(ctx.out);
       const planner::PlanResult plan = planner::plan_with_enough_candidates(
           model, model.nominal_parameters(), cell, po, po.selection.count);
-      fmt::print(ctx.out, "{}\n", plan.counts.summary());
+      fmt::print(ctx.out, "{}\n", plan.counts.summary(false));
       if (plan.poses.empty() || plan.status == planner::PlanStatus::kBadCell) {
         say_check(ctx, false, "no plan: " + plan.message,
                   "the line above says which constraint removed the candidates: move the cameras "

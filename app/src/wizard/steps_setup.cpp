@@ -188,7 +188,8 @@ class ControllerStep final : public Step {
         std::string q;
         for (Eigen::Index i = 0; i < readings.values.size(); ++i)
           q += fmt::format("{}{:.4f}", i == 0 ? "" : ", ", readings.values[i]);
-        fmt::print(ctx.out, "Axes now at: [{}] (robot units: m or rad)\n", q);
+        fmt::print(ctx.out, "Axes now at: [{}] ({})\n", q,
+                   prismatic && revolute ? "m or rad" : prismatic ? "m" : "rad");
         ctx.state.set("controller.link", link);
         ctx.state.set("controller.firmware", fw.name);
         say_check(ctx, true, "the controller answers and reports its axes");

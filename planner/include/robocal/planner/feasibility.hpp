@@ -86,7 +86,9 @@ struct FeasibilityCounts {
   void add(const Candidate& c);
   // "of 5000 candidates 1210 are feasible; removed: 1800 cannot assemble, 900 collide with an
   // obstacle (e.g. ...), ..."
-  std::string summary() const;
+  // How many candidates each constraint removed; with `examples`, one case of each (an expert's
+  // detail: the joint, the margin, the invariant that decided).
+  std::string summary(bool examples = true) const;
 };
 
 struct FeasibilityOptions {
