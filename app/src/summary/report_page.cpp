@@ -53,10 +53,11 @@ std::string accuracy_section(const ReportData& d) {
       }
   }
   const int height = 60 + 46 * static_cast<int>(std::max<std::size_t>(d.accuracy.size(), 1));
-  std::string svg = svg_open("fig-accuracy", 640, height, "accuracy before and after");
+  // The label column fits the longest row label ("held-out poses, measured by the cameras").
+  std::string svg = svg_open("fig-accuracy", 700, height, "accuracy before and after");
   if (hi > 0) {
     Frame f;
-    f.x0 = 190;
+    f.x0 = 250;
     f.w = 420;
     f.h = height - 60;
     f.log_y = false;
@@ -131,7 +132,7 @@ std::string per_pose_section(const ReportData& d) {
     f.yhi = std::pow(10.0, std::ceil(std::log10(hi)));
     const bool has_before = d.error_before.size() == n;
     svg += axes(
-        f, ticks(0, f.xhi, 8), log_ticks(f.ylo, f.yhi),
+        f, svg::count_ticks(f.xhi, 8), log_ticks(f.ylo, f.yhi),
         has_before ? "poses, sorted by error before calibration"
                    : "poses, sorted by error after calibration",
         "position error", [](double t) { return fmt::format("{:.0f}", t); },
@@ -178,7 +179,7 @@ std::string histogram_svg(const std::string& id, const calib::Histogram& h, cons
     f.yhi = static_cast<double>(
         std::max<std::size_t>(1, *std::max_element(h.counts.begin(), h.counts.end())));
     svg += axes(
-        f, ticks(f.xlo, f.xhi, 4), ticks(0, f.yhi, 4), "position error", "poses",
+        f, ticks(f.xlo, f.xhi, 4), svg::count_ticks(f.yhi, 4), "position error", "poses",
         [](double t) { return length(t); }, [](double t) { return fmt::format("{:.0f}", t); });
     for (std::size_t i = 0; i < h.counts.size(); ++i) {
       const double x = h.lo + h.width * static_cast<double>(i);

@@ -13,6 +13,7 @@
 #include "session/session_robot.hpp"
 #include "stages/export_stage.hpp"
 #include "stages/stages.hpp"
+#include "summary/svg_plot.hpp"
 #include "summary/validation_summary.hpp"
 #include "wizard/live_views.hpp"
 #include "wizard/step.hpp"
@@ -332,12 +333,13 @@ class ValidateStep final : public Step {
     const HeldOutRecord record = read_held_out(results, "");
     const auto& cal = record.calibrated;
     const auto& nom = record.nominal;
+    // Lengths as the report page writes them (µm below a millimetre), so the two agree.
     fmt::print(ctx.out,
                "On {} held-out poses, measured by the cameras ({}):\n"
-               "  calibrated model: {:.1f} µm RMS, {:.1f} µm max\n"
-               "  nominal model (base frame fitted): {:.1f} µm RMS, {:.1f} µm max\n",
-               cal.poses, ResultsLayout::kHeldOut, cal.rms_m * 1e6, cal.max_m * 1e6,
-               nom.rms_m * 1e6, nom.max_m * 1e6);
+               "  calibrated model: {} RMS, {} max\n"
+               "  nominal model (base frame fitted): {} RMS, {} max\n",
+               cal.poses, ResultsLayout::kHeldOut, svg::length(cal.rms_m), svg::length(cal.max_m),
+               svg::length(nom.rms_m), svg::length(nom.max_m));
     if (!record.unanswered.empty())
       fmt::print(ctx.out, "  {} held-out poses left out: a model has no answer there ({})\n",
                  record.unanswered.size(), kNoAnswerMeaning);
