@@ -422,6 +422,7 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     // No held-out poses: the fit's residuals at the measured poses are the only errors with a
     // position.
     std::vector<double> after;
+    after.reserve(fit_residuals.size());
     for (const auto& r : fit_residuals) after.push_back(r.norm());
     d.map_source = "measured poses (the fit's residual; no held-out poses in this session)";
     map_of(fit_positions, after, {}, kMapCells / 2);
