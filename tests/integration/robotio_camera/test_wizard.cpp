@@ -23,7 +23,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -371,8 +370,9 @@ TEST_F(Wizard, AnswersFileDrivesTheFlowWithoutATerminal) {
   EXPECT_LT(v["calibrated"]["rms_m"].get<double>(), v["nominal"]["rms_m"].get<double>())
       << v.dump();
   std::ifstream page_file(folder / "session" / "results" / "report.html");
-  const std::string page((std::istreambuf_iterator<char>(page_file)),
-                         std::istreambuf_iterator<char>());
+  std::stringstream page_text;
+  page_text << page_file.rdbuf();
+  const std::string page = page_text.str();
   EXPECT_NE(page.find("held-out poses, measured by the cameras"), std::string::npos);
   EXPECT_EQ(page.find("no held-out validation"), std::string::npos);
   EXPECT_EQ(moves_received(log_) - moves_before_, planned);
