@@ -11,7 +11,7 @@ namespace {
 
 std::string length(double metres) {
   const double a = std::abs(metres);
-  if (a < 1e-3) return fmt::format("{:.3g} um", metres * 1e6);
+  if (a < 1e-3) return fmt::format("{:.3g} µm", metres * 1e6);
   if (a < 1.0) return fmt::format("{:.4g} mm", metres * 1e3);
   return fmt::format("{:.5g} m", metres);
 }
@@ -37,32 +37,55 @@ const std::string& display_label(const IdentificationResult& r, std::size_t i) {
 
 }  // namespace
 
-std::string in_plain_words(const std::string& text, const IdentificationResult& r) {
-  // Longest names first, so a name that is a prefix of another is not replaced inside it.
+std::vector<TextPart> parameter_mentions(const std::string& text,
+                                         const std::vector<std::string>& names) {
+  // Longest names first, so a name that is a prefix of another is not found inside it.
   std::vector<std::size_t> order;
-  for (std::size_t i = 0; i < r.names.size() && i < r.labels.size(); ++i)
-    if (!r.labels[i].empty() && r.labels[i] != r.names[i]) order.push_back(i);
-  std::sort(order.begin(), order.end(),
-            [&](std::size_t a, std::size_t b) { return r.names[a].size() > r.names[b].size(); });
+  for (std::size_t i = 0; i < names.size(); ++i)
+    if (!names[i].empty()) order.push_back(i);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return names[a].size() > names[b].size(); });
   const auto name_char = [](char c) {
     return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '.';
   };
-  std::string out = text;
-  for (std::size_t i : order) {
-    const std::string& name = r.names[i];
-    for (std::size_t at = out.find(name); at != std::string::npos; at = out.find(name, at)) {
-      const std::size_t end = at + name.size();
-      // A whole name: not glued to a longer one (a trailing '.' ends a sentence, so allowed).
-      const bool starts = at == 0 || !name_char(out[at - 1]);
-      const bool ends = end == out.size() || !name_char(out[end]) ||
-                        (out[end] == '.' && (end + 1 == out.size() || out[end + 1] == ' '));
-      if (starts && ends) {
-        out.replace(at, name.size(), r.labels[i]);
-        at += r.labels[i].size();
-      } else {
-        at = end;
-      }
+  // A whole name at `at`: not glued to a longer one (a trailing '.' ends a sentence, so allowed).
+  const auto whole_at = [&](std::size_t at, const std::string& name) {
+    if (text.compare(at, name.size(), name) != 0) return false;
+    const std::size_t end = at + name.size();
+    const bool starts = at == 0 || !name_char(text[at - 1]);
+    const bool ends = end == text.size() || !name_char(text[end]) ||
+                      (text[end] == '.' && (end + 1 == text.size() || text[end + 1] == ' '));
+    return starts && ends;
+  };
+  std::vector<TextPart> parts;
+  std::string plain;
+  for (std::size_t at = 0; at < text.size();) {
+    int found = -1;
+    if (at == 0 || !name_char(text[at - 1]))
+      for (std::size_t i : order)
+        if (whole_at(at, names[i])) {
+          found = static_cast<int>(i);
+          break;
+        }
+    if (found < 0) {
+      plain += text[at++];
+      continue;
     }
+    if (!plain.empty()) parts.push_back({std::move(plain), -1});
+    plain.clear();
+    parts.push_back({names[static_cast<std::size_t>(found)], found});
+    at += names[static_cast<std::size_t>(found)].size();
+  }
+  if (!plain.empty()) parts.push_back({std::move(plain), -1});
+  return parts;
+}
+
+std::string in_plain_words(const std::string& text, const IdentificationResult& r) {
+  std::string out;
+  for (const auto& part : parameter_mentions(text, r.names)) {
+    const auto i = static_cast<std::size_t>(part.parameter);
+    out += part.parameter >= 0 && i < r.labels.size() && !r.labels[i].empty() ? r.labels[i]
+                                                                              : part.text;
   }
   return out;
 }
@@ -77,8 +100,13 @@ std::string summary_text(const IdentificationResult& r) {
     for (const auto& w : r.warnings) s += "  warning: " + w + "\n";
     return s;
   }
-  // Estimated parameters with σ (the covariance already carries the estimated noise when applied).
-  s += fmt::format("Estimated {} parameter(s):\n", r.estimated.size());
+  // The counts every summary uses (the report page, the closing summary): of the free
+  // parameters (the candidates), the identified ones and the rest, held at nominal.
+  const std::size_t held_count = r.candidates.size() - r.estimated.size();
+  // Identified parameters with σ (the covariance already carries the estimated noise when
+  // applied).
+  s += fmt::format("Identified {} of the {} free parameters:\n", r.estimated.size(),
+                   r.candidates.size());
   for (std::size_t k = 0; k < r.estimated.size(); ++k) {
     const auto i = static_cast<Eigen::Index>(r.estimated[k]);
     std::string sigma;
@@ -88,23 +116,28 @@ std::string summary_text(const IdentificationResult& r) {
                      display_label(r, r.estimated[k]), r.estimate(i), sigma, r.nominal(i),
                      r.estimate(i) - r.nominal(i));
   }
-  // Held parameters: the redundancy explanations say what each moves like.
+  const auto estimated = [&](std::size_t candidate) {
+    return std::find(r.estimated.begin(), r.estimated.end(), r.candidates[candidate]) !=
+           r.estimated.end();
+  };
+  // Held parameters: the redundancy explanations say what each moves like. A parameter the
+  // relinearised solve went on to estimate is not held, whatever the first analysis said.
   std::vector<std::string> held;
   for (const auto& red : r.identifiability.redundancies)
-    if (std::find(r.estimated.begin(), r.estimated.end(), r.candidates[red.parameter]) ==
-        r.estimated.end())
-      held.push_back(in_plain_words(red.explanation, r));
-  if (!held.empty()) {
-    s += fmt::format("Held at nominal ({}):\n", held.size());
-    for (std::size_t k = 0; k < held.size() && k < 12; ++k) s += "  " + held[k] + "\n";
-    if (held.size() > 12) s += fmt::format("  ... and {} more (see the JSON)\n", held.size() - 12);
-  }
+    if (!estimated(red.parameter)) held.push_back(in_plain_words(red.explanation, r));
   std::vector<std::string> no_effect;
   for (std::size_t k : r.identifiability.no_effect)
-    no_effect.push_back(k < r.candidates.size() ? display_label(r, r.candidates[k])
-                                                : r.identifiability.names[k]);
+    if (k >= r.candidates.size() || !estimated(k))
+      no_effect.push_back(k < r.candidates.size() ? display_label(r, r.candidates[k])
+                                                  : r.identifiability.names[k]);
+  if (held_count > 0)
+    s += fmt::format("Held at nominal: {} of the {} free parameters\n", held_count,
+                     r.candidates.size());
+  for (std::size_t k = 0; k < held.size() && k < 12; ++k) s += "  " + held[k] + "\n";
+  if (held.size() > 12) s += fmt::format("  ... and {} more (see the JSON)\n", held.size() - 12);
   if (!no_effect.empty())
-    s += fmt::format("No effect on these measurements: {}\n", name_list(no_effect, 8));
+    s += fmt::format("  no effect on these measurements ({}): {}\n", no_effect.size(),
+                     name_list(no_effect, 8));
   // Noise: stated vs what the residuals show.
   bool header = false;
   for (const auto& g : r.noise.groups) {

@@ -2,10 +2,15 @@
 // page checked as a file (size, every figure, no network reference) and rendered by headless
 // Chromium (not blank, every figure in the DOM, no console errors, any network request would
 // fail and show as one); and a session without identification results refused with exit code 3,
-// its existing page untouched.
+// its existing page untouched. The parameter counts on the page are identification.json's, and
+// section 6 names parameters by their labels only (raw names in tooltips). A session carrying
+// the wizard's held-out poses measured by the cameras (results/held_out.json) shows them, without
+// the advice to validate; a record from other measurements is not shown and says why.
+#include "session/results_files.hpp"
 #include "session_test_support.hpp"
 #include "summary/report_page.hpp"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -13,6 +18,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -56,6 +62,86 @@ std::set<std::string> hosts_in(const std::string& text) {
   return hosts;
 }
 
+// The visible text of the page's element with id `id` (a <div> or <p>): tags and their attributes
+// (tooltips) removed.
+std::string text_of(const std::string& html, const std::string& id) {
+  const auto begin = html.find("id=\"" + id + "\"");
+  if (begin == std::string::npos) return "";
+  const auto end = html.find("</div>", begin);
+  const std::string part = html.substr(begin, end == std::string::npos ? end : end - begin);
+  std::string text;
+  bool in_tag = true;  // starts inside the element's opening tag
+  for (const char c : part) {
+    if (c == '<') in_tag = true;
+    if (!in_tag) text += c;
+    if (c == '>') in_tag = false;
+  }
+  return text;
+}
+
+// The page's parameter counts are identification.json's: free = the analysis's identifiable and
+// held lists, identified = the parameters estimated, held at nominal = the number identify
+// writes (candidates - estimated); and section 6 shows labels, never a raw name with a label.
+void check_parameter_counts_and_labels(const fs::path& session) {
+  const std::string html = read_file(page_of(session));
+  const auto id = nlohmann::json::parse(read_file(session / "results" / "identification.json"));
+  const auto& result = id.at("result");
+  std::size_t identified = 0;
+  for (const auto& p : result.at("parameters")) identified += p.at("estimated").get<bool>();
+  const std::size_t total = result.at("parameters").size();
+  const std::size_t free = result.at("identifiability").at("identifiable").size() +
+                           result.at("identifiability").at("held_at_nominal").size();
+  const auto held = id.at("held_at_nominal").get<std::size_t>();
+  EXPECT_EQ(held, free - identified);
+  ASSERT_GT(held, 0U) << "the demo's robot holds parameters: section 6 has something to say";
+  EXPECT_NE(
+      html.find(fmt::format("{} of the {} free parameters were identified", identified, free)),
+      std::string::npos);
+  EXPECT_NE(html.find(fmt::format("{} of the {} free parameters are held at nominal", held, free)),
+            std::string::npos);
+  if (total > free) {
+    EXPECT_NE(html.find(fmt::format("{} more are fixed in the robot file ({} parameters in all)",
+                                    total - free, total)),
+              std::string::npos);
+  }
+  // The first analysis's own count sentence ("N candidate parameters ... M held") is not shown:
+  // after a relinearised solve its counts are not the result's.
+  EXPECT_EQ(html.find("candidate parameters"), std::string::npos);
+  // The parameter table lists exactly the identified ones.
+  const auto table = html.substr(html.find("id=\"fig-parameters\""));
+  std::size_t rows = 0;
+  for (auto at = table.find("<tr><td"); at < table.find("</table>");
+       at = table.find("<tr><td", at + 1))
+    ++rows;
+  EXPECT_EQ(rows, identified);
+
+  // Section 6: no raw name of a labelled parameter in its text, but each named parameter's raw
+  // name at hand as a tooltip.
+  const std::string text = text_of(html, "fig-not-identified");
+  ASSERT_FALSE(text.empty());
+  EXPECT_FALSE(std::regex_search(text, std::regex(R"(body[0-9]+\.)"))) << text;
+  std::size_t labelled = 0;
+  for (const auto& p : result.at("parameters")) {
+    const auto name = p.at("name").get<std::string>();
+    if (p.value("label", name) == name) continue;
+    ++labelled;
+    EXPECT_FALSE(std::regex_search(
+        text,
+        std::regex("(^|[^A-Za-z0-9_.])" + std::regex_replace(name, std::regex(R"(\.)"), R"(\.)") +
+                   "([^A-Za-z0-9_]|$)")))
+        << name << " in: " << text;
+  }
+  EXPECT_GT(labelled, 0U);
+  const auto section = html.substr(html.find("id=\"fig-not-identified\""));
+  EXPECT_NE(section.find("<span class=\"param\" title=\"body"), std::string::npos);
+  const auto summary = nlohmann::json::parse(
+      read_file(fs::temp_directory_path() / "robocal_e2e_report_demo.json"))["report"];
+  EXPECT_EQ(summary["parameters"]["free"], free);
+  EXPECT_EQ(summary["parameters"]["identified"], identified);
+  EXPECT_EQ(summary["parameters"]["held_at_nominal"], held);
+  EXPECT_EQ(summary["estimated_parameters"], identified);
+}
+
 void check_demo_page() {
   const fs::path page = page_of(demo_session());
   ASSERT_TRUE(fs::exists(page));
@@ -74,6 +160,11 @@ void check_demo_page() {
   EXPECT_EQ(demo["report"]["status"], "ok");
   EXPECT_EQ(demo["report"]["held_out_poses"], demo["validate"]["held_out_poses"]);
   EXPECT_EQ(demo["report"]["calibrated_rms_m"], demo["validate"]["calibrated"]["rms_m"]);
+  // Validated against the truth, labelled so; no advice to validate.
+  EXPECT_NE(html.find("held-out poses, against the truth"), std::string::npos);
+  EXPECT_EQ(html.find("no held-out validation"), std::string::npos);
+  EXPECT_EQ(html.find("robocal wizard --resume"), std::string::npos);
+  check_parameter_counts_and_labels(demo_session());
 }
 
 void check_in_chromium() {
@@ -178,8 +269,77 @@ void check_without_truth() {
   ASSERT_EQ(run_cli({"report", recorded.string()}), 0);
   const std::string html = read_file(page_of(recorded));
   EXPECT_NE(html.find("no held-out validation"), std::string::npos);
+  // The advice names what records a held-out validation in the session; `robocal identify
+  // --holdout-every` does not (it applies to measurements files, and writes no session result).
+  EXPECT_NE(html.find("robocal wizard --resume"), std::string::npos);
+  EXPECT_EQ(html.find("--holdout-every"), std::string::npos);
   for (const auto& id : robocal::app::report_figure_ids())
     EXPECT_NE(html.find("id=\"" + id + "\""), std::string::npos) << id;
+}
+
+// A session whose held-out poses were measured by the cameras (the wizard's validation step
+// writes results/held_out.json; here written through the same writer for every 4th of the demo's
+// measured poses, with errors of known size): the page shows them as the accuracy, labelled as
+// measured by the cameras, with no advice to validate; the JSON summary agrees. A record whose
+// pose was measured elsewhere than the session's measurement now is not shown, and the page says
+// why and gives the advice again.
+void check_held_out_measured() {
+  const fs::path dir = fs::temp_directory_path() / "robocal_e2e_report_held_out";
+  fs::remove_all(dir);
+  fs::copy(demo_session(), dir, fs::copy_options::recursive);
+  fs::remove(dir / "results" / "validation.json");  // a real cell has no truth
+  const robocal::app::ResultsLayout results{dir};
+  const auto used = robocal::app::read_used_measured_poses(results, "");
+  robocal::app::HeldOutRecord record;
+  record.every = 4;
+  for (std::size_t k = 0; k < used.size(); ++k) {
+    if ((k + 1) % 4 != 0) continue;
+    const Eigen::Vector3d measured = used[k].rig_T_target.translation();
+    // 6 µm and 1.5 mm along alternating directions: RMS and worst exactly these.
+    const Eigen::Vector3d dir_k = k % 8 == 3 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ();
+    record.poses.push_back({used[k].pose, measured, 1.5e-3 * dir_k, -6e-6 * dir_k});
+  }
+  record.fit_poses = used.size() - record.poses.size();
+  ASSERT_GE(record.poses.size(), 3U);
+  robocal::app::write_held_out(results, record);
+  const fs::path json = dir / "report.json";
+  ASSERT_EQ(run_cli({"report", dir.string(), "--json", json.string()}), 0);
+  const std::string html = read_file(page_of(dir));
+  EXPECT_NE(html.find("held-out poses, measured by the cameras"), std::string::npos);
+  EXPECT_NE(html.find(fmt::format("Calibration brought the tool's position error on {} measured "
+                                  "poses the fit never saw from 1.50 mm to 6.0 µm RMS (worst "
+                                  "6.0 µm), as the cameras measured them.",
+                                  record.poses.size())),
+            std::string::npos);
+  EXPECT_NE(html.find(fmt::format("every 4th of the measured poses was left out of a second "
+                                  "identification, made the same way from the other {}",
+                                  record.fit_poses)),
+            std::string::npos);
+  EXPECT_NE(html.find("Error of each of the " + std::to_string(record.poses.size()) +
+                      " held-out poses (measured by the cameras)"),
+            std::string::npos);
+  EXPECT_EQ(html.find("no held-out validation"), std::string::npos);
+  EXPECT_EQ(html.find("robocal wizard --resume"), std::string::npos);
+  EXPECT_EQ(html.find("against the truth"), std::string::npos);
+  const auto summary = nlohmann::json::parse(read_file(json));
+  EXPECT_EQ(summary["held_out_measured"]["poses"], record.poses.size());
+  EXPECT_NEAR(summary["held_out_measured"]["calibrated_rms_m"].get<double>(), 6e-6, 1e-12);
+  EXPECT_NEAR(summary["held_out_measured"]["nominal_rms_m"].get<double>(), 1.5e-3, 1e-12);
+  EXPECT_NEAR(summary["calibrated_rms_m"].get<double>(), 6e-6, 1e-12);
+
+  // The session measured again (here: one held-out pose's board 1 mm elsewhere in the record).
+  record.poses[1].measured.x() += 1e-3;
+  robocal::app::write_held_out(results, record);
+  ASSERT_EQ(run_cli({"report", dir.string(), "--json", json.string()}), 0);
+  const std::string stale = read_file(page_of(dir));
+  EXPECT_EQ(stale.find("held-out poses, measured by the cameras"), std::string::npos);
+  EXPECT_NE(stale.find("The held-out poses of results/held_out.json are not shown: its held-out "
+                       "pose " +
+                       record.poses[1].pose + " has been measured again since."),
+            std::string::npos);
+  EXPECT_NE(stale.find("no held-out validation"), std::string::npos);
+  EXPECT_NE(stale.find("robocal wizard --resume"), std::string::npos);
+  EXPECT_TRUE(nlohmann::json::parse(read_file(json))["held_out_measured"].contains("not_shown"));
 }
 
 // Held-out configurations a model could not answer are failures the page names, with the
@@ -222,6 +382,10 @@ TEST(Report, DemoPageBadInputAndHeadlessChromium) {
   {
     SCOPED_TRACE("a session without truth");
     check_without_truth();
+  }
+  {
+    SCOPED_TRACE("held-out poses measured by the cameras");
+    check_held_out_measured();
   }
   {
     SCOPED_TRACE("unanswered held-out configurations; an old validation.json");

@@ -27,9 +27,11 @@ CommandSpec report_command() {
                 "batch` write it too.\n\n"
                 "Needs results/identification.json from a successful `robocal identify`; "
                 "without it the command names the missing file and exits with 3, leaving any "
-                "existing page untouched. Held-out figures need results/validation.json "
-                "(`robocal validate`, simulated sessions); without it the page shows the fit "
-                "on the measured poses and says so.");
+                "existing page untouched. Held-out figures come from results/validation.json "
+                "(`robocal validate`: against a simulated session's truth) and "
+                "results/held_out.json (the wizard's validation step: held-out poses measured "
+                "by the cameras); without either the page shows the fit on the measured poses "
+                "and says so.");
             cmd.add_option("session", *session, "Session folder")->required();
             cmd.add_option("--json", *json, "Write the JSON summary here ('-' = stdout)");
             return [session, json]() {

@@ -3,6 +3,7 @@
 #include "cli/cli_common.hpp"
 #include "session/json_values.hpp"
 
+#include "robocal/calib/held_out_errors.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/core/pose_covariance.hpp"
 #include "robocal/vision/camera_io.hpp"
@@ -11,6 +12,7 @@
 #include <fmt/core.h>
 
 #include <map>
+#include <set>
 #include <stdexcept>
 
 namespace robocal::app {
@@ -313,6 +315,52 @@ void write_identification(const ResultsLayout& results, const nlohmann::json& re
   write_json(report, results.identification().string());
 }
 
+ParameterAccount parameter_account(const nlohmann::json& identification, const std::string& where) {
+  // identify's session report holds calib's result under "result"; `robocal identify --json`
+  // writes calib's result itself.
+  const nlohmann::json& r =
+      identification.contains("result") ? identification.at("result") : identification;
+  ParameterAccount a;
+  try {
+    std::set<std::string> identified;
+    for (const auto& p : r.at("parameters")) {
+      a.names.push_back(p.at("name").get<std::string>());
+      const std::string label = p.value("label", std::string());
+      a.labels.push_back(label.empty() ? a.names.back() : label);
+      a.identified.push_back(p.at("estimated").get<bool>());
+      if (a.identified.back()) identified.insert(a.names.back());
+    }
+    const nlohmann::json& id = r.at("identifiability");
+    // The analysis sorts every free parameter (the candidates) into identifiable or held.
+    a.counts.total = a.names.size();
+    a.counts.free = id.at("identifiable").size() + id.at("held_at_nominal").size();
+    a.counts.identified = identified.size();
+    if (a.counts.identified > a.counts.free || a.counts.free > a.counts.total)
+      throw InputError(fmt::format(
+          "{}: {} parameters, {} free (identifiability), {} estimated: the counts do not fit "
+          "together",
+          where, a.counts.total, a.counts.free, a.counts.identified));
+    a.counts.held = a.counts.free - a.counts.identified;
+    for (const auto& n : id.at("no_effect"))
+      if (identified.count(n.get<std::string>()) == 0) a.no_effect.push_back(n.get<std::string>());
+    a.counts.no_effect = a.no_effect.size();
+    // A parameter the relinearised solve went on to estimate is not held, whatever the first
+    // analysis said of it.
+    for (const auto& red : id.at("redundancies"))
+      if (identified.count(red.at("parameter").get<std::string>()) == 0)
+        a.confounded.push_back(red.at("explanation").get<std::string>());
+    for (const auto& d : id.value("ill_conditioned", nlohmann::json::array()))
+      a.weak.push_back(d.at("explanation").get<std::string>());
+    const nlohmann::json relin = r.value("relinearisation", nlohmann::json::object());
+    if (relin.value("attempted", false)) a.relinearised = relin.value("message", std::string());
+    a.underdetermined = id.value("underdetermined", false);
+    a.equations = id.value("equations", std::size_t{0});
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: malformed parameter analysis ({})", where, e.what()));
+  }
+  return a;
+}
+
 IdentificationFile read_identification(const ResultsLayout& results, const calib::Mechanism& model,
                                        const std::string& hint) {
   const std::string file = results.identification().string();
@@ -324,6 +372,7 @@ IdentificationFile read_identification(const ResultsLayout& results, const calib
   out.estimate = params_from_json(model, out.report.at("estimate"), file);
   if (out.report.contains("pixel_route") && out.report["pixel_route"].value("status", "") == "ok")
     out.pixel_estimate = params_from_json(model, out.report["pixel_route"].at("estimate"), file);
+  out.parameters = parameter_account(out.report, file);
   return out;
 }
 
@@ -357,6 +406,82 @@ ValidationFile read_validation(const ResultsLayout& results, const std::string& 
     if (k < inside.size() && inside[k].is_boolean())
       h.inside_measured_region = inside[k].get<bool>();
     out.points.push_back(h);
+  }
+  return out;
+}
+
+// ---- held_out.json ------------------------------------------------------------------------------
+
+namespace {
+
+HeldOutFigures figures_of(const std::vector<HeldOutPose>& poses, bool calibrated) {
+  std::vector<Eigen::Vector3d> predicted, measured;
+  for (const auto& p : poses) {
+    measured.push_back(p.measured);
+    predicted.emplace_back(p.measured + (calibrated ? p.calibrated_error : p.nominal_error));
+  }
+  const auto stats = calib::position_error_stats(predicted, measured);
+  return {stats.n, stats.rms, stats.max};
+}
+
+nlohmann::json figures_json(const HeldOutFigures& f) {
+  return {{"poses", f.poses}, {"rms_m", f.rms_m}, {"max_m", f.max_m}};
+}
+
+}  // namespace
+
+void write_held_out(const ResultsLayout& results, const HeldOutRecord& record) {
+  nlohmann::json poses = nlohmann::json::array();
+  for (const auto& p : record.poses)
+    poses.push_back({{"pose", p.pose},
+                     {"measured_position_m", vector_json(p.measured)},
+                     {"nominal_error_m", vector_json(p.nominal_error)},
+                     {"calibrated_error_m", vector_json(p.calibrated_error)}});
+  const nlohmann::json doc{
+      {"stage", "held_out"},
+      {"what",
+       "held-out poses measured by the cameras: every K-th used pose left out of a second "
+       "identification; errors of the model fitted without them (calibrated) and of the nominal "
+       "model with its base frame fitted (nominal), against the measured board positions in "
+       "camera 0's frame"},
+      {"held_out_every", record.every},
+      {"fit_poses", record.fit_poses},
+      {"calibrated", figures_json(figures_of(record.poses, true))},
+      {"nominal", figures_json(figures_of(record.poses, false))},
+      {"unanswered", record.unanswered},
+      {"poses", poses}};
+  fs::create_directories(results.dir());
+  write_json(doc, results.held_out().string());
+}
+
+HeldOutRecord read_held_out(const ResultsLayout& results, const std::string& hint) {
+  const std::string file = results.held_out().string();
+  const nlohmann::json doc = read_json_file(results.held_out(), hint);
+  HeldOutRecord out;
+  try {
+    out.every = doc.at("held_out_every").get<int>();
+    out.fit_poses = doc.at("fit_poses").get<std::size_t>();
+    for (const auto& u : doc.at("unanswered")) out.unanswered.push_back(u.get<std::string>());
+    const auto& poses = doc.at("poses");
+    for (std::size_t k = 0; k < poses.size(); ++k) {
+      const auto& p = poses[k];
+      const auto row = [&](const char* field) {
+        return to_vector(numbers(p.at(field), 3, fmt::format("{}: poses[{}].{}", file, k, field)));
+      };
+      out.poses.push_back({p.at("pose").get<std::string>(), row("measured_position_m"),
+                           row("nominal_error_m"), row("calibrated_error_m")});
+    }
+    for (auto [field, figures] :
+         {std::pair{"calibrated", &out.calibrated}, std::pair{"nominal", &out.nominal}}) {
+      const auto& f = doc.at(field);
+      *figures = {f.at("poses").get<std::size_t>(), f.at("rms_m").get<double>(),
+                  f.at("max_m").get<double>()};
+      if (figures->poses != out.poses.size())
+        throw InputError(fmt::format("{}: {}.poses is {} but the file lists {} poses", file, field,
+                                     figures->poses, out.poses.size()));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(fmt::format("{}: malformed ({})", file, e.what()));
   }
   return out;
 }

@@ -106,12 +106,47 @@ std::vector<PixelPose> read_used_pixel_poses(const ResultsLayout& results,
 
 // ---- identification.json (identify; read by validate and the summaries)
 
+// How many of the model's parameters the identification (pose route) estimated, held and could
+// not move: the one set of counts every summary prints (report page, closing summary, identify's
+// terminal summary counts the same way). The identifiability analysis in the file is the first
+// one, at the nominal model; a relinearised solve may estimate a few it held, so its own
+// "N identifiable, M held" sentence is not these counts.
+struct ParameterCounts {
+  std::size_t total = 0;       // every parameter of the model
+  std::size_t free = 0;        // free in the robot file: those identification may estimate
+  std::size_t identified = 0;  // estimated from the measurements
+  std::size_t held = 0;        // free but held at nominal: free - identified
+  std::size_t no_effect = 0;   // of the held: no effect on any measurement
+  [[nodiscard]] std::size_t fixed() const { return total - free; }  // fixed in the robot file
+};
+
+// The parameters as identification.json describes them, for summaries that explain them.
+struct ParameterAccount {
+  ParameterCounts counts;
+  std::vector<std::string> names;      // every parameter, in the model's order
+  std::vector<std::string> labels;     // the robot file's words for each (its name when none)
+  std::vector<bool> identified;        // per parameter
+  std::vector<std::string> no_effect;  // held parameters no measurement depends on (names)
+  // Why each held parameter that moves the measurements is held (the identification's
+  // sentence, raw names), in the analysis's order.
+  std::vector<std::string> confounded;
+  std::vector<std::string> weak;  // identified pairs the data barely separate (sentences)
+  std::string relinearised;       // what the relinearised solve did ("": it did not run)
+  bool underdetermined = false;   // fewer measurement equations than free parameters
+  std::size_t equations = 0;
+};
+// From an identification report (identification.json's content, or identify's in-memory report);
+// throws InputError naming `where` and the field when it lacks what a successful pose-route
+// identification writes.
+ParameterAccount parameter_account(const nlohmann::json& identification, const std::string& where);
+
 struct IdentificationFile {
   nlohmann::json report;                          // as written
   std::string status;                             // "ok" | "failed"
   Eigen::VectorXd start;                          // the model identification started from
   Eigen::VectorXd estimate;                       // the pose route's estimate
   std::optional<Eigen::VectorXd> pixel_estimate;  // the camera-in-the-loop route's, when ok
+  ParameterAccount parameters;                    // read when status is ok
 };
 void write_identification(const ResultsLayout& results, const nlohmann::json& report);
 // Why measure refused the session's measurements as implausible (results/measure.json's board
@@ -137,6 +172,37 @@ struct ValidationFile {
 };
 // Throws InputError when missing (`hint`) or malformed (naming the field).
 ValidationFile read_validation(const ResultsLayout& results, const std::string& hint);
+
+// ---- held_out.json (the wizard's validation step; read by the report)
+
+// Held-out validation measured by the cameras: every K-th used pose is left out of a second
+// identification (the same procedure as the session's), and the model fitted without them is
+// compared with where the cameras measured the board at those poses. It needs no truth, so a real
+// cell has it; validation.json (`robocal validate`) compares with a simulation's truth instead.
+struct HeldOutPose {
+  std::string pose;
+  Eigen::Vector3d measured = Eigen::Vector3d::Zero();  // board position measured, camera 0's frame
+  Eigen::Vector3d nominal_error = Eigen::Vector3d::Zero();     // nominal model - measured
+  Eigen::Vector3d calibrated_error = Eigen::Vector3d::Zero();  // model fitted without - measured
+};
+struct HeldOutFigures {
+  std::size_t poses = 0;
+  double rms_m = 0.0, max_m = 0.0;
+};
+struct HeldOutRecord {
+  int every = 0;                        // every K-th used pose was held out
+  std::size_t fit_poses = 0;            // the poses the fit without them used
+  std::vector<HeldOutPose> poses;       // those both models answer
+  std::vector<std::string> unanswered;  // held-out poses a model could not answer
+  // Over `poses`: the model fitted without them, and the nominal model with its base frame
+  // fitted to the same poses. Computed by the writer from `poses`; read back as written.
+  HeldOutFigures calibrated, nominal;
+};
+// Computes the figures from `record.poses` and writes results/held_out.json (replacing it: it
+// judges the session's current measurements).
+void write_held_out(const ResultsLayout& results, const HeldOutRecord& record);
+// Throws InputError when missing (`hint`) or malformed (naming the file and field).
+HeldOutRecord read_held_out(const ResultsLayout& results, const std::string& hint);
 
 // ---- demo.json (demo; its stage times are read by the report)
 

@@ -20,6 +20,7 @@ struct ResultsLayout {
   static constexpr const char* kCalibratedRobotPixels = "results/calibrated_robot_pixels.yaml";
   static constexpr const char* kCamerasFolder = "results/cameras/";
   static constexpr const char* kReportPage = "results/report.html";
+  static constexpr const char* kHeldOut = "results/held_out.json";
 
   [[nodiscard]] std::filesystem::path dir() const { return session / "results"; }
   [[nodiscard]] std::filesystem::path camera(const std::string& name) const {
@@ -40,6 +41,9 @@ struct ResultsLayout {
   }
   // The calibration report a person opens in a browser (`robocal report`).
   [[nodiscard]] std::filesystem::path report_page() const { return session / kReportPage; }
+  // Held-out poses measured by the cameras (the wizard's validation step): the error of a fit
+  // made without them. Not validation.json, which compares with a simulation's truth.
+  [[nodiscard]] std::filesystem::path held_out() const { return session / kHeldOut; }
   // Stage reports: results/<stage>.json (measure, validation) and the demo's demo.json.
   [[nodiscard]] std::filesystem::path report(const std::string& stage) const {
     return dir() / (stage + ".json");

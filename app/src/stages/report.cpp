@@ -1,6 +1,7 @@
 // The report stage: gathers a session's results (through session/results_files.hpp) and calib's
 // statistics of them into one page for people (summary/report_page.hpp), written atomically to
-// results/report.html. Needs a successful identification; validation (truth), measured poses and
+// results/report.html. Needs a successful identification; held-out validation (against a
+// simulation's truth, validation.json; measured by the cameras, held_out.json), measured poses and
 // camera observations add their figures when the session has them.
 #include "cli/cli_common.hpp"
 #include "session/results_files.hpp"
@@ -9,6 +10,7 @@
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
 #include "summary/report_page.hpp"
+#include "summary/svg_plot.hpp"
 #include "summary/validation_summary.hpp"
 
 #include "robocal/calib/closure.hpp"
@@ -30,14 +32,30 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// The name a person reads for a parameter: the robot file's plain-word label, with the
-// parameter's own name after it so the row can be found in the JSON and the robot file.
-std::string parameter_display_name(const calib::Mechanism& model, const std::string& name) {
-  const int index = model.parameter_index(name);
-  if (index < 0) return name;
-  const std::string& label = model.parameter_display_name(static_cast<std::size_t>(index));
-  return label == name ? name : label + " (" + name + ")";
-}
+// A parameter as the page names it: the label identification.json gives it (the robot file's
+// words), with its raw name for the tooltip. Every parameter name on the page goes through here.
+class ParameterNames {
+ public:
+  explicit ParameterNames(const ParameterAccount& account) : account_(account) {
+    for (std::size_t i = 0; i < account.names.size(); ++i) index_[account.names[i]] = i;
+  }
+  [[nodiscard]] ReportName operator()(const std::string& name) const {
+    const auto it = index_.find(name);
+    return {it == index_.end() ? name : account_.labels[it->second], name};
+  }
+  [[nodiscard]] ReportSentence operator()(const ParameterSentence& sentence) const {
+    ReportSentence out;
+    for (const auto& part : sentence)
+      out.push_back(part.parameter < 0
+                        ? ReportName{part.text, ""}
+                        : (*this)(account_.names.at(static_cast<std::size_t>(part.parameter))));
+    return out;
+  }
+
+ private:
+  const ParameterAccount& account_;
+  std::map<std::string, std::size_t> index_;
+};
 
 constexpr std::size_t kHistogramBins = 30;
 constexpr int kMapCells = 14;
@@ -77,24 +95,43 @@ ReportAccuracy accuracy_row(const std::string& label, const nlohmann::json& part
   return a;
 }
 
-void add_parameters(ReportData& d, const calib::Mechanism& model, const IdentificationFile& ident,
+// The accuracy table's rows for the two kinds of held-out poses.
+constexpr const char* kTruthRow = "held-out poses, against the truth";
+constexpr const char* kMeasuredRow = "held-out poses, measured by the cameras";
+
+// Why a held-out record does not belong to the session's current measurements ("" when it
+// does): each held-out pose must still be a used measured pose, measured where the record says.
+std::string stale_held_out(const HeldOutRecord& record, const std::vector<MeasuredPose>& measured) {
+  std::map<std::string, Eigen::Vector3d> at;
+  for (const auto& m : measured) at[m.pose] = m.rig_T_target.translation();
+  for (const auto& p : record.poses) {
+    const auto it = at.find(p.pose);
+    if (it == at.end())
+      return "its held-out pose " + p.pose + " is not among the used measured poses now";
+    // The record keeps the measured position at full precision: any change is a new measurement.
+    if ((it->second - p.measured).norm() > 1e-9)
+      return "its held-out pose " + p.pose + " has been measured again since";
+  }
+  return "";
+}
+
+void add_parameters(ReportData& d, const IdentificationFile& ident,
                     const nlohmann::json& analysis) {
   const nlohmann::json empty = nlohmann::json::array();
+  const ParameterNames named(ident.parameters);
   const nlohmann::json& identifiability =
       analysis.value("identifiability", nlohmann::json::object());
-  std::map<std::string, std::vector<std::string>> stands_for;
+  std::map<std::string, std::vector<ReportName>> stands_for;
   for (const auto& red : identifiability.value("redundancies", empty))
     for (const auto& partner : red.value("partners", empty))
-      stands_for[partner.value("name", "")].push_back(
-          parameter_display_name(model, red.value("parameter", "")));
+      stands_for[partner.value("name", "")].push_back(named(red.value("parameter", "")));
   std::map<std::string, bool> correlated;
   const nlohmann::json& uncertainty = analysis.value("uncertainty", nlohmann::json::object());
   std::vector<ReportCorrelation> correlations;
   for (const auto& c : uncertainty.value("strongly_correlated", empty)) {
     correlated[c.value("first", "")] = correlated[c.value("second", "")] = true;
-    correlations.push_back({parameter_display_name(model, c.value("first", "")),
-                            parameter_display_name(model, c.value("second", "")),
-                            c.value("correlation", 0.0)});
+    correlations.push_back(
+        {named(c.value("first", "")), named(c.value("second", "")), c.value("correlation", 0.0)});
   }
   std::stable_sort(correlations.begin(), correlations.end(),
                    [](const auto& a, const auto& b) { return std::abs(a.r) > std::abs(b.r); });
@@ -102,12 +139,11 @@ void add_parameters(ReportData& d, const calib::Mechanism& model, const Identifi
   d.correlations = correlations;
   const nlohmann::json units = ident.report.value("parameter_units", nlohmann::json::object());
   for (const auto& p : analysis.value("parameters", empty)) {
-    ++d.parameters_total;
     if (!p.value("estimated", false)) continue;
     const std::string name = p.value("name", "");
     const auto [factor, unit] = display_unit(units.value(name, ""));
     ReportParameter row;
-    row.name = parameter_display_name(model, name);
+    row.name = named(name);
     row.unit = unit;
     row.nominal = p.value("nominal", 0.0) * factor;
     row.value = p.value("value", 0.0) * factor;
@@ -122,9 +158,12 @@ void add_parameters(ReportData& d, const calib::Mechanism& model, const Identifi
     return std::abs(a.change) / std::max(a.ci95, 1e-12) >
            std::abs(b.change) / std::max(b.ci95, 1e-12);
   });
-  for (const auto& m : identifiability.value("messages", empty))
-    if (m.is_string()) d.not_identified.push_back(m.get<std::string>());
-  d.held_at_nominal = ident.report.value("held_at_nominal", std::size_t{0});
+  // The counts and reasons in the words every summary uses (summary/validation_summary.hpp).
+  const ParameterWords words = parameter_words(ident.parameters);
+  d.parameter_counts = words.identified;
+  d.held_counts = words.held;
+  for (const auto& sentence : words.reasons) d.not_identified.push_back(named(sentence));
+  for (const auto& sentence : words.notes) d.identification_notes.push_back(named(sentence));
 }
 
 void add_cameras(ReportData& d, const Session& s, const ResultsLayout& results,
@@ -201,13 +240,24 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
                      "robocal); run `robocal validate` on the session again, then the report");
   std::vector<MeasuredPose> measured;
   if (fs::exists(results.measured_poses())) measured = read_used_measured_poses(results, "");
+  // Held-out poses measured by the cameras (the wizard's validation step), when they were held
+  // out of these measurements: a record from measurements made before is not shown as this
+  // session's accuracy.
+  std::optional<HeldOutRecord> held_out;
+  std::string held_out_stale;
+  if (fs::exists(results.held_out())) {
+    held_out = read_held_out(results, "");
+    held_out_stale = stale_held_out(*held_out, measured);
+    if (!held_out_stale.empty()) held_out.reset();
+  }
 
-  // Accuracy and per-pose errors: held-out poses against the truth when validated, else the
-  // fit's own residuals on the measured poses (not an accuracy figure: said in the note).
+  // Accuracy and per-pose errors: held-out poses against the truth (a simulation, `robocal
+  // validate`) and held-out poses measured by the cameras (the wizard) when the session has
+  // them, else the fit's own residuals on the measured poses (not an accuracy figure: said so).
   nlohmann::json summary{{"stage", "report"}, {"session", dir.string()}};
   if (validation) {
     const nlohmann::json& v = validation->report;
-    d.accuracy.push_back(accuracy_row("all held-out poses", v));
+    d.accuracy.push_back(accuracy_row(kTruthRow, v));
     if (v.contains("held_out_by_region")) {
       d.accuracy.push_back(
           accuracy_row("inside the measured region", v.at("held_out_by_region").at("inside")));
@@ -215,9 +265,10 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
           accuracy_row("outside the measured region", v.at("held_out_by_region").at("outside")));
     }
     d.accuracy_note =
-        "Held-out poses are robot positions the calibration never saw, compared with the true "
-        "robot. Inside the measured region (between the measured poses) the model interpolates; "
-        "outside it extrapolates, and the error usually grows.";
+        "Held-out poses against the truth (`robocal validate`, a simulated session): robot "
+        "positions the calibration never saw, compared with the true robot. Inside the measured "
+        "region (between the measured poses) the model interpolates; outside it extrapolates, "
+        "and the error usually grows.";
     // Configurations a model could not answer are failures that the figures leave out: the
     // page says how many, as the terminal summary does.
     if (v.contains("unanswered") && v.at("unanswered").is_object()) {
@@ -237,12 +288,43 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
             v.value("held_out_drawn", validation->points.size()), kNoAnswerMeaning, which,
             validation->points.size());
     }
-    d.per_pose_source = "held-out poses";
+    d.per_pose_source = "held-out poses (against the truth)";
     for (const auto& p : validation->points) {
       d.error_before.push_back(p.nominal_error.norm());
       d.error_after.push_back(p.calibrated_error.norm());
     }
-  } else {
+  }
+  if (held_out) {
+    ReportAccuracy a;
+    a.label = kMeasuredRow;
+    a.poses = held_out->calibrated.poses;
+    a.nominal_rms = held_out->nominal.rms_m;
+    a.nominal_max = held_out->nominal.max_m;
+    a.calibrated_rms = held_out->calibrated.rms_m;
+    a.calibrated_max = held_out->calibrated.max_m;
+    d.accuracy.push_back(a);
+    d.accuracy_note += fmt::format(
+        "{}Held-out poses measured by the cameras ({}): every {}th of the measured poses was "
+        "left out of a second identification, made the same way from the other {}; that fit's "
+        "model (after) and the nominal model with its base frame fitted (before) are compared "
+        "with where the cameras measured the board. The figures include the cameras' own "
+        "measurement error.",
+        d.accuracy_note.empty() ? "" : " ", ResultsLayout::kHeldOut, held_out->every,
+        held_out->fit_poses);
+    if (!held_out->unanswered.empty())
+      d.accuracy_note += fmt::format(
+          " FAILURES: at {} of the held-out poses a model had no answer ({}); the figures are "
+          "over the {} that both answer.",
+          held_out->unanswered.size(), kNoAnswerMeaning, held_out->poses.size());
+    if (!validation) {
+      d.per_pose_source = "held-out poses (measured by the cameras)";
+      for (const auto& p : held_out->poses) {
+        d.error_before.push_back(p.nominal_error.norm());
+        d.error_after.push_back(p.calibrated_error.norm());
+      }
+    }
+  }
+  if (!validation && !held_out) {
     const nlohmann::json& residuals = analysis.value("residuals", nlohmann::json::object());
     ReportAccuracy a;
     a.label = "measured poses (fit)";
@@ -255,14 +337,19 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     a.calibrated_max = residuals.value("position_max_m", 0.0);
     d.accuracy.push_back(a);
     d.accuracy_note =
-        "This session has no held-out validation (no truth/), so these are the errors at the "
-        "measured poses themselves: they show how well the model fits, not how accurate it is "
-        "elsewhere. Check accuracy on poses the calibration never saw (`robocal identify "
-        "--holdout-every K`).";
+        "This session has no held-out validation, so these are the errors at the measured "
+        "poses themselves: they show how well the model fits, not how accurate it is elsewhere. "
+        "To measure accuracy on poses the calibration never saw, run the wizard's validation "
+        "step (`robocal wizard --resume FOLDER`), which records it in " +
+        std::string(ResultsLayout::kHeldOut) +
+        "; a simulated session is validated against its truth by `robocal validate`.";
     d.per_pose_source = "measured poses (the fit's residual after calibration)";
     for (const auto& p : residuals.value("poses", nlohmann::json::array()))
       d.error_after.push_back(p.value("position_error_m", 0.0));
   }
+  if (!held_out_stale.empty())
+    d.accuracy_note += fmt::format(" The held-out poses of {} are not shown: {}.",
+                                   ResultsLayout::kHeldOut, held_out_stale);
   if (!d.error_before.empty()) d.histogram_before = error_histogram(d.error_before);
   d.histogram_after = error_histogram(d.error_after);
 
@@ -292,42 +379,60 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     d.diagnostics.push_back({"measured poses: measured minus calibrated model, vs actuator load",
                              calib::residual_load_trends(loads, load_residuals)});
 
-  // Error maps over the workspace (held-out positions, camera 0's frame).
-  if (validation && !validation->points.empty()) {
+  // Error maps over the workspace (held-out positions, camera 0's frame): the truth's when
+  // validated (many configurations), else the camera-measured held-out poses, else the fit's
+  // residuals at the measured poses.
+  const auto map_of = [&](const std::vector<Eigen::Vector3d>& positions,
+                          const std::vector<double>& after, const std::vector<double>& before,
+                          int cells) {
     std::vector<Eigen::Vector2d> t, sd;
+    for (const auto& p : positions) {
+      t.push_back(top(p));
+      sd.push_back(side(p));
+    }
+    d.has_map = true;
+    d.top_after = calib::error_grid(t, after, cells, cells);
+    d.side_after = calib::error_grid(sd, after, cells, cells);
+    if (!before.empty()) {
+      d.top_before = calib::error_grid(t, before, cells, cells);
+      d.side_before = calib::error_grid(sd, before, cells, cells);
+    }
+  };
+  if (validation && !validation->points.empty()) {
+    std::vector<Eigen::Vector3d> positions;
     std::vector<double> after, before;
     for (const auto& p : validation->points) {
-      t.push_back(top(p.position));
-      sd.push_back(side(p.position));
+      positions.push_back(p.position);
       after.push_back(p.calibrated_error.norm());
       before.push_back(p.nominal_error.norm());
     }
-    d.has_map = true;
-    d.map_source = "held-out poses";
-    d.top_after = calib::error_grid(t, after, kMapCells, kMapCells);
-    d.side_after = calib::error_grid(sd, after, kMapCells, kMapCells);
-    d.top_before = calib::error_grid(t, before, kMapCells, kMapCells);
-    d.side_before = calib::error_grid(sd, before, kMapCells, kMapCells);
-  } else if (!fit_positions.empty()) {
-    // No truth: the fit's residuals at the measured poses are the only errors with a position.
-    std::vector<Eigen::Vector2d> t, sd;
-    std::vector<double> after;
-    for (std::size_t k = 0; k < fit_positions.size(); ++k) {
-      t.push_back(top(fit_positions[k]));
-      sd.push_back(side(fit_positions[k]));
-      after.push_back(fit_residuals[k].norm());
+    d.map_source = "held-out poses (against the truth)";
+    map_of(positions, after, before, kMapCells);
+  } else if (held_out && !held_out->poses.empty()) {
+    std::vector<Eigen::Vector3d> positions;
+    std::vector<double> after, before;
+    for (const auto& p : held_out->poses) {
+      positions.push_back(p.measured);
+      after.push_back(p.calibrated_error.norm());
+      before.push_back(p.nominal_error.norm());
     }
-    d.has_map = true;
+    d.map_source = "held-out poses (measured by the cameras)";
+    map_of(positions, after, before, kMapCells / 2);
+  } else if (!fit_positions.empty()) {
+    // No held-out poses: the fit's residuals at the measured poses are the only errors with a
+    // position.
+    std::vector<double> after;
+    after.reserve(fit_residuals.size());
+    for (const auto& r : fit_residuals) after.push_back(r.norm());
     d.map_source = "measured poses (the fit's residual; no held-out poses in this session)";
-    d.top_after = calib::error_grid(t, after, kMapCells / 2, kMapCells / 2);
-    d.side_after = calib::error_grid(sd, after, kMapCells / 2, kMapCells / 2);
+    map_of(fit_positions, after, {}, kMapCells / 2);
   }
   for (const auto& m : measured) {
     d.measured_top.push_back(top(m.rig_T_target.translation()));
     d.measured_side.push_back(side(m.rig_T_target.translation()));
   }
 
-  add_parameters(d, robot.model, ident, analysis);
+  add_parameters(d, ident, analysis);
   std::map<std::string, double> rms_by_pose;
   for (const auto& m : measured) rms_by_pose[m.pose] = m.rms_px;
   add_cameras(d, s, results, rms_by_pose);
@@ -348,18 +453,30 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   const ReportAccuracy& all = d.accuracy.front();
   bool unmodelled = false;
   for (const auto& diag : d.diagnostics) unmodelled |= diag.trends.unmodelled_error_suspected();
-  d.verdict =
-      validation
-          ? fmt::format(
-                "Calibration brought the tool's position error on {} poses it "
-                "never saw from {} to {} RMS (worst {}).",
-                all.poses, all.nominal_rms ? fmt::format("{:.3f} mm", *all.nominal_rms * 1e3) : "?",
-                fmt::format("{:.3f} mm", all.calibrated_rms * 1e3),
-                fmt::format("{:.3f} mm", all.calibrated_max * 1e3))
-          : fmt::format(
-                "The calibrated model fits the {} measured poses to {:.3f} mm RMS "
-                "(no held-out validation in this session).",
-                all.poses, all.calibrated_rms * 1e3);
+  const auto from_to = [](const ReportAccuracy& a) {
+    return fmt::format("from {} to {} RMS (worst {})",
+                       a.nominal_rms ? svg::length(*a.nominal_rms) : std::string("?"),
+                       svg::length(a.calibrated_rms), svg::length(a.calibrated_max));
+  };
+  const auto row = [&](const char* label) {
+    return *std::find_if(d.accuracy.begin(), d.accuracy.end(),
+                         [&](const ReportAccuracy& a) { return a.label == label; });
+  };
+  if (validation)
+    d.verdict = fmt::format(
+        "Calibration brought the tool's position error on {} poses it never saw {}, against "
+        "the simulated robot's truth.",
+        all.poses, from_to(all));
+  if (held_out)
+    d.verdict += fmt::format(
+        "{}Calibration brought the tool's position error on {} measured poses the fit never saw "
+        "{}, as the cameras measured them.",
+        d.verdict.empty() ? "" : " ", held_out->calibrated.poses, from_to(row(kMeasuredRow)));
+  if (!validation && !held_out)
+    d.verdict = fmt::format(
+        "The calibrated model fits the {} measured poses to {} RMS (no held-out validation in "
+        "this session).",
+        all.poses, svg::length(all.calibrated_rms));
   d.verdict += unmodelled ? " Warning: the remaining error changes with position or with the "
                             "actuators' load, so something "
                             "in the robot or the measurement is not modelled (section 8)."
@@ -377,7 +494,17 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   summary["held_out_poses"] = validation ? validation->points.size() : 0;
   summary["calibrated_rms_m"] = all.calibrated_rms;
   if (all.nominal_rms) summary["nominal_rms_m"] = *all.nominal_rms;
+  if (held_out)
+    summary["held_out_measured"] = {{"poses", held_out->calibrated.poses},
+                                    {"calibrated_rms_m", held_out->calibrated.rms_m},
+                                    {"nominal_rms_m", held_out->nominal.rms_m}};
+  else if (!held_out_stale.empty())
+    summary["held_out_measured"] = {{"not_shown", held_out_stale}};
+  const ParameterCounts& counts = ident.parameters.counts;
   summary["estimated_parameters"] = d.parameters.size();
+  summary["parameters"] = {{"total", counts.total},           {"free", counts.free},
+                           {"identified", counts.identified}, {"held_at_nominal", counts.held},
+                           {"no_effect", counts.no_effect},   {"fixed", counts.fixed()}};
   nlohmann::json diagnostics = nlohmann::json::array();
   for (const auto& diag : d.diagnostics) {
     nlohmann::json flagged = nlohmann::json::array();

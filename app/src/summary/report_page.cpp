@@ -53,10 +53,11 @@ std::string accuracy_section(const ReportData& d) {
       }
   }
   const int height = 60 + 46 * static_cast<int>(std::max<std::size_t>(d.accuracy.size(), 1));
-  std::string svg = svg_open("fig-accuracy", 640, height, "accuracy before and after");
+  // The label column fits the longest row label ("held-out poses, measured by the cameras").
+  std::string svg = svg_open("fig-accuracy", 700, height, "accuracy before and after");
   if (hi > 0) {
     Frame f;
-    f.x0 = 190;
+    f.x0 = 250;
     f.w = 420;
     f.h = height - 60;
     f.log_y = false;
@@ -131,7 +132,7 @@ std::string per_pose_section(const ReportData& d) {
     f.yhi = std::pow(10.0, std::ceil(std::log10(hi)));
     const bool has_before = d.error_before.size() == n;
     svg += axes(
-        f, ticks(0, f.xhi, 8), log_ticks(f.ylo, f.yhi),
+        f, svg::count_ticks(f.xhi, 8), log_ticks(f.ylo, f.yhi),
         has_before ? "poses, sorted by error before calibration"
                    : "poses, sorted by error after calibration",
         "position error", [](double t) { return fmt::format("{:.0f}", t); },
@@ -178,7 +179,7 @@ std::string histogram_svg(const std::string& id, const calib::Histogram& h, cons
     f.yhi = static_cast<double>(
         std::max<std::size_t>(1, *std::max_element(h.counts.begin(), h.counts.end())));
     svg += axes(
-        f, ticks(f.xlo, f.xhi, 4), ticks(0, f.yhi, 4), "position error", "poses",
+        f, ticks(f.xlo, f.xhi, 4), svg::count_ticks(f.yhi, 4), "position error", "poses",
         [](double t) { return length(t); }, [](double t) { return fmt::format("{:.0f}", t); });
     for (std::size_t i = 0; i < h.counts.size(); ++i) {
       const double x = h.lo + h.width * static_cast<double>(i);
@@ -320,20 +321,33 @@ std::string map_section(const ReportData& d) {
                                   "errors are much larger)."));
 }
 
+// A parameter by its label, with its name in the robot file as a tooltip.
+std::string name_html(const ReportName& n) {
+  if (n.raw.empty() || n.raw == n.label) return escape(n.label);
+  return fmt::format("<span class=\"param\" title=\"{}\">{}</span>", escape(n.raw),
+                     escape(n.label));
+}
+
+std::string sentence_html(const ReportSentence& sentence) {
+  std::string s;
+  for (const auto& part : sentence) s += part.raw.empty() ? escape(part.label) : name_html(part);
+  return s;
+}
+
 std::string parameter_section(const ReportData& d) {
   std::string s = fmt::format(
-      "<p>{} of the model's {} parameters were identified from the measurements; the others are "
-      "held at the values of the robot's drawing (see the next section). The interval is where "
-      "the true value lies with 95 % confidence. Values in mm (lengths) and degrees "
-      "(angles).</p>\n<table id=\"fig-parameters\" class=\"num\"><tr><th>parameter</th>"
-      "<th>drawing</th><th>calibrated</th><th>change</th><th>± (95 %)</th><th>notes</th></tr>\n",
-      d.parameters.size(), d.parameters_total);
+      "<p>{} The interval is where the true value lies with 95 % confidence. Values in mm "
+      "(lengths) and degrees (angles); the last column is the parameter's name in the robot "
+      "file and in results/identification.json.</p>\n<table id=\"fig-parameters\" "
+      "class=\"num\"><tr><th>parameter</th><th>drawing</th><th>calibrated</th><th>change</th>"
+      "<th>± (95 %)</th><th>notes</th><th>name</th></tr>\n",
+      escape(d.parameter_counts));
   for (const auto& p : d.parameters) {
     std::string notes;
     if (!p.stands_for.empty()) {
-      notes = fmt::format("stands in for {}", escape(p.stands_for[0]));
+      notes = "stands in for " + name_html(p.stands_for[0]);
       for (std::size_t k = 1; k < std::min<std::size_t>(p.stands_for.size(), 3); ++k)
-        notes += ", " + escape(p.stands_for[k]);
+        notes += ", " + name_html(p.stands_for[k]);
       if (p.stands_for.size() > 3) notes += fmt::format(" and {} more", p.stands_for.size() - 3);
       notes += ": its change is their combination";
     }
@@ -341,16 +355,16 @@ std::string parameter_section(const ReportData& d) {
       notes += (notes.empty() ? "" : "; ") + std::string("strongly correlated (below)");
     s += fmt::format(
         "<tr><td class=\"l\">{}</td><td>{:.4f} {}</td><td>{:.4f} {}</td><td>{:+.4f} {}</td>"
-        "<td>{:.4f} {}</td><td class=\"l\">{}</td></tr>\n",
-        escape(p.name), p.nominal, p.unit, p.value, p.unit, p.change, p.unit, p.ci95, p.unit,
-        notes);
+        "<td>{:.4f} {}</td><td class=\"l\">{}</td><td class=\"l raw\">{}</td></tr>\n",
+        name_html(p.name), p.nominal, p.unit, p.value, p.unit, p.change, p.unit, p.ci95, p.unit,
+        notes, escape(p.name.raw));
   }
   s += "</table>\n";
   s += "<h3>Strongly correlated pairs</h3>\n<table id=\"fig-correlations\" class=\"num\"><tr>"
        "<th>parameter</th><th>parameter</th><th>correlation</th></tr>\n";
   for (const auto& c : d.correlations)
     s += fmt::format("<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:+.3f}</td></tr>\n",
-                     escape(c.first), escape(c.second), c.r);
+                     name_html(c.first), name_html(c.second), c.r);
   if (d.correlations.empty()) s += "<tr><td colspan=\"3\" class=\"l\">none</td></tr>\n";
   s += "</table><p class=\"cap\">Two parameters with a correlation near ±1 are hard to tell apart "
        "with these measurements: their errors compensate each other. Each is still usable inside "
@@ -360,23 +374,28 @@ std::string parameter_section(const ReportData& d) {
 
 std::string not_identified_section(const ReportData& d) {
   std::string s = fmt::format(
-      "<div id=\"fig-not-identified\"><p>{} parameters could not be identified from these "
-      "measurements and keep the value of the robot's drawing. Either the measured poses do not "
-      "move them at all, or they move the measurements exactly like another parameter does, so "
-      "only their sum can be known (the other parameter then stands in for them). Reasons, in "
-      "the words of the identification:</p><ul>\n",
-      d.held_at_nominal);
+      "<div id=\"fig-not-identified\"><p>{} A held parameter keeps the value of the robot's "
+      "drawing. Either the measured poses do not move it at all, or it moves the measurements "
+      "exactly like a combination of identified parameters, so only the combination can be "
+      "known (those parameters then stand in for it). Point at a parameter for its name in the "
+      "robot file.</p><ul>\n",
+      escape(d.held_counts));
   // The first reasons in view; the rest folded (a <details> element: no script needed).
   constexpr std::size_t kShown = 6;
   for (std::size_t i = 0; i < d.not_identified.size() && i < kShown; ++i)
-    s += "<li>" + escape(d.not_identified[i]) + "</li>\n";
+    s += "<li>" + sentence_html(d.not_identified[i]) + "</li>\n";
   s += "</ul>\n";
   if (d.not_identified.size() > kShown) {
     s += fmt::format("<details><summary>{} more reasons</summary><ul>\n",
                      d.not_identified.size() - kShown);
     for (std::size_t i = kShown; i < d.not_identified.size(); ++i)
-      s += "<li>" + escape(d.not_identified[i]) + "</li>\n";
+      s += "<li>" + sentence_html(d.not_identified[i]) + "</li>\n";
     s += "</ul></details>\n";
+  }
+  if (!d.identification_notes.empty()) {
+    s += "<p>The analysis also says:</p><ul>\n";
+    for (const auto& note : d.identification_notes) s += "<li>" + sentence_html(note) + "</li>\n";
+    s += "</ul>\n";
   }
   return s + "</div>\n";
 }
@@ -492,7 +511,7 @@ figure{margin:1em 0}figcaption,.cap{font-size:.9em;color:#444;max-width:820px}
 .row{display:flex;flex-wrap:wrap;gap:8px}.tick{font-size:10px;fill:#333}.axis{font-size:11px;fill:#111}
 .verdict{font-size:1.15em;padding:.5em;background:#eef5fb;border-left:4px solid #1f6fb2}
 .warn{color:#a40000;font-weight:bold}.ok{color:#1b6e1b}.missing{color:#666;font-style:italic}
-tr.flag td{background:#fde8e8}
+tr.flag td{background:#fde8e8}.param{border-bottom:1px dotted #888}td.raw{color:#666;font-size:.85em}
 )";
 
 }  // namespace

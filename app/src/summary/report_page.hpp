@@ -22,18 +22,26 @@ struct ReportAccuracy {
   double calibrated_rms = 0.0, calibrated_max = 0.0;
 };
 
+// A parameter as a person reads it: the robot file's words for it (`label`), and its name in the
+// robot file and the JSON (`raw`), which the page keeps at hand as a tooltip.
+struct ReportName {
+  std::string label, raw;
+};
+// Text that names parameters: parts with an empty `raw` are plain text (in `label`).
+using ReportSentence = std::vector<ReportName>;
+
 // One identified parameter, in display units (mm, degrees, or a ratio).
 struct ReportParameter {
-  std::string name;
+  ReportName name;
   std::string unit;
   double nominal = 0.0, value = 0.0, change = 0.0;
-  double ci95 = 0.0;                    // half-width of the 95 % interval of value
-  std::vector<std::string> stands_for;  // held parameters it cannot be told apart from
+  double ci95 = 0.0;                   // half-width of the 95 % interval of value
+  std::vector<ReportName> stands_for;  // held parameters it cannot be told apart from
   bool strongly_correlated = false;
 };
 
 struct ReportCorrelation {
-  std::string first, second;
+  ReportName first, second;
   double r = 0.0;
 };
 
@@ -69,11 +77,12 @@ struct ReportData {
   calib::ErrorGrid top_after, side_after, top_before, side_before;
   std::vector<Eigen::Vector2d> measured_top, measured_side;
 
-  std::vector<ReportParameter> parameters;
-  std::size_t parameters_total = 0;
+  std::vector<ReportParameter> parameters;  // the identified ones
+  std::string parameter_counts;             // how many were identified, held, fixed (a sentence)
   std::vector<ReportCorrelation> correlations;
-  std::vector<std::string> not_identified;  // sentences
-  std::size_t held_at_nominal = 0;
+  std::string held_counts;                     // how many are held at nominal, and how (a sentence)
+  std::vector<ReportSentence> not_identified;  // why they are held
+  std::vector<ReportSentence> identification_notes;  // what else the analysis says
 
   std::vector<ReportCamera> cameras;
   std::vector<ReportDiagnostics> diagnostics;

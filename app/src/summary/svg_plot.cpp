@@ -54,6 +54,13 @@ std::vector<double> ticks(double lo, double hi, int target) {
   return out;
 }
 
+std::vector<double> count_ticks(double hi, int target) {
+  std::vector<double> out;
+  for (const double t : ticks(0.0, hi, target))
+    if (t == std::floor(t)) out.push_back(t);
+  return out;
+}
+
 // Colour of a value in [0, 1] on a perceptually ordered scale (dark blue -> green -> yellow).
 std::string scale_colour(double t) {
   static const std::array<std::array<double, 3>, 5> stops = {

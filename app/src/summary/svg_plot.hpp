@@ -17,6 +17,9 @@ std::string length(double m);
 
 // Axis ticks: about `target` round numbers covering [lo, hi].
 std::vector<double> ticks(double lo, double hi, int target);
+// Ticks for a count (poses, a histogram's bars): whole numbers only, so a few poses do not get
+// the labels 0, 0, 1, 1, 2 of half steps.
+std::vector<double> count_ticks(double hi, int target);
 
 // Decades from below `lo` to `hi` (a log10 axis).
 std::vector<double> log_ticks(double lo, double hi);

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <string>
+#include <utility>
 
 namespace robocal::app {
 
@@ -20,7 +21,63 @@ std::string fmt_param_change(const std::string& unit, double delta) {
   return fmt::format("{:+8.2e}", delta);
 }
 
+ParameterSentence mentions(const std::string& text, const ParameterAccount& a) {
+  return calib::parameter_mentions(text, a.names);
+}
+
 }  // namespace
+
+ParameterWords parameter_words(const ParameterAccount& a) {
+  const ParameterCounts& c = a.counts;
+  ParameterWords w;
+  const auto are = [](std::size_t n) { return n == 1 ? "is" : "are"; };
+  w.identified = fmt::format(
+      "{} of the {} free parameters were identified from the measurements; the other {} {} "
+      "held at nominal (the robot file's value).",
+      c.identified, c.free, c.held, are(c.held));
+  if (c.fixed() > 0)
+    w.identified += fmt::format(" {} more {} fixed in the robot file ({} parameters in all).",
+                                c.fixed(), are(c.fixed()), c.total);
+  w.held = fmt::format("{} of the {} free parameters {} held at nominal (the robot file's value)",
+                       c.held, c.free, are(c.held));
+  if (c.held > 0)
+    w.held += c.no_effect == 0 ? std::string(": each moves the measurements like identified ones")
+              : c.no_effect == c.held
+                  ? std::string(": none has an effect on these measurements")
+                  : fmt::format(
+                        ": {} {} no effect on these measurements, {} move{} them like "
+                        "identified ones",
+                        c.no_effect, c.no_effect == 1 ? "has" : "have", c.held - c.no_effect,
+                        c.held - c.no_effect == 1 ? "s" : "");
+  w.held += ".";
+  if (!a.no_effect.empty()) {
+    ParameterSentence s{{"No effect on any measurement with these poses: ", -1}};
+    for (std::size_t k = 0; k < a.no_effect.size(); ++k) {
+      if (k > 0) s.push_back({", ", -1});
+      const auto it = std::find(a.names.begin(), a.names.end(), a.no_effect[k]);
+      s.push_back(
+          {a.no_effect[k], it == a.names.end() ? -1 : static_cast<int>(it - a.names.begin())});
+    }
+    s.push_back({".", -1});
+    w.reasons.push_back(std::move(s));
+  }
+  for (const auto& text : a.confounded) w.reasons.push_back(mentions(text, a));
+  if (!a.relinearised.empty()) w.notes.push_back(mentions(a.relinearised, a));
+  for (const auto& text : a.weak) w.notes.push_back(mentions(text, a));
+  if (a.underdetermined)
+    w.notes.push_back({{fmt::format("Only {} measurement equations for the {} free parameters: "
+                                    "more poses would identify more.",
+                                    a.equations, c.free),
+                        -1}});
+  return w;
+}
+
+std::string with_labels(const ParameterSentence& sentence, const ParameterAccount& a) {
+  std::string out;
+  for (const auto& part : sentence)
+    out += part.parameter >= 0 ? a.labels.at(static_cast<std::size_t>(part.parameter)) : part.text;
+  return out;
+}
 
 void print_validation_summary(std::FILE* out, const nlohmann::json& v,
                               const nlohmann::json& ident) {
@@ -147,19 +204,21 @@ void print_validation_summary(std::FILE* out, const nlohmann::json& v,
                "    *N: also carries N parameters it cannot be told apart from (held at nominal), "
                "so its change is\n       their combination, not comparable with its own true "
                "change\n");
-  if (ident.contains("not_identified") && !ident["not_identified"].empty()) {
-    const auto& messages = ident.contains("not_identified_in_words")
-                               ? ident["not_identified_in_words"]
-                               : ident["not_identified"];
-    fmt::print(out, "\n  what could not be identified ({} parameters held at nominal):\n",
-               ident.value("held_at_nominal", 0));
-    for (std::size_t k = 0; k < std::min<std::size_t>(6, messages.size()); ++k) {
-      const auto m = messages[k].get<std::string>();
-      fmt::print(out, "    - {}\n", m.size() > 240 ? m.substr(0, 237) + "..." : m);
+  if (ident.value("status", "") == "ok") {
+    const ParameterAccount account = parameter_account(ident, ResultsLayout::kIdentification);
+    const ParameterWords words = parameter_words(account);
+    fmt::print(out, "\n  {}\n", words.identified);
+    if (account.counts.held > 0) {
+      fmt::print(out, "  what could not be identified: {}\n", words.held);
+      constexpr std::size_t kShown = 6;
+      for (std::size_t k = 0; k < std::min(kShown, words.reasons.size()); ++k) {
+        const std::string m = with_labels(words.reasons[k], account);
+        fmt::print(out, "    - {}\n", m.size() > 240 ? m.substr(0, 237) + "..." : m);
+      }
+      if (words.reasons.size() > kShown)
+        fmt::print(out, "    ... {} more in {}\n", words.reasons.size() - kShown,
+                   ResultsLayout::kIdentification);
     }
-    if (messages.size() > 6)
-      fmt::print(out, "    ... {} more in {}\n", messages.size() - 6,
-                 ResultsLayout::kIdentification);
   }
 }
 

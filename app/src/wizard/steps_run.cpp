@@ -13,6 +13,8 @@
 #include "session/session_robot.hpp"
 #include "stages/export_stage.hpp"
 #include "stages/stages.hpp"
+#include "summary/svg_plot.hpp"
+#include "summary/validation_summary.hpp"
 #include "wizard/live_views.hpp"
 #include "wizard/step.hpp"
 
@@ -333,6 +335,30 @@ std::set<std::string> make_fit_session(const fs::path& session, const fs::path& 
   return held;
 }
 
+// The held-out record of the fit session `fit` (identified without the poses in `held`): at
+// each held-out pose, where the cameras measured the board and each model's error there.
+HeldOutRecord held_out_record(const fs::path& fit, const std::vector<MeasuredPose>& used,
+                              const std::set<std::string>& held, int every) {
+  const SessionRobot robot = session_robot(load_session(fit), "");
+  const IdentificationFile id = read_identification(ResultsLayout{fit}, robot.model, "");
+  HeldOutRecord record;
+  record.every = every;
+  record.fit_poses = used.size() - held.size();
+  for (const auto& p : used) {
+    if (held.count(p.pose) == 0) continue;
+    const auto cal = calib::forward_kinematics(robot.model, id.estimate, p.actuators, robot.frame);
+    const auto nom = calib::forward_kinematics(robot.model, id.start, p.actuators, robot.frame);
+    if (!cal.closure.ok() || !nom.closure.ok()) {
+      record.unanswered.push_back(p.pose);
+      continue;
+    }
+    const Eigen::Vector3d measured = p.rig_T_target.translation();
+    record.poses.push_back(
+        {p.pose, measured, nom.pose.translation() - measured, cal.pose.translation() - measured});
+  }
+  return record;
+}
+
 class ValidateStep final : public Step {
  public:
   std::string key() const override { return "validate"; }
@@ -364,38 +390,22 @@ class ValidateStep final : public Step {
       return StepOutcome::stopped(
           "the fit without the held-out poses failed: " + ident.value("message", std::string("?")) +
           "; record more poses (a larger plan)");
-    const SessionRobot robot = session_robot(load_session(fit), "");
-    const IdentificationFile id = read_identification(ResultsLayout{fit}, robot.model, "");
-    std::vector<Eigen::Vector3d> measured_at, calibrated_at, nominal_at;
-    int unanswered = 0;
-    for (const auto& p : used) {
-      if (held.count(p.pose) == 0) continue;
-      const auto cal =
-          calib::forward_kinematics(robot.model, id.estimate, p.actuators, robot.frame);
-      const auto nom = calib::forward_kinematics(robot.model, id.start, p.actuators, robot.frame);
-      if (!cal.closure.ok() || !nom.closure.ok()) {
-        ++unanswered;
-        continue;
-      }
-      measured_at.emplace_back(p.rig_T_target.translation());
-      calibrated_at.emplace_back(cal.pose.translation());
-      nominal_at.emplace_back(nom.pose.translation());
-    }
-    const auto cal = calib::position_error_stats(calibrated_at, measured_at);
-    const auto nom = calib::position_error_stats(nominal_at, measured_at);
-    nlohmann::json j = {
-        {"held_out_every", every},
-        {"held_out_poses", std::vector<std::string>(held.begin(), held.end())},
-        {"unanswered", unanswered},
-        {"calibrated", {{"rms_m", cal.rms}, {"max_m", cal.max}, {"poses", cal.n}}},
-        {"nominal_base_fitted", {{"rms_m", nom.rms}, {"max_m", nom.max}, {"poses", nom.n}}}};
-    write_json(j, (ctx.state.folder / "validation" / "validation.json").string());
+    // Into the session's results, where the report (the export step) reads it.
+    write_held_out(results, held_out_record(fit, used, held, every));
+    const HeldOutRecord record = read_held_out(results, "");
+    const auto& cal = record.calibrated;
+    const auto& nom = record.nominal;
+    // Lengths as the report page writes them (µm below a millimetre), so the two agree.
     fmt::print(ctx.out,
-               "On {} held-out poses, measured by the cameras:\n"
-               "  calibrated model: {:.1f} um RMS, {:.1f} um max\n"
-               "  nominal model (base frame fitted): {:.1f} um RMS, {:.1f} um max\n",
-               cal.n, cal.rms * 1e6, cal.max * 1e6, nom.rms * 1e6, nom.max * 1e6);
-    const bool better = cal.n > 0 && cal.rms < nom.rms;
+               "On {} held-out poses, measured by the cameras ({}):\n"
+               "  calibrated model: {} RMS, {} max\n"
+               "  nominal model (base frame fitted): {} RMS, {} max\n",
+               cal.poses, ResultsLayout::kHeldOut, svg::length(cal.rms_m), svg::length(cal.max_m),
+               svg::length(nom.rms_m), svg::length(nom.max_m));
+    if (!record.unanswered.empty())
+      fmt::print(ctx.out, "  {} held-out poses left out: a model has no answer there ({})\n",
+                 record.unanswered.size(), kNoAnswerMeaning);
+    const bool better = cal.poses > 0 && cal.rms_m < nom.rms_m;
     say_check(ctx, better,
               better ? "the calibration predicts poses it never saw better than the nominal model"
                      : "the calibration does not predict the held-out poses better than the "

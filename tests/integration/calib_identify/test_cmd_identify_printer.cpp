@@ -74,7 +74,7 @@ TEST_F(PrinterCli, HeightsAndDistanceOnlyPosesIdentifyWithASummary) {
   testing::internal::CaptureStdout();
   ASSERT_EQ(run(args), 0);
   const std::string out = testing::internal::GetCapturedStdout();
-  EXPECT_NE(out.find("Estimated 9 parameter(s)"), std::string::npos) << out;
+  EXPECT_NE(out.find("Identified 9 of the 9 free parameters"), std::string::npos) << out;
   EXPECT_NE(out.find("Noise (stated -> estimated"), std::string::npos) << out;
   // Fit residuals in the data's own terms: heights and distances, not a position figure.
   EXPECT_NE(out.find("probe height RMS"), std::string::npos) << out;

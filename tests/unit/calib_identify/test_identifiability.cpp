@@ -1,4 +1,5 @@
 #include "robocal/calib/identifiability.hpp"
+#include "robocal/calib/identification_summary.hpp"
 
 #include "planar_fixture.hpp"
 
@@ -162,6 +163,22 @@ TEST(Identifiability, RejectsBadInput) {
   EXPECT_THROW(analyze_identifiability(J, {"a", "b"}), std::invalid_argument);
   J(1, 1) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(analyze_identifiability(J, {"a", "b", "c"}), std::invalid_argument);
+}
+
+// Explanations name parameters by their raw names; summaries cut them there to show each its own
+// way. Whole names only (body2.d1 is not inside body22.d1), the longest name first, a sentence's
+// full stop after a name is not part of it.
+TEST(ParameterMentions, WholeNamesLongestFirst) {
+  const std::vector<std::string> names = {"body2.d1", "body22.d1", "body2.d1x"};
+  const auto parts = parameter_mentions(
+      "body22.d1 moves like body2.d1, not body2.d1x or xbody2.d1. body2.d1.", names);
+  std::vector<std::pair<std::string, int>> got;
+  for (const auto& p : parts) got.emplace_back(p.text, p.parameter);
+  const std::vector<std::pair<std::string, int>> want = {
+      {"body22.d1", 1}, {" moves like ", -1},    {"body2.d1", 0}, {", not ", -1},
+      {"body2.d1x", 2}, {" or xbody2.d1. ", -1}, {"body2.d1", 0}, {".", -1}};
+  EXPECT_EQ(got, want);
+  EXPECT_TRUE(parameter_mentions("", names).empty());
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include "robocal/calib/identification.hpp"
 
 #include <string>
+#include <vector>
 
 namespace robocal::calib {
 
@@ -15,7 +16,17 @@ std::string summary_text(const IdentificationResult& result);
 // Only whole names are replaced (body2.d1 inside body22.d1 is left alone).
 std::string in_plain_words(const std::string& text, const IdentificationResult& result);
 
-// One line per validation ("held-out: 12 poses, position RMS 1.23 mm -> 12.5 um").
+// A text cut where it names a parameter, for a reader that shows names its own way (the report
+// page: the label, with the raw name as a tooltip). `parameter` is an index into `names`, or -1
+// for plain text between names. Whole names only, as in_plain_words; the longest name wins.
+struct TextPart {
+  std::string text;
+  int parameter = -1;
+};
+std::vector<TextPart> parameter_mentions(const std::string& text,
+                                         const std::vector<std::string>& names);
+
+// One line per validation ("held-out: 12 poses, position RMS 1.23 mm -> 12.5 µm").
 std::string validation_line(const std::string& label, const ValidationReport& report);
 // The same, naming what the errors are of (`what`: "position", "probe height", ...): poses
 // measured by probe heights only have height errors, not position errors.
