@@ -16,7 +16,7 @@ double model_error_for(const NoiseGroup& group, const FitGateOptions& options) {
   return 0.0;
 }
 
-// The stated noise and the allowance in the group's unit, in words ("1.6 um", "0.012 px").
+// The stated noise and the allowance in the group's unit, in words ("1.6 µm", "0.012 px").
 std::string in_unit(double value, const std::string& unit) {
   if (unit == "m") return fmt::format("{:.3g} µm", value * 1e6);
   if (unit == "rad") return fmt::format("{:.3g} mrad", value * 1e3);

@@ -452,7 +452,7 @@ double median_of(std::vector<double> v) {
 
 std::string sigma_text(double sigma, const std::string& unit) {
   if (unit == "m")
-    return sigma < 1e-3 ? fmt::format("{:.3g} um", sigma * 1e6)
+    return sigma < 1e-3 ? fmt::format("{:.3g} µm", sigma * 1e6)
                         : fmt::format("{:.3g} mm", sigma * 1e3);
   if (unit == "rad") return fmt::format("{:.3g} mrad", sigma * 1e3);
   return fmt::format("{:.3g} {}", sigma, unit);

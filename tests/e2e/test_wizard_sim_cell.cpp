@@ -46,12 +46,12 @@ struct Cell {
   fs::path dir;
 };
 
-Cell start_cell(const fs::path& dir, const std::string& robot,
+Cell start_cell(const fs::path& dir, const std::string& robot, unsigned seed,
                 const std::vector<std::string>& extra) {
   Cell c;
   c.dir = dir;
-  std::vector<std::string> args = {"sim-cell", "--robot", robot,   "--seed",
-                                   "1",        "--quick", "--out", dir.string()};
+  std::vector<std::string> args = {"sim-cell",           "--robot", robot,   "--seed",
+                                   std::to_string(seed), "--quick", "--out", dir.string()};
   args.insert(args.end(), extra.begin(), extra.end());
   c.process = std::make_unique<robocal::test::ChildProcess>(
       robocal(), args, (dir.parent_path() / "sim-cell.log").string());
@@ -140,7 +140,7 @@ void calibrate(const std::string& robot, const std::vector<std::string>& cell_ar
   const fs::path root = fs::temp_directory_path() / ("robocal_e2e_wizard_" + robot);
   fs::remove_all(root);
   fs::create_directories(root);
-  Cell cell = start_cell(root / "cell", robot, cell_args);
+  Cell cell = start_cell(root / "cell", robot, 1, cell_args);
   ASSERT_FALSE(cell.answers.empty());
   const fs::path folder = root / "cal1";
   const WizardRun run = run_wizard({"wizard", folder.string()}, cell.answers);
@@ -160,13 +160,19 @@ TEST(WizardOnSimCell, RotaryDeltaFromRobotChoiceToExport) {
   calibrate("rotary_delta", {});
 }
 
+// Both cameras rendered by the wizard's own process (sim: cameras), as on a machine that serves
+// no GigE camera, on an arm.
+TEST(WizardOnSimCell, Ur5WithSimCamerasFromRobotChoiceToExport) {
+  calibrate("ur5", {"--in-process"});
+}
+
 // Ctrl-C at the first question of every step, then --resume: each run goes one step further;
 // the answers kept, the plan and the session description are the uninterrupted run's.
 TEST(WizardOnSimCell, CtrlCAtEveryStepThenResumeKeepsEveryAnswer) {
   const fs::path root = fs::temp_directory_path() / "robocal_e2e_wizard_resume";
   fs::remove_all(root);
   fs::create_directories(root);
-  Cell cell = start_cell(root / "cell", "linear_delta", {});
+  Cell cell = start_cell(root / "cell", "rotary_delta", 2, {});
   ASSERT_FALSE(cell.answers.empty());
   // The uninterrupted run.
   const fs::path straight = root / "straight";

@@ -104,7 +104,7 @@ int run_rig(const RigArgs& a) {
   doc["opencv_stereoCalibrate"] = cvj;
   write_json(doc, a.out);
   for (const auto& cc : res.cameras)
-    fmt::print(stderr, "{}: baseline {:.6f} m +- {:.2f} um, rms {:.3f} px, {} views\n", cc.name,
+    fmt::print(stderr, "{}: baseline {:.6f} m ± {:.2f} µm, rms {:.3f} px, {} views\n", cc.name,
                cc.baseline_m, cc.baseline_sigma_m * 1e6, cc.rms_px, cc.views);
   return kExitOk;
 }

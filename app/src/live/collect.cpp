@@ -475,9 +475,10 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
 
   const std::size_t already = recorded_on_disk(o.session, in.targets.size());
   if (out) {
-    fmt::print(out, "{} collection in {}:\n{}", o.resume ? "Continuing the" : "Starting a",
-               o.session.string(), describe(o, in, in.targets.size() - already,
-                        plan_check.value("motion_seconds", 0.0)));
+    fmt::print(
+        out, "{} collection in {}:\n{}", o.resume ? "Continuing the" : "Starting a",
+        o.session.string(),
+        describe(o, in, in.targets.size() - already, plan_check.value("motion_seconds", 0.0)));
   }
   if (already == in.targets.size()) {
     res.status = "ok";

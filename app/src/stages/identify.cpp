@@ -188,7 +188,7 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
              : "none (maximum likelihood from the measurements alone)");
   const auto result = calib::identify(predictor, start, measurements, solve_options);
   say(log,
-      "  {}: {} of {} candidate parameters identified, condition number {:.3g}, {} iterations, "
+      "  {}: {} of the {} free parameters identified, condition number {:.3g}, {} iterations, "
       "{:.2f} s\n",
       calib::to_string(result.status), result.estimated.size(), result.candidates.size(),
       result.identifiability.condition_number, result.iterations, result.solve_seconds);

@@ -341,8 +341,10 @@ class PlanStep final : public Step {
       po.progress = [](const std::string& /*line*/) {};
       fmt::print(ctx.out, "Choosing {} poses among {} candidates...\n", count, pool);
       std::fflush(ctx.out);
+      // Where few candidates are feasible, up to four times as many are drawn again (each is
+      // checked for reach, collision and sight: minutes for tens of thousands).
       const planner::PlanResult plan = planner::plan_with_enough_candidates(
-          model, model.nominal_parameters(), cell, po, po.selection.count);
+          model, model.nominal_parameters(), cell, po, po.selection.count, 4 * pool);
       fmt::print(ctx.out, "{}\n", plan.counts.summary(false));
       if (plan.poses.empty() || plan.status == planner::PlanStatus::kBadCell) {
         say_check(ctx, false, "no plan: " + plan.message,

@@ -189,7 +189,9 @@ class ControllerStep final : public Step {
         for (Eigen::Index i = 0; i < readings.values.size(); ++i)
           q += fmt::format("{}{:.4f}", i == 0 ? "" : ", ", readings.values[i]);
         fmt::print(ctx.out, "Axes now at: [{}] ({})\n", q,
-                   prismatic && revolute ? "m or rad" : prismatic ? "m" : "rad");
+                   prismatic && revolute ? "m or rad"
+                   : prismatic           ? "m"
+                                         : "rad");
         ctx.state.set("controller.link", link);
         ctx.state.set("controller.firmware", fw.name);
         say_check(ctx, true, "the controller answers and reports its axes");
