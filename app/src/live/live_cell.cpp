@@ -122,9 +122,8 @@ Eigen::VectorXd home_readings(const calib::Mechanism& library) {
                                            library.home_actuated());
 }
 
-// The fallback: poses of the nominal robot where both cameras (two of an array's) see the whole
-// board, chained so that the safety guard (the same one collect builds: limits, workspace, the
-// cell's collision scene) lets every motion through, starting from the controller's home.
+}  // namespace
+
 std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
                                            const calib::Mechanism& library,
                                            const planner::Cell& pcell, int count, unsigned seed,
@@ -162,8 +161,6 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
   }
   return out;
 }
-
-}  // namespace
 
 LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
                          const LiveCellFiles& files, int count, unsigned seed, bool quick,

@@ -4,6 +4,7 @@
 // robot's tool), the simulator's true robot (a perturbation file of NAME=VALUE lines for
 // `robocal sim-controller --perturbation`), and the plan. Built from the offline demo's
 // SimulatedCell for the same seed, so the live and the offline demo calibrate the same robot.
+#include "robocal/planner/cell.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "simcell/simulated_cell.hpp"
 
@@ -26,6 +27,14 @@ struct LiveCellFiles {
 // tool frame the cell's target position refers to).
 LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robot_file,
                               const std::filesystem::path& dir);
+
+// Poses of the nominal robot where both cameras (two of an array's) see the whole board, chained
+// so that the safety guard (the same one collect builds: limits, workspace, the cell's collision
+// scene) lets every motion through, starting from the controller's home. At most `count`.
+std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
+                                           const calib::Mechanism& library,
+                                           const planner::Cell& pcell, int count, unsigned seed,
+                                           const robotio::MoveSpeed& speed);
 
 // The planned poses: actuator readings in motion order, and how they were chosen.
 struct LivePlan {

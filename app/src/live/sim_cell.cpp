@@ -6,7 +6,11 @@
 #include "live/live_cell.hpp"
 #include "live/sim_camera.hpp"
 #include "live/simulated_setup.hpp"
+#include "robocal/calib/robot_file.hpp"
 #include "robocal/core/files.hpp"
+#include "robocal/planner/cell.hpp"
+#include "robocal/robotio/gcode_link.hpp"
+#include "robocal/robotio/safety_guard.hpp"
 #include "robocal/robotio/sim_process.hpp"
 #include "robocal/robotio/sim_truth.hpp"
 #include "session/results_files.hpp"
@@ -78,6 +82,35 @@ bool process_running(pid_t pid) {
   std::getline(in, stat);
   const auto close = stat.rfind(')');
   return close != std::string::npos && close + 2 < stat.size() && stat[close + 2] != 'Z';
+}
+
+// Like an operator who jogs the robot until the cameras see the board before starting the
+// wizard (whose cameras step checks a frame): the controller homed, then the robot moved to the
+// first pose of the nominal robot where the cell's cameras see the whole board.
+void jog_into_view(const LiveCell& lc, const std::string& robot_file, const LiveCellFiles& files,
+                   const std::string& link_address, unsigned seed, std::FILE* out) {
+  const calib::Mechanism model = calib::load_robot_file(robot_file);
+  const double speed = default_speed(model);
+  const robotio::MoveSpeed move{speed, 10.0 * speed};
+  const planner::Cell pcell = planner::load_cell_file(files.cell.string());
+  const auto poses = sampled_poses(lc.cell, model, pcell, 1, seed, move);
+  if (poses.empty()) {
+    fmt::print(out, "  (no pose found where the cameras see the board: the robot stays home)\n");
+    return;
+  }
+  robotio::SafetyLimits limits;
+  limits.max_speed = move.speed;
+  limits.max_acceleration = move.acceleration;
+  robotio::SafetyGuard guard(model, model.nominal_parameters(), limits);
+  guard.arm("sim-cell: the simulated robot is moved into the cameras' view");
+  robotio::GcodeLinkOptions lo;
+  lo.address = link_address;
+  lo.axes = robotio::axes_for_robot(model, 80.0, 100.0);  // sim-controller's defaults
+  robotio::GcodeLink link(guard, lo);
+  link.connect();
+  link.home();
+  link.move_actuators(poses.front(), move);
+  link.disconnect();
 }
 
 struct Answer {
@@ -158,6 +191,7 @@ int run_sim_cell(const SimCellOptions& o) {
       "--log",           (at.simulator() / "sim-controller.jsonl").string(),
       "--busy-interval", "1"};
   robotio::SimControllerProcess sim(robocal_binary(), args);
+  jog_into_view(lc, robot_file, files, sim.tcp(), o.seed, out);
   robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
   SaggingBoard seen(truth, lc.cell.elastic_sag);
   LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("S{}-", ::getpid()));

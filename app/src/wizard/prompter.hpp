@@ -52,6 +52,8 @@ class Prompter {
   bool confirm(const std::string& key, const std::string& question, bool default_value);
 
   [[nodiscard]] bool interactive() const { return interactive_; }
+  // Whether the answers file answers `key` (a script's run can skip a question it leaves out).
+  [[nodiscard]] bool has_answer(const std::string& key) const { return answers_.count(key) != 0; }
   [[nodiscard]] const std::map<std::string, std::string>& given() const { return given_; }
 
  private:

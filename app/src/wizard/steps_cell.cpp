@@ -65,6 +65,9 @@ bool cell_names_camera_file(const WizardState& s, const std::string& camera) {
 // The board in the calibration images: kept in the wizard's state, since the identify step
 // names it in the session (measure detects it in the calibration views).
 std::string ask_calibration_board(const WizardContext& ctx) {
+  // One board for every camera: asked once a run (a resumed run asks again, its answer kept).
+  if (ctx.ask.given().count("intrinsics.board") != 0 && !ctx.state.get("intrinsics.board").empty())
+    return ctx.state.get("intrinsics.board");
   for (;;) {
     const std::string file =
         ctx.ask.ask("intrinsics.board", "Target file of the calibration board in the images",
@@ -310,7 +313,7 @@ class PlanStep final : public Step {
   }
   StepOutcome run(WizardContext& ctx) override {
     const calib::Mechanism model = load_robot(ctx.state.get("robot.file"));
-    for (;;) {
+    for (unsigned attempt = 0;; ++attempt) {
       const std::size_t count =
           ask_count(ctx, "plan.count", "How many poses", ctx.state.get("plan.count", "30"));
       const std::size_t pool = ask_count(ctx, "plan.pool", "Candidate poses to choose from",
@@ -328,6 +331,8 @@ class PlanStep final : public Step {
       planner::PlanOptions po;
       po.selection.count = count;
       po.pool = pool;
+      // A retry draws other candidates: the same draw would give the same plan again.
+      po.seed = 1 + 7919U * attempt;
       // The collection homes the robot first: the tour starts there, so that the first motion
       // is checked like the others.
       po.start = calib::readings_from_joint_values(model, model.nominal_parameters(),
@@ -372,7 +377,8 @@ class PlanStep final : public Step {
       const bool accepted = plan.status == planner::PlanStatus::kOk;
       say_check(ctx, accepted,
                 accepted ? "the plan is accepted" : "the plan is NOT accepted: " + plan.message,
-                "more poses (a larger count) or a larger workspace usually help");
+                "retry: it draws other candidate poses; more poses (a larger count), more "
+                "candidates or a larger safe workspace also help");
       if (accepted) return StepOutcome::done();
       const std::string c = ctx.ask.choose("plan.problem", "Use it anyway, retry, or stop here",
                                            {"continue", "retry", "quit"}, "retry");

@@ -149,12 +149,14 @@ class CollectionStep final : public Step {
   StepOutcome run(WizardContext& ctx) override {
     const bool resume = fs::exists(ctx.state.session() / "session.yaml");
     if (resume) {
-      // A resumed collection may go on at another speed (the safety step's limits, asked again).
-      ctx.state.set("safety.speed",
-                    ctx.ask.ask("collection.speed",
-                                robot_has_linear_axes(ctx.state) ? "Axis speed limit (m/s)"
-                                                                 : "Axis speed limit (rad/s)",
-                                ctx.state.get("safety.speed", default_speed(ctx.state))));
+      // A resumed collection may go on at another speed (the safety step's limits, asked again
+      // of an operator; a script without the answer goes on at the speed it gave before).
+      if (ctx.ask.interactive() || ctx.ask.has_answer("collection.speed"))
+        ctx.state.set("safety.speed",
+                      ctx.ask.ask("collection.speed",
+                                  robot_has_linear_axes(ctx.state) ? "Axis speed limit (m/s)"
+                                                                   : "Axis speed limit (rad/s)",
+                                  ctx.state.get("safety.speed", default_speed(ctx.state))));
       ctx.state.save();
       if (ctx.ask.choose("collection.continue",
                          "Continue the interrupted collection (the robot moves again)",

@@ -391,8 +391,7 @@ TEST_F(Wizard, AnswersFileDrivesTheFlowWithoutATerminal) {
 void answer_robot_to_cameras(test::PtyProcess& w, const fs::path& robot, const std::string& link,
                              const fs::path& board) {
   TYPE_AT(w, "Robot (library name or robot file)", robot.string());
-  TYPE_AT(w, "Steps per mm", "");
-  TYPE_AT(w, "Steps per degree", "");
+  TYPE_AT(w, "Steps per mm", "");  // a linear delta: no rotary axes, no steps per degree
   TYPE_AT(w, "Controller address", link);
   TYPE_AT(w, "Home the robot now?", "");
   TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
@@ -401,10 +400,14 @@ void answer_robot_to_cameras(test::PtyProcess& w, const fs::path& robot, const s
   ASSERT_TRUE(w.expect("check: ok - every camera sees the whole board", 60s)) << w.output();
 }
 
-// The cell, plan (8 poses from 400 candidates, taken even if not accepted) and safety steps, the
-// axes limited to `speed`, and the confirmation that lets the robot move.
-void answer_cell_to_safety(test::PtyProcess& w, const fs::path& cell, const std::string& speed) {
+// The cell step, which comes before the intrinsics (their default is the cell's camera file).
+void answer_cell(test::PtyProcess& w, const fs::path& cell) {
   TYPE_AT(w, "Cell file", cell.string());
+}
+
+// The plan (8 poses from 400 candidates, taken even if not accepted) and safety steps, the
+// axes limited to `speed`, and the confirmation that lets the robot move.
+void answer_plan_to_safety(test::PtyProcess& w, const std::string& speed) {
   TYPE_AT(w, "How many poses", "8");
   TYPE_AT(w, "Candidate poses", "400");
   ASSERT_TRUE(w.expect("Preview:", 120s)) << w.output();
@@ -425,10 +428,11 @@ TEST_F(Wizard, KeystrokesOnATerminalCtrlCDuringCollectionAndResumeLoseNoPose) {
     TYPE_AT(w, "Robot (library name or robot file)", "no_such_robot");
     ASSERT_TRUE(w.expect("neither a file nor a library robot", 30s)) << w.output();
     ASSERT_NO_FATAL_FAILURE(answer_robot_to_cameras(w, robot_, sim_->tcp(), board_));
+    ASSERT_NO_FATAL_FAILURE(answer_cell(w, dir_ / "cell.yaml"));
     TYPE_AT(w, "Intrinsics of cam0", "");  // default: the cell's camera file
     TYPE_AT(w, "Intrinsics of cam1", "");
     // Slow: the Ctrl-C lands mid-plan.
-    ASSERT_NO_FATAL_FAILURE(answer_cell_to_safety(w, dir_ / "cell.yaml", "0.01"));
+    ASSERT_NO_FATAL_FAILURE(answer_plan_to_safety(w, "0.01"));
     const auto end = std::chrono::steady_clock::now() + 180s;
     while (!fs::exists(folder / "session" / "poses" / "pose_001") &&
            std::chrono::steady_clock::now() < end)
@@ -447,9 +451,10 @@ TEST_F(Wizard, KeystrokesOnATerminalCtrlCDuringCollectionAndResumeLoseNoPose) {
   const auto written = fs::last_write_time(folder / "session" / "poses" / "pose_000" / "pose.yaml");
   {
     test::PtyProcess w(ROBOCAL_BINARY, {"wizard", "--resume", folder.string()});
+    TYPE_AT(w, "Axis speed limit", "");  // the speed given before
     TYPE_AT(w, "Continue the interrupted collection", "yes");
     ASSERT_TRUE(w.expect("every planned pose is recorded", 240s)) << w.output();
-    TYPE_AT(w, "Folder with the calibration views", "");  // default: quit
+    TYPE_AT(w, "Folder with the calibration views", "quit");
     EXPECT_EQ(w.wait(60s), 1) << w.output();  // identify: no calibration views (explained)
   }
   EXPECT_EQ(pose_folders(folder / "session").size(), static_cast<std::size_t>(planned));
@@ -471,6 +476,7 @@ TEST_F(Wizard, LiveCalibrationViewsAreGuidedAndCalibrateTheCamera) {
   };
   test::PtyProcess w(ROBOCAL_BINARY, {"wizard", folder.string()});
   ASSERT_NO_FATAL_FAILURE(answer_robot_to_cameras(w, robot_, sim_->tcp(), board_));
+  ASSERT_NO_FATAL_FAILURE(answer_cell(w, dir_ / "cell.yaml"));
   TYPE_AT(w, "Intrinsics of cam0", "live");
   TYPE_AT(w, "Target file of the calibration board", board_.string());
   // The board held out of the camera's view: nothing kept.
@@ -532,6 +538,7 @@ TEST_F(Wizard, LiveViewsCarryTheFlowToTheIdentification) {
   const fs::path folder = dir_ / "w5";
   test::PtyProcess w(ROBOCAL_BINARY, {"wizard", folder.string()});
   ASSERT_NO_FATAL_FAILURE(answer_robot_to_cameras(w, robot_, sim_->tcp(), board_));
+  ASSERT_NO_FATAL_FAILURE(answer_cell(w, dir_ / "cell.yaml"));
   for (int c = 0; c < 2; ++c) {
     const auto spec = camera_spec(c);
     TYPE_AT(w, fmt::format("Intrinsics of cam{}", c), "live");
@@ -548,11 +555,11 @@ TEST_F(Wizard, LiveViewsCarryTheFlowToTheIdentification) {
     ASSERT_TRUE(w.expect(fmt::format("cam{}: calibrated from 16 views", c), 60s)) << w.output();
   }
   seen_->hold(std::nullopt);  // the cameras see the board on the robot again
-  ASSERT_NO_FATAL_FAILURE(answer_cell_to_safety(w, dir_ / "cell.yaml", "0.2"));
+  ASSERT_NO_FATAL_FAILURE(answer_plan_to_safety(w, "0.2"));
   ASSERT_TRUE(w.expect("every planned pose is recorded", 240s)) << w.output();
   // The identify step has each camera's views from the intrinsics step; the rig views are taken
   // now, the board held 20-26 cm in front of the cameras.
-  TYPE_AT(w, "Folder with the calibration views, 'live'", "live");
+  TYPE_AT(w, "Folder with the calibration views", "live");
   const auto spec0 = camera_spec(0);
   seen_->hold(spec0.camera_T_world.inverse() *
               board_in_view(spec0.model, 40.0, 240.0, 0.09, 0.0, 0.0));  // cam0 only
