@@ -289,6 +289,17 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
         "only {} workspace positions of '{}' have every rod sloping down from its carriage: too "
         "few to fit the firmware's model",
         fit.readings.size(), model.name));
+  // The uncorrected firmware (the drawing's numbers) against the calibrated model, for scale.
+  Eigen::VectorXd r_nominal;
+  if (residuals(layout, x, fit, r_nominal)) {
+    double sum = 0.0;
+    for (std::size_t k = 0; k < fit.readings.size(); ++k) {
+      const double e = r_nominal.segment<3>(static_cast<Eigen::Index>(3 * k)).norm();
+      sum += e * e;
+      fit.nominal_max = std::max(fit.nominal_max, e);
+    }
+    fit.nominal_rms = std::sqrt(sum / static_cast<double>(fit.readings.size()));
+  }
   fit.iterations = least_squares(layout, fit, x);
   fit.model = unpack_model(layout, x, fit.model.endstop_reading);
   fit.frame = unpack_frame(layout, x);
@@ -360,7 +371,8 @@ std::vector<std::pair<std::string, double>> firmware_delta_settings(const Firmwa
   return out;
 }
 
-std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& robot_name) {
+std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& robot_name,
+                                const FirmwareTextNotes& notes) {
   const auto settings = firmware_delta_settings(fit);
   const auto get = [&](const std::string& name) {
     for (const auto& [key, value] : settings)
@@ -381,6 +393,22 @@ std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& 
       "{} (what the firmware cannot represent: tower tilt, towers off one circle, "
       "per-tower effector offsets{})\n",
       c, fit.firmware == DeltaFirmware::kMarlin ? ", rod lengths that differ" : "");
+  t += fmt::format(
+      "{} what these settings keep: the firmware with the robot file's drawing is RMS {:.1f} um, "
+      "max {:.1f} um from the calibrated model; with these settings RMS {:.1f} um, max {:.1f} um\n",
+      c, fit.nominal_rms * 1e6, fit.nominal_max * 1e6, fit.residual_rms * 1e6,
+      fit.residual_max * 1e6);
+  if (std::isfinite(notes.model_rms))
+    t += fmt::format(
+        "{} robocal's full calibrated model follows the measurements to {:.1f} um RMS\n", c,
+        notes.model_rms * 1e6);
+  if (!notes.compensate.empty())
+    t += fmt::format(
+        "{} for the rest: {} rewrites G-code with the full calibrated model, for a firmware that "
+        "keeps the robot file's drawing (its nominal settings, not these)\n",
+        c, notes.compensate);
+  if (!notes.tool.empty()) t += fmt::format("{} nozzle: {}\n", c, notes.tool);
+  if (!notes.measured.empty()) t += fmt::format("{} measured: {}\n", c, notes.measured);
   t += fmt::format(
       "{} assumes the endstops trigger at carriage readings {:.3f}, {:.3f}, {:.3f} mm\n", c,
       fit.model.endstop_reading[0] * 1e3, fit.model.endstop_reading[1] * 1e3,
