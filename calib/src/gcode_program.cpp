@@ -385,8 +385,8 @@ struct Writer {
     for (const double t : {0.25, 0.5, 0.75}) {
       const Eigen::VectorXd r = a.readings + t * (b.readings - a.readings);
       const Eigen::VectorXd passive = a.passive.size() == b.passive.size() && a.passive.size() > 0
-                                       ? Eigen::VectorXd(a.passive + t * (b.passive - a.passive))
-                                       : Eigen::VectorXd();
+                                          ? Eigen::VectorXd(a.passive + t * (b.passive - a.passive))
+                                          : Eigen::VectorXd();
       const ForwardResult fk =
           forward_kinematics(model, models.calibrated, r, model.task.frame, passive);
       if (!fk.closure.ok()) return std::numeric_limits<double>::infinity();

@@ -211,10 +211,18 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
   base_T_camera.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
 
   // Targets: where the true nozzle goes over the workspace (camera 0's frame).
-  const std::vector<Eigen::VectorXd> configs = workspace(t, 200);
-  ASSERT_GT(configs.size(), 100U);
+  const std::vector<Eigen::VectorXd> configs = workspace(t, 2000);
+  ASSERT_GT(configs.size(), 1000U);
   std::vector<Eigen::Vector3d> errors;
+  Stats model;
   for (const Eigen::VectorXd& q : configs) {
+    // Where a printer works and the settings were fitted: every rod sloping down from its
+    // carriage by at least a tenth of its length (the firmware's equation has no other branch).
+    const Eigen::Vector3d in_base =
+        pose_at(t.model, t.params, q, 0).inverse() * true_tool(t, q).translation();
+    bool printer = true;
+    for (int i = 0; i < 3; ++i) printer = printer && q[i] - in_base.z() >= 0.1 * towers[0].arm;
+    if (!printer) continue;
     const Eigen::Vector3d target = t.camera_T_world * true_tool(t, q).translation();
     const Eigen::Vector3d p = Rf * (base_T_camera * target) + tf;  // in the firmware's frame
     Eigen::VectorXd readings(3);
@@ -228,26 +236,37 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
     if (!reachable) continue;
     const Eigen::Vector3d reached = t.camera_T_world * true_tool(t, readings).translation();
     errors.push_back(reached - target);
+    // Where the identified model (identify's file, camera 0's world) says the nozzle arrives:
+    // its own error against the truth is identification's, not the export's.
+    const Eigen::Vector3d predicted =
+        (pose_at(t.model, t.estimate, readings, t.model.tool) * t.board_T_tool).translation();
+    model.add(reached - predicted);
   }
   Stats sent, shape;
   for (const auto& e : errors) sent.add(e);
   sent.done();
+  model.done();
   for (const auto& e : errors) shape.add(e - sent.mean);
   shape.done();
   const double firmware_rms = j.at("residual_rms_m").get<double>();
   fmt::print(
       "klipper: sent->reached RMS {:.1f} um, max {:.1f} um over {}; mean ({:.1f}, {:.1f}, {:.1f}) "
       "um; about the mean RMS {:.1f} um; firmware residual against the calibrated model RMS "
+      "{:.1f} um; the calibrated model's own error there: mean ({:.1f}, {:.1f}, {:.1f}) um, RMS "
       "{:.1f} um; base origin in the firmware frame x {:.3f} y {:.3f} mm\n",
       sent.rms * 1e6, sent.max * 1e6, sent.n, sent.mean.x() * 1e6, sent.mean.y() * 1e6,
-      sent.mean.z() * 1e6, shape.rms * 1e6, firmware_rms * 1e6, tf.x() * 1e3, tf.y() * 1e3);
+      sent.mean.z() * 1e6, shape.rms * 1e6, firmware_rms * 1e6, model.mean.x() * 1e6,
+      model.mean.y() * 1e6, model.mean.z() * 1e6, model.rms * 1e6, tf.x() * 1e3, tf.y() * 1e3);
   RecordProperty("nozzle_error_mean_um", std::to_string(sent.mean.norm() * 1e6));
   RecordProperty("nozzle_error_rms_um", std::to_string(sent.rms * 1e6));
   RecordProperty("firmware_residual_rms_um", std::to_string(firmware_rms * 1e6));
   EXPECT_GT(sent.n, 100);
   // Where the nozzle and the base are: the constant part (the board taken for the nozzle puts it
-  // 205 mm off, camera 0's frame taken for the base 1.25 m off).
-  EXPECT_LT(sent.mean.norm(), 0.1e-3);
+  // 205 mm off, camera 0's frame taken for the base 1.25 m off), beyond the calibrated model's
+  // own constant error (camera 0's frame as its quick calibration realises it: up to 0.1 mm).
+  // Over 1000 targets the firmware's residual (0.4-0.65 mm RMS, seeds 1-3) averages out to
+  // 20-40 um about the mean it has over its own fit's workspace (zero).
+  EXPECT_LT((sent.mean - model.mean).norm(), 0.1e-3);
   // What varies over the workspace is the firmware's own residual (its model is smaller), with
   // the calibrated model's error against the truth.
   EXPECT_LT(sent.rms, firmware_rms + 0.1e-3);

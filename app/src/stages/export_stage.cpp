@@ -149,8 +149,8 @@ ExportModel resolve(const std::string& input) {
     const ResultsLayout results{input};
     if (!fs::exists(results.calibrated_robot()))
       throw core::InputError(fmt::format(
-          "{}: no identification results ({} is missing{}): run `robocal identify {}` first",
-          input, ResultsLayout::kCalibratedRobot,
+          "{}: no identification results ({} is missing{}): run `robocal identify {}` first", input,
+          ResultsLayout::kCalibratedRobot,
           fs::exists(results.identification()) ? "; the last identification did not produce one"
                                                : "",
           input));
