@@ -83,6 +83,10 @@ ExportModel session_model(const std::string& input) {
       calib::user_frames(out.model, calibrated.nominal_parameters(), out.model.nominal_parameters(),
                          robot.frame, mounted);
   out.params = user.params;
+  // The model's own values are the calibrated ones, as when the calibrated file itself is read
+  // (the firmware fit takes the endstops' readings from them).
+  for (std::size_t i = 0; i < out.model.parameters.size(); ++i)
+    out.model.parameters[i].value = out.params[static_cast<Eigen::Index>(i)];
 
   const std::string tool = body_name(out.model, out.model.tool);
   const std::string measured = body_name(out.model, robot.frame);
