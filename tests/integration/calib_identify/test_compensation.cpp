@@ -8,6 +8,7 @@
 #include "printer_scenario.hpp"
 
 #include "robocal/calib/compensation.hpp"
+#include "robocal/calib/firmware_delta.hpp"
 #include "robocal/calib/gcode_program.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/kinematics.hpp"
@@ -264,6 +265,62 @@ TEST(Compensation, ARotaryDeltaProgramIsWrittenInShoulderAngles) {
   EXPECT_NEAR(task_moves.front().values.z(), -900.0, 5.0) << task_space.text;
   options.axes = GcodeAxes::kUnknown;
   EXPECT_THROW((void)rewrite_gcode(program, models, options), core::InputError);
+}
+
+// A printer running the delta settings `robocal export` fits (Klipper here) keeps what its smaller
+// model cannot hold (tower tilts, towers off one circle: hundreds of um); a program rewritten for
+// that printer, with the calibrated robot, follows its meant path to the tolerance. The printer
+// is run as Klipper runs it: straight lines in its frame, carriage heights by its equation
+// h_i = z + sqrt(L_i^2 - (x - R cos a_i)^2 - (y - R sin a_i)^2), reading = h_i - c_i.
+TEST(Compensation, ProgramsForAPrinterRunningTheFittedSettingsFollowTheCalibratedRobot) {
+  const Mechanism model = linear_delta();
+  std::mt19937 rng(41);
+  const Eigen::VectorXd truth = perturb_parameters(
+      model.nominal_parameters(), tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
+  const FirmwareDeltaFit fit = fit_firmware_delta(model, truth, DeltaFirmware::kKlipper);
+  ASSERT_GT(fit.residual_rms, 50e-6);  // more than the firmware's model holds
+  const FirmwareController controller = firmware_delta_controller(model, truth, fit);
+  const FirmwareDeltaModel& k = fit.model;
+  const auto klipper_readings = [&](const Eigen::Vector3d& p) {
+    Eigen::VectorXd r(3);
+    for (std::size_t i = 0; i < 3; ++i) {
+      const double dx = p.x() - k.delta_radius * std::cos(k.tower_angle[i]);
+      const double dy = p.y() - k.delta_radius * std::sin(k.tower_angle[i]);
+      r[static_cast<Eigen::Index>(i)] =
+          p.z() + std::sqrt(k.arm_length[i] * k.arm_length[i] - dx * dx - dy * dy) -
+          k.carriage_offset[i];
+    }
+    return r;
+  };
+  // The true robot's nozzle in the firmware's frame: p_firmware = Ry(pitch) Rx(roll) p + (x, y).
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(fit.frame.pitch, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(fit.frame.roll, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  const Eigen::Vector3d t(fit.frame.x, fit.frame.y, 0.0);
+  const auto printed = [&](const GcodeProgram& p) {
+    std::vector<Eigen::Vector3d> tool;
+    for (const auto& point : gcode_path(p, 0.2e-3)) {
+      const ForwardResult fk =
+          forward_kinematics(model, truth, klipper_readings(point.position), model.tool);
+      EXPECT_TRUE(fk.closure.ok()) << "line " << point.line;
+      tool.emplace_back(R * fk.pose.translation() + t);
+    }
+    return tool;
+  };
+  const GcodeProgram program = parse_gcode(
+      "G90\nG1 X0 Y0 Z50 F3000\nG1 X40 Y0\nG3 X0 Y40 I-40 J0\nG1 X-30 Y-30 Z60\n", "part.gcode");
+  GcodeRewriteOptions options;
+  options.tolerance = 10e-6;
+  const CompensationModels models{&model, controller.controller, controller.calibrated};
+  const GcodeRewrite rewrite = rewrite_gcode(program, models, options);
+  const auto meant = positions(gcode_path(program, 0.2e-3));
+  const double compensated =
+      path_error(printed(parse_gcode(rewrite.text, "rewritten.gcode")), meant);
+  const double settings_alone = path_error(printed(program), meant);
+  RecordProperty("compensated_um", std::to_string(compensated * 1e6));
+  RecordProperty("settings_alone_um", std::to_string(settings_alone * 1e6));
+  EXPECT_LE(compensated, options.tolerance + 0.2e-6) << rewrite.text;  // + the 0.1 um rounding
+  EXPECT_GT(settings_alone, 5.0 * options.tolerance);
 }
 
 TEST(Compensation, UnreachablePointIsNamedByItsLine) {

@@ -95,13 +95,31 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
                                     DeltaFirmware firmware,
                                     const FirmwareDeltaOptions& options = {});
 
+// A printer running the fitted settings, as parameter vectors of the robot's own mechanism, for
+// compensation (compensation.hpp) against the firmware instead of the robot file's drawing:
+// `controller` is the firmware's model (towers on its circle at its angles, its rods, carriage
+// offsets c_i, the nozzle at the effector's centre) in the firmware's frame; `calibrated` is
+// `params` (the calibrated robot in its own base frame) moved into the firmware's frame. Both
+// put tool positions in the firmware's coordinates, the ones a program for it is written in.
+// Throws std::invalid_argument when the robot file's layout does not carry the firmware's model
+// (each carriage on a fixed tower body hanging from the base, a rod from the carriage to an
+// effector joint, xyz_rpy frames): checked by reproducing the firmware's forward kinematics at
+// the fit's workspace samples to 1 nm.
+struct FirmwareController {
+  Eigen::VectorXd controller;
+  Eigen::VectorXd calibrated;
+};
+FirmwareController firmware_delta_controller(const Mechanism& model, const Eigen::VectorXd& params,
+                                             const FirmwareDeltaFit& fit);
+
 // What the settings' comments say besides the fit itself (all optional).
 struct FirmwareTextNotes {
   std::string tool;      // where the nozzle is, e.g. "the robot file's tool 'tool' (nozzle)"
   std::string measured;  // the frame the calibration measured instead, in words
   // How closely robocal's calibrated model follows the measurements (RMS, m; NaN: unknown).
   double model_rms = std::numeric_limits<double>::quiet_NaN();
-  // The command that carries what the firmware cannot ("" = none named).
+  // The command that carries what the firmware cannot, for a printer running these settings
+  // ("" = none named).
   std::string compensate;
 };
 
