@@ -166,6 +166,8 @@ std::vector<Eigen::VectorXd> workspace(const Truth& t, std::size_t count) {
   return calib::sample_actuators(predictor, {t.params, t.file}, count, rng);
 }
 
+double distance_to_polyline(const Eigen::Vector3d& p, const std::vector<Eigen::Vector3d>& line);
+
 // ---- linear delta, Klipper ----------------------------------------------------------------
 
 struct KlipperTower {
@@ -270,6 +272,68 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
   // What varies over the workspace is the firmware's own residual (its model is smaller), with
   // the calibrated model's error against the truth.
   EXPECT_LT(sent.rms, firmware_rms + 0.1e-3);
+
+  // What the settings leave, `robocal compensate --firmware klipper` carries: a program in the
+  // firmware's frame, rewritten, run by Klipper on the true robot (carriage heights by the
+  // equation above at every 0.2 mm of its straight lines), against the path it meant.
+  const fs::path program = dir / "part.gcode", out = dir / "part.klipper.gcode";
+  core::write_file_atomic(program, "G90\nG1 X0 Y0 Z50 F3000\nG1 X40 Y0\nG3 X0 Y40 I-40 J0\n");
+  const test::CliRun c = run({"compensate", dir.string(), "--firmware", "klipper", "--gcode",
+                              program.string(), "--out", out.string()});
+  ASSERT_EQ(c.code, 0) << c.err;
+  const auto firmware_path = [&](const std::string& text) {
+    std::vector<Eigen::Vector3d> points;  // the commanded points, absolute (G90), metres
+    std::istringstream lines(text);
+    for (std::string line; std::getline(lines, line);) {
+      if (line.rfind("G1 ", 0) != 0) continue;
+      Eigen::Vector3d v = points.empty() ? Eigen::Vector3d::Zero() : points.back();
+      for (int a = 0; a < 3; ++a)
+        if (const auto at = line.find(std::string(" ") + "XYZ"[a]); at != std::string::npos)
+          v[a] = std::stod(line.substr(at + 2)) * 1e-3;
+      points.push_back(v);
+    }
+    return points;
+  };
+  const auto run_on_truth = [&](const std::vector<Eigen::Vector3d>& commanded) {
+    std::vector<Eigen::Vector3d> nozzle;  // in the firmware's frame
+    for (std::size_t k = 1; k < commanded.size(); ++k) {
+      const int n = std::max(1, static_cast<int>((commanded[k] - commanded[k - 1]).norm() / 2e-4));
+      for (int step = 0; step <= n; ++step) {
+        const Eigen::Vector3d p = commanded[k - 1] + (commanded[k] - commanded[k - 1]) * step / n;
+        Eigen::VectorXd readings(3);
+        for (int i = 0; i < 3; ++i) {
+          const KlipperTower& tw = towers[static_cast<std::size_t>(i)];
+          readings[i] =
+              p.z() +
+              std::sqrt(tw.arm * tw.arm - std::pow(p.x() - tw.x, 2) - std::pow(p.y() - tw.y, 2)) -
+              tw.offset;
+        }
+        nozzle.emplace_back(
+            Rf * (base_T_camera * t.camera_T_world * true_tool(t, readings).translation()) + tf);
+      }
+    }
+    return nozzle;
+  };
+  std::vector<Eigen::Vector3d> meant;
+  for (int k = 0; k <= 400; ++k) meant.emplace_back(0.04 * k / 400.0, 0.0, 0.05);
+  for (int k = 0; k <= 800; ++k)
+    meant.emplace_back(0.04 * std::cos(M_PI / 2 * k / 800.0), 0.04 * std::sin(M_PI / 2 * k / 800.0),
+                       0.05);
+  const auto worst = [&](const std::vector<Eigen::Vector3d>& nozzle) {
+    double most = 0.0;
+    for (const auto& p : nozzle) most = std::max(most, distance_to_polyline(p, meant));
+    return most;
+  };
+  const double compensated = worst(run_on_truth(firmware_path(core::read_text_file(out))));
+  const double settings_alone = worst(
+      run_on_truth({{0, 0, 0.05}, {0.04, 0, 0.05}, {0.04, 0, 0.05}}));  // the straight move alone
+  fmt::print(
+      "klipper program on the true robot: settings alone {:.1f} um (its straight move), "
+      "compensated {:.1f} um off the meant path\n",
+      settings_alone * 1e6, compensated * 1e6);
+  RecordProperty("compensated_program_um", std::to_string(compensated * 1e6));
+  EXPECT_LT(compensated, 0.1e-3);
+  EXPECT_LT(compensated, settings_alone);
 }
 
 // ---- UR5, URDF ------------------------------------------------------------------------------

@@ -48,7 +48,10 @@ CommandSpec compensate_command() {
             "order, mm or degrees (raw-axis mode, as robocal's G-code link drives a robot, e.g. "
             "the rotary Delta): every point becomes the calibrated inverse kinematics' actuator "
             "positions, moves are subdivided until the axes' straight interpolation keeps the "
-            "tool within --tolerance of the meant path, F becomes the axes' rate.\n\n"
+            "tool within --tolerance of the meant path, F becomes the axes' rate.\n"
+            "     --firmware klipper|marlin|rrf: the printer runs `robocal export SESSION "
+            "--format F`'s delta settings, not the drawing: the program (in the firmware's "
+            "frame) is rewritten for them, carrying what their smaller model leaves.\n\n"
             "Coordinates are the robot file's base frame (not the cameras'): the calibrated "
             "model's base placement is replaced by the file's; the tool is the robot file's tool "
             "on the identified geometry (the end-effector board's mount is the board's, not the "
@@ -82,6 +85,11 @@ CommandSpec compensate_command() {
                        "G-code: the controller's axis words are the tool position (tool) or the "
                        "actuators (actuators); default: the robot file's controller.gcode_axes")
             ->check(CLI::IsMember({"tool", "actuators"}));
+        cmd.add_option("--firmware", o->firmware,
+                       "The controller runs `robocal export SESSION --format F`'s delta settings "
+                       "(klipper, marlin, rrf): compensate what they leave; coordinates are then "
+                       "the firmware's frame")
+            ->check(CLI::IsMember({"klipper", "marlin", "rrf"}));
         cmd.add_option("--robot", o->robot_override,
                        "Robot file to use instead of the session's (checked against it)");
         cmd.add_option("--json", *json, "Write the JSON report here ('-' = stdout)");

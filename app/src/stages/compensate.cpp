@@ -9,6 +9,7 @@
 #include "stages/stages.hpp"
 
 #include "robocal/calib/compensation.hpp"
+#include "robocal/calib/firmware_delta.hpp"
 #include "robocal/calib/gcode_program.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/core/files.hpp"
@@ -189,6 +190,32 @@ Models session_models(const CompensateOptions& o) {
   m.compensation.nominal = file_nominal;
   m.compensation.calibrated = calib::calibrated_in_robot_frame(
       m.robot.model, estimate, file_nominal, s.target_mount.empty() ? -1 : m.robot.frame);
+  if (!o.firmware.empty()) {
+    // The controller runs the settings `robocal export` fits to this calibrated robot (the same
+    // fit: the model's values are the calibrated ones, as export reads them): compensate for
+    // what they leave, in the firmware's coordinates.
+    const calib::DeltaFirmware firmware = o.firmware == "marlin" ? calib::DeltaFirmware::kMarlin
+                                          : o.firmware == "rrf"
+                                              ? calib::DeltaFirmware::kReprapFirmware
+                                              : calib::DeltaFirmware::kKlipper;
+    if (const std::string why = calib::firmware_delta_mismatch(m.robot.model, firmware);
+        !why.empty())
+      throw InputError(fmt::format("--firmware {}: {}", o.firmware, why));
+    calib::Mechanism calibrated_model = m.robot.model;
+    for (std::size_t i = 0; i < calibrated_model.parameters.size(); ++i)
+      calibrated_model.parameters[i].value =
+          m.compensation.calibrated[static_cast<Eigen::Index>(i)];
+    const calib::FirmwareDeltaFit fit =
+        calib::fit_firmware_delta(calibrated_model, m.compensation.calibrated, firmware);
+    try {
+      const calib::FirmwareController c =
+          calib::firmware_delta_controller(m.robot.model, m.compensation.calibrated, fit);
+      m.compensation.nominal = c.controller;
+      m.compensation.calibrated = c.calibrated;
+    } catch (const std::invalid_argument& e) {
+      throw InputError(fmt::format("--firmware {}: {}", o.firmware, e.what()));
+    }
+  }
   return m;
 }
 
@@ -291,10 +318,15 @@ nlohmann::json compensate_gcode(const CompensateOptions& o, Models& m, const Pip
         o.tolerance * 1e6);
   } else {
     header = fmt::format(
-        "; robocal compensate: {} rewritten for a controller with the nominal model of {}, so "
-        "that the calibrated robot of {} ({} route) follows the program within {:.1f} um\n",
-        o.gcode.filename().string(), m.robot.model.name, o.session.string(), m.route,
-        o.tolerance * 1e6);
+        "; robocal compensate: {} rewritten for a controller with {}, so that the calibrated "
+        "robot of {} ({} route) follows the program within {:.1f} um\n",
+        o.gcode.filename().string(),
+        o.firmware.empty()
+            ? "the nominal model of " + m.robot.model.name
+            : fmt::format("`robocal export {} --format {}`'s settings (coordinates: the "
+                          "firmware's frame)",
+                          o.session.string(), o.firmware),
+        o.session.string(), m.route, o.tolerance * 1e6);
   }
   core::write_file_atomic(o.out, header + rewrite.text);
   say(log,
@@ -305,6 +337,7 @@ nlohmann::json compensate_gcode(const CompensateOptions& o, Models& m, const Pip
   return {{"stage", "compensate"},
           {"mode", "gcode"},
           {"axes", options.axes == calib::GcodeAxes::kActuators ? "actuators" : "tool"},
+          {"controller_model", o.firmware.empty() ? "robot file" : o.firmware},
           {"program", o.gcode.string()},
           {"out", o.out.string()},
           {"tolerance_m", o.tolerance},

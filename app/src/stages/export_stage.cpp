@@ -141,7 +141,8 @@ ExportModel session_model(const std::string& input) {
   } catch (const std::exception&) {
     // No figure to quote: the settings stand without it.
   }
-  out.notes.compensate = fmt::format("`robocal compensate {} --gcode PROGRAM --out OUT`", input);
+  out.notes.compensate =
+      "`robocal compensate " + input + " --firmware FORMAT --gcode PROGRAM --out OUT`";
   return out;
 }
 
@@ -204,7 +205,10 @@ nlohmann::json export_robot(const ExportRequest& request) {
     if (const std::string why = calib::firmware_delta_mismatch(model, firmware); !why.empty())
       throw refuse(why);
     const calib::FirmwareDeltaFit fit = calib::fit_firmware_delta(model, params, firmware);
-    text = calib::firmware_delta_text(fit, model.name, source.notes);
+    calib::FirmwareTextNotes notes = source.notes;
+    if (const auto at = notes.compensate.find("FORMAT"); at != std::string::npos)
+      notes.compensate.replace(at, 6, request.format);
+    text = calib::firmware_delta_text(fit, model.name, notes);
     nlohmann::json settings = nlohmann::json::object();
     for (const auto& [name, value] : calib::firmware_delta_settings(fit)) settings[name] = value;
     report["firmware"] = calib::to_string(firmware);
