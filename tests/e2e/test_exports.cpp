@@ -3,7 +3,8 @@
 // on the true parameters, independently of the export code:
 //  - linear delta, Klipper: nozzle targets commanded through the exported settings (Klipper's
 //    documented inverse kinematics, written here) drive the TRUE robot; where its nozzle (the
-//    robot file's tool, not the board) arrives, against where it was sent;
+//    robot file's tool, not the board) arrives, against where it was sent; and a program
+//    rewritten by `robocal compensate --firmware klipper`, run through the same equations;
 //  - UR5, URDF: link poses composed from urdfdom's joints; the board, base, camera and tool links
 //    against the true board, the true base and the true camera;
 //  - rotary Delta, `robocal compensate --gcode`: the axis words are shoulder angles; the true

@@ -80,13 +80,14 @@ CommandSpec export_command() {
                 if (report.contains("nominal_rms_m"))
                   fmt::print(human,
                              "(with the robot file's drawing: RMS {:.1f} um{}); `robocal "
-                             "compensate` rewrites programs with the full calibrated model\n",
+                             "compensate --firmware {}` carries the rest\n",
                              report.at("nominal_rms_m").get<double>() * 1e6,
                              report.contains("model_fit_rms_m")
                                  ? fmt::format("; robocal's full model fits the measurements to "
                                                "{:.1f} um",
                                                report.at("model_fit_rms_m").get<double>() * 1e6)
-                                 : std::string());
+                                 : std::string(),
+                             *format);
               }
               if (!json->empty()) write_json(report, *json);
               return kExitOk;

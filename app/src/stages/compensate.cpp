@@ -278,6 +278,13 @@ nlohmann::json compensate_targets(const CompensateOptions& o, Models& m, const P
 
 // What the controller's G-code axes are: the user's word (--axes), else the robot file's.
 calib::GcodeAxes gcode_axes(const CompensateOptions& o, const SessionRobot& robot) {
+  // A printer firmware with delta settings computes the robot's kinematics: X Y Z is the nozzle.
+  if (!o.firmware.empty()) {
+    if (o.axes == "actuators")
+      throw InputError("--firmware " + o.firmware +
+                       " runs delta kinematics (X Y Z = the nozzle): not with --axes actuators");
+    return calib::GcodeAxes::kTool;
+  }
   if (o.axes == "tool") return calib::GcodeAxes::kTool;
   if (o.axes == "actuators") return calib::GcodeAxes::kActuators;
   if (!o.axes.empty()) throw InputError("--axes " + o.axes + ": expected tool or actuators");
