@@ -1,6 +1,8 @@
 // Linear-delta firmware settings fitted from the identified model (firmware_delta.hpp).
 #include "robocal/calib/firmware_delta.hpp"
 
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/frame_placement.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 
@@ -289,6 +291,17 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
         "only {} workspace positions of '{}' have every rod sloping down from its carriage: too "
         "few to fit the firmware's model",
         fit.readings.size(), model.name));
+  // The uncorrected firmware (the drawing's numbers) against the calibrated model, for scale.
+  Eigen::VectorXd r_nominal;
+  if (residuals(layout, x, fit, r_nominal)) {
+    double sum = 0.0;
+    for (std::size_t k = 0; k < fit.readings.size(); ++k) {
+      const double e = r_nominal.segment<3>(static_cast<Eigen::Index>(3 * k)).norm();
+      sum += e * e;
+      fit.nominal_max = std::max(fit.nominal_max, e);
+    }
+    fit.nominal_rms = std::sqrt(sum / static_cast<double>(fit.readings.size()));
+  }
   fit.iterations = least_squares(layout, fit, x);
   fit.model = unpack_model(layout, x, fit.model.endstop_reading);
   fit.frame = unpack_frame(layout, x);
@@ -302,6 +315,92 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
   }
   fit.residual_rms = std::sqrt(sum / static_cast<double>(fit.readings.size()));
   return fit;
+}
+
+FirmwareController firmware_delta_controller(const Mechanism& model, const Eigen::VectorXd& params,
+                                             const FirmwareDeltaFit& fit) {
+  if (const std::string why = firmware_delta_mismatch(model, fit.firmware); !why.empty())
+    throw std::invalid_argument(why);
+  const auto refuse = [&](const std::string& why) {
+    return std::invalid_argument(fmt::format(
+        "'{}': the robot file's layout does not carry {}'s delta model ({}): compensate for the "
+        "robot file's drawing instead",
+        model.name, to_string(fit.firmware), why));
+  };
+  const auto set = [&](Eigen::VectorXd& p, const std::string& name, double value) {
+    const int i = model.parameter_index(name);
+    if (i < 0) throw refuse("no parameter " + name);
+    p[i] = value;
+  };
+  const auto zero_body = [&](Eigen::VectorXd& p, int body) {
+    for (std::size_t i = 0; i < model.parameters.size(); ++i)
+      if (model.parameters[i].body == body &&
+          model.parameters[i].group != ParamGroup::kEncoderScale)
+        p[static_cast<Eigen::Index>(i)] = 0.0;
+  };
+  FirmwareController out;
+  Eigen::VectorXd& c = out.controller;
+  c = params;
+  // The firmware's frame is the controller's world: the base at identity, the nozzle at the
+  // effector's centre (every frame from the base to the tool at zero).
+  for (int b = model.tool; b >= 0; b = model.bodies[static_cast<std::size_t>(b)].parent)
+    zero_body(c, b);
+  const FirmwareDeltaModel& m = fit.model;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const int carriage = model.actuated[i];
+    const Body& cb = model.bodies[static_cast<std::size_t>(carriage)];
+    const int tower = cb.parent;
+    if (tower <= 0 || model.bodies[static_cast<std::size_t>(tower)].parent != 0)
+      throw refuse("carriage '" + cb.name + "' does not hang from a tower body on the base");
+    int rod = -1, joint = -1;
+    for (const Closure& cl : model.closures)
+      if (cl.type == ClosureType::kDistance && (cl.body_a == carriage || cl.body_b == carriage)) {
+        rod = cl.length_param;
+        joint = cl.body_a == carriage ? cl.body_b : cl.body_a;
+      }
+    if (rod < 0) throw refuse("no rod from carriage '" + cb.name + "'");
+    const std::string& tower_name = model.bodies[static_cast<std::size_t>(tower)].name;
+    const std::string& joint_name = model.bodies[static_cast<std::size_t>(joint)].name;
+    // The effector joint keeps its place in the effector's plane; the tower stands the firmware's
+    // delta radius from it, at the tower's angle.
+    zero_body(c, joint);
+    const int jx = model.parameter_index(joint_name + ".x");
+    const int jy = model.parameter_index(joint_name + ".y");
+    if (jx < 0 || jy < 0)
+      throw refuse("effector joint '" + joint_name + "' is not an xyz_rpy frame");
+    c[jx] = params[jx];
+    c[jy] = params[jy];
+    zero_body(c, tower);
+    set(c, tower_name + ".x", m.delta_radius * std::cos(m.tower_angle[i]) + c[jx]);
+    set(c, tower_name + ".y", m.delta_radius * std::sin(m.tower_angle[i]) + c[jy]);
+    zero_body(c, carriage);
+    if (cb.encoder_offset_param < 0) throw refuse("carriage '" + cb.name + "' has no encoder");
+    c[cb.encoder_offset_param] = m.carriage_offset[i];
+    if (cb.encoder_scale_param >= 0) c[cb.encoder_scale_param] = 1.0;
+    c[rod] = m.arm_length[i];
+  }
+  // The calibrated robot in the firmware's frame: p_firmware = Ry(pitch) Rx(roll) p_base + (x, y).
+  out.calibrated = params;
+  Eigen::Isometry3d firmware_T_base = Eigen::Isometry3d::Identity();
+  firmware_T_base.linear() = (Eigen::AngleAxisd(fit.frame.pitch, Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(fit.frame.roll, Eigen::Vector3d::UnitX()))
+                                 .toRotationMatrix();
+  firmware_T_base.translation() = Eigen::Vector3d(fit.frame.x, fit.frame.y, 0.0);
+  const Eigen::VectorXd r0 = fit.readings.front();
+  const Eigen::Isometry3d world_T_base = forward_kinematics(model, params, r0, 0).pose;
+  set_fixed_frame_pose(model, out.calibrated, 0, r0, firmware_T_base * world_T_base);
+  // The layout carried the firmware's model only if it computes the firmware's nozzle.
+  for (std::size_t k = 0; k < fit.readings.size(); k += 10) {
+    Eigen::Vector3d nozzle;
+    if (!firmware_delta_position(m, fit.readings[k], nozzle)) continue;
+    const ForwardResult fk = forward_kinematics(model, c, fit.readings[k], model.tool);
+    if (!fk.closure.ok() || (fk.pose.translation() - nozzle).norm() > 1e-9)
+      throw refuse(
+          fmt::format("its forward kinematics with the settings is {:.3g} m from the "
+                      "firmware's",
+                      fk.closure.ok() ? (fk.pose.translation() - nozzle).norm() : 1.0));
+  }
+  return out;
 }
 
 std::vector<std::pair<std::string, double>> firmware_delta_settings(const FirmwareDeltaFit& fit) {
@@ -360,7 +459,8 @@ std::vector<std::pair<std::string, double>> firmware_delta_settings(const Firmwa
   return out;
 }
 
-std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& robot_name) {
+std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& robot_name,
+                                const FirmwareTextNotes& notes) {
   const auto settings = firmware_delta_settings(fit);
   const auto get = [&](const std::string& name) {
     for (const auto& [key, value] : settings)
@@ -381,6 +481,22 @@ std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& 
       "{} (what the firmware cannot represent: tower tilt, towers off one circle, "
       "per-tower effector offsets{})\n",
       c, fit.firmware == DeltaFirmware::kMarlin ? ", rod lengths that differ" : "");
+  t += fmt::format(
+      "{} what these settings keep: the firmware with the robot file's drawing is RMS {:.1f} um, "
+      "max {:.1f} um from the calibrated model; with these settings RMS {:.1f} um, max {:.1f} um\n",
+      c, fit.nominal_rms * 1e6, fit.nominal_max * 1e6, fit.residual_rms * 1e6,
+      fit.residual_max * 1e6);
+  if (std::isfinite(notes.model_rms))
+    t += fmt::format(
+        "{} robocal's full calibrated model follows the measurements to {:.1f} um RMS\n", c,
+        notes.model_rms * 1e6);
+  if (!notes.compensate.empty())
+    t += fmt::format(
+        "{} for the rest: {} rewrites G-code programs for the printer running these settings, "
+        "so that it follows them with the full calibrated model's accuracy\n",
+        c, notes.compensate);
+  if (!notes.tool.empty()) t += fmt::format("{} nozzle: {}\n", c, notes.tool);
+  if (!notes.measured.empty()) t += fmt::format("{} measured: {}\n", c, notes.measured);
   t += fmt::format(
       "{} assumes the endstops trigger at carriage readings {:.3f}, {:.3f}, {:.3f} mm\n", c,
       fit.model.endstop_reading[0] * 1e3, fit.model.endstop_reading[1] * 1e3,

@@ -4,6 +4,8 @@
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/frame_placement.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "small_lu.hpp"
 #include "task_rows.hpp"
 #include "tree_evaluator.hpp"
@@ -678,6 +680,52 @@ Eigen::VectorXd calibrated_in_robot_frame(const Mechanism& model, const Eigen::V
     const int body = model.parameters[static_cast<std::size_t>(i)].body;
     const bool base_frame = body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0;
     if (base_frame || (mount_body >= 0 && body == mount_body)) out[i] = file_nominal[i];
+  }
+  return out;
+}
+
+UserFrames user_frames(const Mechanism& model, const Eigen::VectorXd& estimate,
+                       const Eigen::VectorXd& file_nominal, int measured_body,
+                       bool mount_replaced) {
+  const auto n = static_cast<Eigen::Index>(model.parameters.size());
+  if (estimate.size() != n || file_nominal.size() != n)
+    throw std::invalid_argument("user_frames: parameter vectors do not match the model");
+  if (measured_body >= static_cast<int>(model.bodies.size()))
+    throw std::invalid_argument("user_frames: measured body out of range");
+  UserFrames out;
+  out.params =
+      calibrated_in_robot_frame(model, estimate, file_nominal, mount_replaced ? measured_body : -1);
+  // Poses of fixed frames hanging from the world do not depend on the joints: any state does.
+  const Eigen::VectorXd home = readings_from_joint_values(model, estimate, model.home_actuated());
+  const JointState at_estimate = make_joint_state(model, estimate, home, model.home_passive());
+  const JointState at_user = make_joint_state(model, out.params, home, model.home_passive());
+  // The robot's first body is its base (fit_base_frame places it in the measurement world).
+  const Eigen::Isometry3d measurement_T_base = frame_pose(model, estimate, at_estimate, 0);
+  const Eigen::Isometry3d world_T_base = frame_pose(model, out.params, at_user, 0);
+  out.world_T_measurement = world_T_base * measurement_T_base.inverse();
+  // Other bodies hanging from the world are identified geometry relative to the base: they move
+  // with it (calibrated_in_robot_frame took them to the file's values).
+  for (std::size_t b = 1; b < model.bodies.size(); ++b) {
+    if (model.bodies[b].parent >= 0) continue;
+    bool has_params = false;
+    for (const Parameter& p : model.parameters)
+      has_params = has_params || p.body == static_cast<int>(b);
+    if (!has_params) continue;
+    const Eigen::Isometry3d wanted =
+        out.world_T_measurement * frame_pose(model, estimate, at_estimate, static_cast<int>(b));
+    set_fixed_frame_pose(model, out.params, static_cast<int>(b), home, wanted);
+  }
+  out.measured_body = measured_body;
+  if (measured_body >= 0) {
+    // The measured frame as identified, relative to its predecessor: the same in either world.
+    out.measured_parent = model.bodies[static_cast<std::size_t>(measured_body)].parent;
+    const Eigen::Isometry3d parent =
+        out.measured_parent < 0 ? Eigen::Isometry3d::Identity()
+                                : frame_pose(model, estimate, at_estimate, out.measured_parent);
+    out.parent_T_measured =
+        parent.inverse() * frame_pose(model, estimate, at_estimate, measured_body);
+    if (out.measured_parent < 0)
+      out.parent_T_measured = out.world_T_measurement * out.parent_T_measured;
   }
   return out;
 }

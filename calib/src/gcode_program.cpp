@@ -1,5 +1,6 @@
 #include "robocal/calib/gcode_program.hpp"
 
+#include "robocal/calib/closure.hpp"
 #include "robocal/core/input_error.hpp"
 
 #include <fmt/core.h>
@@ -9,6 +10,9 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <limits>
+#include <memory>
+#include <numbers>
 #include <sstream>
 
 namespace robocal::calib {
@@ -17,6 +21,26 @@ const GcodeWord* GcodeLine::word(char letter) const {
   for (const auto& w : words)
     if (w.letter == letter) return &w;
   return nullptr;
+}
+
+std::vector<GcodeActuatorAxis> gcode_actuator_axes(const Mechanism& model,
+                                                   const Eigen::VectorXd& nominal) {
+  static const std::string kLetters = "XYZUVWABC";
+  if (model.actuated.size() > kLetters.size())
+    throw core::InputError(
+        fmt::format("{}: {} actuators; a G-code controller has at most 9 axes (X Y Z U V W A B C)",
+                    model.source, model.actuated.size()));
+  // As robocal's G-code link: readings in counts reach the axes through the nominal scale.
+  const Eigen::VectorXd scale = encoder_scales(model, nominal);
+  std::vector<GcodeActuatorAxis> axes;
+  for (std::size_t i = 0; i < model.actuated.size(); ++i) {
+    const Body& b = model.bodies[static_cast<std::size_t>(model.actuated[i])];
+    const bool revolute = b.joint == JointType::kRevolute;
+    axes.push_back(
+        {kLetters[i], b.name, revolute,
+         (revolute ? 180.0 / std::numbers::pi : 1000.0) * scale[static_cast<Eigen::Index>(i)]});
+  }
+  return axes;
 }
 
 namespace {
@@ -317,6 +341,157 @@ struct Writer {
 
   void keep(const GcodeLine& line) { out << line.text << '\n'; }
 
+  // ---- a controller whose axes are the actuators (GcodeAxes::kActuators) ----
+  std::unique_ptr<Compensator> compensator;  // calibrated IK (and the nominal FK, for the stats)
+  std::vector<GcodeActuatorAxis> axes;
+  struct Node {
+    double f = 0.0;              // fraction of the meant move
+    Eigen::VectorXd readings;    // calibrated IK answer
+    Eigen::VectorXd actuator_q;  // joint values (IK seed)
+    Eigen::VectorXd passive;     // passive joints (IK and FK seed)
+  };
+  std::optional<Node> at;                // where the controller's axes were last sent
+  std::vector<double> last_axis_values;  // last emitted axis values (rounded, absolute)
+  double feed = std::numeric_limits<double>::quiet_NaN();  // the program's F (mm/min)
+
+  [[nodiscard]] bool actuator_axes() const { return options.axes == GcodeAxes::kActuators; }
+
+  int axis_decimals(const GcodeActuatorAxis& axis) const {
+    return options.decimals + (axis.revolute ? 1 : 0);
+  }
+
+  Node solve(const GcodeLine& line, const Eigen::Vector3d& p, double f, const Node* near,
+             const std::string& source) {
+    TaskTarget t;
+    t.pose.translation() = p;
+    IkSeed warm;
+    if (near != nullptr) warm = {near->actuator_q, near->passive};
+    CompensatedTarget c = compensator->compensate(t, warm);
+    if (!c.usable() && near != nullptr) c = compensator->compensate(t);  // again, cold
+    if (!c.usable())
+      fail(source, line.number,
+           fmt::format("the point ({:.4f}, {:.4f}, {:.4f}) mm: {}", p.x() / kMm, p.y() / kMm,
+                       p.z() / kMm, c.problem));
+    stats.max_correction = std::max(stats.max_correction, (c.commanded.translation() - p).norm());
+    return {f, c.ik.actuator_readings, c.ik.actuator_q, c.ik.passive};
+  }
+
+  // Largest distance, at 1/4, 1/2 and 3/4 of the piece a -> b, between the calibrated tool driven
+  // along the linearly interpolated readings and the meant point there (infinite when the robot
+  // does not assemble).
+  double piece_deviation(const MeantMove& meant, const Node& a, const Node& b) const {
+    const Mechanism& model = *models.model;
+    double worst = 0.0;
+    for (const double t : {0.25, 0.5, 0.75}) {
+      const Eigen::VectorXd r = a.readings + t * (b.readings - a.readings);
+      const Eigen::VectorXd passive = a.passive.size() == b.passive.size() && a.passive.size() > 0
+                                          ? Eigen::VectorXd(a.passive + t * (b.passive - a.passive))
+                                          : Eigen::VectorXd();
+      const ForwardResult fk =
+          forward_kinematics(model, models.calibrated, r, model.task.frame, passive);
+      if (!fk.closure.ok()) return std::numeric_limits<double>::infinity();
+      worst = std::max(worst, (fk.pose.translation() - meant.at(a.f + t * (b.f - a.f))).norm());
+    }
+    return worst;
+  }
+
+  // Appends the pieces that end after `a` up to `b` (bisected until each deviates less than the
+  // tolerance), `b` last.
+  void bisect(const GcodeLine& line, const MeantMove& meant, const Node& a, const Node& b,
+              int depth, std::vector<Node>& pieces, const std::string& source) {
+    const double deviation = piece_deviation(meant, a, b);
+    if (deviation <= options.tolerance) {
+      stats.max_deviation = std::max(stats.max_deviation, deviation);
+      pieces.push_back(b);
+      return;
+    }
+    if (depth >= 16)
+      fail(source, line.number,
+           fmt::format("cannot be compensated: the actuators' straight interpolation stays "
+                       "{:.1f} um from the meant path even in 2^16 pieces (a singular "
+                       "configuration near the path?)",
+                       deviation * 1e6));
+    const double f = 0.5 * (a.f + b.f);
+    const Node mid = solve(line, meant.at(f), f, &a, source);
+    bisect(line, meant, a, mid, depth + 1, pieces, source);
+    bisect(line, meant, mid, b, depth + 1, pieces, source);
+  }
+
+  void emit_axes(const GcodeLine& line, const char* command, const Eigen::VectorXd& readings,
+                 bool first, std::optional<double> e_value, std::optional<double> f_value) {
+    out << command;
+    for (std::size_t a = 0; a < axes.size(); ++a) {
+      const int decimals = axis_decimals(axes[a]);
+      const double v =
+          rounded(readings[static_cast<Eigen::Index>(a)] * axes[a].unit_factor, decimals);
+      const double value = absolute ? v : v - last_axis_values[a];
+      out << fmt::format(" {}{:.{}f}", axes[a].letter, value == 0.0 ? 0.0 : value, decimals);
+      last_axis_values[a] = v;
+    }
+    if (e_value) out << fmt::format(" E{:.{}f}", *e_value, kEDecimals);
+    if (f_value) out << fmt::format(" F{:.3f}", *f_value);
+    if (first)
+      for (const auto& w : line.words) {
+        bool axis = false;
+        for (const auto& ax : axes) axis = axis || ax.letter == w.letter;
+        if (!axis && std::string("XYZEIJRF").find(w.letter) == std::string::npos)
+          out << ' ' << w.text;
+      }
+    if (first && !line.comment.empty()) out << ' ' << line.comment;
+    out << '\n';
+    ++stats.emitted_moves;
+  }
+
+  void move_actuators(const GcodeLine& line, const MeantMove& meant, const std::string& source) {
+    ++stats.moves;
+    if (const GcodeWord* fw = line.word('F')) feed = fw->value;
+    const GcodeWord* ew = line.word('E');
+    const double e_start = e;
+    const double e_end = ew == nullptr ? e : (e_absolute ? ew->value : e + ew->value);
+    const auto e_at = [&](double f0, double f1) -> std::optional<double> {
+      if (ew == nullptr) return std::nullopt;
+      const double de = e_end - e_start;
+      return e_absolute ? e_start + f1 * de
+                        : rounded(f1 * de, kEDecimals) - rounded(f0 * de, kEDecimals);
+    };
+    const char* command = meant.rapid ? "G0" : "G1";
+    if (!meant.from_known || !at) {
+      // Nothing to interpolate from: one point, and no feed (its distance is unknown).
+      at = solve(line, meant.to, 1.0, nullptr, source);
+      emit_axes(line, command, at->readings, true, e_at(0.0, 1.0), std::nullopt);
+      e = e_end;
+      return;
+    }
+    Node start = *at;
+    start.f = 0.0;
+    const Node end = solve(line, meant.to, 1.0, &start, source);
+    std::vector<Node> pieces;
+    bisect(line, meant, start, end, 0, pieces, source);
+    Node previous = start;
+    bool first = true;
+    for (const Node& piece : pieces) {
+      // The piece takes the time the program meant for it: its meant length at the program's
+      // feed. The controller's F is the axes' rate over their combined (Euclidean) change.
+      std::optional<double> f_value;
+      if (std::isfinite(feed) && feed > 0.0) {
+        const double tool_mm = (meant.at(piece.f) - meant.at(previous.f)).norm() / kMm;
+        double axes_units = 0.0;
+        for (std::size_t a = 0; a < axes.size(); ++a) {
+          const double d = (piece.readings[static_cast<Eigen::Index>(a)] -
+                            previous.readings[static_cast<Eigen::Index>(a)]) *
+                           axes[a].unit_factor;
+          axes_units += d * d;
+        }
+        if (tool_mm > 1e-9) f_value = feed * std::sqrt(axes_units) / tool_mm;
+      }
+      emit_axes(line, command, piece.readings, first, e_at(previous.f, piece.f), f_value);
+      first = false;
+      previous = piece;
+    }
+    at = end;
+    e = e_end;
+  }
+
   void emit(const GcodeLine& line, const char* command, const Eigen::Vector3d& c, bool first,
             std::optional<double> e_value) {
     out << command;
@@ -411,6 +586,14 @@ struct Writer {
     if (c == "G28") {
       commanded.reset();
       seed = {};
+      at.reset();
+    }
+    if (c == "G92" && actuator_axes()) {
+      // The program's coordinate shift is in the meant positions already; the controller's axes
+      // (actuators) keep their own positions. E is still reset as written.
+      const GcodeWord* ew = line.word('E');
+      if (ew != nullptr || line.words.empty()) e = ew != nullptr ? ew->value : 0.0;
+      return;
     }
     if (c == "G92") {
       static constexpr std::array<char, 3> kAxes = {'X', 'Y', 'Z'};
@@ -452,11 +635,36 @@ GcodeRewrite rewrite_gcode(const GcodeProgram& program, const CompensationModels
         "{}: G-code rewriting needs a robot whose task is a position (a printer-style robot); "
         "{} has another task type",
         program.source, models.model != nullptr ? models.model->name : "the robot"));
+  if (options.axes == GcodeAxes::kUnknown)
+    throw core::InputError(fmt::format(
+        "{}: it is not known whether the controller of {} reads G-code X Y Z as the tool's "
+        "position or as its actuators' positions",
+        program.source, models.model->name));
   Interpreter state(program.source);
   Writer writer(options, models);
+  if (writer.actuator_axes()) {
+    writer.axes = gcode_actuator_axes(*models.model, models.nominal);
+    writer.last_axis_values.assign(writer.axes.size(), 0.0);
+    writer.compensator = std::make_unique<Compensator>(models);
+  }
   for (const GcodeLine& line : program.lines) {
     const MeantMove meant = state.step(line);
     if (meant.kind == MoveKind::kNone) {
+      if (const GcodeWord* fw = line.word('F');
+          fw != nullptr && (line.command == "G0" || line.command == "G1"))
+        writer.feed = fw->value;
+      if (writer.actuator_axes() && line.command == "G92") {
+        writer.modal(line, state);
+        // Only E survives: the axes' G92 would redefine where the actuators are.
+        const GcodeWord* ew = line.word('E');
+        writer.out << (ew != nullptr        ? "G92 " + ew->text
+                       : line.words.empty() ? std::string("G92 E0")
+                                            : std::string("; G92"))
+                   << " ; robocal: G92 X/Y/Z applied to the program's coordinates (the "
+                      "controller's axes are the actuators)"
+                   << (line.comment.empty() ? "" : " " + line.comment) << '\n';
+        continue;
+      }
       writer.modal(line, state);
       // E-only moves still advance the program's extrusion.
       const GcodeWord* ew = line.word('E');
@@ -465,7 +673,10 @@ GcodeRewrite rewrite_gcode(const GcodeProgram& program, const CompensationModels
       writer.keep(line);
       continue;
     }
-    writer.move(line, meant, program.source);
+    if (writer.actuator_axes())
+      writer.move_actuators(line, meant, program.source);
+    else
+      writer.move(line, meant, program.source);
   }
   return {writer.out.str(), writer.stats};
 }

@@ -426,7 +426,7 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   check_keys(source, root, "robot file",
              {"robot", "description", "source", "rotation_order", "sigma_defaults", "tool", "task",
               "closed_form", "workspace", "bodies", "closures", "rods", "assembly_mode", "labels",
-              "unmodelled_error"});
+              "unmodelled_error", "controller"});
   Mechanism m;
   m.source = source;
   if (!root["robot"]) fail(source, root, "missing 'robot' (the robot's name)");
@@ -479,10 +479,11 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
   std::vector<RawBody> raw;
   std::map<std::string, int> raw_index;
   for (const auto& b : bodies) {
-    check_keys(source, b, "body",
-               {"name", "parent", "convention", "joint", "role", "params", "free", "fixed", "exact",
-                "sigma", "encoder", "limits", "cone", "home", "collision", "rotation_order", "axis",
-                "orientation"});
+    check_keys(
+        source, b, "body",
+        {"name",      "parent",         "convention", "joint",       "role",     "params", "free",
+         "fixed",     "exact",          "sigma",      "encoder",     "limits",   "cone",   "home",
+         "collision", "rotation_order", "axis",       "orientation", "velocity", "effort"});
     if (!b["name"]) fail(source, b, "body without 'name'");
     RawBody r{b, text(source, b["name"], "name"), "world"};
     if (r.name == "world") fail(source, b["name"], "'world' is the root frame, not a body name");
@@ -708,6 +709,18 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       if (body.limits.lower > body.limits.upper) fail(source, lim, "limits: lower > upper");
     }
     if (b["cone"]) body.limits.cone = number(source, b["cone"], "cone");
+    // The drive's rated speed and force (exports such as URDF carry them; robocal plans nothing
+    // with them).
+    for (const auto& [key, value] :
+         {std::pair<const char*, double*>{"velocity", &body.limits.velocity},
+          std::pair<const char*, double*>{"effort", &body.limits.effort}}) {
+      if (!b[key]) continue;
+      if (!moving) fail(source, b[key], std::string(key) + " is only for moving joints");
+      *value = number(source, b[key], key);
+      if (!(*value > 0.0))
+        fail(source, b[key],
+             std::string(key) + " must be > 0 (rad/s or m/s for velocity, N m or N for effort)");
+    }
     if (b["home"]) {
       if (!moving) fail(source, b["home"], "home is only for moving joints");
       body.home = number(source, b["home"], "home");
@@ -872,6 +885,24 @@ Mechanism parse(const YAML::Node& root, const std::string& source) {
       fail(source, t["type"], "task.type must be position, pose or joint");
     }
     if (t["frame"]) m.task.frame = body_ref(t["frame"], "task.frame");
+  }
+
+  // --- what the controller's G-code axes are
+  if (const YAML::Node c = root["controller"]) {
+    check_keys(source, c, "controller", {"gcode_axes"});
+    m.controller.line = c.Mark().line + 1;
+    if (c["gcode_axes"]) {
+      const std::string axes = text(source, c["gcode_axes"], "controller.gcode_axes");
+      if (axes == "tool") {
+        m.controller.gcode_axes = GcodeAxes::kTool;
+      } else if (axes == "actuators") {
+        m.controller.gcode_axes = GcodeAxes::kActuators;
+      } else {
+        fail(source, c["gcode_axes"],
+             "controller.gcode_axes must be tool (the firmware computes this robot's kinematics: "
+             "X Y Z = the tool position) or actuators (one G-code axis per actuator)");
+      }
+    }
   }
 
   // --- closed form (seeds)

@@ -109,15 +109,19 @@ std::string urdf_mismatch(const Mechanism& model) {
   return "";
 }
 
-std::string urdf_text(const Mechanism& model, const Eigen::VectorXd& params) {
+std::string urdf_text(const Mechanism& model, const Eigen::VectorXd& params,
+                      const std::vector<ExtraFrame>& extra) {
   if (const std::string why = urdf_mismatch(model); !why.empty()) throw std::invalid_argument(why);
   std::string links = "  <link name=\"world\"/>\n", joints;
   std::string notes;
+  std::vector<std::string> link_names = {"world"};
+  std::vector<std::string> defaulted;  // joints given the default velocity/effort
   for (std::size_t i = 0; i < model.bodies.size(); ++i) {
     const Body& b = model.bodies[i];
     const std::string parent =
         b.parent < 0 ? "world" : model.bodies[static_cast<std::size_t>(b.parent)].name;
     links += fmt::format("  <link name=\"{}\"/>\n", b.name);
+    link_names.push_back(b.name);
     if (b.joint == JointType::kFixed) {
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       for (const ElementaryOp& op : b.ops)
@@ -136,36 +140,84 @@ std::string urdf_text(const Mechanism& model, const Eigen::VectorXd& params) {
           b.name, s.scale);
     const bool offset = !is_identity(s.after);
     const std::string moving = offset ? b.name + "_moving" : b.name;
-    if (offset) links += fmt::format("  <link name=\"{}\"/>\n", moving);
+    if (offset) {
+      links += fmt::format("  <link name=\"{}\"/>\n", moving);
+      link_names.push_back(moving);
+    }
+    // Speed and force: the robot file's (joint units per second, and the force conjugate to the
+    // joint value), in reading units; else the documented defaults (0 would read "cannot move").
+    const double abs_scale = std::abs(s.scale) > 0.0 ? std::abs(s.scale) : 1.0;
+    double velocity = b.limits.velocity, effort = b.limits.effort;
+    if (!(velocity > 0.0) || !(effort > 0.0)) defaulted.push_back(b.name);
+    if (!(velocity > 0.0))
+      velocity = s.rotation ? kDefaultRevoluteVelocity : kDefaultPrismaticVelocity;
+    if (!(effort > 0.0)) effort = s.rotation ? kDefaultRevoluteEffort : kDefaultPrismaticEffort;
+    velocity /= abs_scale;
+    effort *= abs_scale;
     std::string limit;
-    if (b.limits.lower > -1e299 && b.limits.upper < 1e299) {
+    const bool bounded = b.limits.lower > -1e299 && b.limits.upper < 1e299;
+    if (bounded) {
       // robocal's limits bound q; URDF's the joint value = the reading (q - offset) / scale.
       const double offset_q = param_value(params, b.encoder_offset_param);
       double lower = (b.limits.lower - offset_q) / s.scale;
       double upper = (b.limits.upper - offset_q) / s.scale;
       if (lower > upper) std::swap(lower, upper);
       limit = fmt::format(
-          "\n    <limit lower=\"{:.17g}\" upper=\"{:.17g}\" effort=\"0\" velocity=\"0\"/>", lower,
-          upper);
+          "\n    <limit lower=\"{:.17g}\" upper=\"{:.17g}\" effort=\"{:.17g}\" "
+          "velocity=\"{:.17g}\"/>",
+          lower, upper, effort, velocity);
+    } else if (s.rotation) {
+      // A continuous joint has no position limits; its speed and force still bound it.
+      limit =
+          fmt::format("\n    <limit effort=\"{:.17g}\" velocity=\"{:.17g}\"/>", effort, velocity);
+    } else {
+      // URDF requires position limits on a prismatic joint; the file gives none.
+      limit = fmt::format(
+          "\n    <limit lower=\"-1e9\" upper=\"1e9\" effort=\"{:.17g}\" velocity=\"{:.17g}\"/>",
+          effort, velocity);
     }
     joints += fmt::format(
         "  <joint name=\"{0}\" type=\"{1}\">\n    <parent link=\"{2}\"/>\n    <child "
         "link=\"{3}\"/>\n    {4}\n    <axis xyz=\"{5:g} {6:g} {7:g}\"/>{8}\n  </joint>\n",
-        b.name, s.rotation ? (limit.empty() ? "continuous" : "revolute") : "prismatic", parent,
-        moving, origin_xml(s.before), s.axis.x(), s.axis.y(), s.axis.z(),
-        limit.empty() && !s.rotation ? "\n    <limit lower=\"-1e9\" upper=\"1e9\" effort=\"0\" "
-                                       "velocity=\"0\"/>"
-                                     : limit);
+        b.name, s.rotation ? (bounded ? "revolute" : "continuous") : "prismatic", parent, moving,
+        origin_xml(s.before), s.axis.x(), s.axis.y(), s.axis.z(), limit);
     if (offset)
       joints += fmt::format(
           "  <joint name=\"{0}_offset\" type=\"fixed\">\n    <parent link=\"{1}\"/>\n    <child "
           "link=\"{0}\"/>\n    {2}\n  </joint>\n",
           b.name, moving, origin_xml(s.after));
   }
+  if (!defaulted.empty()) {
+    std::string names;
+    for (const auto& n : defaulted) names += (names.empty() ? "" : ", ") + n;
+    notes += fmt::format(
+        "  <!-- joints {}: the robot file gives no velocity/effort; written: {:g} rad/s and {:g} "
+        "N m (revolute), {:g} m/s and {:g} N (prismatic): set your drives' ratings -->\n",
+        names, kDefaultRevoluteVelocity, kDefaultRevoluteEffort, kDefaultPrismaticVelocity,
+        kDefaultPrismaticEffort);
+  }
+  for (const ExtraFrame& f : extra) {
+    if (std::find(link_names.begin(), link_names.end(), f.name) != link_names.end())
+      throw std::invalid_argument(
+          fmt::format("'{}': the frame '{}' cannot be added: a link has that name already",
+                      model.name, f.name));
+    if (f.parent >= static_cast<int>(model.bodies.size()))
+      throw std::invalid_argument("urdf_text: an extra frame's parent is not a body");
+    link_names.push_back(f.name);
+    links += fmt::format("  <link name=\"{}\"/>\n", f.name);
+    if (!f.what.empty()) notes += fmt::format("  <!-- link {}: {} -->\n", f.name, f.what);
+    joints += fmt::format(
+        "  <joint name=\"{0}_mount\" type=\"fixed\">\n    <parent link=\"{1}\"/>\n    <child "
+        "link=\"{0}\"/>\n    {2}\n  </joint>\n",
+        f.name,
+        f.parent < 0 ? std::string("world") : model.bodies[static_cast<std::size_t>(f.parent)].name,
+        origin_xml(f.parent_T_frame));
+  }
   return fmt::format(
       "<?xml version=\"1.0\"?>\n<!-- robocal: '{0}' (links = robocal's bodies, same frames; "
-      "joint values = the controller's readings) -->\n{1}<robot name=\"{0}\">\n{2}{3}</robot>\n",
-      model.name, notes, links, joints);
+      "world = the robot file's world frame; tool = link '{1}'; joint values = the controller's "
+      "readings) -->\n{2}<robot name=\"{0}\">\n{3}{4}</robot>\n",
+      model.name, model.bodies.at(static_cast<std::size_t>(model.tool)).name, notes, links, joints);
 }
 
 std::string robot_yaml_from_urdf(const std::string& urdf, const std::string& source) {
@@ -348,8 +400,16 @@ std::string derived_dh_table(const Mechanism& model, const Eigen::VectorXd& para
 
 }  // namespace
 
-std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params) {
+std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params,
+                          const std::vector<ExtraFrame>& extra) {
   if (const std::string why = urdf_mismatch(model); !why.empty()) throw std::invalid_argument(why);
+  std::string extra_lines;
+  for (const ExtraFrame& f : extra)
+    extra_lines +=
+        fmt::format("  {} ({} -> {}): {}{}\n", f.name,
+                    f.parent < 0 ? std::string("world")
+                                 : model.bodies.at(static_cast<std::size_t>(f.parent)).name,
+                    f.name, frame_text(f.parent_T_frame), f.what.empty() ? "" : "; " + f.what);
   std::string convention;
   std::vector<int> joints;
   for (std::size_t i = 0; i < model.bodies.size(); ++i) {
@@ -366,7 +426,8 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
   }
   if (joints.empty()) throw std::invalid_argument("'" + model.name + "' has no moving joints");
   // Joints not given in DH: the table is derived from the joint axes' geometry.
-  if (convention != "dh" && convention != "mdh") return derived_dh_table(model, params, joints);
+  if (convention != "dh" && convention != "mdh")
+    return derived_dh_table(model, params, joints) + extra_lines;
   const auto value = [&](const Body& b, const char* key) {
     const int k = model.parameter_index(b.name + "." + key);
     return k >= 0 ? params[k] : 0.0;
@@ -400,7 +461,7 @@ std::string dh_table_text(const Mechanism& model, const Eigen::VectorXd& params)
                                  frame_pose(model, params, zero, model.tool);
   t += "  base (world -> joint 1's frame): " + frame_text(base) + "\n";
   t += "  tool (last joint's frame -> tool): " + frame_text(tool) + "\n";
-  return t;
+  return t + extra_lines;
 }
 
 }  // namespace robocal::calib

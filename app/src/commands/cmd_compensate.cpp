@@ -40,7 +40,18 @@ CommandSpec compensate_command() {
             "--tolerance of the meant line. Feeds, comments and other commands are kept; "
             "extrusion is shared over the pieces. A line that cannot be compensated (malformed, "
             "unreachable, a move from an unknown position) is an error naming the line, and "
-            "--out is then not touched.\n\n"
+            "--out is then not touched.\n"
+            "     The output is written in the units the controller reads (--axes, else the "
+            "robot file's `controller: {gcode_axes}`; neither: refused): 'tool' -- X Y Z are the "
+            "tool position (a firmware with the robot's kinematics, e.g. a printer's delta "
+            "kinematics); 'actuators' -- one axis per actuator, X Y Z U V W A B C in actuator "
+            "order, mm or degrees (raw-axis mode, as robocal's G-code link drives a robot, e.g. "
+            "the rotary Delta): every point becomes the calibrated inverse kinematics' actuator "
+            "positions, moves are subdivided until the axes' straight interpolation keeps the "
+            "tool within --tolerance of the meant path, F becomes the axes' rate.\n"
+            "     --firmware klipper|marlin|rrf: the printer runs `robocal export SESSION "
+            "--format F`'s delta settings, not the drawing: the program (in the firmware's "
+            "frame) is rewritten for them, carrying what their smaller model leaves.\n\n"
             "Coordinates are the robot file's base frame (not the cameras'): the calibrated "
             "model's base placement is replaced by the file's; the tool is the robot file's tool "
             "on the identified geometry (the end-effector board's mount is the board's, not the "
@@ -70,6 +81,15 @@ CommandSpec compensate_command() {
                        "loop)")
             ->check(CLI::IsMember({"pose", "pixel"}))
             ->capture_default_str();
+        cmd.add_option("--axes", o->axes,
+                       "G-code: the controller's axis words are the tool position (tool) or the "
+                       "actuators (actuators); default: the robot file's controller.gcode_axes")
+            ->check(CLI::IsMember({"tool", "actuators"}));
+        cmd.add_option("--firmware", o->firmware,
+                       "The controller runs `robocal export SESSION --format F`'s delta settings "
+                       "(klipper, marlin, rrf): compensate what they leave; coordinates are then "
+                       "the firmware's frame")
+            ->check(CLI::IsMember({"klipper", "marlin", "rrf"}));
         cmd.add_option("--robot", o->robot_override,
                        "Robot file to use instead of the session's (checked against it)");
         cmd.add_option("--json", *json, "Write the JSON report here ('-' = stdout)");

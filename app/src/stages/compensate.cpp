@@ -9,6 +9,7 @@
 #include "stages/stages.hpp"
 
 #include "robocal/calib/compensation.hpp"
+#include "robocal/calib/firmware_delta.hpp"
 #include "robocal/calib/gcode_program.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/core/files.hpp"
@@ -189,6 +190,32 @@ Models session_models(const CompensateOptions& o) {
   m.compensation.nominal = file_nominal;
   m.compensation.calibrated = calib::calibrated_in_robot_frame(
       m.robot.model, estimate, file_nominal, s.target_mount.empty() ? -1 : m.robot.frame);
+  if (!o.firmware.empty()) {
+    // The controller runs the settings `robocal export` fits to this calibrated robot (the same
+    // fit: the model's values are the calibrated ones, as export reads them): compensate for
+    // what they leave, in the firmware's coordinates.
+    const calib::DeltaFirmware firmware = o.firmware == "marlin" ? calib::DeltaFirmware::kMarlin
+                                          : o.firmware == "rrf"
+                                              ? calib::DeltaFirmware::kReprapFirmware
+                                              : calib::DeltaFirmware::kKlipper;
+    if (const std::string why = calib::firmware_delta_mismatch(m.robot.model, firmware);
+        !why.empty())
+      throw InputError(fmt::format("--firmware {}: {}", o.firmware, why));
+    calib::Mechanism calibrated_model = m.robot.model;
+    for (std::size_t i = 0; i < calibrated_model.parameters.size(); ++i)
+      calibrated_model.parameters[i].value =
+          m.compensation.calibrated[static_cast<Eigen::Index>(i)];
+    const calib::FirmwareDeltaFit fit =
+        calib::fit_firmware_delta(calibrated_model, m.compensation.calibrated, firmware);
+    try {
+      const calib::FirmwareController c =
+          calib::firmware_delta_controller(m.robot.model, m.compensation.calibrated, fit);
+      m.compensation.nominal = c.controller;
+      m.compensation.calibrated = c.calibrated;
+    } catch (const std::invalid_argument& e) {
+      throw InputError(fmt::format("--firmware {}: {}", o.firmware, e.what()));
+    }
+  }
   return m;
 }
 
@@ -249,6 +276,29 @@ nlohmann::json compensate_targets(const CompensateOptions& o, Models& m, const P
           {"refused", refused},    {"rows", rows},      {"status", refused == 0 ? "ok" : "failed"}};
 }
 
+// What the controller's G-code axes are: the user's word (--axes), else the robot file's.
+calib::GcodeAxes gcode_axes(const CompensateOptions& o, const SessionRobot& robot) {
+  // A printer firmware with delta settings computes the robot's kinematics: X Y Z is the nozzle.
+  if (!o.firmware.empty()) {
+    if (o.axes == "actuators")
+      throw InputError("--firmware " + o.firmware +
+                       " runs delta kinematics (X Y Z = the nozzle): not with --axes actuators");
+    return calib::GcodeAxes::kTool;
+  }
+  if (o.axes == "tool") return calib::GcodeAxes::kTool;
+  if (o.axes == "actuators") return calib::GcodeAxes::kActuators;
+  if (!o.axes.empty()) throw InputError("--axes " + o.axes + ": expected tool or actuators");
+  if (robot.model.controller.gcode_axes != calib::GcodeAxes::kUnknown)
+    return robot.model.controller.gcode_axes;
+  throw InputError(fmt::format(
+      "{}: the robot file does not say what its controller's G-code axes are, so the program "
+      "cannot be written in the units the controller reads: add `controller: {{gcode_axes: "
+      "tool}}` (the firmware computes this robot's kinematics: X Y Z = the tool position) or "
+      "`controller: {{gcode_axes: actuators}}` (one axis per actuator, mm or degrees), or give "
+      "--axes tool|actuators",
+      robot.file));
+}
+
 nlohmann::json compensate_gcode(const CompensateOptions& o, Models& m, const PipelineLog& log) {
   if (o.out.empty()) throw InputError("--gcode needs --out FILE for the rewritten program");
   std::error_code ec;
@@ -258,12 +308,33 @@ nlohmann::json compensate_gcode(const CompensateOptions& o, Models& m, const Pip
       calib::parse_gcode(core::read_text_file(o.gcode), o.gcode.string());
   calib::GcodeRewriteOptions options;
   options.tolerance = o.tolerance;
+  options.axes = gcode_axes(o, m.robot);
   const calib::GcodeRewrite rewrite = calib::rewrite_gcode(program, m.compensation, options);
-  const std::string header = fmt::format(
-      "; robocal compensate: {} rewritten for a controller with the nominal model of {}, so that "
-      "the calibrated robot of {} ({} route) follows the program within {:.1f} um\n",
-      o.gcode.filename().string(), m.robot.model.name, o.session.string(), m.route,
-      o.tolerance * 1e6);
+  std::string header;
+  if (options.axes == calib::GcodeAxes::kActuators) {
+    std::string words;
+    for (const auto& a : calib::gcode_actuator_axes(m.robot.model, m.compensation.nominal))
+      words += fmt::format("{}{} = {} ({})", words.empty() ? "" : ", ", a.letter, a.body,
+                           a.revolute ? "degrees" : "mm");
+    header = fmt::format(
+        "; robocal compensate: {} rewritten for a controller whose axes are the actuators of {} "
+        "({}), so that the calibrated robot of {} ({} route) follows the program within {:.1f} "
+        "um\n; axis words are actuator positions, not tool positions; F is the axes' rate that "
+        "keeps each piece's meant time\n",
+        o.gcode.filename().string(), m.robot.model.name, words, o.session.string(), m.route,
+        o.tolerance * 1e6);
+  } else {
+    header = fmt::format(
+        "; robocal compensate: {} rewritten for a controller with {}, so that the calibrated "
+        "robot of {} ({} route) follows the program within {:.1f} um\n",
+        o.gcode.filename().string(),
+        o.firmware.empty()
+            ? "the nominal model of " + m.robot.model.name
+            : fmt::format("`robocal export {} --format {}`'s settings (coordinates: the "
+                          "firmware's frame)",
+                          o.session.string(), o.firmware),
+        o.session.string(), m.route, o.tolerance * 1e6);
+  }
   core::write_file_atomic(o.out, header + rewrite.text);
   say(log,
       "{}: {} moves written as {} (largest correction {:.1f} um; predicted tool error along the "
@@ -272,6 +343,8 @@ nlohmann::json compensate_gcode(const CompensateOptions& o, Models& m, const Pip
       rewrite.stats.max_correction * 1e6, rewrite.stats.max_deviation * 1e6);
   return {{"stage", "compensate"},
           {"mode", "gcode"},
+          {"axes", options.axes == calib::GcodeAxes::kActuators ? "actuators" : "tool"},
+          {"controller_model", o.firmware.empty() ? "robot file" : o.firmware},
           {"program", o.gcode.string()},
           {"out", o.out.string()},
           {"tolerance_m", o.tolerance},

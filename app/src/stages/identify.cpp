@@ -125,6 +125,17 @@ std::vector<std::size_t> changed_from(const Eigen::VectorXd& values,
   return changed;
 }
 
+// The calibrated file is the measurement model: which frame stands in for what.
+std::string frames_note(const Session& s, const calib::Mechanism& model, int frame) {
+  const std::string name = model.bodies.at(static_cast<std::size_t>(frame)).name;
+  return s.target_mount.empty()
+             ? "Measured frame: " + name + "."
+             : "Frame " + name +
+                   ": the end-effector board as mounted (session.yaml's target mount), not the "
+                   "robot's own; `robocal export` writes the robot in its own base and tool "
+                   "frames.";
+}
+
 }  // namespace
 
 nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
@@ -244,7 +255,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
                      "{:.3g} m.",
                      result.residuals.poses.size(), result.excluded.size(), result.estimated.size(),
                      result.residuals.position_rms),
-         "World frame: the session's rig frame (camera " + s.cameras[0].name + ")."});
+         "World frame: the session's rig frame (camera " + s.cameras[0].name + ").",
+         frames_note(s, model, robot.frame)});
     core::write_file_atomic(results.calibrated_robot(), text);
     report["calibrated_robot"] = ResultsLayout::kCalibratedRobot;
   }
@@ -295,7 +307,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
                        "pixels) from session {}.",
                        kVersion, dir.filename().string()),
            fmt::format("Reprojection RMS {:.3f} px.", pr.value("reprojection_rms_px", 0.0)),
-           "World frame: the session's rig frame (camera " + s.cameras[0].name + ")."});
+           "World frame: the session's rig frame (camera " + s.cameras[0].name + ").",
+           frames_note(s, model, robot.frame)});
       core::write_file_atomic(results.calibrated_robot_pixels(), text);
       report["pixel_route"]["calibrated_robot"] = ResultsLayout::kCalibratedRobotPixels;
     }

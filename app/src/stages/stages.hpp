@@ -139,6 +139,12 @@ struct CompensateOptions {
   std::filesystem::path out;
   double tolerance = 10e-6;    // m
   std::string route = "pose";  // identification route whose estimate is used: pose | pixel
+  // G-code: what the controller's axis words are, "tool" or "actuators"; "" = the robot file's
+  // `controller: {gcode_axes}` (refused when the file does not say either).
+  std::string axes;
+  // "klipper", "marlin" or "rrf": the controller runs `robocal export`'s settings for that
+  // firmware (a linear delta), not the robot file's drawing; "" = the drawing.
+  std::string firmware;
 };
 nlohmann::json compensate_session(const CompensateOptions& options, const PipelineLog& log);
 // stages/report.cpp: results/report.html from the session's results (needs a successful

@@ -8,6 +8,7 @@
 #include "printer_scenario.hpp"
 
 #include "robocal/calib/compensation.hpp"
+#include "robocal/calib/firmware_delta.hpp"
 #include "robocal/calib/gcode_program.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/kinematics.hpp"
@@ -134,6 +135,192 @@ TEST(Compensation, RewrittenProgramFollowsTheMeantPathOnTheTrueRobot) {
   for (const auto& line : rewritten.lines)
     if (const GcodeWord* e = line.word('E')) e_total += e->value;
   EXPECT_NEAR(e_total, 2.5 + 3.1 + 0.8 + 9.4, 1e-4);
+}
+
+// The rotary Delta's controller has no Delta kinematics: its G-code axes are the three shoulders
+// (degrees). A program meant in millimetres, rewritten for it, must put the true robot's tool on
+// the meant path when the controller drives the shoulders along straight lines between the
+// written angles; and every piece must take the time the program meant for it.
+const char* const kDeltaProgram = R"(; a small part under the Delta
+G21
+G90
+G28
+G1 X0 Y0 Z-900 F3000
+G1 X60 Y0 Z-900 ; a long straight move
+G3 X0 Y60 I-60 J0 (quarter circle)
+G91
+G1 X-30 Y-30 Z-20 F1200
+G90
+G92 X0 Y0
+G1 X10 Y-50
+)";
+
+// Axis values of every move of a rewritten program, in order, as the controller holds them
+// (absolute), with the line's F when it has one.
+struct AxisMove {
+  Eigen::Vector3d values = Eigen::Vector3d::Zero();
+  double feed = 0.0;  // 0: no F on the line
+};
+std::vector<AxisMove> axis_moves(const GcodeProgram& program, bool actuator_axes) {
+  std::vector<AxisMove> moves;
+  bool absolute = true;
+  Eigen::Vector3d at = Eigen::Vector3d::Zero();
+  for (const auto& line : program.lines) {
+    if (line.command == "G90") absolute = true;
+    if (line.command == "G91") absolute = false;
+    if (line.command == "G92" && actuator_axes) {
+      EXPECT_TRUE(line.word('X') == nullptr && line.word('Y') == nullptr &&
+                  line.word('Z') == nullptr)
+          << "line " << line.number << ": the controller's axes must not be redefined";
+    }
+    if (line.command != "G0" && line.command != "G1") continue;
+    AxisMove m;
+    for (int a = 0; a < 3; ++a) {
+      const GcodeWord* w = line.word("XYZ"[a]);
+      if (w == nullptr) continue;
+      at[a] = absolute ? w->value : at[a] + w->value;
+    }
+    m.values = at;
+    if (const GcodeWord* f = line.word('F')) m.feed = f->value;
+    moves.push_back(m);
+  }
+  return moves;
+}
+
+TEST(Compensation, ARotaryDeltaProgramIsWrittenInShoulderAngles) {
+  const Mechanism model =
+      load_robot_file(std::string(ROBOCAL_TESTDATA_DIR) + "/robots/rotary_delta.yaml");
+  ASSERT_EQ(model.controller.gcode_axes, GcodeAxes::kActuators);  // what its file says
+  std::mt19937 rng(31);
+  const Eigen::VectorXd truth = perturb_parameters(
+      model.nominal_parameters(), tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
+  // The calibrated model is the truth itself: the rewrite alone is under test.
+  const CompensationModels models{&model, model.nominal_parameters(), truth};
+  const GcodeProgram program = parse_gcode(kDeltaProgram, "delta.gcode");
+  GcodeRewriteOptions options;
+  options.tolerance = 10e-6;
+  options.axes = GcodeAxes::kActuators;
+  const GcodeRewrite rewrite = rewrite_gcode(program, models, options);
+  const GcodeProgram rewritten = parse_gcode(rewrite.text, "rewritten.gcode");
+  const std::vector<AxisMove> moves = axis_moves(rewritten, true);
+  ASSERT_GT(moves.size(), 6U) << rewrite.text;
+
+  // The axis words are shoulder angles in degrees (the joint limits are -60..90 degrees), and
+  // the true robot driven to them, and along the straight lines between them, stays on the
+  // meant path.
+  const auto meant = positions(gcode_path(program, 0.2e-3));
+  double worst = 0.0;
+  for (std::size_t k = 0; k < moves.size(); ++k) {
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_GE(moves[k].values[a], -60.0 - 1e-6) << rewrite.text;
+      EXPECT_LE(moves[k].values[a], 90.0 + 1e-6) << rewrite.text;
+    }
+    const Eigen::Vector3d to = moves[k].values * M_PI / 180.0;
+    const Eigen::Vector3d from = k == 0 ? to : Eigen::Vector3d(moves[k - 1].values * M_PI / 180.0);
+    for (const double t : {0.0, 0.2, 0.4, 0.5, 0.6, 0.8, 1.0}) {
+      const Eigen::VectorXd r = from + t * (to - from);
+      const ForwardResult fk = forward_kinematics(model, truth, r, model.task.frame);
+      ASSERT_TRUE(fk.closure.ok()) << "move " << k;
+      worst = std::max(worst, distance_to_polyline(fk.pose.translation(), meant));
+    }
+  }
+  RecordProperty("path_error_um", std::to_string(worst * 1e6));
+  // The tolerance, plus the angles' rounding (1e-5 degree at arms of 0.6 m and rods of 0.9 m).
+  EXPECT_LE(worst, options.tolerance + 0.5e-6);
+  // Straight lines in the shoulders are not straight for the tool: the moves were divided.
+  EXPECT_GT(rewrite.stats.emitted_moves, rewrite.stats.moves + 5);
+  // The first point was 0.9 m below the base: read as degrees, X0 Y0 Z-900 would be far outside
+  // the shoulders' range, so it was not copied.
+  EXPECT_EQ(rewrite.text.find("Z-900"), std::string::npos);
+
+  // Feeds: each piece takes the program's time, its meant length at the program's F.
+  int checked = 0;
+  const auto tool_at = [&](const Eigen::Vector3d& degrees) -> Eigen::Vector3d {
+    const Eigen::VectorXd q = degrees * M_PI / 180.0;
+    const ForwardResult fk = forward_kinematics(model, truth, q, model.task.frame);
+    EXPECT_TRUE(fk.closure.ok());
+    return fk.pose.translation();
+  };
+  for (std::size_t k = 1; k < moves.size(); ++k) {
+    if (moves[k].feed <= 0.0) continue;
+    const double axes_minutes = (moves[k].values - moves[k - 1].values).norm() / moves[k].feed;
+    const double tool_mm = (tool_at(moves[k].values) - tool_at(moves[k - 1].values)).norm() * 1e3;
+    // The program's feed: 3000 mm/min up to the relative move, 1200 after it. The written
+    // angles put the tool on the meant path to the tolerance, so the piece's meant length is
+    // its true chord to twice that.
+    const double length_error = std::min(std::abs(axes_minutes * 3000.0 - tool_mm),
+                                         std::abs(axes_minutes * 1200.0 - tool_mm));
+    EXPECT_LT(length_error, 2.0 * options.tolerance * 1e3 + 1e-3) << "move " << k;
+    ++checked;
+  }
+  EXPECT_GT(checked, 5);
+
+  // Written for a controller that reads X Y Z as the tool position, the same program stays in
+  // millimetres; a controller nobody described is refused.
+  options.axes = GcodeAxes::kTool;
+  const GcodeRewrite task_space = rewrite_gcode(program, models, options);
+  const std::vector<AxisMove> task_moves =
+      axis_moves(parse_gcode(task_space.text, "task.gcode"), false);
+  ASSERT_FALSE(task_moves.empty());
+  EXPECT_NEAR(task_moves.front().values.z(), -900.0, 5.0) << task_space.text;
+  options.axes = GcodeAxes::kUnknown;
+  EXPECT_THROW((void)rewrite_gcode(program, models, options), core::InputError);
+}
+
+// A printer running the delta settings `robocal export` fits (Klipper here) keeps what its smaller
+// model cannot hold (tower tilts, towers off one circle: hundreds of um); a program rewritten for
+// that printer, with the calibrated robot, follows its meant path to the tolerance. The printer
+// is run as Klipper runs it: straight lines in its frame, carriage heights by its equation
+// h_i = z + sqrt(L_i^2 - (x - R cos a_i)^2 - (y - R sin a_i)^2), reading = h_i - c_i.
+TEST(Compensation, ProgramsForAPrinterRunningTheFittedSettingsFollowTheCalibratedRobot) {
+  const Mechanism model = linear_delta();
+  std::mt19937 rng(41);
+  const Eigen::VectorXd truth = perturb_parameters(
+      model.nominal_parameters(), tolerance_sigmas(model, 0.5e-3, 0.2 * M_PI / 180.0), rng);
+  const FirmwareDeltaFit fit = fit_firmware_delta(model, truth, DeltaFirmware::kKlipper);
+  ASSERT_GT(fit.residual_rms, 50e-6);  // more than the firmware's model holds
+  const FirmwareController controller = firmware_delta_controller(model, truth, fit);
+  const FirmwareDeltaModel& k = fit.model;
+  const auto klipper_readings = [&](const Eigen::Vector3d& p) {
+    Eigen::VectorXd r(3);
+    for (std::size_t i = 0; i < 3; ++i) {
+      const double dx = p.x() - k.delta_radius * std::cos(k.tower_angle[i]);
+      const double dy = p.y() - k.delta_radius * std::sin(k.tower_angle[i]);
+      r[static_cast<Eigen::Index>(i)] =
+          p.z() + std::sqrt(k.arm_length[i] * k.arm_length[i] - dx * dx - dy * dy) -
+          k.carriage_offset[i];
+    }
+    return r;
+  };
+  // The true robot's nozzle in the firmware's frame: p_firmware = Ry(pitch) Rx(roll) p + (x, y).
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(fit.frame.pitch, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(fit.frame.roll, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  const Eigen::Vector3d t(fit.frame.x, fit.frame.y, 0.0);
+  const auto printed = [&](const GcodeProgram& p) {
+    std::vector<Eigen::Vector3d> tool;
+    for (const auto& point : gcode_path(p, 0.2e-3)) {
+      const ForwardResult fk =
+          forward_kinematics(model, truth, klipper_readings(point.position), model.tool);
+      EXPECT_TRUE(fk.closure.ok()) << "line " << point.line;
+      tool.emplace_back(R * fk.pose.translation() + t);
+    }
+    return tool;
+  };
+  const GcodeProgram program = parse_gcode(
+      "G90\nG1 X0 Y0 Z50 F3000\nG1 X40 Y0\nG3 X0 Y40 I-40 J0\nG1 X-30 Y-30 Z60\n", "part.gcode");
+  GcodeRewriteOptions options;
+  options.tolerance = 10e-6;
+  const CompensationModels models{&model, controller.controller, controller.calibrated};
+  const GcodeRewrite rewrite = rewrite_gcode(program, models, options);
+  const auto meant = positions(gcode_path(program, 0.2e-3));
+  const double compensated =
+      path_error(printed(parse_gcode(rewrite.text, "rewritten.gcode")), meant);
+  const double settings_alone = path_error(printed(program), meant);
+  RecordProperty("compensated_um", std::to_string(compensated * 1e6));
+  RecordProperty("settings_alone_um", std::to_string(settings_alone * 1e6));
+  EXPECT_LE(compensated, options.tolerance + 0.2e-6) << rewrite.text;  // + the 0.1 um rounding
+  EXPECT_GT(settings_alone, 5.0 * options.tolerance);
 }
 
 TEST(Compensation, UnreachablePointIsNamedByItsLine) {

@@ -2,6 +2,8 @@
 // of every link composed here from urdfdom's joints equals robocal's to 1e-9 m; the URDF imported
 // back as a robot file gives the same tool; the DH table's printed numbers rebuild the model.
 #include "../calib/calib_test_support.hpp"
+#include "robocal/calib/compensation.hpp"
+#include "robocal/calib/frame_placement.hpp"
 #include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/calib/serial_exports.hpp"
@@ -12,6 +14,7 @@
 
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <random>
 #include <sstream>
 
@@ -112,6 +115,137 @@ TEST_P(UrdfRoundTrip, UrdfdomReadsTheSameRobotAndTheImportGivesItBack) {
 
 INSTANTIATE_TEST_SUITE_P(SerialArms, UrdfRoundTrip,
                          ::testing::Values("ur5.yaml", "modular_arm.yaml"));
+
+TEST(UrdfExport, JointLimitsCarryTheRobotFilesSpeedAndForceOrNamedDefaults) {
+  // The UR5's file gives its data sheet's speed and torque: written per joint, never 0 (MoveIt
+  // reads 0 as "cannot move").
+  const Mechanism ur5 = testing::load("ur5.yaml");
+  const urdf::ModelInterfaceSharedPtr a = urdf::parseURDF(urdf_text(ur5, ur5.nominal_parameters()));
+  ASSERT_TRUE(a);
+  const std::map<std::string, double> torque = {{"shoulder_pan", 150}, {"shoulder_lift", 150},
+                                                {"elbow", 150},        {"wrist1", 28},
+                                                {"wrist2", 28},        {"wrist3", 28}};
+  for (const auto& [name, effort] : torque) {
+    const urdf::JointConstSharedPtr j = a->getJoint(name);
+    ASSERT_TRUE(j && j->limits) << name;
+    EXPECT_DOUBLE_EQ(j->limits->velocity, std::numbers::pi) << name;
+    EXPECT_DOUBLE_EQ(j->limits->effort, effort) << name;
+    // Position limits from the file (readings = joint values: encoder offset 0, scale 1).
+    const Body& b = ur5.bodies[static_cast<std::size_t>(ur5.body_index(name))];
+    EXPECT_DOUBLE_EQ(j->limits->lower, b.limits.lower) << name;
+    EXPECT_DOUBLE_EQ(j->limits->upper, b.limits.upper) << name;
+  }
+  // A file without ratings: the documented defaults, and a comment that says so.
+  const Mechanism arm = testing::load("modular_arm.yaml");
+  const std::string xml = urdf_text(arm, arm.nominal_parameters());
+  const urdf::ModelInterfaceSharedPtr b = urdf::parseURDF(xml);
+  ASSERT_TRUE(b);
+  for (const int k : arm.actuated) {
+    const Body& body = arm.bodies[static_cast<std::size_t>(k)];
+    const urdf::JointConstSharedPtr j = b->getJoint(body.name);
+    ASSERT_TRUE(j && j->limits) << body.name;
+    const bool revolute = body.joint == JointType::kRevolute;
+    EXPECT_DOUBLE_EQ(j->limits->velocity,
+                     revolute ? kDefaultRevoluteVelocity : kDefaultPrismaticVelocity);
+    EXPECT_DOUBLE_EQ(j->limits->effort,
+                     revolute ? kDefaultRevoluteEffort : kDefaultPrismaticEffort);
+  }
+  EXPECT_NE(xml.find("the robot file gives no velocity/effort"), std::string::npos) << xml;
+}
+
+// An identified UR5 as identification leaves it: its base placed in a camera's frame, its tool
+// frame's values replaced by the end-effector board's mount.
+struct Identified {
+  Mechanism model;
+  Eigen::VectorXd file, estimate;
+  Eigen::Isometry3d camera_T_base, flange_T_board;
+};
+
+Identified identified_ur5() {
+  Identified id{testing::load("ur5.yaml"), {}, {}, {}, {}};
+  id.file = id.model.nominal_parameters();
+  id.estimate = perturbed(id.model, 11);
+  id.camera_T_base = Eigen::Translation3d(0.3, -0.1, 1.2) *
+                     Eigen::AngleAxisd(2.9, Eigen::Vector3d(0.2, 1.0, 0.1).normalized());
+  id.flange_T_board = Eigen::Translation3d(-0.145, -0.145, 0.01) *
+                      Eigen::AngleAxisd(3.14159, Eigen::Vector3d::UnitX());
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(6);
+  set_fixed_frame_pose(id.model, id.estimate, 0, zero, id.camera_T_base);
+  const int tool = id.model.tool;
+  const int wrist3 = id.model.bodies[static_cast<std::size_t>(tool)].parent;
+  set_fixed_frame_pose(id.model, id.estimate, tool, zero,
+                       body_pose(id.model, id.estimate, zero, wrist3) * id.flange_T_board);
+  return id;
+}
+
+TEST(UserFrames, TheRobotsOwnBaseAndToolWithTheBoardAndTheCameraBeside) {
+  const Identified id = identified_ur5();
+  const Mechanism& m = id.model;
+  const UserFrames user = user_frames(m, id.estimate, id.file, m.tool, true);
+  // Base and tool at the file's values; everything between as identified.
+  for (std::size_t i = 0; i < m.parameters.size(); ++i) {
+    const int body = m.parameters[i].body;
+    const bool own = body == 0 || body == m.tool;
+    EXPECT_DOUBLE_EQ(
+        user.params[static_cast<Eigen::Index>(i)],
+        own ? id.file[static_cast<Eigen::Index>(i)] : id.estimate[static_cast<Eigen::Index>(i)])
+        << m.parameters[i].name;
+  }
+  EXPECT_TRUE(user.world_T_measurement.isApprox(id.camera_T_base.inverse(), 1e-12));
+  EXPECT_EQ(user.measured_parent, m.bodies[static_cast<std::size_t>(m.tool)].parent);
+  EXPECT_TRUE(user.parent_T_measured.isApprox(id.flange_T_board, 1e-12));
+  // At any readings, the board in the camera's frame is where the identified model puts it.
+  std::mt19937 rng(2);
+  for (int trial = 0; trial < 5; ++trial) {
+    const Eigen::VectorXd r = readings_of(m, rng);
+    const Eigen::Isometry3d identified = body_pose(m, id.estimate, r, m.tool);
+    const Eigen::Isometry3d rebuilt = user.world_T_measurement.inverse() *
+                                      body_pose(m, user.params, r, user.measured_parent) *
+                                      user.parent_T_measured;
+    EXPECT_LT((identified.translation() - rebuilt.translation()).norm(), 1e-12);
+    EXPECT_LT((identified.linear() - rebuilt.linear()).norm(), 1e-12);
+  }
+}
+
+TEST(UserFrames, UrdfAndDhCarryTheBoardAndTheCameraAsTheirOwnFrames) {
+  const Identified id = identified_ur5();
+  const Mechanism& m = id.model;
+  const UserFrames user = user_frames(m, id.estimate, id.file, m.tool, true);
+  const std::vector<ExtraFrame> extra = {
+      {"board", user.measured_parent, user.parent_T_measured, "the measured board"},
+      {"camera0", 0, user.world_T_measurement, "camera 0"}};
+  const std::string xml = urdf_text(m, user.params, extra);
+  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  ASSERT_TRUE(model) << xml;
+  std::mt19937 rng(4);
+  const Eigen::VectorXd r = readings_of(m, rng);
+  std::map<std::string, double> q;
+  for (std::size_t a = 0; a < m.actuated.size(); ++a)
+    q[m.bodies[static_cast<std::size_t>(m.actuated[a])].name] = r[static_cast<Eigen::Index>(a)];
+  const auto links = urdf_link_poses(*model, q);
+  // camera0 -> board in the URDF = the identified camera -> board.
+  const Eigen::Isometry3d camera_T_board = links.at("camera0").inverse() * links.at("board");
+  const Eigen::Isometry3d identified = body_pose(m, id.estimate, r, m.tool);
+  EXPECT_LT((camera_T_board.translation() - identified.translation()).norm(), 1e-9);
+  EXPECT_LT((camera_T_board.linear() - identified.linear()).norm(), 1e-9);
+  // The tool link is the flange (the file's tool), the world the robot's own.
+  const Eigen::Isometry3d flange = links.at("tool");
+  EXPECT_LT((flange.translation() - body_pose(m, user.params, r, m.tool).translation()).norm(),
+            1e-9);
+  EXPECT_NE(xml.find("<!-- link board: the measured board -->"), std::string::npos);
+  // A frame named like a link is refused, naming it.
+  try {
+    (void)urdf_text(m, user.params, {{"wrist3", 0, Eigen::Isometry3d::Identity(), ""}});
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'wrist3'"), std::string::npos) << e.what();
+  }
+  const std::string dh = dh_table_text(m, user.params, extra);
+  EXPECT_NE(dh.find("  board (wrist3 -> board): xyz [-145.0000, -145.0000, 10.0000] mm"),
+            std::string::npos)
+      << dh;
+  EXPECT_NE(dh.find("  camera0 (base -> camera0): "), std::string::npos) << dh;
+}
 
 TEST(UrdfExport, ParallelRobotsAreRefusedWithTheReason) {
   const Mechanism delta = testing::load("rotary_delta.yaml");

@@ -153,4 +153,30 @@ CompensatedSegment compensate_segment(const CompensationModels& models, const Ei
 Eigen::VectorXd calibrated_in_robot_frame(const Mechanism& model, const Eigen::VectorXd& estimate,
                                           const Eigen::VectorXd& file_nominal, int mount_body);
 
+// The calibrated robot in the user's frames, for exports (URDF, firmware settings, DH): the
+// robot's own base frame and its own tool (calibrated_in_robot_frame's parameters), with the two
+// frames the calibration measured in kept beside them instead of in the robot's place:
+//  - the measured frame (the end-effector board as mounted and identified) on the body before it;
+//  - the measurement world (the first camera's frame) placed in the robot's world.
+struct UserFrames {
+  Eigen::VectorXd params;  // the robot in its own frames (calibrated_in_robot_frame)
+  int measured_body = -1;  // the body whose frame was measured (-1: none given)
+  // The measured frame's pose on its predecessor body (the identified mounting); its
+  // predecessor's index (-1: the world).
+  int measured_parent = -1;
+  Eigen::Isometry3d parent_T_measured = Eigen::Isometry3d::Identity();
+  // The measurement world (the identification's world, the first camera's frame) in the robot's
+  // world frame; world_T_base of the robot's own base is then T(file) and its camera the same.
+  Eigen::Isometry3d world_T_measurement = Eigen::Isometry3d::Identity();
+};
+
+// `estimate`: an identified parameter vector whose world is the measurement world and whose
+// `measured_body` carries the board's mount when `mount_replaced` (a session's target mount);
+// `file_nominal`: the robot file's own values. Every body hanging from the world is moved by one
+// rigid transform (the first body's own base goes to its file values, the others keep their
+// place relative to it), so the identified geometry is unchanged. Throws std::invalid_argument
+// for vectors of the wrong size or a measured body out of range.
+UserFrames user_frames(const Mechanism& model, const Eigen::VectorXd& estimate,
+                       const Eigen::VectorXd& file_nominal, int measured_body, bool mount_replaced);
+
 }  // namespace robocal::calib

@@ -68,6 +68,11 @@ struct FirmwareDeltaFit {
   // Residual of the firmware's model: |firmware nozzle - tool| in the firmware frame, m.
   double residual_rms = 0.0;
   double residual_max = 0.0;
+  // The same distance with the firmware set to the robot file's drawing (the closed form's
+  // radius, rods, tower angles and endstops; the firmware frame on the base frame): how far the
+  // uncorrected firmware is from the calibrated model, m.
+  double nominal_rms = 0.0;
+  double nominal_max = 0.0;
   int iterations = 0;
 };
 
@@ -90,9 +95,38 @@ FirmwareDeltaFit fit_firmware_delta(const Mechanism& model, const Eigen::VectorX
                                     DeltaFirmware firmware,
                                     const FirmwareDeltaOptions& options = {});
 
+// A printer running the fitted settings, as parameter vectors of the robot's own mechanism, for
+// compensation (compensation.hpp) against the firmware instead of the robot file's drawing:
+// `controller` is the firmware's model (towers on its circle at its angles, its rods, carriage
+// offsets c_i, the nozzle at the effector's centre) in the firmware's frame; `calibrated` is
+// `params` (the calibrated robot in its own base frame) moved into the firmware's frame. Both
+// put tool positions in the firmware's coordinates, the ones a program for it is written in.
+// Throws std::invalid_argument when the robot file's layout does not carry the firmware's model
+// (each carriage on a fixed tower body hanging from the base, a rod from the carriage to an
+// effector joint, xyz_rpy frames): checked by reproducing the firmware's forward kinematics at
+// the fit's workspace samples to 1 nm.
+struct FirmwareController {
+  Eigen::VectorXd controller;
+  Eigen::VectorXd calibrated;
+};
+FirmwareController firmware_delta_controller(const Mechanism& model, const Eigen::VectorXd& params,
+                                             const FirmwareDeltaFit& fit);
+
+// What the settings' comments say besides the fit itself (all optional).
+struct FirmwareTextNotes {
+  std::string tool;      // where the nozzle is, e.g. "the robot file's tool 'tool' (nozzle)"
+  std::string measured;  // the frame the calibration measured instead, in words
+  // How closely robocal's calibrated model follows the measurements (RMS, m; NaN: unknown).
+  double model_rms = std::numeric_limits<double>::quiet_NaN();
+  // The command that carries what the firmware cannot, for a printer running these settings
+  // ("" = none named).
+  std::string compensate;
+};
+
 // The firmware's settings as the user pastes them, with the residual and the assumptions in
 // comments: Klipper printer.cfg sections; Marlin M665/M666; RepRapFirmware M665/M666.
-std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& robot_name);
+std::string firmware_delta_text(const FirmwareDeltaFit& fit, const std::string& robot_name,
+                                const FirmwareTextNotes& notes = {});
 
 // The firmware's own numbers (mm, degrees) by the names it uses, for JSON and tests: Klipper
 // delta_radius, arm_length_a.., angle_a.., position_endstop_a..; Marlin L R H X Y Z (tower angle

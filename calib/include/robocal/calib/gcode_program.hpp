@@ -52,8 +52,26 @@ GcodeProgram parse_gcode(const std::string& text, const std::string& source);
 
 struct GcodeRewriteOptions {
   double tolerance = 10e-6;  // m: the tool's distance to the meant path between emitted points
-  int decimals = 4;          // of the emitted millimetres (1e-4 mm = 0.1 µm)
+  int decimals = 4;          // of the emitted millimetres (1e-4 mm = 0.1 µm); degrees get one more
+  // What the controller's axis words are (the robot file's `controller: {gcode_axes}` or the
+  // user's word for it): the tool position for a firmware with the robot's nominal kinematics,
+  // or one axis per actuator (see gcode_actuator_axes). kUnknown is refused.
+  GcodeAxes axes = GcodeAxes::kTool;
 };
+
+// The controller's axis of one actuator in raw-axis mode, as robocal's G-code link drives it
+// (robotio axes_for_robot): letter X Y Z U V W A B C in actuator order; value = reading x
+// `unit_factor` (millimetres for a prismatic joint, degrees for a revolute one, through the
+// robot file's nominal encoder scale).
+struct GcodeActuatorAxis {
+  char letter = 'X';
+  std::string body;  // the actuated body's name
+  bool revolute = true;
+  double unit_factor = 1.0;
+};
+// Throws core::InputError for more than 9 actuators.
+std::vector<GcodeActuatorAxis> gcode_actuator_axes(const Mechanism& model,
+                                                   const Eigen::VectorXd& nominal);
 
 struct GcodeRewriteStats {
   int moves = 0;                // meant moves (G0/G1/G2/G3 lines with X, Y or Z)
@@ -71,6 +89,17 @@ struct GcodeRewrite {
 // base frame). Throws core::InputError naming "<source>:<line>" for a line that cannot be
 // compensated (malformed, unreachable, another assembly mode, a move from an unknown position).
 // The robot's task must be a position (printer-style robots).
+//
+// With `options.axes` kActuators the output is for a controller whose axes are the actuators:
+// every meant point becomes the calibrated inverse kinematics' readings, written per axis
+// (gcode_actuator_axes); the controller interpolates the axes linearly, so each move is bisected
+// until the calibrated robot, driven along the interpolated readings, stays within the tolerance
+// of the meant path at 1/4, 1/2 and 3/4 of every piece (arcs are followed as arcs). A piece's feed
+// becomes the axes' rate that takes the piece's meant time (F mm/min of the tool -> F axis units
+// per minute); a piece whose start is unknown gets no F. G92's X/Y/Z words shift the program's
+// coordinates, which the output has already applied: they are dropped from the line (its E kept).
+// max_correction is then the distance between the meant point and where the nominal model puts
+// the tool at the written readings.
 GcodeRewrite rewrite_gcode(const GcodeProgram& program, const CompensationModels& models,
                            const GcodeRewriteOptions& options = {});
 

@@ -106,6 +106,10 @@ struct JointLimits {
   double lower = -1e300;  // joint units (rad or m), applied to q (after the encoder model)
   double upper = 1e300;
   double cone = 0.0;  // ball-joint cone half-angle for spherical cuts (0 = unlimited)
+  // The drive's rated speed and force (robot file `velocity:` in rad/s or m/s, `effort:` in N m
+  // or N), for exports that carry them (URDF); 0 = the file does not say.
+  double velocity = 0.0;
+  double effort = 0.0;
 };
 
 struct Body {
@@ -232,6 +236,18 @@ struct UnmodelledErrorSpec {
   int line = 0;             // robot-file line (0: the defaults)
 };
 
+// What a G-code program's axis words mean to this robot's controller (robot file `controller:
+// {gcode_axes: ...}`): the tool position (the firmware computes the robot's kinematics, e.g. a
+// printer firmware's delta kinematics) or one axis per actuator (raw-axis mode: X Y Z U V W A B C
+// in actuator order, millimetres or degrees; the firmware does no kinematics, as robocal's
+// G-code link drives a robot).
+enum class GcodeAxes : std::uint8_t { kUnknown, kTool, kActuators };
+
+struct ControllerSpec {
+  GcodeAxes gcode_axes = GcodeAxes::kUnknown;  // kUnknown: the file does not say
+  int line = 0;
+};
+
 struct Mechanism {
   std::string name;
   std::string source;  // file the model was read from (for messages)
@@ -247,6 +263,7 @@ struct Mechanism {
   WorkspaceSpec workspace;
   AssemblyModeSpec assembly_mode;
   UnmodelledErrorSpec unmodelled_error;
+  ControllerSpec controller;
 
   int constraint_rows() const;  // sum of closure_rows over closures
   // -1 if absent.
