@@ -3,6 +3,6 @@
 # whole test suite (unit, integration, end-to-end). Benchmarks are built but not run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/bootstrap.sh
+bash scripts/bootstrap.sh --tests
 bash scripts/build.sh release
 ctest --preset release "$@"
