@@ -30,8 +30,7 @@ fs::path robot_library_dir() {
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
-    const fs::path installed =
-        (exe.parent_path() / ROBOCAL_INSTALLED_ROBOT_LIBRARY).lexically_normal();
+    fs::path installed = (exe.parent_path() / ROBOCAL_INSTALLED_ROBOT_LIBRARY).lexically_normal();
     if (fs::is_directory(installed, ec)) return installed;
   }
   // A program in its build tree: the robots of the source it was built from.
