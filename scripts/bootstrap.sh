@@ -1,19 +1,36 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages robocal needs that are not yet installed. Idempotent: when
 # everything is present it does nothing (no apt-get update, no network).
+#
+#   scripts/bootstrap.sh          what building and running `robocal` needs (scripts/demo.sh)
+#   scripts/bootstrap.sh --tests  that, plus what the test suite, the benchmarks and the CI
+#                                 checks use (scripts/test.sh, .ci/run)
+#
+# The test-only packages are about a third of the download (chromium and clang alone pull in
+# ~95 packages), which a user trying the demo does not need.
 set -euo pipefail
+
+usage() { echo "usage: $0 [--tests]" >&2; exit 2; }
+with_tests=0
+case "${1-}" in
+  "") ;;
+  --tests) with_tests=1 ;;
+  *) usage ;;
+esac
+[ $# -le 1 ] || usage
 
 packages=(
   # toolchain
-  build-essential cmake ninja-build pkg-config ccache git clang-format clang-tidy
+  build-essential cmake ninja-build pkg-config ccache
+  # the Debian package (cpack): dpkg-shlibdeps (dpkg-dev, from build-essential) reads the
+  # dependencies of the files `file` says are ELF programs
+  file
   # vision and numerics
   libopencv-dev libopencv-contrib-dev libapriltag-dev libceres-dev libeigen3-dev
   # the capture writes its PNG frames through libpng itself (OpenCV's writer is twice as slow)
   libpng-dev
   # cameras: Aravis' pkg-config file needs libusb-1.0-0-dev, which libaravis-dev does not pull in
   libv4l-dev libaravis-dev libusb-1.0-0-dev
-  # camera tests: a network namespace per test run (ip netns) for two fake GigE cameras
-  iproute2
   # planner: collision and distance queries (FCL; pulls in libccd and octomap)
   libfcl-dev
   # exports: URDF read and written through urdfdom (robocal export --format urdf)
@@ -22,9 +39,19 @@ packages=(
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev
   # the wizard's line editing
   libreadline-dev
-  # tests and benchmarks; chromium renders the HTML report headless in its test
-  libgtest-dev libgmock-dev libbenchmark-dev chromium
 )
+if [ "$with_tests" -eq 1 ]; then
+  packages+=(
+    # tests and benchmarks
+    libgtest-dev libgmock-dev libbenchmark-dev
+    # the report's test renders the HTML page headless
+    chromium
+    # camera tests: a network namespace per test run (ip netns) for two fake GigE cameras
+    iproute2
+    # CI's format and static checks (scripts/check-format.sh, scripts/tidy.sh list files by git)
+    clang-format clang-tidy git
+  )
+fi
 
 missing=()
 for p in "${packages[@]}"; do

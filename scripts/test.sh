@@ -3,6 +3,8 @@
 # whole test suite (unit, integration, end-to-end). Benchmarks are built but not run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/bootstrap.sh
+bash scripts/bootstrap.sh --tests
+# One compile command per source (clang-tidy) and objects ccache shares between checkouts.
+cmake --preset release -DROBOCAL_UNITY_BUILD=OFF >/dev/null
 bash scripts/build.sh release
 ctest --preset release "$@"

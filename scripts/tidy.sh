@@ -11,6 +11,13 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 [ -f build/release/compile_commands.json ] || cmake --preset release >/dev/null
+# scripts/demo.sh compiles robocal_app's sources in batches, which leaves them no compile command
+# of their own.
+if grep -q '^ROBOCAL_UNITY_BUILD:BOOL=ON' build/release/CMakeCache.txt; then
+  echo "tidy: build/release compiles robocal_app in batches (ROBOCAL_UNITY_BUILD=ON, from" \
+       "scripts/demo.sh); run: cmake --preset release -DROBOCAL_UNITY_BUILD=OFF" >&2
+  exit 1
+fi
 if [ $# -gt 0 ]; then files=("$@"); else
   mapfile -t files < <(git ls-files '*.cpp' | grep -E '^(app|calib|core|vision|planner|robotio)/')
 fi

@@ -9,15 +9,38 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <cstdlib>
 
 namespace robocal::app {
 
 namespace fs = std::filesystem;
 
+fs::path robot_library_dir() {
+  if (const char* env = std::getenv("ROBOCAL_ROBOT_LIBRARY"); env != nullptr && *env != '\0') {
+    std::error_code ec;
+    if (!fs::is_directory(env, ec))
+      throw InputError(fmt::format(
+          "ROBOCAL_ROBOT_LIBRARY={}: no such folder (unset it to use the installed robot library)",
+          env));
+    return env;
+  }
+  // An installed program: <prefix>/bin/robocal beside <prefix>/share/robocal/robots, wherever the
+  // prefix is (/usr from the Debian package, /opt/..., a DESTDIR). The link names the real file
+  // even when robocal was started through a symlink or from PATH.
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    fs::path installed = (exe.parent_path() / ROBOCAL_INSTALLED_ROBOT_LIBRARY).lexically_normal();
+    if (fs::is_directory(installed, ec)) return installed;
+  }
+  // A program in its build tree: the robots of the source it was built from.
+  return ROBOCAL_SOURCE_ROBOT_LIBRARY;
+}
+
 std::vector<std::string> library_robot_names() {
   std::vector<std::string> names;
   std::error_code ec;
-  for (const auto& e : fs::directory_iterator(ROBOCAL_ROBOT_LIBRARY_DIR, ec))
+  for (const auto& e : fs::directory_iterator(robot_library_dir(), ec))
     if (e.path().extension() == ".yaml") names.push_back(e.path().stem().string());
   std::sort(names.begin(), names.end());
   return names;
@@ -25,10 +48,17 @@ std::vector<std::string> library_robot_names() {
 
 std::string resolve_robot(const std::string& robot) {
   if (fs::exists(robot)) return robot;
-  const auto library = fs::path(ROBOCAL_ROBOT_LIBRARY_DIR) / (robot + ".yaml");
+  const fs::path dir = robot_library_dir();
+  const auto library = dir / (robot + ".yaml");
   if (fs::exists(library)) return library.string();
-  throw InputError(fmt::format("robot '{}' is neither a file nor a library robot (library: {})",
-                               robot, fmt::join(library_robot_names(), ", ")));
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    throw InputError(fmt::format(
+        "robot '{}' is not a file, and the robot library {} does not exist (install robocal, or "
+        "set ROBOCAL_ROBOT_LIBRARY to a folder of robot files)",
+        robot, dir.string()));
+  throw InputError(fmt::format("robot '{}' is neither a file nor a library robot in {} ({})", robot,
+                               dir.string(), fmt::join(library_robot_names(), ", ")));
 }
 
 calib::Mechanism load_robot(const std::string& path) {

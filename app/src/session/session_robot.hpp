@@ -13,10 +13,15 @@
 
 namespace robocal::app {
 
-// The names of the library robots shipped with robocal (testdata/robots), sorted.
+// The folder of the library robots shipped with robocal: $ROBOCAL_ROBOT_LIBRARY when set (an
+// InputError when it is not a folder); else, for an installed program, share/robocal/robots of
+// its installation prefix (found from the program's own path); else the source tree's
+// testdata/robots (a program run from its build tree).
+std::filesystem::path robot_library_dir();
+// The names of the library robots (robot_library_dir()), sorted.
 std::vector<std::string> library_robot_names();
-// Library robot name (testdata/robots/NAME.yaml) or a robot file path -> path. InputError when
-// neither exists.
+// Library robot name (<robot_library_dir()>/NAME.yaml) or a robot file path -> path. InputError
+// naming the library folder when neither exists.
 std::string resolve_robot(const std::string& robot);
 
 // A robot file; its RobotFileError is an InputError.
