@@ -101,17 +101,8 @@ void complete_session(const LiveCell& lc, const LiveDemoOptions& o, const fs::pa
                                   lc.cell.nominal[static_cast<Eigen::Index>(i)]);
   core::write_file_atomic(session / "session.yaml", session_to_yaml(s));
 
-  TruthFile truth;
-  truth.elastic_sag = lc.cell.elastic_sag;
-  truth.nominal = lc.cell.nominal;
-  truth.truth = lc.cell.truth;
-  for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
-    truth.cameras.push_back(
-        {fmt::format("cam{}", c), lc.cell.cameras[c].model, lc.cell.cameras[c].camera_T_world});
+  TruthFile truth = simulator_truth(lc, "robocal sim-controller (live demo), truth channel");
   truth.poses = truth_log.match(session);
-  truth.perturbation = {{"length_sigma_m", lc.cell.options.length_sigma},
-                        {"angle_sigma_rad", lc.cell.options.angle_sigma},
-                        {"source", "robocal sim-controller (live demo), truth channel"}};
   write_truth(ResultsLayout{session}, lc.cell.model, truth);
 }
 

@@ -62,16 +62,8 @@ void prepare_folder(const SimCellOptions& o, const std::string& robot_file,
 // The true robot and cameras, where validation (never the pipeline) reads them: copied into a
 // recorded session's truth/ folder, `robocal validate` compares the calibration with them.
 void write_simulator_truth(const LiveCell& lc, const SimCellLayout& at) {
-  TruthFile truth;
-  truth.elastic_sag = lc.cell.elastic_sag;
-  truth.nominal = lc.cell.nominal;
-  truth.truth = lc.cell.truth;
-  for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
-    truth.cameras.push_back(
-        {fmt::format("cam{}", c), lc.cell.cameras[c].model, lc.cell.cameras[c].camera_T_world});
-  truth.perturbation = {{"length_sigma_m", lc.cell.options.length_sigma},
-                        {"angle_sigma_rad", lc.cell.options.angle_sigma},
-                        {"source", "robocal sim-cell: the simulated controller's true robot"}};
+  const TruthFile truth =
+      simulator_truth(lc, "robocal sim-cell: the simulated controller's true robot");
   write_truth(ResultsLayout{at.simulator()}, lc.cell.model, truth);
 }
 

@@ -4,6 +4,7 @@
 // rendering of those calibration views, and the simulated robot's speed.
 #include "live/live_cameras.hpp"
 #include "live/live_demo.hpp"
+#include "session/results_files.hpp"
 #include "simcell/simulated_cell.hpp"
 #include "stages/stages.hpp"
 
@@ -38,6 +39,10 @@ std::vector<LiveCameraSpec> camera_specs(const SimulatedCell& cell, unsigned see
 void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec>& specs, bool gige,
                             const std::filesystem::path& dir, const PipelineLog& log,
                             nlohmann::json& report);
+
+// The simulated cell's hidden truth as validate reads it (true robot, true cameras; no poses):
+// `source` says which simulator holds it.
+TruthFile simulator_truth(const LiveCell& lc, const std::string& source);
 
 // The simulated robot's speed (actuator units/s).
 double default_speed(const calib::Mechanism& model);
