@@ -50,8 +50,8 @@ Cell start_cell(const fs::path& dir, const std::string& robot, unsigned seed,
                 const std::vector<std::string>& extra) {
   Cell c;
   c.dir = dir;
-  std::vector<std::string> args = {"sim-cell",           "--robot", robot,   "--seed",
-                                   std::to_string(seed), "--quick", "--out", dir.string()};
+  std::vector<std::string> args = {"sim-cell",           "--robot", robot,       "--seed",
+                                   std::to_string(seed), "--out",   dir.string()};
   args.insert(args.end(), extra.begin(), extra.end());
   c.process = std::make_unique<robocal::test::ChildProcess>(
       robocal(), args, (dir.parent_path() / "sim-cell.log").string());
@@ -151,11 +151,15 @@ std::map<std::string, std::string> kept_values(const fs::path& folder) {
   return v;
 }
 
-std::string session_description(const fs::path& folder) {
-  std::string text = read_text(folder / "session" / "session.yaml");
+// A file of a wizard run with the run's own folder written FOLDER and its creation time left out
+// (two runs record at different times).
+std::string run_file(const fs::path& folder, const fs::path& file) {
+  std::string text = read_text(folder / file);
   for (auto at = text.find(folder.string()); at != std::string::npos;
        at = text.find(folder.string()))
     text.replace(at, folder.string().size(), "FOLDER");
+  const auto created = text.find("\ncreated: ");
+  if (created != std::string::npos) text.erase(created, text.find('\n', created + 1) - created);
   return text;
 }
 
@@ -168,8 +172,9 @@ WizardRun calibrate(const Cell& cell, const fs::path& folder, const std::string&
   EXPECT_EQ(run.output.find(" um "), std::string::npos) << run.output;
   EXPECT_EQ(run.output.find("next: "), std::string::npos) << run.output;
   if (run.code == 0) {
-    // The simulator's truth on 200 held-out poses: the bound for a first calibration (the
-    // rotary Delta's and the UR5's quick cells give 25-40 µm).
+    // The simulator's truth on 200 held-out poses: the bound for a first calibration (seed 1:
+    // the rotary Delta's cell 35.6 µm, the UR5's quick cell 36.5 µm; the Delta's quick cell
+    // 50.6 µm, over it, so the Delta runs at the cameras' full size).
     EXPECT_LE(validate_rms(folder / "session", cell.dir), 50e-6) << robot;
   }
   return run;
@@ -201,8 +206,8 @@ void interrupt_every_step(const Cell& cell, const fs::path& folder, const Wizard
     ASSERT_EQ(b.count(key), 1u) << key << " lost on resume";
     EXPECT_EQ(b.at(key), value) << key;
   }
-  EXPECT_EQ(read_text(straight / "plan.yaml"), read_text(folder / "plan.yaml"));
-  EXPECT_EQ(session_description(straight), session_description(folder));
+  EXPECT_EQ(run_file(straight, "plan.yaml"), run_file(folder, "plan.yaml"));
+  EXPECT_EQ(run_file(straight, "session/session.yaml"), run_file(folder, "session/session.yaml"));
   EXPECT_LE(validate_rms(folder / "session", cell.dir), 50e-6);
 }
 
@@ -233,7 +238,7 @@ TEST(WizardOnSimCell, RotaryDeltaFromRobotChoiceToExportAndCtrlCAtEveryStep) {
 // no GigE camera, on an arm.
 TEST(WizardOnSimCell, Ur5WithSimCamerasFromRobotChoiceToExport) {
   const fs::path root = fresh("robocal_e2e_wizard_ur5");
-  Cell cell = start_cell(root / "cell", "ur5", 1, {"--in-process"});
+  Cell cell = start_cell(root / "cell", "ur5", 1, {"--quick", "--in-process"});
   ASSERT_FALSE(cell.answers.empty());
   (void)calibrate(cell, root / "cal1", "ur5");
   stop(cell);
