@@ -542,7 +542,8 @@ TEST_F(Wizard, LiveViewsCarryTheFlowToTheIdentification) {
   for (int c = 0; c < 2; ++c) {
     const auto spec = camera_spec(c);
     TYPE_AT(w, fmt::format("Intrinsics of cam{}", c), "live");
-    TYPE_AT(w, "Target file of the calibration board", "");  // default: the robot's board
+    // One board for every camera: asked with the first camera only.
+    if (c == 0) TYPE_AT(w, "Target file of the calibration board", "");  // the robot's board
     for (int k = 0; k < 16; ++k) {
       seen_->hold(spec.camera_T_world.inverse() *
                   board_in_view(spec.model, 110.0 + 140.0 * (k % 4), 100.0 + 140.0 * ((k / 4) % 3),
