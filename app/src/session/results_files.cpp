@@ -372,7 +372,10 @@ IdentificationFile read_identification(const ResultsLayout& results, const calib
   out.estimate = params_from_json(model, out.report.at("estimate"), file);
   if (out.report.contains("pixel_route") && out.report["pixel_route"].value("status", "") == "ok")
     out.pixel_estimate = params_from_json(model, out.report["pixel_route"].at("estimate"), file);
-  out.parameters = parameter_account(out.report, file);
+  // The parameter analysis is the report's (the counts and labels it shows); a file without one
+  // (written by another tool, or by hand) still gives the estimate to the stages that only need it.
+  if (out.report.contains("result") || out.report.contains("parameters"))
+    out.parameters = parameter_account(out.report, file);
   return out;
 }
 
