@@ -69,7 +69,7 @@ std::string ask_calibration_board(const WizardContext& ctx) {
   if (ctx.ask.given().count("intrinsics.board") != 0 && !ctx.state.get("intrinsics.board").empty())
     return ctx.state.get("intrinsics.board");
   for (;;) {
-    const std::string file =
+    std::string file =
         ctx.ask.ask("intrinsics.board", "Target file of the calibration board in the images",
                     ctx.state.get("intrinsics.board", ctx.state.get("cameras.target")));
     try {
