@@ -266,18 +266,6 @@ bool operator_confirms(const CollectOptions& o, std::FILE* out) {
   return answer == "yes";
 }
 
-// The unit of the robot's actuator readings: rad (revolute), m (prismatic) or both.
-std::string actuator_unit(const calib::Mechanism& model) {
-  bool linear = false;
-  bool rotary = false;
-  for (const int a : model.actuated) {
-    const bool p = model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic;
-    linear = linear || p;
-    rotary = rotary || !p;
-  }
-  return linear && rotary ? "m or rad" : linear ? "m" : "rad";
-}
-
 std::string describe(const CollectOptions& o, const CollectInputs& in, std::size_t remaining,
                      double motion_seconds) {
   std::string cams;
@@ -576,6 +564,17 @@ double motion_seconds(double distance, double speed, double acceleration) {
   const double ramp = speed / acceleration;  // time to reach the speed
   if (distance >= speed * ramp) return distance / speed + ramp;
   return 2.0 * std::sqrt(distance / acceleration);
+}
+
+std::string actuator_unit(const calib::Mechanism& model) {
+  bool linear = false;
+  bool rotary = false;
+  for (const int a : model.actuated) {
+    const bool p = model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic;
+    linear = linear || p;
+    rotary = rotary || !p;
+  }
+  return linear && rotary ? "m or rad" : linear ? "m" : "rad";
 }
 
 int collect_exit_code(const CollectOutcome& outcome) {

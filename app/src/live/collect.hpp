@@ -10,6 +10,7 @@
 // operator confirms (a typed "yes" on a terminal, or --yes for scripts); Ctrl-C or SIGTERM stops
 // the robot through the guard and keeps every recorded pose; the p key or SIGUSR1 pauses between
 // poses and pressing it again resumes.
+#include "robocal/calib/mechanism.hpp"
 #include "robocal/robotio/camera_source.hpp"
 #include "robocal/robotio/capture.hpp"
 #include "stages/stages.hpp"
@@ -73,6 +74,9 @@ CollectOutcome collect_session(const CollectOptions& options, const PipelineLog&
 // 0 complete (or a dry run whose motions all passed), 1 stopped early, refused, failed or
 // cancelled (what is recorded stays), 130 / 143 interrupted by SIGINT / SIGTERM.
 int collect_exit_code(const CollectOutcome& outcome);
+
+// The unit of the robot's actuator readings: "rad" (revolute), "m" (prismatic) or "m or rad".
+std::string actuator_unit(const calib::Mechanism& model);
 
 // The time a motion of `distance` (actuator units) takes from standstill to standstill at
 // `speed` and `acceleration`: a trapezoidal profile, or a triangle when it is too short to

@@ -38,11 +38,7 @@ namespace fs = std::filesystem;
 // A first run's speed: slow enough to stop by hand, fast enough that a plan of 30 poses takes
 // minutes (rotary axes: 0.25 rad/s moves a 0.5 m arm's end at 0.12 m/s; linear axes 50 mm/s).
 bool robot_has_linear_axes(const WizardState& s) {
-  const calib::Mechanism model = load_robot(s.get("robot.file"));
-  for (const int a : model.actuated)
-    if (model.bodies[static_cast<std::size_t>(a)].joint == calib::JointType::kPrismatic)
-      return true;
-  return false;
+  return actuator_unit(load_robot(s.get("robot.file"))) != "rad";
 }
 std::string default_speed(const WizardState& s) {
   return robot_has_linear_axes(s) ? "0.05" : "0.25";
