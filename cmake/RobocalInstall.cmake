@@ -14,7 +14,8 @@ install(DIRECTORY testdata/robots/ DESTINATION ${robocal_data}/robots
         FILES_MATCHING PATTERN "*.yaml" PATTERN "README.md")
 foreach(doc README.md ARCHITECTURE.md app/SESSION.md calib/EXPORTS.md calib/identify/README.md
             planner/README.md robotio/README.md robotio/CAMERAS.md vision/README.md
-            vision/README_rig.md testdata/measurements/README.md)
+            vision/README_rig.md testdata/measurements/README.md docs/commands.md docs/figures.md
+            docs/cluster.md docs/install.md docs/development.md)
   get_filename_component(dir ${doc} DIRECTORY)
   install(FILES ${doc} DESTINATION ${robocal_doc}/${dir})
 endforeach()

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs `robocal batch` as N shards on this machine (N processes at once, as a Slurm job array or
 # a Kubernetes indexed Job runs them on N machines) and merges their summaries with
-# `robocal batch-merge`: a local rehearsal of the README's cluster setups.
+# `robocal batch-merge`: a local rehearsal of the cluster setups in docs/cluster.md.
 #
 #   scripts/batch-shards.sh [-n SHARDS] [-w WORKDIR] [-a BATCH_ARG]... OUT.json FOLDER...
 #
