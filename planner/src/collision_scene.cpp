@@ -17,6 +17,14 @@ namespace robocal::planner {
 
 namespace {
 
+// A passive prismatic joint: the model's coordinate of a platform (the linear Delta's effector
+// translates by passive eff_x/eff_y/eff_z), not a part of the robot.
+bool is_coordinate_slide(const calib::Mechanism& model, std::size_t body) {
+  return model.bodies[body].joint == calib::JointType::kPrismatic &&
+         std::find(model.actuated.begin(), model.actuated.end(), static_cast<int>(body)) ==
+             model.actuated.end();
+}
+
 using GeometryPtr = std::shared_ptr<fcl::CollisionGeometryd>;
 
 struct ObstacleGeometry {
@@ -179,14 +187,9 @@ CollisionScene::CollisionScene(const calib::Mechanism& model, const Cell& cell,
     for (std::size_t bi = 0; bi < model.bodies.size(); ++bi) {
       const int p = model.bodies[bi].parent;
       if (p < 0 || has_file_shape[bi] || has_file_shape[static_cast<std::size_t>(p)]) continue;
-      // A passive slide is the model's coordinate of a platform (the linear Delta's effector
-      // translates by passive eff_x/eff_y/eff_z), not a part: a capsule along it stood from the
-      // bed to the effector's centre, through the lines of sight to the board under it.
-      const calib::Body& child = model.bodies[bi];
-      if (child.joint == calib::JointType::kPrismatic &&
-          std::find(model.actuated.begin(), model.actuated.end(), static_cast<int>(bi)) ==
-              model.actuated.end())
-        continue;
+      // A capsule along a coordinate slide would stand from the bed to the effector's centre,
+      // through the lines of sight to the board under it.
+      if (is_coordinate_slide(model, bi)) continue;
       if ((poses[bi].translation() - poses[static_cast<std::size_t>(p)].translation()).norm() <
           0.01)
         continue;
@@ -216,7 +219,9 @@ CollisionScene::CollisionScene(const calib::Mechanism& model, const Cell& cell,
   std::vector<std::vector<int>> graph(nb);
   for (std::size_t bi = 0; bi < nb; ++bi) {
     const int p = model.bodies[bi].parent;
-    if (p >= 0) {
+    // A coordinate slide joins no parts: the linear Delta's effector is not held by its bed
+    // through eff_x/eff_y/eff_z, and must not pass through it.
+    if (p >= 0 && !is_coordinate_slide(model, bi)) {
       graph[bi].push_back(p);
       graph[static_cast<std::size_t>(p)].push_back(static_cast<int>(bi));
     }

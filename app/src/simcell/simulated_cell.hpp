@@ -9,8 +9,9 @@
 // Frames: the cell's truth world is the robot's nominal base frame (z up; the Delta hangs below
 // it). The cameras are placed by the planner (planner/camera_placement.hpp) on the side the
 // end-effector board faces over the working volume (below it, looking up, for the Delta, whose
-// board faces down). The pipeline's world is camera 0's frame (the rig's gauge), so it never
-// needs the truth world.
+// board faces down; beside it for the linear delta, whose bed hides a board facing down, so its
+// board hangs on the effector's side). The pipeline's world is camera 0's frame (the rig's
+// gauge), so it never needs the truth world.
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/planner/camera_placement.hpp"
 #include "robocal/planner/cell.hpp"

@@ -12,7 +12,8 @@
 //    collision geometry still gets a link model derived from its mechanism.
 // Self-collision is tested between shapes that are not joined directly: two shapes are exempt when
 // a path of joints (tree edges and closures) connects their bodies through bodies that carry no
-// shape (a joint's parts touch by design).
+// shape (a joint's parts touch by design). A coordinate slide (passive prismatic joint) is no
+// such path: the linear Delta's effector is checked against its bed.
 //
 // Lines of sight: the rays from a camera's centre to every corner of the target lie inside the
 // pyramid spanned by the centre and the four extreme corners; that pyramid, stopped
