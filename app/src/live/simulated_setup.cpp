@@ -68,7 +68,11 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
     if (src.back()->region() != full) src.back()->set_region(full);
     src.back()->start(robotio::TriggerMode::kSoftware);
   }
-  const std::chrono::milliseconds timeout(5000);
+  // A served camera that sends nothing for 5 s is lost; an in-process one is only rendering,
+  // which takes longer on a busy machine (six 1600x1200 cameras on two loaded cores).
+  const auto timeout = [&](std::size_t c) {
+    return std::chrono::milliseconds(cams.served(c) ? 5000 : 120000);
+  };
   std::size_t total = lc.rig_views.size();
   std::size_t rounds = 0;
   for (const auto& v : lc.intrinsic_views) {
@@ -82,7 +86,7 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
     for (int attempt = 0;; ++attempt) {
       try {
         if (!triggered) src[c]->trigger();
-        return src[c]->receive(timeout).image;
+        return src[c]->receive(timeout(c)).image;
       } catch (const robotio::CameraError& e) {
         if (attempt > 0 || !cams.served(c)) throw;
         cams.fall_back(c, e.what());
