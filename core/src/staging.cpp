@@ -47,17 +47,33 @@ void remove_abandoned_stagings(const fs::path& target) {
   for (const fs::path& p : abandoned) fs::remove_all(p, ec);
 }
 
-void remove_tmp_files(const fs::path& folder) {
-  std::error_code ec;
-  std::vector<fs::path> tmp;
-  for (fs::recursive_directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec))
-    if (it->is_regular_file(ec) && it->path().extension() == ".tmp") tmp.push_back(it->path());
-  for (const fs::path& p : tmp) fs::remove(p, ec);
+// Copies `from` into `to` (created), without "*.tmp" files and without `leave_out` (relative
+// paths; a folder with its content).
+void copy_folder(const fs::path& from, const fs::path& to, const std::vector<fs::path>& leave_out,
+                 std::error_code& ec) {
+  fs::create_directories(to, ec);
+  for (fs::recursive_directory_iterator it(from, ec), end; !ec && it != end; it.increment(ec)) {
+    const fs::path rel = it->path().lexically_relative(from);
+    bool left_out = false;
+    for (const fs::path& l : leave_out) left_out = left_out || rel == l.lexically_normal();
+    if (left_out || it->path().extension() == ".tmp") {
+      if (it->is_directory(ec)) it.disable_recursion_pending();
+      continue;
+    }
+    if (it->is_symlink(ec))
+      fs::copy_symlink(it->path(), to / rel, ec);
+    else if (it->is_directory(ec))
+      fs::create_directories(to / rel, ec);
+    else
+      fs::copy_file(it->path(), to / rel, ec);
+  }
 }
 
 }  // namespace
 
-StagedDirectory::StagedDirectory(fs::path target, Start start) : target_(std::move(target)) {
+StagedDirectory::StagedDirectory(fs::path target, Start start,
+                                 const std::vector<fs::path>& leave_out)
+    : target_(std::move(target)) {
   remove_abandoned_stagings(target_);
   const fs::path parent = target_.parent_path().empty() ? fs::path(".") : target_.parent_path();
   std::string name = staging_prefix(target_);
@@ -67,22 +83,21 @@ StagedDirectory::StagedDirectory(fs::path target, Start start) : target_(std::mo
   staged_ = root_ / target_.filename();
   cleanup_ = std::make_unique<RemoveOnInterrupt>(root_);
   std::error_code ec;
-  fs::create_directories(root_, ec);
-  if (ec)
-    throw InputError(root_.string() + ": cannot create the staging folder (" + ec.message() + ")");
   if (start == Start::kCopyOfTarget && fs::is_directory(target_, ec)) {
-    fs::copy(target_, staged_, fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
+    copy_folder(target_, staged_, leave_out, ec);
     if (ec) {
+      const std::string why = ec.message();
       fs::remove_all(root_, ec);
       throw InputError(target_.string() + ": cannot copy into the staging folder " +
-                       root_.string() + " (" + ec.message() + ")");
+                       root_.string() + " (" + why + ")");
     }
-    remove_tmp_files(staged_);
   } else {
     fs::create_directories(staged_, ec);
-    if (ec)
-      throw InputError(staged_.string() + ": cannot create the staging folder (" + ec.message() +
-                       ")");
+    if (ec) {
+      const std::string why = ec.message();
+      fs::remove_all(root_, ec);
+      throw InputError(staged_.string() + ": cannot create the staging folder (" + why + ")");
+    }
   }
 }
 

@@ -1,24 +1,28 @@
 #include "session/results_transaction.hpp"
 
-#include "robocal/core/input_error.hpp"
+#include <vector>
 
 namespace robocal::app {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+std::vector<fs::path> relative_to_results(const fs::path& session,
+                                          std::initializer_list<fs::path> files) {
+  const fs::path results = ResultsLayout{session}.dir();
+  std::vector<fs::path> out;
+  out.reserve(files.size());
+  for (const fs::path& f : files) out.push_back(f.lexically_relative(results));
+  return out;
+}
+
+}  // namespace
+
 ResultsTransaction::ResultsTransaction(const fs::path& session,
                                        std::initializer_list<fs::path> stale)
-    : staging_(ResultsLayout{session}.dir(), core::StagedDirectory::Start::kCopyOfTarget),
-      staged_{staging_.root()} {
-  const fs::path results = ResultsLayout{session}.dir();
-  for (const fs::path& file : stale) {
-    const fs::path in_staging = staged_.dir() / fs::relative(file, results);
-    std::error_code ec;
-    fs::remove_all(in_staging, ec);
-    if (ec)
-      throw core::InputError(in_staging.string() + ": cannot remove from the staging folder (" +
-                             ec.message() + ")");
-  }
-}
+    : staging_(ResultsLayout{session}.dir(), core::StagedDirectory::Start::kCopyOfTarget,
+               relative_to_results(session, stale)),
+      staged_{staging_.root()} {}
 
 }  // namespace robocal::app

@@ -20,13 +20,15 @@ class StagedDirectory {
  public:
   enum class Start {
     kEmpty,         // a new folder (a simulated session)
-    kCopyOfTarget,  // the target's files (but leftover "*.tmp"), to replace some of them
+    kCopyOfTarget,  // the target's files (but leftover "*.tmp" and `leave_out`)
   };
   // Stages a replacement for `target`: removes staging folders of `target` that processes no
   // longer running left, then creates the staging folder "<parent>/.<name>.staging-<pid>-<n>/"
-  // holding path() = ".../<name>". Throws InputError naming the folder and the cause when it
-  // cannot be created or the target cannot be copied.
-  StagedDirectory(std::filesystem::path target, Start start);
+  // holding path() = ".../<name>". `leave_out`: files and folders of the target (relative paths)
+  // the copy does not take, those the new content makes stale. Throws InputError naming the
+  // folder and the cause when it cannot be created or the target cannot be copied.
+  StagedDirectory(std::filesystem::path target, Start start,
+                  const std::vector<std::filesystem::path>& leave_out = {});
   // Not committed: the staging folder is removed (the target is untouched).
   ~StagedDirectory();
   StagedDirectory(const StagedDirectory&) = delete;
