@@ -74,6 +74,11 @@ void copy_folder(const fs::path& from, const fs::path& to, const std::vector<fs:
 StagedDirectory::StagedDirectory(fs::path target, Start start,
                                  const std::vector<fs::path>& leave_out)
     : target_(std::move(target)) {
+  std::error_code ec;
+  // Whatever stands at the target that is not a folder is not ours to replace.
+  if (fs::exists(fs::symlink_status(target_, ec)) && !fs::is_directory(target_, ec))
+    throw InputError(target_.string() +
+                     ": exists and is not a folder; move it away (it is never replaced)");
   remove_abandoned_stagings(target_);
   const fs::path parent = target_.parent_path().empty() ? fs::path(".") : target_.parent_path();
   std::string name = staging_prefix(target_);
@@ -82,7 +87,6 @@ StagedDirectory::StagedDirectory(fs::path target, Start start,
   root_ = parent / name;
   staged_ = root_ / target_.filename();
   cleanup_ = std::make_unique<RemoveOnInterrupt>(root_);
-  std::error_code ec;
   if (start == Start::kCopyOfTarget && fs::is_directory(target_, ec)) {
     copy_folder(target_, staged_, leave_out, ec);
     if (ec) {

@@ -24,7 +24,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path fresh(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / name;
+  fs::path dir = fs::temp_directory_path() / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -48,7 +48,7 @@ std::vector<std::string> names(const fs::path& dir) {
 
 // A results folder with a file, a sub-folder and a leftover temporary.
 fs::path results_in(const fs::path& dir) {
-  const fs::path results = dir / "results";
+  fs::path results = dir / "results";
   rc::write_file_atomic(results / "a.json", "old a\n");
   rc::write_file_atomic(results / "stale.json", "old stale\n");
   rc::write_file_atomic(results / "cameras" / "cam0.yaml", "old camera\n");
@@ -197,4 +197,18 @@ TEST(RemoveOnInterrupt, RemovesRegisteredFoldersWholeAndForgetsReleasedOnes) {
   const rc::RemoveOnInterrupt registered(dir / "staging");
   rc::remove_unfinished_writes();
   EXPECT_EQ(names(dir), std::vector<std::string>{"kept"});
+}
+
+TEST(StagedDirectory, AFileWhereTheFolderShouldBeIsNeverReplaced) {
+  const fs::path dir = fresh("staged_file_target");
+  rc::write_file_atomic(dir / "results", "not a folder\n");
+  try {
+    const rc::StagedDirectory staging(dir / "results", rc::StagedDirectory::Start::kCopyOfTarget);
+    FAIL() << "a file was taken as the folder";
+  } catch (const rc::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("results: exists and is not a folder"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(rc::read_text_file(dir / "results"), "not a folder\n");
+  EXPECT_EQ(names(dir), std::vector<std::string>{"results"});
 }

@@ -26,7 +26,8 @@ class StagedDirectory {
   // longer running left, then creates the staging folder "<parent>/.<name>.staging-<pid>-<n>/"
   // holding path() = ".../<name>". `leave_out`: files and folders of the target (relative paths)
   // the copy does not take, those the new content makes stale. Throws InputError naming the
-  // folder and the cause when it cannot be created or the target cannot be copied.
+  // folder and the cause when the target exists and is not a folder, when the staging folder
+  // cannot be created or the target cannot be copied.
   StagedDirectory(std::filesystem::path target, Start start,
                   const std::vector<std::filesystem::path>& leave_out = {});
   // Not committed: the staging folder is removed (the target is untouched).
