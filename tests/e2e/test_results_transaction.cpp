@@ -21,6 +21,7 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -115,7 +116,7 @@ fs::path staged(const fs::path& target, const std::string& rel) {
   for (fs::directory_iterator it(target.parent_path(), ec), end; !ec && it != end;
        it.increment(ec)) {
     if (it->path().filename().string().rfind(prefix, 0) != 0) continue;
-    const fs::path p = it->path() / target.filename() / rel;
+    fs::path p = it->path() / target.filename() / rel;
     if (fs::exists(p, ec)) return p;
   }
   return {};
@@ -290,7 +291,7 @@ TEST(ResultsTransaction, AFullDiskChangesNothing) {
   const fs::path s = copy_of_processed(fs::temp_directory_path() / "disk" / "s");
   const auto before = results_bytes(s);
 
-  disk.leave_free(512 * 1024);
+  disk.leave_free(std::uintmax_t{512} << 10);
   testing::internal::CaptureStdout();
   testing::internal::CaptureStderr();
   EXPECT_EQ(run_cli({"measure", s.string()}), 3);
@@ -305,7 +306,7 @@ TEST(ResultsTransaction, AFullDiskChangesNothing) {
   const std::uintmax_t kept =
       folder_bytes(s / "results", {"identification.json", "calibrated_robot.yaml",
                                    "calibrated_robot_pixels.yaml", "validation.json"});
-  disk.leave_free(kept + 64 * 1024);
+  disk.leave_free(kept + (std::uintmax_t{64} << 10));
   testing::internal::CaptureStdout();
   testing::internal::CaptureStderr();
   EXPECT_EQ(run_cli({"identify", s.string(), "--route", "pose"}), 3);
