@@ -394,4 +394,29 @@ TEST(ResultsTransaction, IntrinsicsOntoAFolderWritesNothing) {
   EXPECT_EQ(leftovers(dir), std::vector<std::string>{});
 }
 
+// identify on a measurements file with --out-robot and --json naming a folder: exit 3 naming it,
+// and the calibrated robot file as it was (it goes with its report or not at all).
+TEST(ResultsTransaction, IdentifyFileModeWritesTheRobotWithItsReportOrNeither) {
+  const fs::path dir = fs::temp_directory_path();
+  const std::string robot = std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml";
+  const fs::path m = dir / "m.yaml", calibrated = dir / "calibrated.yaml";
+  testing::internal::CaptureStdout();
+  ASSERT_EQ(run_cli({"identify", "--robot", robot, "--simulate", m.string()}), 0);
+  testing::internal::GetCapturedStdout();
+  std::ofstream(calibrated) << "the calibrated robot the operator had\n";
+  fs::create_directories(dir / "report");
+  testing::internal::CaptureStdout();
+  testing::internal::CaptureStderr();
+  const int code =
+      run_cli({"identify", "--robot", robot, "--measurements", m.string(), "--out-robot",
+               calibrated.string(), "--json", (dir / "report").string()});
+  testing::internal::GetCapturedStdout();
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(code, 3);
+  EXPECT_NE(err.find("report: is a folder"), std::string::npos) << err;
+  EXPECT_EQ(read_file(calibrated), "the calibrated robot the operator had\n");
+  EXPECT_TRUE(fs::is_empty(dir / "report"));
+  EXPECT_EQ(leftovers(calibrated), std::vector<std::string>{});
+}
+
 }  // namespace
