@@ -1,6 +1,7 @@
 #include "cli/command_registry.hpp"
 
 #include "cli/cli_common.hpp"
+#include "robocal/core/interrupt_cleanup.hpp"
 #include "robocal/robotio/camera_source.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal_version.hpp"
@@ -22,7 +23,8 @@ namespace robocal::app {
 
 namespace {
 
-// Ctrl-C or a termination request: say what is on disk and how to go on, then stop at once
+// Ctrl-C or a termination request: remove what was being written (temporary files, staging
+// folders: core/interrupt_cleanup.hpp), say what is on disk and how to go on, then stop at once
 // (128 + signal). Only async-signal-safe calls here; the text is made before the handler is
 // installed. A command that moves a robot installs its own handler (robotio's safety guard: the
 // first Ctrl-C stops the motion) in place of this one while it is armed.
@@ -30,6 +32,7 @@ char interrupt_message[512];
 std::size_t interrupt_length = 0;
 
 extern "C" void on_interrupt(int sig) {
+  core::remove_unfinished_writes();
   if (interrupt_length > 0) {
     const ssize_t written = ::write(STDERR_FILENO, interrupt_message, interrupt_length);
     (void)written;
@@ -39,10 +42,10 @@ extern "C" void on_interrupt(int sig) {
 
 void install_interrupt_handler(const std::string& command) {
   const std::string text = fmt::format(
-      "\nrobocal {}: interrupted. Every file already written is complete (files are written whole "
-      "or not at all) and recorded data is never overwritten: run the command again to redo what "
-      "was not finished (a session folder `simulate` did not finish is incomplete: remove it "
-      "first).\n",
+      "\nrobocal {}: interrupted. Every file already written is complete (files and results are "
+      "replaced whole or not at all: what was not finished is removed, earlier results are as "
+      "they were) and recorded data is never overwritten: run the command again to redo what "
+      "was not finished.\n",
       command);
   interrupt_length = std::min(text.size(), sizeof interrupt_message);
   std::memcpy(interrupt_message, text.data(), interrupt_length);

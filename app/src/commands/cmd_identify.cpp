@@ -13,6 +13,7 @@
 #include "robocal/calib/pixel_observations.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/core/files.hpp"
+#include "robocal/core/staging.hpp"
 #include "robocal_version.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
@@ -339,6 +340,9 @@ int run_identify(const IdentifyOptions& o) {
 
   const bool usable = res.status == IdentificationStatus::kConverged ||
                       res.status == IdentificationStatus::kNotConverged;
+  // The calibrated robot file and its report are written together or not at all
+  // (core/staging.hpp): never a calibrated file without the report that explains it.
+  core::StagedFiles files;
   if (usable && !o.out_robot.empty()) {
     std::vector<std::string> provenance = {
         fmt::format("Calibrated by robocal {} identify ({}).", kVersion, to_string(res.status)),
@@ -357,10 +361,12 @@ int run_identify(const IdentifyOptions& o) {
         res.estimate.head(static_cast<Eigen::Index>(model.parameters.size()));
     const std::string text = calibrated_robot_yaml(core::read_text_file(robot_file), model,
                                                    robot_values, robot_estimated, provenance);
-    core::write_file_atomic(o.out_robot, text);
+    files.add(o.out_robot, text);
     doc["calibrated_robot"] = o.out_robot;
   }
-  if (!o.json.empty()) write_json(doc, o.json);
+  if (!o.json.empty() && o.json != "-") files.add(o.json, doc.dump(2) + "\n");
+  files.commit();
+  if (o.json == "-") write_json(doc, "-");
   if (res.status == IdentificationStatus::kInvalidInput)
     throw InputError(fmt::format("{}: {}", o.measurements, res.message));
   if (!o.quiet) {

@@ -8,6 +8,7 @@
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
 #include "robocal/core/files.hpp"
+#include "robocal/core/staging.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/errors.hpp"
 #include "robocal/vision/intrinsics_pipeline.hpp"
@@ -159,17 +160,28 @@ CommandSpec intrinsics_command() {
             }
           }
           const auto& c = run.calibration;
-          write_json(report_json(run), a->report_out);
+          // The report, camera file and SVG are replaced together or not at all
+          // (core/staging.hpp); a refused calibration writes its report alone (why, and which
+          // views to add), never a camera file.
+          core::StagedFiles files;
+          const bool report_to_stdout = a->report_out.empty() || a->report_out == "-";
+          if (report_to_stdout)
+            write_json(report_json(run), "-");
+          else
+            files.add(a->report_out, report_json(run).dump(2) + "\n");
           for (const auto& w : c.warnings) fmt::print("warning: {}\n", w);
           for (const auto& adv : c.advice) fmt::print("advice: {}\n", adv);
           if (c.status != vision::CalibrationStatus::kOk) {
+            files.commit();
             fmt::print(stderr, "calibration {}: {}\n",
                        c.status == vision::CalibrationStatus::kRefused ? "refused" : "failed",
                        c.reason);
             return int{kExitFailure};
           }
-          vision::save_camera_file(c.camera, a->camera_out);
-          core::write_file_atomic(a->svg_out, vision::coverage_svg(c, run.width, run.height));
+          files.add(a->camera_out, vision::camera_to_yaml(c.camera));
+          if (!a->svg_out.empty())
+            files.add(a->svg_out, vision::coverage_svg(c, run.width, run.height));
+          files.commit();
           for (size_t i = 0; i < c.param_names.size(); ++i) {
             fmt::print("{:<3} = {:>14.6f} +- {:.6f}\n", c.param_names[i], c.camera.params[i],
                        c.param_stddev[i]);

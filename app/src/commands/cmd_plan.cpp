@@ -4,6 +4,7 @@
 #include "cli/command_registry.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/core/files.hpp"
+#include "robocal/core/staging.hpp"
 #include "robocal/planner/camera_placement.hpp"
 #include "robocal/planner/cell.hpp"
 #include "robocal/planner/plan.hpp"
@@ -135,11 +136,16 @@ int run_plan(const PlanCommandOptions& o) {
     }
     return kExitFailure;
   }
-  core::write_file_atomic(o.out, plan_to_yaml(model, cell, plan, po));
-  report["plan_file"] = o.out;
-  if (!o.svg.empty()) {
-    core::write_file_atomic(o.svg, plan_to_svg(cell, plan));
-    report["preview"] = o.svg;
+  // A plan it rejects is never written (an existing file at --out stays as it was); an accepted
+  // one is written with its preview, both or neither (core/staging.hpp).
+  const bool accepted = plan.status == PlanStatus::kOk;
+  if (accepted) {
+    core::StagedFiles files;
+    files.add(o.out, plan_to_yaml(model, cell, plan, po));
+    if (!o.svg.empty()) files.add(o.svg, plan_to_svg(cell, plan));
+    files.commit();
+    report["plan_file"] = o.out;
+    if (!o.svg.empty()) report["preview"] = o.svg;
   }
   report["poses"] = plan.poses.size();
   report["condition_number"] = plan.selection.values.condition_number;
@@ -159,9 +165,11 @@ int run_plan(const PlanCommandOptions& o) {
         plan.poses.size(), plan.tour.length, plan.tour.nearest_neighbour_length,
         plan.tour.segments_checked);
     for (const std::string& w : plan.warnings) fmt::print("warning: {}\n", w);
-    fmt::print("plan written to {}{}\n", o.out, o.svg.empty() ? "" : ", preview to " + o.svg);
-    if (plan.status == PlanStatus::kNotAccepted)
-      fmt::print("the plan is NOT accepted: {}\n", plan.message);
+    if (accepted)
+      fmt::print("plan written to {}{}\n", o.out, o.svg.empty() ? "" : ", preview to " + o.svg);
+    else
+      fmt::print("the plan is NOT accepted: {}\nno plan written ({} is as it was)\n", plan.message,
+                 o.out);
   }
   return plan.status == PlanStatus::kOk ? kExitOk : kExitFailure;
 }
@@ -186,9 +194,9 @@ CommandSpec plan_command() {
             "and ordered into a short tour whose every motion is checked for collision.\n"
             "The cell file (cameras, obstacles, workspace, margins, target) is described in\n"
             "planner/README.md; examples in testdata/cells/.\n"
-            "Exit codes: 0 plan written and accepted; 1 no acceptable plan (the summary says\n"
-            "which constraint removed how many candidates); 3 bad cell/robot file (nothing\n"
-            "written).\n"
+            "Exit codes: 0 plan written and accepted; 1 no acceptable plan, nothing written\n"
+            "(the summary says which constraint removed how many candidates, or why the plan\n"
+            "is not accepted); 3 bad cell/robot file (nothing written).\n"
             "Example: robocal plan --cell testdata/cells/delta_two_cameras.yaml --out plan.yaml "
             "--svg plan.svg");
         cmd.add_option("--cell", o->cell, "Cell file (YAML)")->required();

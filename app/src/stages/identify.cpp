@@ -4,6 +4,7 @@
 #include "cli/cli_common.hpp"
 #include "session/json_values.hpp"
 #include "session/results_files.hpp"
+#include "session/results_transaction.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
 #include "stages/measure_steps.hpp"
@@ -144,8 +145,15 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   if (route != "pose" && route != "pixel" && route != "both")
     throw InputError("identification route '" + route + "': expected pose, pixel or both");
   const Session s = load_session(dir);
-  const ResultsLayout results{dir};
   const SessionRobot robot = session_robot(s, robot_override);
+  // Written into a staged copy of results/ that replaces it when the identification reaches its
+  // verdict (session/results_transaction.hpp). The copy starts without the files of an earlier
+  // identification and the validation that judged it: none of them may stand beside this one's.
+  const ResultsLayout current{dir};
+  ResultsTransaction transaction(
+      dir, {current.identification(), current.calibrated_robot(), current.calibrated_robot_pixels(),
+            current.report("validation")});
+  const ResultsLayout& results = transaction.staged();
   // The used poses of results/measured_poses.json, at full precision (measurements.yaml is the
   // same data for `robocal identify --measurements`, but its rotation vectors and inverted
   // covariances are not bit-exact, and the identification's choice among confounded parameters
@@ -166,8 +174,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
             ? fmt::format("{} usable poses: too few", measurements.poses.size())
             : "measure refused the measurements as implausible (" + refused +
                   "). Fix the cause and measure again, or `robocal measure --accept-implausible`";
-    write_identification(results, report);
-    say(log, "identify failed: {}\n", report["message"].get<std::string>());
+    say(log, "identify failed: {}; the previous results are unchanged\n",
+        report["message"].get<std::string>());
     return report;
   }
   // The robot's base frame in the camera world: first found by aligning the nominal model's
@@ -233,11 +241,6 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
                 result.status == calib::IdentificationStatus::kNotConverged;
   report["status"] = usable ? "ok" : "failed";
   if (!usable) report["message"] = result.message;
-  // A calibrated file from an earlier run must not stand beside this run's report.
-  std::error_code stale;
-  fs::remove(results.calibrated_robot(), stale);
-  fs::remove(results.calibrated_robot_pixels(), stale);
-  fs::remove(results.report("validation"), stale);  // it judged the previous identification
   if (usable) {
     apply_fit_gate(result, calib::fit_gate_options(model.unmodelled_error, 0.0), gates,
                    "pose route", report, log);
@@ -313,7 +316,10 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
       report["pixel_route"]["calibrated_robot"] = ResultsLayout::kCalibratedRobotPixels;
     }
   }
+  // A solve that failed is no verdict on the data: the previous results stay.
+  if (report["status"] == "failed") return report;
   write_identification(results, report);
+  transaction.commit();
   return report;
 }
 

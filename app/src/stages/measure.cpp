@@ -3,6 +3,7 @@
 #include "cli/cli_common.hpp"
 #include "session/json_values.hpp"
 #include "session/results_files.hpp"
+#include "session/results_transaction.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
 #include "stages/measure_steps.hpp"
@@ -140,26 +141,28 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
                                const CalibratedRig* early_rig,
                                const EarlyDetections* early_detections) {
   const Session s = load_session(dir);
-  const ResultsLayout results{dir};
   const SessionRobot robot = session_robot(s, robot_override);
   const auto ee_board = load_board(s.path(s.ee_target));
   const auto cal_board = load_board(s.path(s.calibration_target));
   const auto names = s.camera_names();
   const std::size_t n_cams = s.cameras.size();
-  fs::create_directories(results.dir());
-  // Results computed from an earlier measurement would stand beside this one's (a re-measure
-  // killed midway would leave new cameras next to an old identification): they go first.
-  for (const fs::path& stale : {results.identification(), results.calibrated_robot(),
-                                results.calibrated_robot_pixels(), results.report("validation")}) {
-    std::error_code ignored;
-    fs::remove(stale, ignored);
-  }
+  // Written into a staged copy of results/ that replaces it when the measurement reaches its
+  // verdict (session/results_transaction.hpp). The copy starts without this stage's files and
+  // without the results computed from them, which would stand beside new measurements.
+  const ResultsLayout current{dir};
+  ResultsTransaction transaction(
+      dir, {(dir / ResultsLayout::kCamerasFolder).parent_path(), current.rig(),
+            current.measured_poses(), current.pixel_observations(), current.measurements(),
+            current.report("measure"), current.identification(), current.calibrated_robot(),
+            current.calibrated_robot_pixels(), current.report("validation")});
+  const ResultsLayout& results = transaction.staged();
   nlohmann::json report{{"stage", "measure"}, {"session", dir.string()}};
+  // A step that could not be done: the previous results stay as they were (nothing committed);
+  // the reason goes to the console and the returned report.
   const auto fail = [&](const std::string& message) {
     report["status"] = "failed";
     report["message"] = message;
-    write_json(report, results.report("measure").string());
-    say(log, "measure failed: {}\n", message);
+    say(log, "measure failed: {}; the previous results are unchanged\n", message);
     return report;
   };
 
@@ -204,7 +207,6 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
                       result.reason));
     }
     const fs::path camera_file = results.camera(names[c]);
-    fs::create_directories(camera_file.parent_path());
     vision::save_camera_file(result.camera, camera_file, names[c]);
     say(log, "  {}: fx {:.2f} ± {:.2f} px, RMS {:.3f} px\n", names[c], result.camera.params[0],
         result.param_stddev[0], result.rms_px);
@@ -214,7 +216,7 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
                {"params", result.camera.params},
                {"param_stddev", result.param_stddev},
                {"warnings", result.warnings},
-               {"camera_file", relative_to(camera_file, dir)}});
+               {"camera_file", relative_to(camera_file, results.session)}});
     intrinsics.push_back(cj);
     results_of.push_back(result);
   }
@@ -363,19 +365,19 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   say(log, "  {} of {} poses measured, {} used for identification\n", measured, records.size(),
       used);
   report["poses"] = {{"total", records.size()}, {"measured", measured}, {"used", used}};
-  report["status"] = refuse_all ? "implausible" : used > 0 ? "ok" : "failed";
+  if (!refuse_all && used == 0) return fail("no pose could be measured");
+  report["status"] = refuse_all ? "implausible" : "ok";
   if (refuse_all) {
     report["message"] = fits.reason;
     say(log,
         "  no pose goes to identification. If the data is right after all, `robocal measure "
         "--accept-implausible` uses it anyway (recorded in measure.json)\n");
-  } else if (used == 0) {
-    report["message"] = "no pose could be measured";
   }
   report["files"] = {ResultsLayout::kCamerasFolder, ResultsLayout::kRig,
                      ResultsLayout::kMeasuredPoses, ResultsLayout::kPixelObservations,
                      ResultsLayout::kMeasurements};
   write_json(report, results.report("measure").string());
+  transaction.commit();
   return report;
 }
 

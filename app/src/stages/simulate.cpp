@@ -13,6 +13,7 @@
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/core/parallel.hpp"
+#include "robocal/core/staging.hpp"
 #include "robocal/vision/renderer.hpp"
 #include "robocal/vision/target_io.hpp"
 #include "robocal_version.hpp"
@@ -80,8 +81,11 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
       cell.model.name, cell.model.parameters.size(), cell.cameras.size(), cell_options.image_width,
       cell_options.image_height, cell.ee_board.corners.size());
 
+  // The session is written into a staging folder beside --out that becomes --out in one step once
+  // everything is written (core/staging.hpp): an unfinished simulation leaves nothing behind.
+  core::StagedDirectory staging(o.out, core::StagedDirectory::Start::kEmpty);
   Session s;
-  s.dir = o.out;
+  s.dir = staging.path();
   s.software = std::string("robocal ") + kVersion;
   s.created = utc_now();
   s.source = "simulated";
@@ -92,7 +96,6 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   for (std::size_t c = 0; c < cell.cameras.size(); ++c)
     s.cameras.push_back(
         {fmt::format("cam{}", c), cell.cameras[c].model.width, cell.cameras[c].model.height});
-  fs::create_directories(o.out);
 
   // The robot file as it is (the manufacturer's); the designed board mount goes to session.yaml.
   const std::string original = core::read_text_file(robot_file);
@@ -204,9 +207,9 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
                         {"angle_sigma_rad", cell_options.angle_sigma},
                         {"actuator_noise", cell_options.actuator_noise},
                         {"actuator_step", cell_options.actuator_step}};
-  write_truth(ResultsLayout{o.out}, cell.model, truth);
-  // session.yaml last: a folder without it is an interrupted simulation, not a session.
-  core::write_file_atomic(o.out / "session.yaml", session_to_yaml(s), core::Overwrite::kRefuse);
+  write_truth(ResultsLayout{s.dir}, cell.model, truth);
+  core::write_file_atomic(s.dir / "session.yaml", session_to_yaml(s), core::Overwrite::kRefuse);
+  staging.commit();
   if (log.clock) log.clock->stop();
   say(log, "session written to {} ({} poses)\n", o.out.string(), true_readings.size());
   return {{"status", "ok"},

@@ -3,6 +3,7 @@
 #include "cli/cli_common.hpp"
 #include "session/json_values.hpp"
 #include "session/results_files.hpp"
+#include "session/results_transaction.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
 #include "simcell/simulated_cell.hpp"
@@ -383,7 +384,11 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   report["status"] = calibrated_errors.absolute.n > 0 ? "ok" : "failed";
   report["improved"] = calibrated_errors.absolute.n > 0 &&
                        calibrated_errors.absolute.rms < nominal_errors.absolute.rms;
-  write_json(report, results.report("validation").string());
+  // The verdict on the calibrated model ("failed": it answered no held-out configuration) goes
+  // to results/ through a transaction like every stage's (session/results_transaction.hpp).
+  ResultsTransaction transaction(dir, {results.report("validation")});
+  write_json(report, transaction.staged().report("validation").string());
+  transaction.commit();
   return report;
 }
 
