@@ -336,7 +336,9 @@ TEST_F(Printer, AdviceSaysWhatToMeasureNextAndWhereAndItWorks) {
 
 // Probe-point design: seven points the advice designs from no data (I-optimal for the bed height
 // over the printed square, for identify's estimator) against the firmwares' fixed 7-point pattern,
-// same count, same truths and noise: the designed points predict held-out heights better.
+// same count, same truths and noise: the designed points predict held-out heights better. Over
+// 100 draws (printer_identify_bench 100: 9.81 vs 10.43 µm, ratio 0.94) the margin is a few per
+// cent, within the spread of a dozen draws, so the test takes 100 (about 3 s).
 TEST_F(Printer, DesignedProbePointsBeatTheFixedPatternOnHeldOutHeights) {
   std::vector<Eigen::VectorXd> bed;
   for (double x = -0.09; x <= 0.0901; x += 0.015)
@@ -362,7 +364,8 @@ TEST_F(Printer, DesignedProbePointsBeatTheFixedPatternOnHeldOutHeights) {
   }
   double ms_fixed = 0.0;
   double ms_designed = 0.0;
-  for (unsigned seed = 1; seed <= 12; ++seed) {
+  constexpr unsigned kDraws = 100;
+  for (unsigned seed = 1; seed <= kDraws; ++seed) {
     for (int which = 0; which < 2; ++which) {
       std::mt19937 rng(seed);
       const Eigen::VectorXd truth = printer_truth(model, rng);
@@ -375,8 +378,8 @@ TEST_F(Printer, DesignedProbePointsBeatTheFixedPatternOnHeldOutHeights) {
       (which == 0 ? ms_fixed : ms_designed) += e * e;
     }
   }
-  std::cout << "held-out height RMS: fixed pattern " << 1e6 * std::sqrt(ms_fixed / 12)
-            << " um, designed " << 1e6 * std::sqrt(ms_designed / 12) << " um\n";
+  std::cout << "held-out height RMS: fixed pattern " << 1e6 * std::sqrt(ms_fixed / kDraws)
+            << " um, designed " << 1e6 * std::sqrt(ms_designed / kDraws) << " um\n";
   EXPECT_LT(ms_designed, ms_fixed);
 }
 
