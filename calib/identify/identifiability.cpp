@@ -90,7 +90,7 @@ std::vector<bool> select_base_set(const Eigen::MatrixXd& R, const std::vector<bo
   return kept;
 }
 
-// The rule with stable_tie_break off: visiting order = preference, then the pivot order of Eigen's
+// The original rule (default): visiting order = preference, then the pivot order of Eigen's
 // column-pivoted QR of R; a column is kept when its part outside the span of the columns kept
 // before it exceeds rank_tolerance (modified Gram-Schmidt, applied twice for orthogonality).
 // Among exactly confounded columns of equal preference the pivot order follows the rounding of

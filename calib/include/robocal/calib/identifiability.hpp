@@ -12,9 +12,9 @@
 //  1. Column scaling: every column is divided by its Euclidean norm, so lengths (m) and angles
 //     (rad) compete on equal terms and singular values are unit-free. A column whose norm is below
 //     `no_effect_tolerance` × the largest column norm has no effect on any measurement.
-//  2. Base set: columns are visited in preference order (within a class: most independent first,
-//     by our own column pivoting whose ties are broken by index, `stable_tie_break`; or the
-//     order of Eigen's column-pivoted QR); a column joins the base
+//  2. Base set: columns are visited in preference order (within a class: the order of a QR
+//     factorisation with column pivoting, i.e. most independent first, or with
+//     `stable_tie_break` our own pivoting whose ties are broken by index); a column joins the base
 //     set when its scaled column has a component of relative size > `rank_tolerance` outside the
 //     span of the columns kept so far. The rest are "redundant".
 //  3. Each redundant parameter f is expressed through the base set: J_f = Σ k_s J_s (least
@@ -43,19 +43,16 @@ struct IdentifiabilityOptions {
   // this large (scaled coefficients are unit-free: 1.0 = same effect, same size).
   double involvement_threshold = 0.05;
   // How a confounded group of equal preference is resolved (which member is kept).
-  //  true (default): own greedy pivoting within each preference class: the column with the
-  //    largest part outside the span of the kept columns is kept next; parts equal within a
-  //    relative 1e-6 are broken by the lower parameter index. Deterministic under rounding noise:
-  //    the last-bit differences between machines (glibc's libm picks FMA or non-FMA code for the
-  //    CPU it runs on) leave the base set, and with it the estimate, unchanged.
-  //  false: the pivot order of Eigen's column-pivoted QR. Among exactly confounded parameters it
-  //    follows rounding-level (1e-16) differences of the input: a YAML round trip of the measured
-  //    poses, or another CPU's libm, can change the base set and with it the held-out error by
-  //    tens of percent (rotary Delta quick demo: camera-in-the-loop 46.7 vs 61.6 um). Kept for
-  //    comparison: on identify_bench rotary_delta "all" its noise-free held-out RMS is 0.61 um
-  //    against the stable rule's 0.69 um, while the calibrated figure with noise is the same
-  //    within the default rule's own rounding spread (calib/identify/README.md).
-  bool stable_tie_break = true;
+  //  false (default): the pivot order of Eigen's column-pivoted QR. Among exactly confounded
+  //    parameters it follows rounding-level (1e-16) differences of the input: a YAML round trip of
+  //    the measured poses can change the base set and with it the held-out error.
+  //  true: own greedy pivoting within each preference class: the column with the largest part
+  //    outside the span of the kept columns is kept next; parts equal within a relative 1e-6 are
+  //    broken by the lower parameter index. Same rank tolerance and preference semantics,
+  //    deterministic under rounding noise. Not the default yet: on identify_bench rotary_delta
+  //    "all" it keeps other members of first-order confounded groups and the noise-free held-out
+  //    RMS goes 0.61 -> 0.69 um (calibrated vs Cramer-Rao unchanged; other seeds and robots equal).
+  bool stable_tie_break = false;
 };
 
 // One parameter that cannot be separated from a combination of base parameters.
