@@ -28,15 +28,14 @@ TEST(DemoEndToEnd, PixelRouteCalibratesFromTheSameDetections) {
   const auto& pixel_route = report["identify"]["pixel_route"];
   EXPECT_EQ(pixel_route["result"]["status"], "converged");
   // Corner noise of rendered images: the fit reproduces the pixels to a fraction of a pixel.
-  EXPECT_LT(pixel_route["reprojection_rms_px"].get<double>(), 1.25 * 0.0187);
+  EXPECT_LT(pixel_route["reprojection_rms_px"].get<double>(), 1.25 * 0.0186);
   EXPECT_TRUE(std::filesystem::exists(dir / "results" / "calibrated_robot_pixels.yaml"));
   const double nominal = report["validate"]["nominal"]["rms_m"];
   const double pixels = report["validate"]["calibrated_pixels"]["rms_m"];
   EXPECT_LT(pixels, nominal / 5.0);
-  // 1.25x the largest of seeds 1-3 in this configuration (`robocal demo --quick --poses 24
-  // --held-out 200 --seed S`, the truth with unmodelled error): 53.9 / 44.7 / 42.9 µm;
-  // reprojection 0.0185 / 0.0181 / 0.0187 px.
-  EXPECT_LT(pixels, 1.25 * 53.9e-6) << "pixel-route calibrated error against truth";
+  // 1.25x what this configuration reaches (twenty-eighth session: 57.6 µm, the truth with
+  // unmodelled error; reprojection 0.0186 px). The bounds were 1.5 x 61.7 µm and 1.5 x 0.026 px.
+  EXPECT_LT(pixels, 1.25 * 57.6e-6) << "pixel-route calibrated error against truth";
   std::filesystem::remove_all(dir);
 }
 
