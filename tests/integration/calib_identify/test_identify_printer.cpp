@@ -337,8 +337,8 @@ TEST_F(Printer, AdviceSaysWhatToMeasureNextAndWhereAndItWorks) {
 // Probe-point design: seven points the advice designs from no data (I-optimal for the bed height
 // over the printed square, for identify's estimator) against the firmwares' fixed 7-point pattern,
 // same count, same truths and noise: the designed points predict held-out heights better. Over
-// 100 draws (printer_identify_bench 100: 9.81 vs 10.43 µm, ratio 0.94) the margin is a few per
-// cent, within the spread of a dozen draws, so the test takes 100 (about 3 s).
+// 100 draws (printer_identify_bench 100: 9.79 vs 10.43 µm, ratio 0.94) the margin is a few per
+// cent, within the spread of a dozen draws, so the test takes 100 (about 2 s).
 TEST_F(Printer, DesignedProbePointsBeatTheFixedPatternOnHeldOutHeights) {
   std::vector<Eigen::VectorXd> bed;
   for (double x = -0.09; x <= 0.0901; x += 0.015)
