@@ -122,11 +122,11 @@ TEST(LiveDemo, LinearDeltaPlansItsPosesAndCalibrates) {
   const fs::path dir = fs::temp_directory_path() / "robocal_e2e_live_demo_linear_delta";
   fs::remove_all(dir);
   fs::create_directories(dir);
-  robocal::test::ChildProcess run(ROBOCAL_BINARY,
-                                  {"demo", "--live", "--quick", "--robot", "linear_delta", "--seed",
-                                   "1", "--yes", "--out", (dir / "demo").string(), "--json",
-                                   (dir / "demo.json").string()},
-                                  (dir / "demo.out").string());
+  robocal::test::ChildProcess run(
+      ROBOCAL_BINARY,
+      {"demo", "--live", "--quick", "--robot", "linear_delta", "--seed", "1", "--yes", "--out",
+       (dir / "demo").string(), "--json", (dir / "demo.json").string()},
+      (dir / "demo.out").string());
   ASSERT_EQ(run.wait(std::chrono::seconds(600)), 0) << run.output();
   const nlohmann::json report = read_json(dir / "demo.json");
   EXPECT_TRUE(report["plan"].value("planner", false)) << report["plan"].dump();

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 namespace robocal::app {
 
@@ -137,8 +138,9 @@ double placement_coverage(const SimulatedCell& cell, const planner::CameraPlacem
 // It takes 4 x 4 tags, at most a third of the height the platform travels (`travel`), so that
 // it clears the bed over most of the range.
 struct SideMount {
-  vision::TargetBoard board;
-  Eigen::VectorXd nominal;  // the nominal parameters with the board's mount
+  vision::TargetBoard board;       // for the cell's renderer
+  vision::TargetBoard plan_board;  // the same, for its plan cell (boards are moved, not copied)
+  Eigen::VectorXd nominal;         // the nominal parameters with the board's mount
   planner::CameraPlacement placement;
   double coverage = 0.0;
 };
@@ -187,21 +189,27 @@ Eigen::Isometry3d side_board_pose(const SimulatedCell& cell, const vision::Targe
 SideMount best_side_mount(const SimulatedCell& cell, const Eigen::VectorXd& q,
                           const Eigen::Isometry3d& tool, const planner::PlacementOptions& options) {
   SideMount best;
-  const vision::TargetBoard board = side_board(cell.options, 2.0 * cell.volume_extent.z());
+  const double travel = 2.0 * cell.volume_extent.z();
   for (const Eigen::Vector3d& face : {Eigen::Vector3d(0, -1, 0), Eigen::Vector3d(1, 0, 0),
                                       Eigen::Vector3d(0, 1, 0), Eigen::Vector3d(-1, 0, 0)}) {
     SimulatedCell side = cell;
-    side.ee_board = board;
-    side.plan_cell.target.board = board;
+    side.ee_board = side_board(cell.options, travel);
+    side.plan_cell.target.board = side_board(cell.options, travel);
     calib::set_fixed_frame_pose(side.model, side.nominal, side.target_frame, q,
-                                side_board_pose(cell, board, q, tool, face));
+                                side_board_pose(cell, side.ee_board, q, tool, face));
     try {
       side.placement = planner::propose_cameras(side.model, side.nominal, side.plan_cell, options);
     } catch (const std::invalid_argument&) {
       continue;
     }
     const double coverage = placement_coverage(side, side.placement);
-    if (coverage > best.coverage) best = {board, side.nominal, side.placement, coverage};
+    if (coverage > best.coverage) {
+      best.board = std::move(side.ee_board);
+      best.plan_board = std::move(side.plan_cell.target.board);
+      best.nominal = side.nominal;
+      best.placement = side.placement;
+      best.coverage = coverage;
+    }
   }
   return best;
 }
@@ -449,13 +457,13 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
     double proposed = placement_coverage(cell, cell.placement);
     if (proposed <= 0.0 && !cell.model.closures.empty() &&
         !planner::target_turned_by_joints(cell.model, cell.target_frame)) {
-      const SideMount side = best_side_mount(cell, configs.front(), tool_poses.front(), placement);
+      SideMount side = best_side_mount(cell, configs.front(), tool_poses.front(), placement);
       if (side.coverage > 0.0) {
         // The true robot keeps its random draws: only the designed mount moves.
         cell.truth += side.nominal - cell.nominal;
         cell.nominal = side.nominal;
-        cell.ee_board = side.board;
-        cell.plan_cell.target.board = side.board;
+        cell.ee_board = std::move(side.board);
+        cell.plan_cell.target.board = std::move(side.plan_board);
         cell.placement = side.placement;
         proposed = side.coverage;
       }
