@@ -157,35 +157,50 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
     readings.push_back(options.measured[k]);
   }
   const std::size_t offset = readings.size();
-  for (const Candidate& c : res.pool) readings.push_back(c.readings);
   const auto L_guess = static_cast<std::size_t>(6);
-  if (res.pool.size() < std::max<std::size_t>(options.selection.count / 2, L_guess)) {
-    res.status = PlanStatus::kInfeasible;
-    res.message = "too few feasible candidate poses to plan (" + std::to_string(res.pool.size()) +
-                  "): " + res.counts.summary();
-    return res;
-  }
-  say("identification Jacobians of " + std::to_string(readings.size()) + " poses");
-  calib::MechanismPredictor predictor(model, res.frame);
-  const ObservabilityModel obs =
-      build_observability_model(predictor, params, readings, options.observability);
-  res.identifiability = obs.messages;
-  if (res.pool.size() * 6 < obs.columns())
-    res.warnings.push_back("only " + std::to_string(res.pool.size()) + " feasible poses for " +
-                           std::to_string(obs.columns()) + " identifiable parameters");
-  say("selecting " + std::to_string(options.selection.count) + " poses by " +
-      to_string(options.selection.index) + " over " + std::to_string(obs.columns()) +
-      " identifiable parameters");
-  // Selection works on pool indices: measured poses are readings[0..offset).
-  res.selection = select_poses(obs, options.selection, measured_idx);
   std::vector<Eigen::VectorXd> chosen;
   std::vector<const Candidate*> chosen_c;
-  for (const std::size_t i : res.selection.chosen) {
-    if (i < offset) continue;
-    chosen.push_back(readings[i]);
-    chosen_c.push_back(&res.pool[i - offset]);
-  }
-  if (options.order) {
+  // Selected poses that no collision-free straight motion joins to the tour (a linear delta's
+  // carriages moving straight sweep the effector past a tower) leave the pool, and the poses are
+  // selected again from the rest: up to three rounds.
+  std::size_t dropped = 0;
+  for (int round = 0;; ++round) {
+    readings.resize(offset);
+    for (const Candidate& c : res.pool) readings.push_back(c.readings);
+    if (res.pool.size() < std::max<std::size_t>(options.selection.count / 2, L_guess)) {
+      res.status = PlanStatus::kInfeasible;
+      res.message = "too few feasible candidate poses to plan (" + std::to_string(res.pool.size()) +
+                    "): " + res.counts.summary();
+      return res;
+    }
+    say("identification Jacobians of " + std::to_string(readings.size()) + " poses");
+    calib::MechanismPredictor predictor(model, res.frame);
+    const ObservabilityModel obs =
+        build_observability_model(predictor, params, readings, options.observability);
+    res.identifiability = obs.messages;
+    say("selecting " + std::to_string(options.selection.count) + " poses by " +
+        to_string(options.selection.index) + " over " + std::to_string(obs.columns()) +
+        " identifiable parameters");
+    // Selection works on pool indices: measured poses are readings[0..offset).
+    res.selection = select_poses(obs, options.selection, measured_idx);
+    chosen.clear();
+    chosen_c.clear();
+    std::vector<std::size_t> chosen_pool;
+    for (const std::size_t i : res.selection.chosen) {
+      if (i < offset) continue;
+      chosen.push_back(readings[i]);
+      chosen_c.push_back(&res.pool[i - offset]);
+      chosen_pool.push_back(i - offset);
+    }
+    if (!options.order) {
+      res.tour = Tour{};
+      for (std::size_t k = 0; k < chosen.size(); ++k) res.tour.order.push_back(k);
+      res.tour.complete = true;
+      if (res.pool.size() * 6 < obs.columns())
+        res.warnings.push_back("only " + std::to_string(res.pool.size()) + " feasible poses for " +
+                               std::to_string(obs.columns()) + " identifiable parameters");
+      break;
+    }
     say("ordering " + std::to_string(chosen.size()) +
         " poses into a short tour, every motion checked for collisions");
     const double step = options.motion_step;
@@ -195,11 +210,49 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
           return checker.segment_free(a, b, step, why);
         },
         options.start);
-    for (const std::string& p : res.tour.problems) res.warnings.push_back(p);
-  } else {
-    for (std::size_t k = 0; k < chosen.size(); ++k) res.tour.order.push_back(k);
-    res.tour.complete = true;
+    // The tour's own motions at the guard's step: a near-touch between two coarse samples
+    // (a carriage 20 mm apart) is not joined either.
+    if (res.tour.complete && options.guard_step > 0.0 && options.guard_step < step) {
+      Eigen::VectorXd from = options.start;
+      std::vector<std::size_t> order;
+      for (const std::size_t k : res.tour.order) {
+        std::string why;
+        if (from.size() == 0 || checker.segment_free(from, chosen[k], options.guard_step, &why)) {
+          order.push_back(k);
+          from = chosen[k];
+        } else {
+          res.tour.complete = false;
+          res.tour.problems.push_back("pose " + std::to_string(k) +
+                                      " cannot be reached by a free straight motion from the "
+                                      "tour at the safety guard's step (" +
+                                      why + ")");
+        }
+      }
+      res.tour.order = std::move(order);
+    }
+    if (res.tour.complete || round == 2) {
+      if (res.pool.size() * 6 < obs.columns())
+        res.warnings.push_back("only " + std::to_string(res.pool.size()) + " feasible poses for " +
+                               std::to_string(obs.columns()) + " identifiable parameters");
+      for (const std::string& p : res.tour.problems) res.warnings.push_back(p);
+      break;
+    }
+    std::vector<bool> joined(chosen.size(), false);
+    for (const std::size_t k : res.tour.order) joined[k] = true;
+    std::vector<bool> drop(res.pool.size(), false);
+    for (std::size_t k = 0; k < chosen.size(); ++k)
+      if (!joined[k]) drop[chosen_pool[k]] = true;
+    std::vector<Candidate> kept;
+    kept.reserve(res.pool.size());
+    for (std::size_t i = 0; i < res.pool.size(); ++i)
+      if (!drop[i]) kept.push_back(std::move(res.pool[i]));
+    dropped += res.pool.size() - kept.size();
+    res.pool = std::move(kept);
   }
+  if (dropped > 0)
+    res.warnings.push_back(std::to_string(dropped) +
+                           " selected poses no collision-free straight motion joined to the tour "
+                           "were left out of the pool and the poses selected again");
   for (std::size_t k = 0; k < res.tour.order.size(); ++k) {
     const std::size_t i = res.tour.order[k];
     PlannedPose p;

@@ -28,7 +28,10 @@ struct PlanOptions {
   SelectionOptions selection;
   ObservabilityOptions observability;
   double motion_step = 0.02;  // joint units (rad / m) between collision checks along a motion
-  bool order = true;          // plan the tour
+  // The tour's motions are checked again at the safety guard's path step (robotio's
+  // SafetyLimits::path_step default), so that no planned motion is one the guard refuses.
+  double guard_step = 1e-3;
+  bool order = true;  // plan the tour
   // Sequential mode: actuator readings already measured; the plan proposes the next best poses.
   std::vector<Eigen::VectorXd> measured;
   Eigen::VectorXd start;  // current readings (tour start), optional
