@@ -93,14 +93,12 @@ TEST(LiveDemo, QuickRunCalibratesTheSimulatedRobotAgainstTheSimulatorsTruth) {
   // The measured board poses against the simulator's truth channel, every pose matched.
   const nlohmann::json& v = report["validate"];
   EXPECT_EQ(v["measured_poses_vs_truth"].value("poses", 0), 20);
-  // Seed 1 (twenty-eighth session): 32.0 µm RMS; every bound below is 1.25 times that run's.
+  // Seed 1: 32.0 µm RMS; every bound below is 1.25 times that run's figure.
   EXPECT_LT(v["measured_poses_vs_truth"].value("rms_m", 1.0), 1.25 * 32.0e-6);
 
   // Held-out configurations of the true robot the fit never saw (500), seed 1: the calibrated
   // model 5.2 µm RMS inside the measured region and 75.6 µm over the whole workspace (outside
-  // the 20 measured poses it extrapolates), 74.9 times better than the nominal model. (When
-  // these bounds were 85 µm, 140 µm and 20 times, the same run gave 57.5 µm, 97.4 µm and 58
-  // times.)
+  // the 20 measured poses it extrapolates), 74.9 times better than the nominal model.
   EXPECT_TRUE(v.value("improved", false));
   const double calibrated = v["calibrated"].value("rms_m", 1.0);
   const double nominal = v["nominal"].value("rms_m", 0.0);
