@@ -164,6 +164,7 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
   // carriages moving straight sweep the effector past a tower) leave the pool, and the poses are
   // selected again from the rest: up to three rounds.
   std::size_t dropped = 0;
+  std::size_t identifiable = 0;
   for (int round = 0;; ++round) {
     readings.resize(offset);
     for (const Candidate& c : res.pool) readings.push_back(c.readings);
@@ -178,6 +179,7 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
     const ObservabilityModel obs =
         build_observability_model(predictor, params, readings, options.observability);
     res.identifiability = obs.messages;
+    identifiable = obs.columns();
     say("selecting " + std::to_string(options.selection.count) + " poses by " +
         to_string(options.selection.index) + " over " + std::to_string(obs.columns()) +
         " identifiable parameters");
@@ -196,9 +198,6 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
       res.tour = Tour{};
       for (std::size_t k = 0; k < chosen.size(); ++k) res.tour.order.push_back(k);
       res.tour.complete = true;
-      if (res.pool.size() * 6 < obs.columns())
-        res.warnings.push_back("only " + std::to_string(res.pool.size()) + " feasible poses for " +
-                               std::to_string(obs.columns()) + " identifiable parameters");
       break;
     }
     say("ordering " + std::to_string(chosen.size()) +
@@ -231,9 +230,6 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
       res.tour.order = std::move(order);
     }
     if (res.tour.complete || round == 2) {
-      if (res.pool.size() * 6 < obs.columns())
-        res.warnings.push_back("only " + std::to_string(res.pool.size()) + " feasible poses for " +
-                               std::to_string(obs.columns()) + " identifiable parameters");
       for (const std::string& p : res.tour.problems) res.warnings.push_back(p);
       break;
     }
@@ -249,6 +245,9 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
     dropped += res.pool.size() - kept.size();
     res.pool = std::move(kept);
   }
+  if (res.pool.size() * 6 < identifiable)
+    res.warnings.push_back("only " + std::to_string(res.pool.size()) + " feasible poses for " +
+                           std::to_string(identifiable) + " identifiable parameters");
   if (dropped > 0)
     res.warnings.push_back(std::to_string(dropped) +
                            " selected poses no collision-free straight motion joined to the tour "
