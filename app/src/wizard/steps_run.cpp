@@ -146,7 +146,7 @@ class CollectionStep final : public Step {
     const bool resume = fs::exists(ctx.state.session() / "session.yaml");
     if (resume) {
       // A resumed collection may go on at another speed (the safety step's limits, asked again
-      // of an operator; a script without the answer goes on at the speed it gave before).
+      // of an operator; a script without that answer keeps its safety step's speed).
       if (ctx.ask.interactive() || ctx.ask.has_answer("collection.speed"))
         ctx.state.set("safety.speed",
                       ctx.ask.ask("collection.speed",
