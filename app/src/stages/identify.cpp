@@ -19,6 +19,7 @@
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/core/angles.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal_version.hpp"
 
@@ -32,8 +33,6 @@ namespace robocal::app {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 std::string measure_first(const fs::path& dir) {
   return "run `robocal measure " + dir.string() + "` first";
@@ -186,7 +185,7 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   calib::MechanismPredictor predictor(model, robot.frame);
   const auto start_errors = calib::prediction_errors(predictor, start, measurements.poses);
   say(log, "  nominal model with the fitted base frame: {:.1f} µm RMS, {:.4f} deg RMS\n",
-      start_errors.position_rms * 1e6, start_errors.orientation_rms * kRadToDeg);
+      start_errors.position_rms * 1e6, core::degrees(start_errors.orientation_rms));
   report["nominal_fit"] = calib::to_json(start_errors);
   // The robot file's tolerances as priors (MAP). A cell's design (poses where the cameras see the
   // board) leaves weak directions; along them a maximum-likelihood estimate can trade, e.g., a
@@ -212,7 +211,7 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
       calib::to_string(result.status), result.estimated.size(), result.candidates.size(),
       result.identifiability.condition_number, result.iterations, result.solve_seconds);
   say(log, "  fit residual: {:.1f} µm RMS position, {:.4f} deg RMS orientation, {} outliers\n",
-      result.residuals.position_rms * 1e6, result.residuals.orientation_rms * kRadToDeg,
+      result.residuals.position_rms * 1e6, core::degrees(result.residuals.orientation_rms),
       result.residuals.outliers);
   if (result.relinearisation.attempted) say(log, "  {}\n", result.relinearisation.message);
   report["result"] = calib::to_json(result);

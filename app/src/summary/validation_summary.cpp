@@ -3,6 +3,8 @@
 
 #include "session/results_layout.hpp"
 
+#include "robocal/core/angles.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -13,11 +15,9 @@ namespace robocal::app {
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
-
 std::string fmt_param_change(const std::string& unit, double delta) {
   if (unit == "length") return fmt::format("{:+8.3f} mm", delta * 1e3);
-  if (unit == "angle") return fmt::format("{:+8.4f} deg", delta * kRadToDeg);
+  if (unit == "angle") return fmt::format("{:+8.4f} deg", core::degrees(delta));
   return fmt::format("{:+8.2e}", delta);
 }
 
