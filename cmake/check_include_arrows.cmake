@@ -5,6 +5,10 @@
 # always include its own. calib may use vision's camera models only (robocal_vision_camera:
 # camera_model.hpp, camera_models.hpp, camera_parameter_names.hpp): the rule for "vision" under
 # calib is that narrow list. Nothing includes app's headers except app.
+#
+# Inside app, each folder of app/src lists the folders it may include (ARCHITECTURE.md,
+# "app/src: the product's shape"); a folder with no rule fails the check, so a new folder gets
+# its arrows when it is made.
 cmake_minimum_required(VERSION 3.25)
 if(NOT ROOT)
   message(FATAL_ERROR "pass -DROOT=<source dir>")
@@ -30,8 +34,31 @@ set(allowed_app "core;vision;calib;robotio;planner")
 set(vision_camera_headers
     "robocal/vision/camera_model.hpp;robocal/vision/camera_models.hpp;robocal/vision/camera_parameter_names.hpp")
 
-set(parts core vision calib robotio planner app)
+# app/src folder -> app/src folders it may include (besides itself). cli is the command line's
+# common ground (exit codes, progress, JSON output); commands sit on top of everything.
+set(app_allowed_cli "")
+set(app_allowed_simcell "")
+set(app_allowed_session "cli")
+set(app_allowed_summary "session")
+set(app_allowed_batch "cli")
+set(app_allowed_stages "cli;session;simcell;summary")
+set(app_allowed_live "cli;session;simcell;stages;summary")
+set(app_allowed_wizard "cli;live;session;stages;summary")
+set(app_allowed_commands "batch;cli;live;session;simcell;stages;summary;wizard")
+
 set(violations "")
+file(GLOB app_entries LIST_DIRECTORIES true RELATIVE "${ROOT}/app/src" "${ROOT}/app/src/*")
+set(app_folders "")
+foreach(entry IN LISTS app_entries)
+  if(IS_DIRECTORY "${ROOT}/app/src/${entry}")
+    list(APPEND app_folders "${entry}")
+    if(NOT DEFINED app_allowed_${entry})
+      list(APPEND violations "app/src/${entry}: a folder with no arrows (add its rule here and in ARCHITECTURE.md)")
+    endif()
+  endif()
+endforeach()
+
+set(parts core vision calib robotio planner app)
 foreach(part IN LISTS parts)
   foreach(folder IN LISTS folders_${part})
     if(NOT IS_DIRECTORY "${ROOT}/${folder}")
@@ -48,9 +75,26 @@ foreach(part IN LISTS parts)
         set(target_part "")
         if(header MATCHES "^robocal/([a-z_]+)/")
           set(target_part "${CMAKE_MATCH_1}")
-        elseif(header MATCHES "^(cli|commands|session|stages|simcell|summary|live|batch)/"
-               OR header MATCHES "^robocal_version\\.hpp$")
+        elseif(header MATCHES "^robocal_version\\.hpp$")
           set(target_part "app")
+        elseif(header MATCHES "^([a-z_]+)/")
+          # ${CMAKE_MATCH_1} in the same if() would be the previous match: test it apart.
+          if(CMAKE_MATCH_1 IN_LIST app_folders)
+            set(target_part "app")
+          endif()
+        endif()
+        if(part STREQUAL "app" AND target_part STREQUAL "app" AND header MATCHES "^([a-z_]+)/")
+          set(to_folder "${CMAKE_MATCH_1}")
+          file(RELATIVE_PATH rel "${ROOT}/app/src" "${source}")
+          set(from_folder "")
+          if(rel MATCHES "^([a-z_]+)/")
+            set(from_folder "${CMAKE_MATCH_1}")
+          endif()
+          if(NOT from_folder STREQUAL "" AND NOT from_folder STREQUAL to_folder
+             AND NOT to_folder IN_LIST app_allowed_${from_folder})
+            list(APPEND violations "app/src/${rel}: ${from_folder}/ includes <${header}> (${to_folder}/)")
+          endif()
+          continue()
         endif()
         if(target_part STREQUAL "" OR target_part STREQUAL part)
           continue()
