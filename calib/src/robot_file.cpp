@@ -1018,19 +1018,4 @@ void apply_parameter_override(const Mechanism& model, Eigen::VectorXd& params,
   }
 }
 
-std::string describe_convention(const std::string& convention, JointType joint) {
-  const ConventionSpec spec = convention_spec(convention, joint, "xyz", "z");
-  std::string out;
-  for (const OpSpec& op : spec.ops) {
-    static const char* names[] = {"Rx", "Ry", "Rz", "Tx", "Ty", "Tz"};
-    if (!out.empty()) out += ' ';
-    out += names[static_cast<int>(op.kind)];
-    out += '(';
-    if (op.key) out += op.key;
-    if (op.joint) out += op.key ? " + q" : "q";
-    out += ")";
-  }
-  return out;
-}
-
 }  // namespace robocal::calib

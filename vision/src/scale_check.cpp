@@ -156,17 +156,6 @@ ScaleCheck check_scale(const std::vector<RigCamera>& rig, const ScaleBar& bar,
   return out;
 }
 
-std::vector<RigCamera> scale_rig(const std::vector<RigCamera>& rig, double factor) {
-  std::vector<RigCamera> out = rig;
-  for (RigCamera& c : out) {
-    c.camera_T_world.translation() *= factor;
-    c.extrinsic_covariance.bottomRightCorner<3, 3>() *= factor * factor;
-    c.extrinsic_covariance.topRightCorner<3, 3>() *= factor;
-    c.extrinsic_covariance.bottomLeftCorner<3, 3>() *= factor;
-  }
-  return out;
-}
-
 RigCalibrationResult scale_rig_calibration(const RigCalibrationResult& calibration, double factor) {
   RigCalibrationResult out = calibration;
   for (CameraCalibration& c : out.cameras) {

@@ -379,14 +379,6 @@ void V4l2Camera::set_gain(double gain) {
 double V4l2Camera::gain() const {
   return impl_->get_control(V4L2_CID_GAIN, "gain");
 }
-void V4l2Camera::set_focus(double focus) {
-  impl_->set_control(V4L2_CID_FOCUS_AUTO, 0, "manual focus mode");
-  impl_->set_control(V4L2_CID_FOCUS_ABSOLUTE, static_cast<std::int32_t>(std::lround(focus)),
-                     "focus");
-}
-double V4l2Camera::focus() const {
-  return impl_->get_control(V4L2_CID_FOCUS_ABSOLUTE, "focus");
-}
 
 void V4l2Camera::set_pixel_format(const std::string& fourcc) {
   impl_->require();

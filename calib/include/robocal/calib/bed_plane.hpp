@@ -40,7 +40,6 @@ class BedPlanePredictor final : public FramePredictor {
                       const FramePrediction& frame, double& residual, Eigen::RowVectorXd* jacobian,
                       std::string& why) const override;
 
-  std::size_t inner_parameter_count() const { return inner_count_; }
   // The inner predictor's start values followed by a level bed.
   Eigen::VectorXd initial_parameters(const Eigen::VectorXd& inner_params) const;
   // The inner predictor's solve options extended to the full vector: both slopes are

@@ -66,7 +66,6 @@ class CameraRigPredictor final : public FramePredictor {
                       std::string& why) const override;
 
   // ---- layout ----
-  std::size_t robot_parameter_count() const { return robot_count_; }
   int camera_count() const { return static_cast<int>(cameras_.size()); }
   const std::vector<ObservingCamera>& cameras() const { return cameras_; }
   const CameraRigOptions& options() const { return options_; }

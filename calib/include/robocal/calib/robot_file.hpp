@@ -29,8 +29,4 @@ double evaluate_expression(const std::string& text);
 void apply_parameter_override(const Mechanism& model, Eigen::VectorXd& params,
                               const std::string& assignment);
 
-// The elementary-op expansion of each convention, as parameter keys (for docs and tools):
-// e.g. "mcpc" revolute -> Rx(a1) Ry(a2) Tx(d1) Ty(d2) Tz(d3) Rz(a3 + q).
-std::string describe_convention(const std::string& convention, JointType joint);
-
 }  // namespace robocal::calib

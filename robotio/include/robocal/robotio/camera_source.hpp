@@ -68,7 +68,6 @@ class CameraError : public std::runtime_error {
   Kind kind_;
   std::string camera_;
 };
-const char* camera_error_kind_name(CameraError::Kind kind);
 
 enum class TriggerMode {
   kFreeRunning,  // the camera streams at its frame rate; grab() returns the next frame

@@ -61,9 +61,6 @@ class V4l2Camera final : public CameraSource {
   [[nodiscard]] std::string pixel_format() const override;
   void set_region(const Region& region) override;
   [[nodiscard]] Region region() const override;
-  // Focus (V4L2_CID_FOCUS_ABSOLUTE, driver units; autofocus is switched off first).
-  void set_focus(double focus);
-  [[nodiscard]] double focus() const;
   // UVC cameras have no software trigger: in kSoftware mode, receive() returns the first frame
   // exposed after trigger(), dropping frames queued before it.
   void start(TriggerMode mode) override;

@@ -68,7 +68,6 @@ ScaleCheck check_scale(const std::vector<RigCamera>& rig, const ScaleBar& bar,
 // Every rig length multiplied by `factor` (camera translations and their covariance), the
 // reference camera staying at the origin; board poses scaled alike.
 RigCalibrationResult scale_rig_calibration(const RigCalibrationResult& calibration, double factor);
-std::vector<RigCamera> scale_rig(const std::vector<RigCamera>& rig, double factor);
 
 // Triangulates one point seen by two or more cameras (pixel sigma per observation): linear
 // ray-intersection start, then Gauss-Newton on the reprojection error. Returns false when fewer
