@@ -80,6 +80,7 @@ CommandSpec report_command();
 CommandSpec export_command();
 CommandSpec collect_command();
 CommandSpec wizard_command();
+CommandSpec handeye_command();
 
 // In the order of a calibration: the demo first, then the steps a user runs on real data.
 const std::vector<CommandSpec>& all_commands() {
@@ -89,7 +90,7 @@ const std::vector<CommandSpec>& all_commands() {
       rig_command(), measure_command(), identify_command(), simulate_command(),
       validate_command(), batch_command(), batch_merge_command(), plan_command(),
       wizard_command(), sim_cell_command(), collect_command(), sim_controller_command(), version_command(), compensate_command(),
-      report_command(), export_command(),
+      report_command(), export_command(), handeye_command(),
       // clang-format on
   };
   return commands;

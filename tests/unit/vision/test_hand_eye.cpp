@@ -34,7 +34,8 @@ rv::BoardPoints grid_board() {
   rv::BoardPoints board;
   int id = 0;
   for (int r = 0; r < 6; ++r)
-    for (int c = 0; c < 8; ++c) board[id++] = Eigen::Vector3d((c - 3.5) * 0.03, (r - 2.5) * 0.03, 0);
+    for (int c = 0; c < 8; ++c)
+      board[id++] = Eigen::Vector3d((c - 3.5) * 0.03, (r - 2.5) * 0.03, 0);
   return board;
 }
 
@@ -84,10 +85,10 @@ Scene fixed_camera_scene(unsigned seed, int views, double sigma = kPixelSigma) {
   Scene s;
   s.mount = rv::HandEyeMount::kFixedCamera;
   // Camera above and in front of the robot, looking down at the working area around (0.5, 0, 0.3).
-  s.camera_pose = rv::camera_T_board_look_at(Eigen::Vector3d(0.5, -0.9, 1.1),
-                                             Eigen::Vector3d(0.5, 0.0, 0.3),
-                                             Eigen::Vector3d(0, 0, 1))
-                      .inverse();
+  s.camera_pose =
+      rv::camera_T_board_look_at(Eigen::Vector3d(0.5, -0.9, 1.1), Eigen::Vector3d(0.5, 0.0, 0.3),
+                                 Eigen::Vector3d(0, 0, 1))
+          .inverse();
   s.target_pose = make_pose(Eigen::Vector3d(0.1, -0.2, 0.05), Eigen::Vector3d(0.02, -0.01, 0.12));
   // The flange's nominal orientation turns the board's face towards the camera.
   const Iso camera_T_target_nominal = make_pose(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 1));

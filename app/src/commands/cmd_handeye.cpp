@@ -1,0 +1,114 @@
+// `robocal handeye`: where the camera and the board are relative to the robot, from images and
+// the flange poses its controller reported (no kinematic model).
+#include "cli/cli_common.hpp"
+#include "cli/command_registry.hpp"
+#include "stages/hand_eye.hpp"
+
+#include "robocal/core/angles.hpp"
+#include "robocal/vision/hand_eye_io.hpp"
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <memory>
+
+namespace robocal::app {
+
+namespace {
+
+void print_transform(std::FILE* out, const char* what, const Eigen::Isometry3d& pose,
+                     const core::PoseCovariance& cov) {
+  const Eigen::Vector3d t = pose.translation();
+  const Eigen::Quaterniond q(pose.linear());
+  fmt::print(out,
+             "  {}: translation ({:.5f}, {:.5f}, {:.5f}) m +- {:.2f} mm, quaternion xyzw ({:.5f}, "
+             "{:.5f}, {:.5f}, {:.5f}) +- {:.3f} deg\n",
+             what, t.x(), t.y(), t.z(), 1e3 * std::sqrt(cov.topLeftCorner<3, 3>().trace()), q.x(),
+             q.y(), q.z(), q.w(), core::degrees(std::sqrt(cov.bottomRightCorner<3, 3>().trace())));
+}
+
+void print_result(std::FILE* out, const vision::HandEyeResult& r, const std::string& file) {
+  int used = 0;
+  for (const auto& v : r.views) {
+    used += v.used ? 1 : 0;
+    if (!v.used) fmt::print(out, "  {}: not used: {}\n", v.name, v.rejection);
+  }
+  if (r.status != vision::HandEyeStatus::kOk) return;
+  const bool fixed = r.mount == vision::HandEyeMount::kFixedCamera;
+  fmt::print(out, "{} of {} views used, reprojection {:.3f} px RMS ({} corners)\n", used,
+             r.views.size(), r.rms_px, r.corners_used);
+  print_transform(out, fixed ? "camera in base  " : "camera in flange", r.camera_pose,
+                  r.camera_pose_covariance);
+  print_transform(out, fixed ? "board in flange " : "board in base   ", r.target_pose,
+                  r.target_pose_covariance);
+  for (const auto& w : r.warnings) fmt::print(out, "warning: {}\n", w);
+  fmt::print(out, "written: {}\n  {}\n", file,
+             vision::ros2_static_transform(r.camera_pose, fixed ? "base" : "flange", "camera"));
+}
+
+}  // namespace
+
+CommandSpec handeye_command() {
+  return {"handeye",
+          "Locate the camera and the board relative to the robot from the flange poses its "
+          "controller reports (hand-eye calibration)",
+          [](CLI::App& cmd) -> CommandAction {
+            auto request = std::make_shared<HandEyeRequest>();
+            auto images = std::make_shared<std::string>();
+            auto poses = std::make_shared<std::string>();
+            auto target = std::make_shared<std::string>();
+            auto camera = std::make_shared<std::string>();
+            auto out = std::make_shared<std::string>("handeye.yaml");
+            auto mount = std::make_shared<std::string>("fixed");
+            auto threads = std::make_shared<int>(2);
+            cmd.footer(
+                "For a robot whose own accuracy is trusted (a UR5, an industrial arm with its own "
+                "calibration): no kinematic model, only the base -> flange pose the controller "
+                "reported for each image. A fixed camera gives the camera in the base frame and "
+                "the board in the flange frame; a camera on the tool (--mount tool) the camera "
+                "in the flange frame and the board in the base frame.\n\n"
+                "POSES is a folder with one YAML file per image (3.png -> 3.yaml: x y z in "
+                "metres, qx qy qz qw) or a YAML list of {image, pose} entries. Without --camera "
+                "the intrinsics are calibrated from the same images first. A closed form starts a "
+                "bundle adjustment on the corner pixels of every view (with --estimate-intrinsics "
+                "the intrinsics too); views that disagree with the rest are named and left out. "
+                "Flange positions in millimetres, quaternions written w first and the wrong "
+                "mounting are recognised and refused with what to change. Writes OUT only when "
+                "the estimate is accepted: both transforms with their covariance, every view's "
+                "reprojection and the ROS 2 static transform commands.");
+            cmd.add_option("images", *images, "Folder of images of the board")->required();
+            cmd.add_option("--poses", *poses, "Flange poses: folder of IMAGE.yaml or a list file")
+                ->required();
+            cmd.add_option("--target", *target, "Board file (robocal target)")->required();
+            cmd.add_option("--camera", *camera, "Camera file (robocal intrinsics)");
+            cmd.add_flag("--estimate-intrinsics", request->estimate_intrinsics,
+                         "Refine the intrinsics together with the two transforms");
+            cmd.add_option("--mount", *mount, "Where the camera is: fixed or tool")
+                ->check(CLI::IsMember({"fixed", "tool"}))
+                ->capture_default_str();
+            cmd.add_option("-o,--out", *out, "Result file (YAML)")->capture_default_str();
+            cmd.add_option("--threads", *threads, "Detection workers")
+                ->check(CLI::Range(1, 64))
+                ->capture_default_str();
+            return [request, images, poses, target, camera, out, mount, threads]() {
+              request->images = *images;
+              request->poses = *poses;
+              request->target = *target;
+              if (!camera->empty()) request->camera = *camera;
+              request->out = *out;
+              request->mount = *mount == "tool" ? vision::HandEyeMount::kCameraOnTool
+                                                : vision::HandEyeMount::kFixedCamera;
+              PipelineLog log;
+              log.threads = *threads;
+              const auto result = run_hand_eye(*request, log);
+              print_result(stdout, result, *out);
+              if (result.status == vision::HandEyeStatus::kOk) return 0;
+              fmt::print(stderr, "error: hand-eye calibration {}: {}\nnothing written\n",
+                         result.status == vision::HandEyeStatus::kRefused ? "refused" : "failed",
+                         result.reason);
+              return 1;
+            };
+          }};
+}
+
+}  // namespace robocal::app
