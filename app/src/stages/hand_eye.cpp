@@ -43,10 +43,12 @@ vision::CameraModel camera_from_views(const std::vector<vision::ImageDetection>&
         "the camera's intrinsics cannot be calibrated from these images ({}): give a camera file "
         "(--camera, from `robocal intrinsics`)",
         calibration.reason));
+  int used = 0;
+  for (const auto& v : calibration.views) used += v.used ? 1 : 0;
   fmt::print(log.out,
-             "intrinsics from the {} views: {:.3f} px RMS (fx {:.1f}, cx {:.1f}, cy {:.1f})\n",
-             views.size(), calibration.rms_px, calibration.camera.params[0],
-             calibration.camera.params[2], calibration.camera.params[3]);
+             "intrinsics from {} of the images: {:.3f} px RMS (fx {:.1f}, cx {:.1f}, cy {:.1f})\n",
+             used, calibration.rms_px, calibration.camera.params[0], calibration.camera.params[2],
+             calibration.camera.params[3]);
   return calibration.camera;
 }
 
