@@ -349,8 +349,8 @@ std::optional<Eigen::Isometry3d> solve_ax_xb(const std::vector<Eigen::Isometry3d
     const Eigen::AngleAxisd a(A[k].linear());
     const Eigen::AngleAxisd b(B[k].linear());
     if (a.angle() < min_motion_deg * kDeg || b.angle() < min_motion_deg * kDeg) continue;
-    alpha.push_back(a.angle() * a.axis());
-    beta.push_back(b.angle() * b.axis());
+    alpha.emplace_back(a.angle() * a.axis());
+    beta.emplace_back(b.angle() * b.axis());
   }
   // Two rotation axes far enough apart determine the rotation; one axis leaves a turn about it.
   double widest = 0.0;
