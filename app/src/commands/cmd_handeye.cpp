@@ -67,6 +67,11 @@ CommandSpec handeye_command() {
                 "reported for each image. A fixed camera gives the camera in the base frame and "
                 "the board in the flange frame; a camera on the tool (--mount tool) the camera "
                 "in the flange frame and the board in the base frame.\n\n"
+                "IMAGES is a folder of images with --poses and --target, or a session folder "
+                "recorded by `robocal collect` or the wizard: then each camera is solved with the "
+                "intrinsics `robocal measure` calibrated, and the flange is the session's measured "
+                "frame at the robot file's nominal model for the recorded readings (one result "
+                "file per camera, OUT_<camera>.yaml, when there are several).\n\n"
                 "POSES is a folder with one YAML file per image (3.png -> 3.yaml: x y z in "
                 "metres, qx qy qz qw) or a YAML list of {image, pose} entries. Without --camera "
                 "the intrinsics are calibrated from the same images first. A closed form starts a "
@@ -76,10 +81,10 @@ CommandSpec handeye_command() {
                 "mounting are recognised and refused with what to change. Writes OUT only when "
                 "the estimate is accepted: both transforms with their covariance, every view's "
                 "reprojection and the ROS 2 static transform commands.");
-            cmd.add_option("images", *images, "Folder of images of the board")->required();
-            cmd.add_option("--poses", *poses, "Flange poses: folder of IMAGE.yaml or a list file")
+            cmd.add_option("images", *images, "Folder of images of the board, or a session folder")
                 ->required();
-            cmd.add_option("--target", *target, "Board file (robocal target)")->required();
+            cmd.add_option("--poses", *poses, "Flange poses: folder of IMAGE.yaml or a list file");
+            cmd.add_option("--target", *target, "Board file (robocal target)");
             cmd.add_option("--camera", *camera, "Camera file (robocal intrinsics)");
             cmd.add_flag("--estimate-intrinsics", request->estimate_intrinsics,
                          "Refine the intrinsics together with the two transforms");
@@ -100,12 +105,21 @@ CommandSpec handeye_command() {
                                                 : vision::HandEyeMount::kFixedCamera;
               PipelineLog log;
               log.threads = *threads;
-              const auto result = run_hand_eye(*request, log);
-              print_result(stdout, result, *out);
-              if (result.status == vision::HandEyeStatus::kOk) return 0;
-              fmt::print(stderr, "error: hand-eye calibration {}: {}\nnothing written\n",
-                         result.status == vision::HandEyeStatus::kRefused ? "refused" : "failed",
-                         result.reason);
+              const auto outcomes = run_hand_eye(*request, log);
+              bool all_ok = true;
+              for (const auto& o : outcomes) {
+                if (outcomes.size() > 1) fmt::print("camera {}:\n", o.camera);
+                print_result(stdout, o.result, o.file.string());
+                all_ok = all_ok && o.result.status == vision::HandEyeStatus::kOk;
+              }
+              if (all_ok) return 0;
+              for (const auto& o : outcomes)
+                if (o.result.status != vision::HandEyeStatus::kOk)
+                  fmt::print(
+                      stderr, "error: hand-eye calibration of {} {}: {}\n", o.camera,
+                      o.result.status == vision::HandEyeStatus::kRefused ? "refused" : "failed",
+                      o.result.reason);
+              fmt::print(stderr, "nothing written\n");
               return 1;
             };
           }};

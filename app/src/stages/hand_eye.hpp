@@ -2,6 +2,11 @@
 // `robocal handeye`'s stage: images of a board + the flange poses the controller reported ->
 // where the camera and the board are relative to the robot (vision/hand_eye.hpp), written as
 // YAML (vision/hand_eye_io.hpp) only when the estimate is accepted.
+//
+// Two sources: a folder of images with a pose file per image, or a session folder recorded by
+// `robocal collect` / the wizard, whose poses are the measured frame at the robot file's nominal
+// model for the actuator readings recorded (a robot trusted as it is) and whose cameras are
+// solved one by one with the intrinsics `robocal measure` calibrated.
 #include "stages/stages.hpp"
 
 #include "robocal/vision/hand_eye.hpp"
@@ -9,20 +14,27 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace robocal::app {
 
 struct HandEyeRequest {
-  std::filesystem::path images;                 // folder of images
-  std::filesystem::path poses;                  // folder of IMAGE_STEM.yaml or a pairing list
-  std::filesystem::path target;                 // board file
+  std::filesystem::path images;  // folder of images, or a session folder
+  std::filesystem::path poses;   // folder of IMAGE_STEM.yaml or a pairing list (image folders)
+  std::filesystem::path target;  // board file (image folders; a session has its own)
   std::optional<std::filesystem::path> camera;  // camera file; none: calibrated from the images
   bool estimate_intrinsics = false;             // refine the intrinsics with the transforms
   vision::HandEyeMount mount = vision::HandEyeMount::kFixedCamera;
   std::filesystem::path out = "handeye.yaml";
 };
 
-// The result (status kOk: `out` written; otherwise nothing written, `reason` says why).
-vision::HandEyeResult run_hand_eye(const HandEyeRequest& request, const PipelineLog& log);
+// One camera's answer and where it was written (nothing written unless status is kOk).
+struct HandEyeOutcome {
+  std::string camera;
+  std::filesystem::path file;
+  vision::HandEyeResult result;
+};
+
+std::vector<HandEyeOutcome> run_hand_eye(const HandEyeRequest& request, const PipelineLog& log);
 
 }  // namespace robocal::app
