@@ -85,7 +85,7 @@ void load_fault_script(const std::string& path, FaultPlan& plan) {
   }
 }
 
-std::optional<FaultKind> SimController::Impl::roll_fault(const std::string& cmd) {
+std::optional<FaultKind> SimController::Impl::draw_fault() {
   ++commands_received;
   const auto scripted = options.faults.script.find(commands_received);
   std::optional<FaultKind> f;
@@ -98,6 +98,11 @@ std::optional<FaultKind> SimController::Impl::roll_fault(const std::string& cmd)
       if (r < options.faults.rate[k]) f = static_cast<FaultKind>(k);
     }
   }
+  return f;
+}
+
+std::optional<FaultKind> SimController::Impl::roll_fault(const std::string& cmd) {
+  const std::optional<FaultKind> f = draw_fault();
   if (!f) return f;
   const bool is_move = cmd.rfind("G1", 0) == 0 || cmd.rfind("G0", 0) == 0;
   // Faults that only make sense for some commands fall back to none elsewhere.
@@ -106,6 +111,17 @@ std::optional<FaultKind> SimController::Impl::roll_fault(const std::string& cmd)
   // A stop must always get through: never fault the commands that stop the robot.
   if (cmd.rfind("M410", 0) == 0 || cmd.rfind("M112", 0) == 0 || cmd.rfind("M110", 0) == 0)
     return std::nullopt;
+  return f;
+}
+
+// The open protocol has no checksums and no partial reports: those kinds draw nothing there. The
+// handshake and the stop always get through.
+std::optional<FaultKind> SimController::Impl::open_roll_fault(const std::string& cmd) {
+  const std::optional<FaultKind> f = draw_fault();
+  if (!f || cmd == "hello" || cmd == "stop") return std::nullopt;
+  if (*f == FaultKind::kCorrupt || *f == FaultKind::kResend || *f == FaultKind::kPartial)
+    return std::nullopt;
+  if (*f == FaultKind::kStall && cmd != "move") return std::nullopt;
   return f;
 }
 

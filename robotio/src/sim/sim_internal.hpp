@@ -4,7 +4,8 @@
 //   sim_server.cpp  the sockets and the pty, the poll loop, the true-pose channel;
 //   sim_motion.cpp  the true robot: motion queue, trapezoid timing, backlash, noise, the log;
 //   sim_faults.cpp  fault plans and the per-command draw;
-//   sim_gcode.cpp   the G-code firmware (Marlin / RepRapFirmware dialects).
+//   sim_gcode.cpp   the G-code firmware (Marlin / RepRapFirmware dialects);
+//   sim_open.cpp    the open link protocol (robotio/OPEN_LINK.md).
 // A further protocol is one more file with its receive/process pair, dispatched in run().
 #include "robocal/robotio/sim_controller.hpp"
 
@@ -60,6 +61,13 @@ struct Channel {
   double next_busy = 0.0;
   double hold_until = 0.0;
   double next_temperature = 0.0;
+  // Open protocol: the last request answered (a repeated id gets this reply again) and the
+  // blocking request (wait_settled, home) being waited for.
+  nlohmann::json last_id;
+  std::string last_reply;
+  nlohmann::json wait_id;
+  std::string wait_cmd;
+  long notified_motion = 0;  // motions whose "settled" event was sent
   bool open() const { return fd >= 0; }
 };
 
@@ -88,6 +96,7 @@ struct SimController::Impl {
   double acceleration;
   double busy_interval;
   bool halted = false;
+  bool stopped_by_request = false;  // open protocol: a controlled stop ended the last motion
   long commands_received = 0;       // numbered commands (fault script index)
   Eigen::VectorXd physical_offset;  // backlash + repeatability of the current position
   std::vector<int> last_direction;
@@ -120,7 +129,13 @@ struct SimController::Impl {
   void serve_pose(std::size_t i);
   void accept_on(int listen_fd, Channel* channel);
 
+  void on_connect(Channel& c);
+  void receive_any(Channel& c);
+  void process_any(Channel& c, double now);
+
   // ---- faults (sim_faults.cpp) ---------------------------------------------------------------
+  // The fault drawn for the next received command (script or rates), before any filtering.
+  std::optional<FaultKind> draw_fault();
   std::optional<FaultKind> roll_fault(const std::string& cmd);
   void void_fault(Channel& c, std::optional<FaultKind> fault);
 
@@ -134,6 +149,19 @@ struct SimController::Impl {
   void handle_line(Channel& c, Pending& item);
   void receive(Channel& c);
   void process(Channel& c, double now);
+
+  // ---- the open link protocol (sim_open.cpp) -------------------------------------------------
+  void open_receive(Channel& c);
+  void open_process(Channel& c, double now);
+  void open_handle(Channel& c, Pending& item);
+  // Executes one request; returns the reply, or nullopt when it blocks (wait_settled, home).
+  std::optional<nlohmann::json> open_execute(Channel& c, const nlohmann::json& request,
+                                             std::optional<FaultKind> fault);
+  void open_reply(Channel& c, const nlohmann::json& id, nlohmann::json reply, bool lost);
+  nlohmann::json open_position() const;
+  // A stop acts on receipt, even while a wait_settled blocks the request queue.
+  void open_stop(Channel& c, const std::string& kind);
+  std::optional<FaultKind> open_roll_fault(const std::string& cmd);
 };
 
 }  // namespace robocal::robotio

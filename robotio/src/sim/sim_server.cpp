@@ -119,6 +119,11 @@ void SimController::Impl::reset_channel(Channel& c) {
   c.blocked = false;
   c.hold_until = 0.0;
   c.next_temperature = t() + options.temperature_interval;
+  c.last_id = nullptr;
+  c.last_reply.clear();
+  c.wait_id = nullptr;
+  c.wait_cmd.clear();
+  c.notified_motion = motion_ids;
 }
 
 void SimController::Impl::close_channel(Channel& c, bool reopen) {
@@ -187,7 +192,32 @@ void SimController::Impl::accept_on(int listen_fd, Channel* channel) {
   close_channel(*channel, false);  // one host at a time, the newest wins
   channel->fd = fd;
   reset_channel(*channel);
-  greet(*channel);
+  on_connect(*channel);
+}
+
+void SimController::Impl::on_connect(Channel& c) {
+  if (options.protocol == SimProtocol::kGcode) {
+    greet(c);
+    return;
+  }
+  ++counters.connections;
+  write_log({{"ev", "connect"}, {"ch", c.name}});
+}
+
+void SimController::Impl::receive_any(Channel& c) {
+  if (options.protocol == SimProtocol::kOpen) {
+    open_receive(c);
+  } else {
+    receive(c);
+  }
+}
+
+void SimController::Impl::process_any(Channel& c, double now) {
+  if (options.protocol == SimProtocol::kOpen) {
+    open_process(c, now);
+  } else {
+    process(c, now);
+  }
 }
 SimController::SimController(SimRobot robot, SimOptions options)
     : impl_(std::make_unique<Impl>(std::move(robot), std::move(options))) {}
@@ -210,6 +240,7 @@ void SimController::start() {
   }
   s.write_log({{"ev", "start"},
                {"robot", s.robot.model.name},
+               {"protocol", s.options.protocol == SimProtocol::kOpen ? "open" : "gcode"},
                {"firmware", to_string(s.options.dialect)},
                {"tcp", tcp_address()},
                {"pty", s.pty_path},
@@ -269,10 +300,10 @@ void SimController::run(const std::atomic<bool>& stop) {
           s.accept_on(s.pose_listen, nullptr);
           break;
         case kTcp:
-          if (s.tcp.fd == fds[k].fd) s.receive(s.tcp);
+          if (s.tcp.fd == fds[k].fd) s.receive_any(s.tcp);
           break;
         case kPty:
-          if (s.pty.fd == fds[k].fd) s.receive(s.pty);
+          if (s.pty.fd == fds[k].fd) s.receive_any(s.pty);
           break;
         case kPose:
           s.serve_pose(src[k].second);
@@ -287,8 +318,8 @@ void SimController::run(const std::atomic<bool>& stop) {
     if (parent_gone) break;
     const double after = now_seconds();
     s.advance_motion(after);
-    s.process(s.tcp, after);
-    s.process(s.pty, after);
+    s.process_any(s.tcp, after);
+    s.process_any(s.pty, after);
   }
   s.write_log({{"ev", "exit"},
                {"lines", s.counters.lines},
