@@ -9,6 +9,7 @@
 #include "robocal/robotio/camera_open.hpp"
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/link_factory.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/vision/apriltag_detector.hpp"
 #include "session/session_robot.hpp"
@@ -172,7 +173,8 @@ class ControllerStep final : public Step {
     for (;;) {
       const std::string link =
           ctx.ask.ask("controller.link",
-                      "Controller address (a serial device such as /dev/ttyACM0, or tcp:HOST:PORT)",
+                      "Controller address (a serial device such as /dev/ttyACM0, tcp:HOST:PORT, or "
+                      "open:HOST:PORT for an open link adapter)",
                       ctx.state.get("controller.link", "/dev/ttyACM0"));
       robotio::SafetyGuard guard(model, model.nominal_parameters(), robotio::SafetyLimits{});
       robotio::GcodeLinkOptions lo;
@@ -181,7 +183,8 @@ class ControllerStep final : public Step {
       lo.reply_timeout = std::chrono::milliseconds(2000);
       lo.reconnect_attempts = 2;
       try {
-        robotio::GcodeLink robot(guard, lo);
+        const std::unique_ptr<robotio::RobotLink> robot_owner = robotio::make_robot_link(guard, lo);
+        robotio::RobotLink& robot = *robot_owner;
         const auto fw = robot.connect();
         fmt::print(ctx.out, "Controller at {}: {}\n", link, fw.name);
         const auto readings = robot.read_actuators();
