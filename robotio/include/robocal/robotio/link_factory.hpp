@@ -1,6 +1,7 @@
 #pragma once
 // The link an address names, for every command that takes --link: "open:HOST:PORT" is the open
-// link protocol (OPEN_LINK.md); a serial device path or tcp:HOST:PORT is a G-code firmware.
+// link protocol (OPEN_LINK.md); "manual" is the operator (manual_link.hpp, standard input and
+// output); a serial device path or tcp:HOST:PORT is a G-code firmware.
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/robot_link.hpp"
 
