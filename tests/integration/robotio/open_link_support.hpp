@@ -1,17 +1,12 @@
 #pragma once
 // Shared by the open link tests: a controller stand-in answering from a function (garbage, an
-// old version, wrong fields) on a loopback port, and a child process whose first output line is
-// read (the Python reference adapter announces its port so).
+// old version, wrong fields) on a loopback port.
 #include <netinet/in.h>
 #include <poll.h>
-#include <signal.h>
 #include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
-#include <chrono>
-#include <cstdio>
 #include <functional>
 #include <mutex>
 #include <stdexcept>
@@ -97,75 +92,5 @@ class FakeController {
   mutable std::mutex mutex_;
   std::vector<std::string> received_;
 };
-
-// A child process with a pipe on its standard input (never written: it can exit when the pipe
-// closes) and its standard output read line by line. Killed when destroyed.
-class ChildProcess {
- public:
-  explicit ChildProcess(const std::vector<std::string>& argv) {
-    int in[2], out[2];
-    if (::pipe(in) != 0 || ::pipe(out) != 0) throw std::runtime_error("pipe");
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      ::dup2(in[0], STDIN_FILENO);
-      ::dup2(out[1], STDOUT_FILENO);
-      ::close(in[1]);
-      ::close(out[0]);
-      std::vector<char*> args;
-      for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
-      ::execvp(args[0], args.data());
-      ::_exit(127);
-    }
-    ::close(in[0]);
-    ::close(out[1]);
-    stdin_ = in[1];
-    stdout_ = out[0];
-  }
-  ~ChildProcess() {
-    ::close(stdin_);
-    ::kill(pid_, SIGTERM);
-    ::waitpid(pid_, nullptr, 0);
-    ::close(stdout_);
-  }
-  ChildProcess(const ChildProcess&) = delete;
-  ChildProcess& operator=(const ChildProcess&) = delete;
-
-  // The next output line ("" when none comes within `timeout`).
-  std::string line(std::chrono::milliseconds timeout) {
-    const auto end = std::chrono::steady_clock::now() + timeout;
-    std::string s;
-    char c = 0;
-    while (std::chrono::steady_clock::now() < end) {
-      pollfd p{stdout_, POLLIN, 0};
-      if (::poll(&p, 1, 50) <= 0) continue;
-      if (::read(stdout_, &c, 1) != 1) break;
-      if (c == '\n') return s;
-      s += c;
-    }
-    return "";
-  }
-
- private:
-  pid_t pid_ = -1;
-  int stdin_ = -1, stdout_ = -1;
-};
-
-// Runs a shell command line; returns its exit status and standard output (and error).
-struct CommandResult {
-  int status = -1;
-  std::string output;
-};
-inline CommandResult run_command(const std::string& command) {
-  CommandResult r;
-  FILE* p = ::popen((command + " 2>&1 </dev/null").c_str(), "r");
-  if (p == nullptr) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 }  // namespace robocal::test
