@@ -29,7 +29,7 @@ Eigen::VectorXd nominal_scales(const SafetyGuard& guard) {
 
 }  // namespace
 
-OpenLink::OpenLink(SafetyGuard& guard, OpenLinkOptions options)
+OpenLink::OpenLink(SafetyGuard& guard, const OpenLinkOptions& options)
     : OpenLink(guard, options, open_link_transport(options.address)) {}
 
 OpenLink::OpenLink(SafetyGuard& guard, OpenLinkOptions options,
@@ -141,7 +141,7 @@ json OpenLink::call(const json& request, milliseconds silence, milliseconds tota
   };
   for (int attempt = 1;; ++attempt) {
     ++status_.commands;
-    const json reply =
+    json reply =
         client_.request(request, silence, total, options_.attempts,
                         interruptible ? std::function<void()>(tick) : nullptr, quiet_until);
     const OpenLinkFailure failure = open_reply_failure(reply);

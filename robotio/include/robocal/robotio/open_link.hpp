@@ -120,7 +120,7 @@ std::unique_ptr<Transport> open_link_transport(const std::string& address);
 
 class OpenLink final : public RobotLink {
  public:
-  OpenLink(SafetyGuard& guard, OpenLinkOptions options);
+  OpenLink(SafetyGuard& guard, const OpenLinkOptions& options);
   // Test hook / custom transports: the link owns `transport`.
   OpenLink(SafetyGuard& guard, OpenLinkOptions options, std::unique_ptr<Transport> transport);
 
