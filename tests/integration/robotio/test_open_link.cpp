@@ -152,6 +152,26 @@ TEST_F(OpenLinkTest, StopRequestDuringAMoveSendsTheStopAndTheSessionResumes) {
   EXPECT_TRUE(r.confirmed) << r.reason;
 }
 
+TEST_F(OpenLinkTest, EmergencyStopHaltsTheControllerAndLaterMovesAreRefusedByIt) {
+  start();
+  auto l = link();
+  l->connect();
+  l->stop(robotio::RobotLink::StopKind::kEmergency);
+  EXPECT_EQ(l->status().state, robotio::LinkState::kFault);
+  const auto stops = events(log(), "stop");
+  ASSERT_EQ(stops.size(), 1u);
+  EXPECT_EQ(stops[0]["cmd"], "stop emergency");
+  try {
+    l->move_actuators(delta_targets(model_, 1, 6)[0], kSpeed);
+    FAIL() << "a halted controller must not move";
+  } catch (const LinkError& e) {
+    EXPECT_NE(std::string(e.what()).find("error 202: halted by an emergency stop"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(events(log(), "motion_start").empty());
+}
+
 TEST_F(OpenLinkTest, ReconnectsAndFindsTheRobotWhereItWas) {
   start();
   auto l = link();
