@@ -179,7 +179,13 @@ Eigen::VectorXd OpenLink::to_si(const Eigen::VectorXd& readings) const {
   return readings.cwiseProduct(scale_);
 }
 
+void OpenLink::require_hello() const {
+  if (hello_.actuators.empty())
+    throw LinkError(client_.device(), "not connected: the controller has not answered hello");
+}
+
 std::vector<long> OpenLink::counts_for(const Eigen::VectorXd& readings) const {
+  require_hello();
   const Eigen::VectorXd si = to_si(readings);
   std::vector<long> c(static_cast<std::size_t>(si.size()));
   for (Eigen::Index i = 0; i < si.size(); ++i)
@@ -295,6 +301,7 @@ ActuatorReadings OpenLink::readings_from(const json& reply) const {
 }
 
 ActuatorReadings OpenLink::do_read() {
+  require_hello();
   const milliseconds total = options_.reply_timeout * (options_.attempts + 1);
   for (int round = 0;; ++round) {
     try {
@@ -307,6 +314,7 @@ ActuatorReadings OpenLink::do_read() {
 }
 
 void OpenLink::do_home() {
+  require_hello();
   // A controller without a home command keeps its own reference: nothing to do.
   if (!hello_.has("home")) return;
   status_.state = LinkState::kMoving;

@@ -99,5 +99,23 @@ TEST(OpenLinkAddress, OnlyOpenHostPort) {
   EXPECT_THROW(open_link_transport("/dev/ttyACM0"), LinkError);
 }
 
+TEST(OpenLinkBeforeConnect, EveryCommandIsRefusedNamingTheDevice) {
+  const calib::Mechanism model = robot("linear_delta");
+  SafetyLimits limits;
+  limits.max_speed = 1.0;
+  limits.max_acceleration = 1.0;
+  SafetyGuard guard(model, model.nominal_parameters(), limits);
+  guard.arm("test");
+  OpenLink link(guard, OpenLinkOptions{"open:127.0.0.1:1", std::chrono::milliseconds(100), 1, 0});
+  try {
+    link.read_actuators();
+    FAIL() << "reading before connect must fail";
+  } catch (const LinkError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "open link 127.0.0.1:1: not connected: the controller has not answered hello");
+  }
+  EXPECT_THROW(link.counts_for(Eigen::Vector3d(0.3, 0.3, 0.3)), LinkError);
+}
+
 }  // namespace
 }  // namespace robocal::robotio

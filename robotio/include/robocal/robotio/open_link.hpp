@@ -145,6 +145,8 @@ class OpenLink final : public RobotLink {
 
  private:
   void handshake();
+  // Throws LinkError when no hello was answered yet (nothing is known of the actuators).
+  void require_hello() const;
   [[noreturn]] void fail(const std::string& problem);
   // One request; a refusal for now (200) is repeated as a new request, any other error throws
   // LinkError with the controller's code and message.
