@@ -268,6 +268,37 @@ INSTANTIATE_TEST_SUITE_P(Kinds, OpenLinkFaultTest, ::testing::ValuesIn(fault_cas
                            return p.param.kind + "_on_request_" + std::to_string(p.param.request);
                          });
 
+// Random faults of every kind the protocol has, over many moves: each move ends confirmed at
+// its target (the simulator's own record agrees) or failed with a reason, and no target is
+// driven to twice.
+class OpenLinkSoakTest : public OpenLinkTest, public ::testing::WithParamInterface<int> {};
+
+TEST_P(OpenLinkSoakTest, EveryMoveConfirmedOnceOrFailedWithItsReason) {
+  start({"--faults", "all=0.04", "--fault-seed", std::to_string(GetParam()), "--slow-ms", "200"});
+  auto l = link();
+  l->connect();
+  int confirmed = 0;
+  for (const Eigen::VectorXd& target : delta_targets(model_, 12, 40 + GetParam())) {
+    const std::vector<long> expect = l->counts_for(target);
+    try {
+      const robotio::MoveResult r = l->move_actuators(target, kSpeed);
+      ASSERT_TRUE(r.confirmed) << r.reason;
+      EXPECT_EQ(last_motion_end(), expect);
+      EXPECT_EQ(motions_to(expect), 1) << "neither lost nor executed twice";
+      ++confirmed;
+    } catch (const LinkError& e) {
+      // Only a stalled move may fail: the controller's stop is in its log.
+      EXPECT_NE(std::string(e.what()).find("did not settle"), std::string::npos) << e.what();
+      EXPECT_FALSE(events(log(), "stop").empty());
+      EXPECT_LE(motions_to(expect), 1);
+    }
+  }
+  EXPECT_GE(confirmed, 8);
+  EXPECT_FALSE(events(log(), "fault").empty()) << "the soak injected faults";
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, OpenLinkSoakTest, ::testing::Values(1, 2, 3));
+
 TEST_F(OpenLinkTest, RefusedEveryTimeFailsWithTheControllersWordsAndNothingMoves) {
   write_script("3 error\n4 error\n5 error\n6 error\n");
   start({"--fault-script", file("faults.txt")});
