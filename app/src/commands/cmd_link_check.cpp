@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -26,8 +27,8 @@ struct LinkCheckCli {
   bool yes = false;
 };
 
-// "0.1,0.2,0.3" -> numbers; throws CLI::ValidationError naming the option.
-std::vector<double> parse_list(const std::string& text, const char* option) {
+// "0.1,0.2,0.3" -> numbers; nullopt when an item is not a number.
+std::optional<std::vector<double>> parse_list(const std::string& text) {
   std::vector<double> out;
   std::stringstream in(text);
   std::string item;
@@ -35,13 +36,21 @@ std::vector<double> parse_list(const std::string& text, const char* option) {
     try {
       std::size_t used = 0;
       out.push_back(std::stod(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
+      if (used != item.size()) return std::nullopt;
     } catch (const std::exception&) {
-      throw CLI::ValidationError(option, "'" + item + "' is not a number");
+      return std::nullopt;
     }
   }
   return out;
 }
+
+// Checked while the command line is parsed, so a bad list is a usage error (exit 2).
+const CLI::Validator kNumberList(
+    [](std::string& text) {
+      return parse_list(text) ? std::string()
+                              : "expected numbers separated by commas, got '" + text + "'";
+    },
+    "N,N,...");
 
 bool ask_operator(const std::string& plan) {
   fmt::print("{}.\nType yes to move the robot: ", plan);
@@ -52,8 +61,8 @@ bool ask_operator(const std::string& plan) {
 
 int run_link_check(const LinkCheckCli& o) {
   robotio::LinkCheckOptions options;
-  options.lower = parse_list(o.lower, "--lower");
-  options.upper = parse_list(o.upper, "--upper");
+  options.lower = parse_list(o.lower).value_or(std::vector<double>{});
+  options.upper = parse_list(o.upper).value_or(std::vector<double>{});
   options.speed = o.speed;
   options.acceleration = o.acceleration;
   options.reply_timeout = std::chrono::milliseconds(static_cast<long>(1000.0 * o.reply_timeout_s));
@@ -92,8 +101,10 @@ CommandSpec link_check_command() {
                 "types yes (--yes confirms in advance). Exit codes: 0 every check passed,\n"
                 "1 a check failed, 2 bad command line.");
             cmd.add_option("address", o->address, "open:HOST:PORT")->required();
-            cmd.add_option("--lower", o->lower, "Lowest actuator positions of the motion box");
-            cmd.add_option("--upper", o->upper, "Highest actuator positions of the motion box");
+            cmd.add_option("--lower", o->lower, "Lowest actuator positions of the motion box")
+                ->check(kNumberList);
+            cmd.add_option("--upper", o->upper, "Highest actuator positions of the motion box")
+                ->check(kNumberList);
             cmd.add_option("--speed", o->speed, "Speed along the actuator path (m/s or rad/s)")
                 ->check(CLI::PositiveNumber);
             cmd.add_option("--acceleration", o->acceleration, "Acceleration (per s^2)")
