@@ -211,8 +211,9 @@ class ControllerStep final : public Step {
       } catch (const robotio::LinkError& e) {
         say_check(ctx, false, fmt::format("no controller at {}: {}", link, e.what()),
                   "is the controller switched on and its cable plugged in? Is the address right "
-                  "(serial: ls /dev/ttyACM* /dev/ttyUSB*; network: its IP and port)? A firmware "
-                  "other than Marlin or RepRapFirmware is not supported yet");
+                  "(serial: ls /dev/ttyACM* /dev/ttyUSB*; network: its IP and port)? A controller "
+                  "that is not Marlin or RepRapFirmware needs an open link adapter "
+                  "(open:HOST:PORT, robotio/OPEN_LINK.md)");
         if (ctx.ask.choose("controller.problem", "Try another address, or stop here",
                            {"retry", "quit"}, "retry") == "quit")
           return StepOutcome::stopped(fmt::format(

@@ -335,6 +335,21 @@ TEST_F(OpenLinkTest, GarbageAnsweringControllerIsRefusedNamingDeviceAndWhatItSai
     EXPECT_EQ(line.find("\"move\""), std::string::npos) << "nothing but hello was sent";
 }
 
+TEST_F(OpenLinkTest, MuteControllerIsRefusedAfterItsAttempts) {
+  start({"--mute"});
+  auto l = link();
+  try {
+    l->connect();
+    FAIL() << "a controller that never answers must be refused";
+  } catch (const LinkError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("open link 127.0.0.1:"), std::string::npos) << what;
+    EXPECT_NE(what.find("no reply to 'hello' after 4 attempts"), std::string::npos) << what;
+  }
+  EXPECT_EQ(requests("hello"), 4) << "the same request, repeated after each silence";
+  EXPECT_EQ(requests("move"), 0);
+}
+
 TEST_F(OpenLinkTest, SimulatorOfAnOlderVersionRefusesTheClientAndTheLinkSaysSo) {
   start({"--open-version", "0.9"});
   auto l = link();
