@@ -89,7 +89,8 @@ const std::vector<CommandSpec>& all_commands() {
       demo_command(), kin_command(), target_command(), render_command(), intrinsics_command(),
       rig_command(), measure_command(), identify_command(), simulate_command(),
       validate_command(), batch_command(), batch_merge_command(), plan_command(),
-      wizard_command(), sim_cell_command(), collect_command(), sim_controller_command(), link_check_command(), version_command(), compensate_command(),
+      link_check_command(),
+      wizard_command(), sim_cell_command(), collect_command(), sim_controller_command(), version_command(), compensate_command(),
       report_command(), export_command(),
       // clang-format on
   };
