@@ -13,7 +13,8 @@ set(robocal_doc ${CMAKE_INSTALL_DOCDIR})
 install(DIRECTORY testdata/robots/ DESTINATION ${robocal_data}/robots
         FILES_MATCHING PATTERN "*.yaml" PATTERN "README.md")
 foreach(doc README.md ARCHITECTURE.md app/SESSION.md calib/EXPORTS.md calib/identify/README.md
-            planner/README.md robotio/README.md robotio/CAMERAS.md vision/README.md
+            planner/README.md robotio/README.md robotio/CAMERAS.md robotio/OPEN_LINK.md
+            robotio/adapters/open_link_adapter.py vision/README.md
             vision/README_rig.md testdata/measurements/README.md docs/commands.md docs/figures.md
             docs/cluster.md docs/install.md docs/development.md)
   get_filename_component(dir ${doc} DIRECTORY)

@@ -73,6 +73,7 @@ CommandSpec validate_command();
 CommandSpec batch_command();
 CommandSpec batch_merge_command();
 CommandSpec sim_controller_command();
+CommandSpec link_check_command();
 CommandSpec sim_cell_command();
 CommandSpec plan_command();
 CommandSpec compensate_command();
@@ -89,6 +90,7 @@ const std::vector<CommandSpec>& all_commands() {
       demo_command(), kin_command(), target_command(), render_command(), intrinsics_command(),
       rig_command(), measure_command(), identify_command(), simulate_command(),
       validate_command(), batch_command(), batch_merge_command(), plan_command(),
+      link_check_command(),
       wizard_command(), sim_cell_command(), collect_command(), sim_controller_command(), version_command(), compensate_command(),
       report_command(), export_command(), handeye_command(),
       // clang-format on

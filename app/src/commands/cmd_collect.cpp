@@ -110,7 +110,9 @@ CommandSpec collect_command() {
         cmd.add_option("--robot", o.robot,
                        "Library robot name or robot file (default: the cell's)");
         cmd.add_option("--link", o.link,
-                       "Controller: tcp:HOST:PORT, or a serial device (/dev/ttyACM0)");
+                       "Controller: tcp:HOST:PORT or a serial device (/dev/ttyACM0) for G-code; "
+                       "open:HOST:PORT for an open link adapter (robotio/OPEN_LINK.md); manual: "
+                       "the operator moves the robot and types its readings");
         cmd.add_option("--baud", o.baud, "Serial baud rate")->check(CLI::PositiveNumber);
         cmd.add_option("--steps-per-mm", o.steps_per_mm,
                        "Controller steps per mm of prismatic actuators (its M92 setting)")

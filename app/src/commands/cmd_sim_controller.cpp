@@ -1,5 +1,6 @@
 // `robocal sim-controller`: a simulated robot controller in its own process, speaking G-code
-// (Marlin or RepRapFirmware dialect) on a loopback TCP port and a pseudo-terminal, with a hidden
+// (Marlin or RepRapFirmware dialect) on a loopback TCP port and a pseudo-terminal, or the open
+// link protocol (robotio/OPEN_LINK.md) on the TCP port, with a hidden
 // "true" robot and fault injection. Orchestration only: the simulator is robocal_robotio's
 // SimController.
 #include "cli/cli_common.hpp"
@@ -32,6 +33,8 @@ struct SimCliOptions {
   std::string perturbation;
   double length_sigma = 0.5e-3;
   double angle_sigma_deg = 0.2;
+  std::string protocol = "gcode";
+  std::string open_version = "1.0";
   std::string firmware = "marlin";
   std::string firmware_name;
   bool mute = false;
@@ -101,10 +104,18 @@ int run_sim_controller(const SimCliOptions& o) {
   } else {
     throw InputError("--firmware must be marlin or rrf, got '" + o.firmware + "'");
   }
+  if (o.protocol == "open") {
+    s.protocol = robotio::SimProtocol::kOpen;
+    if (std::sscanf(o.open_version.c_str(), "%d.%d", &s.open_major, &s.open_minor) != 2)
+      throw InputError("--open-version must be MAJOR.MINOR, got '" + o.open_version + "'");
+  } else if (o.protocol != "gcode") {
+    throw InputError("--protocol must be gcode or open, got '" + o.protocol + "'");
+  }
   s.firmware_name = o.firmware_name;
   s.mute = o.mute;
   s.tcp_port = o.tcp_port;
-  s.pty = !o.no_pty;
+  // The open link protocol is served on TCP only (robotio/OPEN_LINK.md).
+  s.pty = s.protocol == robotio::SimProtocol::kGcode && !o.no_pty;
   s.pty_link = o.pty_link;
   s.pose_port = o.pose_port;
   s.log_path = o.log;
@@ -134,8 +145,12 @@ int run_sim_controller(const SimCliOptions& o) {
     throw InputError(e.what());
   }
   // Announce like a board appearing on the bus; tools parse these lines.
-  fmt::print("robocal sim-controller: {} dialect, robot {} (axes {}), truth {}\n",
-             robotio::to_string(s.dialect), robot_name, letters,
+  const std::string speaks =
+      s.protocol == robotio::SimProtocol::kOpen
+          ? fmt::format("open link protocol {}.{}", s.open_major, s.open_minor)
+          : fmt::format("{} dialect", robotio::to_string(s.dialect));
+  fmt::print("robocal sim-controller: {}, robot {} (axes {}), truth {}\n", speaks, robot_name,
+             letters,
              o.seed != 0 ? fmt::format("perturbed with seed {}", o.seed) : std::string("nominal"));
   if (!sim.tcp_address().empty()) fmt::print("tcp {}\n", sim.tcp_address());
   if (!sim.pty_path().empty()) fmt::print("pty {}\n", sim.pty_path());
@@ -177,6 +192,8 @@ CommandSpec sim_controller_command() {
                 "logged as JSON lines (--log). Faults: --faults drop=0.05,busy=0.05,... or\n"
                 "all=0.05; kinds: drop busy error stall corrupt lost_ok resend slow garbage\n"
                 "partial; --fault-script FILE for '<command index> <kind>' lines.\n"
+                "--protocol open serves the open link protocol (JSON lines, robotio/OPEN_LINK.md)\n"
+                "on the TCP port instead; its faults: drop busy error stall lost_ok slow garbage.\n"
                 "Stops on Ctrl-C or SIGTERM. Exit codes: 0 ok, 2 bad command line, 3 bad input.");
             cmd.add_option("--robot", o->robot, "Robot file or library robot name")->required();
             cmd.add_option("--seed", o->seed,
@@ -185,6 +202,11 @@ CommandSpec sim_controller_command() {
                            "File of NAME=VALUE lines setting true parameters");
             cmd.add_option("--length-sigma", o->length_sigma, "Perturbation of lengths, m");
             cmd.add_option("--angle-sigma", o->angle_sigma_deg, "Perturbation of angles, deg");
+            cmd.add_option("--protocol", o->protocol,
+                           "gcode (TCP and pty) or open (the open link protocol, "
+                           "robotio/OPEN_LINK.md, TCP only)");
+            cmd.add_option("--open-version", o->open_version,
+                           "Open protocol version the controller speaks (MAJOR.MINOR)");
             cmd.add_option("--firmware", o->firmware, "marlin or rrf");
             cmd.add_option("--firmware-name", o->firmware_name,
                            "Replace the M115 firmware name (to test unknown firmwares)");

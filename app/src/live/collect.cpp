@@ -17,6 +17,7 @@
 #include "robocal/robotio/capture_link.hpp"
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/link_factory.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/robotio/stop_signals.hpp"
 #include "robocal/vision/camera_io.hpp"
@@ -442,7 +443,9 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   lo.axes = robotio::axes_for_robot(in.model, o.steps_per_mm, o.steps_per_degree);
   lo.reply_timeout = std::chrono::milliseconds(static_cast<long>(o.reply_timeout_s * 1000));
   lo.accept_unknown_firmware = o.accept_unknown_firmware;
-  robotio::GcodeLink link(guard, lo);
+  // The address names the protocol: open:HOST:PORT is the open link, anything else G-code.
+  const std::unique_ptr<robotio::RobotLink> link_owner = robotio::make_robot_link(guard, lo);
+  robotio::RobotLink& link = *link_owner;
   try {
     const auto firmware = link.connect();
     r["firmware"] = firmware.name;

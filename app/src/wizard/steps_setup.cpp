@@ -9,6 +9,7 @@
 #include "robocal/robotio/camera_open.hpp"
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/link_factory.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/vision/apriltag_detector.hpp"
 #include "session/session_robot.hpp"
@@ -172,7 +173,8 @@ class ControllerStep final : public Step {
     for (;;) {
       const std::string link =
           ctx.ask.ask("controller.link",
-                      "Controller address (a serial device such as /dev/ttyACM0, or tcp:HOST:PORT)",
+                      "Controller address (a serial device such as /dev/ttyACM0, tcp:HOST:PORT, or "
+                      "open:HOST:PORT for an open link adapter)",
                       ctx.state.get("controller.link", "/dev/ttyACM0"));
       robotio::SafetyGuard guard(model, model.nominal_parameters(), robotio::SafetyLimits{});
       robotio::GcodeLinkOptions lo;
@@ -181,7 +183,8 @@ class ControllerStep final : public Step {
       lo.reply_timeout = std::chrono::milliseconds(2000);
       lo.reconnect_attempts = 2;
       try {
-        robotio::GcodeLink robot(guard, lo);
+        const std::unique_ptr<robotio::RobotLink> robot_owner = robotio::make_robot_link(guard, lo);
+        robotio::RobotLink& robot = *robot_owner;
         const auto fw = robot.connect();
         fmt::print(ctx.out, "Controller at {}: {}\n", link, fw.name);
         const auto readings = robot.read_actuators();
@@ -208,8 +211,9 @@ class ControllerStep final : public Step {
       } catch (const robotio::LinkError& e) {
         say_check(ctx, false, fmt::format("no controller at {}: {}", link, e.what()),
                   "is the controller switched on and its cable plugged in? Is the address right "
-                  "(serial: ls /dev/ttyACM* /dev/ttyUSB*; network: its IP and port)? A firmware "
-                  "other than Marlin or RepRapFirmware is not supported yet");
+                  "(serial: ls /dev/ttyACM* /dev/ttyUSB*; network: its IP and port)? A controller "
+                  "that is not Marlin or RepRapFirmware needs an open link adapter "
+                  "(open:HOST:PORT, robotio/OPEN_LINK.md)");
         if (ctx.ask.choose("controller.problem", "Try another address, or stop here",
                            {"retry", "quit"}, "retry") == "quit")
           return StepOutcome::stopped(fmt::format(

@@ -86,8 +86,8 @@ class Collect : public ::testing::Test {
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     log_ = (dir_ / "sim.jsonl").string();
-    sim_ = std::make_unique<SimControllerProcess>(ROBOCAL_BINARY,
-                                                  test::sim_args(log_, {"--seed", "5"}));
+    sim_ =
+        std::make_unique<SimControllerProcess>(ROBOCAL_BINARY, test::sim_args(log_, sim_extra()));
     truth_ = std::make_unique<SimControllerTruth>(sim_->pose(), sim_cell_mounting());
     const vision::TargetBoard board =
         vision::load_target_file(testing::testdata("vision/apriltag_4x3.yaml"));
@@ -95,6 +95,9 @@ class Collect : public ::testing::Test {
       cameras_.push_back(std::make_unique<SimulatedGigECamera>(camera_spec(c), board, *truth_));
     write(dir_ / "cell.yaml", cell_yaml());
   }
+
+  // Simulator options beyond the tests' common ones.
+  virtual std::vector<std::string> sim_extra() const { return {"--seed", "5"}; }
 
   // The operator's command line; `link` and `speed` replace the defaults (an option given twice
   // is a usage error).
@@ -250,6 +253,46 @@ TEST_F(Collect, BadInputIsRefusedBeforeAnythingMoves) {
     EXPECT_FALSE(fs::exists(session / "poses")) << c.says;
   }
   EXPECT_EQ(moves_received(log_), 0);
+}
+
+// The same collection through the open link (robotio/OPEN_LINK.md): `--link open:HOST:PORT`
+// against the simulator serving the open protocol, with the same true robot and cameras.
+class CollectOpenLink : public Collect {
+ protected:
+  std::vector<std::string> sim_extra() const override {
+    return {"--seed", "5", "--protocol", "open"};
+  }
+  std::string open_address() const { return "open:" + sim_->tcp().substr(4); }
+};
+
+TEST_F(CollectOpenLink, RecordsEveryPlannedPoseWhereTheControllerSaysTheRobotStood) {
+  const calib::Mechanism model = test::linear_delta();
+  const auto goals = testing::sim_cell_targets(model, 4);
+  write(dir_ / "plan.yaml", plan_yaml(goals));
+  const fs::path session = dir_ / "s_open";
+  test::ChildProcess run(ROBOCAL_BINARY,
+                         args(session, dir_ / "plan.yaml",
+                              {"--yes", "--json", (dir_ / "s_open.json").string()}, open_address()),
+                         (dir_ / "s_open.out").string());
+  ASSERT_EQ(run.wait(std::chrono::seconds(120)), 0) << run.output();
+  ASSERT_EQ(pose_folders(session).size(), goals.size()) << run.output();
+  for (std::size_t i = 0; i < goals.size(); ++i) {
+    const fs::path pose = session / "poses" / pose_folder_name(static_cast<int>(i));
+    const YAML::Node y = YAML::LoadFile((pose / "pose.yaml").string());
+    for (int a = 0; a < 3; ++a)  // the controller's settled readings: the target to half a step
+      EXPECT_NEAR(y["actuators"][a].as<double>(), goals[i][a], 0.5 / 80.0 / 1000.0 + 1e-12);
+  }
+  // The simulator's record: one move request and one motion per pose.
+  int moves = 0;
+  for (const auto& rx : test::events(test::read_sim_log(log_), "rx"))
+    if (rx.value("line", "").find("\"cmd\":\"move\"") != std::string::npos) ++moves;
+  EXPECT_EQ(moves, static_cast<int>(goals.size()));
+  int motions = 0;
+  for (const auto& m : test::events(test::read_sim_log(log_), "motion_start"))
+    if (!m.value("homing", false)) ++motions;
+  EXPECT_EQ(motions, static_cast<int>(goals.size())) << "each pose's move executed once";
+  EXPECT_NE(run.output().find("robocal simulated controller (linear_delta)"), std::string::npos)
+      << run.output();
 }
 
 }  // namespace

@@ -1,11 +1,11 @@
 #pragma once
 // The simulated controller behind `robocal sim-controller`: a G-code firmware (Marlin or
-// RepRapFirmware dialect) driving a "true" robot — the robot file with perturbed geometry,
-// stepper quantisation, backlash, actuator noise and trapezoidal move times — served on a
-// loopback TCP port and on a pseudo-terminal, with a JSONL log of every line received and every
-// motion executed (the independent record the safety tests read), fault injection, and the true
-// end-effector pose on a separate TCP channel that only simulated cameras read (protocol in
-// robotio/README.md).
+// RepRapFirmware dialect) or an open-link controller (robotio/OPEN_LINK.md) driving a "true" robot
+// — the robot file with perturbed geometry, stepper quantisation, backlash, actuator noise and
+// trapezoidal move times — served on a loopback TCP port and on a pseudo-terminal, with a JSONL log
+// of every line received and every motion executed (the independent record the safety tests read),
+// fault injection, and the true end-effector pose on a separate TCP channel that only simulated
+// cameras read (protocol in robotio/README.md).
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/robotio/gcode_dialect.hpp"
 #include "robocal/robotio/gcode_link.hpp"
@@ -60,8 +60,16 @@ struct SimRobot {
   double backlash = 0.0;          // lost motion on a reversal, readings
 };
 
+// What the TCP port speaks: G-code (and the pty), or the open link protocol (robotio/OPEN_LINK.md,
+// TCP only).
+enum class SimProtocol : std::uint8_t { kGcode, kOpen };
+
 struct SimOptions {
+  SimProtocol protocol = SimProtocol::kGcode;
   Firmware dialect = Firmware::kMarlin;
+  // Open protocol: the version the controller speaks and announces in `hello` (tests of version
+  // negotiation set an older one).
+  int open_major = 1, open_minor = 0;
   std::string firmware_name;  // overrides the M115 name (unknown-firmware tests)
   bool mute = false;          // accept connections, never answer (a dead controller)
   int tcp_port = 0;           // 0 = any free port, -1 = no TCP

@@ -1,0 +1,16 @@
+#pragma once
+// The link an address names, for every command that takes --link: "open:HOST:PORT" is the open
+// link protocol (OPEN_LINK.md); "manual" is the operator (manual_link.hpp, standard input and
+// output); a serial device path or tcp:HOST:PORT is a G-code firmware.
+#include "robocal/robotio/gcode_link.hpp"
+#include "robocal/robotio/robot_link.hpp"
+
+#include <memory>
+
+namespace robocal::robotio {
+
+// `options.address` selects the protocol; the G-code options (axes, baud) apply to G-code only,
+// the timeouts and attempts to both. Throws LinkError for a malformed address.
+std::unique_ptr<RobotLink> make_robot_link(SafetyGuard& guard, const GcodeLinkOptions& options);
+
+}  // namespace robocal::robotio

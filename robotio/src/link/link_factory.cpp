@@ -1,0 +1,21 @@
+#include "robocal/robotio/link_factory.hpp"
+
+#include "robocal/robotio/manual_link.hpp"
+#include "robocal/robotio/open_link.hpp"
+
+namespace robocal::robotio {
+
+std::unique_ptr<RobotLink> make_robot_link(SafetyGuard& guard, const GcodeLinkOptions& options) {
+  if (options.address == "manual") return std::make_unique<ManualLink>(guard, ManualLinkOptions{});
+  if (is_open_link_address(options.address)) {
+    OpenLinkOptions o;
+    o.address = options.address;
+    o.reply_timeout = options.reply_timeout;
+    o.attempts = options.attempts;
+    o.reconnect_attempts = options.reconnect_attempts;
+    return std::make_unique<OpenLink>(guard, o);
+  }
+  return std::make_unique<GcodeLink>(guard, options);
+}
+
+}  // namespace robocal::robotio

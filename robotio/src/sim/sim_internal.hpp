@@ -1,0 +1,167 @@
+#pragma once
+// The simulated controller's inside, shared by its parts (not installed, not used outside
+// robotio/src/sim):
+//   sim_server.cpp  the sockets and the pty, the poll loop, the true-pose channel;
+//   sim_motion.cpp  the true robot: motion queue, trapezoid timing, backlash, noise, the log;
+//   sim_faults.cpp  fault plans and the per-command draw;
+//   sim_gcode.cpp   the G-code firmware (Marlin / RepRapFirmware dialects);
+//   sim_open.cpp    the open link protocol (robotio/OPEN_LINK.md).
+// A further protocol is one more file with its receive/process pair, dispatched in run().
+#include "robocal/robotio/sim_controller.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <deque>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace robocal::robotio {
+
+// Steady-clock seconds (the simulator's time base).
+double now_seconds();
+// Writes all of `data` to a non-blocking descriptor; a peer that went away is left to the read
+// side to notice.
+void write_all(int fd, const std::string& data);
+
+// A queued or running move of the simulated firmware.
+struct Motion {
+  long id = 0;
+  long line = -1;
+  std::string channel;
+  std::vector<long> from, to;  // counts
+  double length = 0.0;         // G-code units (axis space)
+  double feed = 0.0;           // units/s
+  double acceleration = 0.0;   // units/s^2
+  double start = -1.0;         // s (steady clock); < 0 = not started
+  double duration = 0.0;
+  bool stall = false;
+  bool homing = false;
+};
+
+// One received line waiting to be processed.
+struct Pending {
+  std::string text;
+  bool rolled = false;
+  std::optional<FaultKind> fault;
+};
+
+struct Channel {
+  explicit Channel(std::string channel_name) : name(std::move(channel_name)) {}
+  std::string name;  // "tcp" or "pty"
+  int fd = -1;
+  int slave = -1;  // pty only: kept open so the master never sees a hang-up between clients
+  std::string inbuf;
+  std::deque<Pending> pending;
+  long last_n = 0;
+  bool blocked = false;  // M400/G28 waiting for the motion queue
+  bool blocked_lost_ok = false;
+  double next_busy = 0.0;
+  double hold_until = 0.0;
+  double next_temperature = 0.0;
+  // Open protocol: the last request answered (a repeated id gets this reply again) and the
+  // blocking request (wait_settled, home) being waited for.
+  nlohmann::json last_id;
+  std::string last_reply;
+  nlohmann::json wait_id;
+  std::string wait_cmd;
+  long notified_motion = 0;  // motions whose "settled" event was sent
+  bool open() const { return fd >= 0; }
+};
+
+struct SimController::Impl {
+  SimRobot robot;
+  SimOptions options;
+  SimCounters counters;
+  std::mt19937 noise_rng;
+  std::mt19937 fault_rng;
+  std::FILE* log = nullptr;
+  double t0 = now_seconds();
+
+  int tcp_listen = -1, tcp_port = -1;
+  int pose_listen = -1, pose_port = -1;
+  Channel tcp{"tcp"};
+  Channel pty{"pty"};
+  std::vector<int> pose_clients;
+  std::vector<std::string> pose_buffers;
+  std::string pty_path;
+
+  // Firmware state.
+  std::vector<long> counts;  // where the steppers are (updated as motions run)
+  std::deque<Motion> queue;  // front = running
+  long motion_ids = 0;
+  double feed;  // units/s
+  double acceleration;
+  double busy_interval;
+  bool halted = false;
+  bool stopped_by_request = false;  // open protocol: a controlled stop ended the last motion
+  long commands_received = 0;       // numbered commands (fault script index)
+  Eigen::VectorXd physical_offset;  // backlash + repeatability of the current position
+  std::vector<int> last_direction;
+
+  Impl(SimRobot r, SimOptions o);
+  ~Impl();
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  double t() const { return now_seconds() - t0; }
+
+  // ---- the true robot and its log (sim_motion.cpp) -------------------------------------------
+  std::vector<long> counts_of(const Eigen::VectorXd& readings) const;
+  double units_of(long count, int axis) const;
+  void write_log(nlohmann::json j);
+  void start_next_motion(double now);
+  std::vector<double> readings_of(const std::vector<long>& c) const;
+  std::vector<long> interpolate(const Motion& m, double now) const;
+  void finish_motion(const Motion& m, const std::vector<long>& reached, bool stopped);
+  void advance_motion(double now);
+  void quick_stop(const std::string& how);
+  Eigen::VectorXd true_readings(double now) const;
+
+  // ---- channels and the pose channel (sim_server.cpp) ----------------------------------------
+  void open_pty();
+  void reset_channel(Channel& c);
+  void close_channel(Channel& c, bool reopen);
+  void send(Channel& c, const std::string& line);
+  double next_event(double now) const;
+  void serve_pose(std::size_t i);
+  void accept_on(int listen_fd, Channel* channel);
+
+  void on_connect(Channel& c);
+  void receive_any(Channel& c);
+  void process_any(Channel& c, double now);
+
+  // ---- faults (sim_faults.cpp) ---------------------------------------------------------------
+  // The fault drawn for the next received command (script or rates), before any filtering.
+  std::optional<FaultKind> draw_fault();
+  std::optional<FaultKind> roll_fault(const std::string& cmd);
+  void void_fault(Channel& c, std::optional<FaultKind> fault);
+
+  // ---- the G-code firmware (sim_gcode.cpp) ---------------------------------------------------
+  void greet(Channel& c);
+  std::string position_report(bool partial) const;
+  std::string firmware_report() const;
+  void reply_ok(Channel& c, bool lost);
+  void block(Channel& c, bool lost_ok);
+  void execute(Channel& c, const std::string& cmd, long line, std::optional<FaultKind> fault);
+  void handle_line(Channel& c, Pending& item);
+  void receive(Channel& c);
+  void process(Channel& c, double now);
+
+  // ---- the open link protocol (sim_open.cpp) -------------------------------------------------
+  void open_receive(Channel& c);
+  void open_process(Channel& c, double now);
+  void open_handle(Channel& c, Pending& item);
+  // Executes one request; returns the reply, or nullopt when it blocks (wait_settled, home).
+  std::optional<nlohmann::json> open_execute(Channel& c, const nlohmann::json& request,
+                                             std::optional<FaultKind> fault);
+  void open_reply(Channel& c, const nlohmann::json& id, nlohmann::json reply, bool lost);
+  nlohmann::json open_position() const;
+  // A stop acts on receipt, even while a wait_settled blocks the request queue.
+  void open_stop(Channel& c, const std::string& kind);
+  std::optional<FaultKind> open_roll_fault(const std::string& cmd);
+};
+
+}  // namespace robocal::robotio
