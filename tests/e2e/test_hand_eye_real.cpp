@@ -12,7 +12,11 @@
 #include "robocal/vision/image_detection.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
 #include "robocal/vision/intrinsics_pipeline.hpp"
+#include "robocal/vision/pose.hpp"
 #include "robocal/vision/target_detection.hpp"
+
+#include <yaml-cpp/yaml.h>
+#include <nlohmann/json.hpp>
 
 #include <gtest/gtest.h>
 
@@ -325,4 +329,45 @@ TEST_F(HandEyeCommand, AMissingPoseFileNamesTheImage) {
   EXPECT_EQ(run.code, 3);
   EXPECT_NE(run.err.find("7.png: no flange pose"), std::string::npos) << run.err;
   EXPECT_FALSE(fs::exists(file("he.yaml")));
+}
+
+// A session recorded like `robocal collect` records one (here simulated: a UR5 whose true
+// geometry is millimetres off its robot file): each camera solved with measure's intrinsics, the
+// flange being the measured frame at the nominal model. The cameras land where the simulation
+// put them to within the robot's own error (its nominal model is 4-7 mm off the truth over the
+// working volume, see docs/figures.md), and the board where the session designed it.
+class HandEyeSession : public rt::ScratchDirTest {
+ protected:
+  HandEyeSession() : rt::ScratchDirTest("handeye_session") {}
+};
+
+TEST_F(HandEyeSession, EachCameraOfASimulatedUr5Session) {
+  const std::string session = file("s");
+  ASSERT_EQ(rt::run_robocal_captured(
+                {"simulate", "--robot", "ur5", "--quick", "--poses", "15", "--out", session})
+                .code,
+            0);
+  ASSERT_EQ(rt::run_robocal_captured({"measure", session}).code, 0);
+  const auto run = rt::run_robocal_captured({"handeye", session, "-o", file("he.yaml")});
+  ASSERT_EQ(run.code, 0) << run.out << run.err;
+  const auto truth = nlohmann::json::parse(rt::read_text(session + "/truth/truth.json"));
+  for (const auto& camera : truth["cameras"]) {
+    const std::string name = camera["name"];
+    SCOPED_TRACE(name);
+    const std::string path = file("he_" + name + ".yaml");
+    ASSERT_TRUE(fs::exists(path));
+    const YAML::Node doc = YAML::LoadFile(path);
+    const auto& c = camera["camera_T_world"];
+    const Iso camera_T_world =
+        rv::pose_from_rvec_tvec(Eigen::Vector3d(c["rvec"][0], c["rvec"][1], c["rvec"][2]),
+                                Eigen::Vector3d(c["tvec"][0], c["tvec"][1], c["tvec"][2]));
+    const Eigen::Vector3d true_position = camera_T_world.inverse().translation();
+    const auto t = doc["camera"]["translation_m"].as<std::vector<double>>();
+    const Eigen::Vector3d estimate(t[0], t[1], t[2]);
+    EXPECT_LT((estimate - true_position).norm(), 0.025) << estimate.transpose();
+    EXPECT_EQ(doc["camera"]["parent"].as<std::string>(), "base");
+    // The board on the measured frame: the session's design is the frame itself.
+    const auto b = doc["target"]["translation_m"].as<std::vector<double>>();
+    EXPECT_LT(Eigen::Vector3d(b[0], b[1], b[2]).norm(), 0.005);
+  }
 }
