@@ -138,9 +138,8 @@ std::vector<HandEyeOutcome> session_hand_eye(const HandEyeRequest& request,
         calib::forward_kinematics(robot.model, robot.nominal, it->second.actuators, robot.frame);
     if (fk.closure.status != calib::SolveStatus::kConverged) {
       poses.emplace_back();
-      problems.push_back(
-          "the robot file's model cannot place the measured frame for these "
-          "readings");
+      problems.emplace_back(
+          "the robot file's model cannot place the measured frame for these readings");
       continue;
     }
     poses.emplace_back(fk.pose);
