@@ -1,14 +1,31 @@
 // The input checks of identify(): readings and observations that cannot enter the fit, pixel
-// groups that do not fit their pose, corners that cannot be projected at the start.
+// groups that do not fit their pose, corners that cannot be projected at the start, and
+// measurements whose units are off by 1000.
 #include "identification_detail.hpp"
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cmath>
+#include <optional>
+#include <string>
 #include <type_traits>
 #include <variant>
 
 namespace robocal::calib::detail {
+namespace {
+
+// RMS distance of the points from their centroid.
+double spread(const std::vector<Eigen::Vector3d>& pts) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) c += p;
+  c /= static_cast<double>(pts.size());
+  double s = 0.0;
+  for (const auto& p : pts) s += (p - c).squaredNorm();
+  return std::sqrt(s / static_cast<double>(pts.size()));
+}
+
+}  // namespace
 
 bool finite_observation(const Observation& obs) {
   return std::visit(
@@ -75,13 +92,49 @@ bool pixels_project(const FramePredictor& model, const Eigen::VectorXd& params,
   return true;
 }
 
-double spread(const std::vector<Eigen::Vector3d>& pts) {
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& p : pts) c += p;
-  c /= static_cast<double>(pts.size());
-  double s = 0.0;
-  for (const auto& p : pts) s += (p - c).squaredNorm();
-  return std::sqrt(s / static_cast<double>(pts.size()));
+std::optional<std::string> position_units_mismatch(const MeasuredAndPredicted& positions) {
+  if (positions.measured.size() >= 3) {
+    const double ratio = spread(positions.measured) / std::max(spread(positions.predicted), 1e-300);
+    if (ratio > 300.0 || ratio < 1.0 / 300.0)
+      return fmt::format(
+          "the measured positions spread {:.4g} times as far as the model predicts: units are "
+          "probably mismatched by 1000 (millimetres vs metres); convert the measurements to metres",
+          ratio);
+  }
+  return std::nullopt;
+}
+
+std::optional<std::string> probe_height_units_mismatch(const FramePredictor& model,
+                                                       const Eigen::VectorXd& nominal,
+                                                       const Assembly& as) {
+  std::vector<double> misfit;
+  std::vector<double> misfit_mm;
+  const PoseMeasurement* worst = nullptr;
+  double worst_misfit = 0.0;
+  for (const auto* pose : as.poses) {
+    FramePrediction pred;
+    std::string why;
+    if (!model.predict(nominal, pose->actuators, as.slot_of.at(pose->id), false, pred, why))
+      continue;
+    for (const auto& obs : pose->observations)
+      if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs)) {
+        const double predicted = ph->normal.dot(pred.pose.translation()) - ph->offset;
+        misfit.push_back(std::abs(ph->measured_height - predicted));
+        misfit_mm.push_back(std::abs(1e-3 * ph->measured_height - predicted));
+        if (misfit.back() > worst_misfit) {
+          worst_misfit = misfit.back();
+          worst = pose;
+        }
+      }
+  }
+  if (!misfit.empty() && median_of(misfit) > 0.05 && median_of(misfit_mm) < 0.01)
+    return fmt::format(
+        "probe heights are implausible in metres: median {:.3g} m from the nominal model, {:.3g} "
+        "m if they were millimetres (largest at pose '{}'{}); declare units: {{length: mm}} or "
+        "convert them",
+        median_of(misfit), median_of(misfit_mm), worst->id,
+        worst->line > 0 ? fmt::format(", line {}", worst->line) : "");
+  return std::nullopt;
 }
 
 }  // namespace robocal::calib::detail

@@ -31,8 +31,15 @@ bool valid_pixel_groups(const PoseMeasurement& pose, std::string& why);
 bool pixels_project(const FramePredictor& model, const Eigen::VectorXd& params,
                     const PoseMeasurement& pose, const FramePrediction& pred, std::string& why);
 
-// RMS distance of the points from their centroid.
-double spread(const std::vector<Eigen::Vector3d>& pts);
+// Measured positions beside the nominal model's prediction of them, pose by pose.
+struct MeasuredAndPredicted {
+  std::vector<Eigen::Vector3d> measured;
+  std::vector<Eigen::Vector3d> predicted;
+};
+
+// Millimetres given as metres (or the reverse): the measured positions spread more than 300
+// times as far as the predicted ones, or less than 1/300. The message says so, or nothing.
+std::optional<std::string> position_units_mismatch(const MeasuredAndPredicted& positions);
 
 // ---- observation types and residuals (identification_diagnostics.cpp) ----------------------
 
@@ -81,6 +88,7 @@ std::vector<double> robust_row_scales(const Eigen::VectorXd& r, const std::vecto
 struct Assembly {
   int threads = 1;  // workers for the pose blocks (evaluate_all, EvaluateAhead)
   std::vector<const PoseMeasurement*> poses;
+  std::map<std::string, int> slot_of;  // pose id -> its slot (index in the measurements)
   std::vector<std::unique_ptr<PoseCost>> pose_costs;
   std::vector<std::unique_ptr<ceres::CostFunction>> distance_costs;
   std::vector<std::string> distance_labels;
@@ -95,6 +103,33 @@ struct Assembly {
     stated[static_cast<std::size_t>(group)].push_back(sigma);
   }
 };
+
+// Probe heights in millimetres declared as metres: at the nominal model a height is off by at
+// most millimetres; a value 1000x too large is off by decimetres to metres. The message names the
+// worst pose, or nothing (identification_checks.cpp).
+std::optional<std::string> probe_height_units_mismatch(const FramePredictor& model,
+                                                       const Eigen::VectorXd& nominal,
+                                                       const Assembly& as);
+
+// ---- diagnostics at the estimate (identification_diagnostics.cpp) ------------------------
+
+// Where the solve ended, as the diagnostics read it.
+struct EstimateRows {
+  const Eigen::VectorXd& params;      // the estimate (full parameter vector)
+  const Eigen::VectorXd& residuals;   // whitened residual rows there (Assembly's order)
+  const Eigen::MatrixXd& jacobian;    // their Jacobian, every parameter
+  const std::vector<std::pair<int, int>>& pose_rows;  // first row and count of each pose block
+  const std::vector<std::pair<std::size_t, double>>& prior_terms;  // (parameter, σ) of the priors
+};
+
+// Everything identify() reports about an accepted estimate: per-pose residuals with outlier
+// flags, the noise per observation type, the covariance and the predicted accuracy, and the
+// warnings on the fit's quality. Fills those parts of `result` (its estimated set and names are
+// read).
+void diagnose_estimate(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                       const Assembly& as, const EstimateRows& at,
+                       const std::vector<DistanceMeasurement>& distances,
+                       const SolveOptions& options, IdentificationResult& result);
 
 // ---- the gauge with little data (identification_gauge.cpp) ---------------------------------
 
