@@ -115,9 +115,9 @@ std::optional<std::string> probe_height_units_mismatch(const FramePredictor& mod
 
 // Where the solve ended, as the diagnostics read it.
 struct EstimateRows {
-  const Eigen::VectorXd& params;      // the estimate (full parameter vector)
-  const Eigen::VectorXd& residuals;   // whitened residual rows there (Assembly's order)
-  const Eigen::MatrixXd& jacobian;    // their Jacobian, every parameter
+  const Eigen::VectorXd& params;     // the estimate (full parameter vector)
+  const Eigen::VectorXd& residuals;  // whitened residual rows there (Assembly's order)
+  const Eigen::MatrixXd& jacobian;   // their Jacobian, every parameter
   const std::vector<std::pair<int, int>>& pose_rows;  // first row and count of each pose block
   const std::vector<std::pair<std::size_t, double>>& prior_terms;  // (parameter, σ) of the priors
 };
