@@ -1,7 +1,11 @@
+// The solve of identify(): the problem assembled from the accepted poses, the estimated set
+// chosen, Ceres run (multi-start, robust refits), the result checked and diagnosed, and the
+// relinearised second solve.
 #include "robocal/calib/identification.hpp"
 
+#include "identification_detail.hpp"
+
 #include "robocal/calib/conventions.hpp"
-#include "robocal/calib/gauge_choice.hpp"
 
 #include "robocal/core/parallel.hpp"
 
@@ -13,10 +17,14 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <optional>
+#include <random>
 #include <set>
 #include <stdexcept>
 
 namespace robocal::calib {
+
+using namespace detail;  // the solve's parts (identification_detail.hpp)
 
 const char* to_string(IdentificationStatus status) {
   switch (status) {
@@ -35,515 +43,6 @@ const char* to_string(IdentificationStatus status) {
 }
 
 namespace {
-
-int residual_count(const Observation& obs) {
-  return std::visit([](const auto& o) { return std::decay_t<decltype(o)>::kResiduals; }, obs);
-}
-
-// Whitened residuals of all observations of one pose; the model's frame Jacobian is chained with
-// each observation's exact twist Jacobian, so the block Jacobian is exact (closure included).
-class PoseCost final : public ceres::CostFunction {
- public:
-  PoseCost(const FramePredictor& model, const PoseMeasurement& pose, int slot)
-      : model_(model), pose_(pose), slot_(slot) {
-    int rows = 0;
-    for (const auto& obs : pose.observations) rows += residual_count(obs);
-    set_num_residuals(rows);
-    mutable_parameter_block_sizes()->push_back(static_cast<int>(model.parameter_count()));
-  }
-
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
-    if (ahead_at(parameters[0], want_jacobian)) {
-      if (!ahead_.ok) return false;
-      std::copy(ahead_.residuals.begin(), ahead_.residuals.end(), residuals);
-      if (want_jacobian) std::copy(ahead_.jacobian.begin(), ahead_.jacobian.end(), jacobians[0]);
-      return true;
-    }
-    return compute(parameters[0], residuals, want_jacobian ? jacobians[0] : nullptr);
-  }
-
-  // Evaluates the block at `params` ahead of Ceres' call for it (EvaluateAhead: the poses on
-  // several threads), unless that is done already.
-  void evaluate_ahead(const double* params, bool with_jacobian) const {
-    if (ahead_at(params, with_jacobian)) return;
-    const auto P = model_.parameter_count();
-    ahead_.params.assign(params, params + P);
-    ahead_.with_jacobian = with_jacobian;
-    ahead_.residuals.resize(static_cast<std::size_t>(num_residuals()));
-    ahead_.jacobian.resize(with_jacobian ? static_cast<std::size_t>(num_residuals()) * P : 0);
-    ahead_.ok =
-        compute(params, ahead_.residuals.data(), with_jacobian ? ahead_.jacobian.data() : nullptr);
-  }
-
- private:
-  // Whether the block was evaluated ahead at exactly `params` (with its Jacobian if wanted).
-  bool ahead_at(const double* params, bool with_jacobian) const {
-    return !ahead_.params.empty() && (ahead_.with_jacobian || !with_jacobian) &&
-           std::equal(ahead_.params.begin(), ahead_.params.end(), params);
-  }
-
-  // The block's residuals and, when `jacobian` is not null, its row-major Jacobian.
-  bool compute(const double* parameters, double* residuals, double* jacobian) const {
-    const auto P = static_cast<Eigen::Index>(model_.parameter_count());
-    const Eigen::VectorXd params = Eigen::Map<const Eigen::VectorXd>(parameters, P);
-    const bool want_jacobian = jacobian != nullptr;
-    double* jacobians[] = {jacobian};
-    FramePrediction pred;
-    std::string why;
-    if (!model_.predict(params, pose_.actuators, slot_, want_jacobian, pred, why)) return false;
-    int row = 0;
-    bool ok = true;
-    std::vector<int> first_row;  // residual row of each observation
-    first_row.reserve(pose_.observations.size());
-    for (const auto& obs : pose_.observations) {
-      first_row.push_back(row);
-      std::visit(
-          [&](const auto& o) {
-            using O = std::decay_t<decltype(o)>;
-            Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
-                want_jacobian ? jacobians[0] : nullptr, num_residuals(), P);
-            if constexpr (std::is_same_v<O, PixelObservation>) {
-              // Depends on camera parameters too: the predictor chains it (exact).
-              Eigen::Vector2d r;
-              Eigen::Matrix<double, 2, Eigen::Dynamic> Jp;
-              if (!model_.pixel_residual(o, params, pred, r, want_jacobian ? &Jp : nullptr, why)) {
-                ok = false;
-                return;
-              }
-              residuals[row] = r(0);
-              residuals[row + 1] = r(1);
-              if (want_jacobian) J.middleRows(row, 2) = Jp;
-            } else if constexpr (std::is_same_v<O, ProbeHeightObservation>) {
-              // The bed plane may be estimated: the predictor evaluates it.
-              Eigen::RowVectorXd Jh;
-              if (!model_.probe_residual(o, params, pred, residuals[row],
-                                         want_jacobian ? &Jh : nullptr, why)) {
-                ok = false;
-                return;
-              }
-              if (want_jacobian) J.row(row) = Jh;
-            } else {
-              Eigen::Matrix<double, O::kResiduals, 1> r;
-              const auto Jo = residual_and_twist_jacobian(o, pred.pose, r);
-              for (int i = 0; i < O::kResiduals; ++i) residuals[row + i] = r(i);
-              if (want_jacobian) J.middleRows(row, O::kResiduals) = Jo * pred.jacobian;
-            }
-            row += O::kResiduals;
-          },
-          obs);
-      if (!ok) return false;
-    }
-    // Jointly measured corners: decorrelate their (marginally whitened) rows together.
-    for (const PixelGroup& g : pose_.pixel_groups) {
-      const int r0 = first_row[static_cast<std::size_t>(g.first)];
-      const auto n = static_cast<Eigen::Index>(2 * g.count);
-      Eigen::Map<Eigen::VectorXd> r(residuals + r0, n);
-      r = (g.decorrelation * r).eval();
-      if (want_jacobian) {
-        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
-            jacobians[0], num_residuals(), P);
-        J.middleRows(r0, n) = (g.decorrelation * J.middleRows(r0, n)).eval();
-      }
-    }
-    return true;
-  }
-
-  const FramePredictor& model_;
-  const PoseMeasurement& pose_;
-  int slot_;
-  struct Ahead {
-    std::vector<double> params;  // where (empty: nowhere yet)
-    bool with_jacobian = false;
-    bool ok = false;
-    std::vector<double> residuals;
-    std::vector<double> jacobian;  // row-major, residuals x parameters
-  };
-  mutable Ahead ahead_;  // written by one worker at a time, read after it joined
-};
-
-// Evaluates every pose's block on `threads` workers before each of Ceres' evaluations, which
-// then only copies them (Ceres' own threads would sum the cost and gradient in an order that
-// changes from run to run; this keeps the solve the same to the bit for any number of threads).
-class EvaluateAhead final : public ceres::EvaluationCallback {
- public:
-  EvaluateAhead(std::vector<const PoseCost*> costs, const double* params, int threads)
-      : costs_(std::move(costs)), params_(params), threads_(threads) {}
-  void PrepareForEvaluation(bool evaluate_jacobians, bool /*new_evaluation_point*/) override {
-    core::parallel_for(static_cast<int>(costs_.size()), threads_, [&](int i) {
-      costs_[static_cast<std::size_t>(i)]->evaluate_ahead(params_, evaluate_jacobians);
-    });
-  }
-
- private:
-  std::vector<const PoseCost*> costs_;
-  const double* params_;  // the problem's parameter block, which Ceres updates before calling
-  int threads_;
-};
-
-class DistanceCost final : public ceres::CostFunction {
- public:
-  DistanceCost(const FramePredictor& model, const PoseMeasurement& a, int slot_a,
-               const PoseMeasurement& b, int slot_b, const DistanceObservation& obs)
-      : model_(model), a_(a), b_(b), slot_a_(slot_a), slot_b_(slot_b), obs_(obs) {
-    set_num_residuals(1);
-    mutable_parameter_block_sizes()->push_back(static_cast<int>(model.parameter_count()));
-  }
-
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const auto P = static_cast<Eigen::Index>(model_.parameter_count());
-    const Eigen::VectorXd params = Eigen::Map<const Eigen::VectorXd>(parameters[0], P);
-    const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
-    FramePrediction pa;
-    FramePrediction pb;
-    std::string why;
-    if (!model_.predict(params, a_.actuators, slot_a_, want_jacobian, pa, why)) return false;
-    if (!model_.predict(params, b_.actuators, slot_b_, want_jacobian, pb, why)) return false;
-    Eigen::Matrix<double, 1, 1> r;
-    const auto Jo = residual_and_twist_jacobian(obs_, pa.pose, pb.pose, r);
-    residuals[0] = r(0);
-    if (want_jacobian) {
-      Eigen::Map<Eigen::Matrix<double, 1, Eigen::Dynamic>> J(jacobians[0], P);
-      J = Jo.leftCols<6>() * pa.jacobian + Jo.rightCols<6>() * pb.jacobian;
-    }
-    return true;
-  }
-
- private:
-  const FramePredictor& model_;
-  const PoseMeasurement& a_;
-  const PoseMeasurement& b_;
-  int slot_a_;
-  int slot_b_;
-  DistanceObservation obs_;
-};
-
-// (a_i − nominal_i)/σ_i for the estimated parameters that have a tolerance (MAP prior).
-class PriorCost final : public ceres::CostFunction {
- public:
-  PriorCost(Eigen::VectorXd nominal, std::vector<std::pair<std::size_t, double>> terms)
-      : nominal_(std::move(nominal)), terms_(std::move(terms)) {
-    set_num_residuals(static_cast<int>(terms_.size()));
-    mutable_parameter_block_sizes()->push_back(static_cast<int>(nominal_.size()));
-  }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const auto P = nominal_.size();
-    for (std::size_t k = 0; k < terms_.size(); ++k) {
-      const auto [i, s] = terms_[k];
-      residuals[k] = (parameters[0][i] - nominal_(static_cast<Eigen::Index>(i))) / s;
-    }
-    if (jacobians != nullptr && jacobians[0] != nullptr) {
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
-          jacobians[0], static_cast<Eigen::Index>(terms_.size()), P);
-      J.setZero();
-      for (std::size_t k = 0; k < terms_.size(); ++k)
-        J(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(terms_[k].first)) =
-            1.0 / terms_[k].second;
-    }
-    return true;
-  }
-
- private:
-  Eigen::VectorXd nominal_;
-  std::vector<std::pair<std::size_t, double>> terms_;
-};
-
-bool finite_observation(const Observation& obs) {
-  return std::visit(
-      [](const auto& o) {
-        using O = std::decay_t<decltype(o)>;
-        if constexpr (std::is_same_v<O, PoseObservation>)
-          return o.measured_position.allFinite() && o.measured_rotation.allFinite() &&
-                 o.weight.allFinite();
-        else if constexpr (std::is_same_v<O, PointObservation>)
-          return o.measured.allFinite() && o.weight.allFinite();
-        else if constexpr (std::is_same_v<O, PixelObservation>)
-          return o.measured.allFinite() && o.point.allFinite() && o.weight.allFinite();
-        else
-          return std::isfinite(o.measured_height) && std::isfinite(o.offset) &&
-                 o.normal.allFinite() && std::isfinite(o.sigma) && o.sigma > 0.0;
-      },
-      obs);
-}
-
-// The pose's pixel groups name runs of its own pixel observations with a matching decorrelation;
-// otherwise `why` says which group is malformed.
-bool valid_pixel_groups(const PoseMeasurement& pose, std::string& why) {
-  const auto n = static_cast<int>(pose.observations.size());
-  std::vector<bool> grouped(pose.observations.size(), false);
-  for (std::size_t k = 0; k < pose.pixel_groups.size(); ++k) {
-    const PixelGroup& g = pose.pixel_groups[k];
-    const auto size = static_cast<Eigen::Index>(2 * g.count);
-    if (g.count < 1 || g.first < 0 || g.first + g.count > n || g.decorrelation.rows() != size ||
-        g.decorrelation.cols() != size || !g.decorrelation.allFinite()) {
-      why = fmt::format(
-          "pixel group {} (observations {}..{}) does not fit the pose's {} "
-          "observations or its decorrelation is not {}x{} and finite",
-          k, g.first, g.first + g.count - 1, n, size, size);
-      return false;
-    }
-    for (int i = g.first; i < g.first + g.count; ++i) {
-      const auto at = static_cast<std::size_t>(i);
-      if (!std::holds_alternative<PixelObservation>(pose.observations[at])) {
-        why = fmt::format(
-            "pixel group {} includes observation {}, which is not a pixel observation", k, i);
-        return false;
-      }
-      if (grouped[at]) {
-        why = fmt::format("pixel group {} includes observation {}, already in another group", k, i);
-        return false;
-      }
-      grouped[at] = true;
-    }
-  }
-  return true;
-}
-
-// Every pixel observation of a pose can be evaluated at the start (camera known, corner in front
-// of it); otherwise `why` names the first that cannot.
-bool pixels_project(const FramePredictor& model, const Eigen::VectorXd& params,
-                    const PoseMeasurement& pose, const FramePrediction& pred, std::string& why) {
-  for (const auto& obs : pose.observations) {
-    const auto* px = std::get_if<PixelObservation>(&obs);
-    if (px == nullptr) continue;
-    Eigen::Vector2d r;
-    std::string reason;
-    if (!model.pixel_residual(*px, params, pred, r, nullptr, reason)) {
-      why = fmt::format("pixel observation of corner {} in camera {} unusable at the start: {}",
-                        px->corner, px->camera, reason);
-      return false;
-    }
-  }
-  return true;
-}
-
-std::optional<Eigen::Vector3d> observed_position(const Observation& obs) {
-  if (const auto* p = std::get_if<PointObservation>(&obs)) return p->measured;
-  if (const auto* p = std::get_if<PoseObservation>(&obs)) return p->measured_position;
-  return std::nullopt;
-}
-
-// Fit residuals per observation type at `params` (ResidualDiagnostics::by_type), in the order
-// point, pose position, pose rotation, probe height, distance; types without data left out.
-std::vector<TypeResiduals> residuals_by_type(const FramePredictor& model,
-                                             const Eigen::VectorXd& params,
-                                             const std::vector<const PoseMeasurement*>& poses,
-                                             const std::map<std::string, int>& slot_of,
-                                             const std::vector<DistanceMeasurement>& distances) {
-  std::vector<TypeResiduals> out = {{"point", "m"},
-                                    {"pose position", "m"},
-                                    {"pose rotation", "rad"},
-                                    {"probe height", "m"},
-                                    {"distance", "m"}};
-  auto add = [&](std::size_t type, double e) {
-    auto& t = out[type];
-    ++t.count;
-    t.rms += e * e;
-    t.max = std::max(t.max, e);
-  };
-  std::map<std::string, Eigen::Vector3d> at;
-  for (const auto* pose : poses) {
-    FramePrediction pred;
-    std::string why;
-    const auto slot = slot_of.find(pose->id);
-    if (!model.predict(params, pose->actuators, slot == slot_of.end() ? -1 : slot->second, false,
-                       pred, why))
-      continue;
-    at[pose->id] = pred.pose.translation();
-    for (const auto& obs : pose->observations) {
-      if (const auto* p = std::get_if<PointObservation>(&obs))
-        add(0, (pred.pose.translation() - p->measured).norm());
-      if (const auto* p = std::get_if<PoseObservation>(&obs)) {
-        add(1, (pred.pose.translation() - p->measured_position).norm());
-        add(2, Eigen::AngleAxisd(pred.pose.linear() * p->measured_rotation.transpose()).angle());
-      }
-      if (const auto* h = std::get_if<ProbeHeightObservation>(&obs)) {
-        double r = 0.0;  // whitened, against the estimated bed plane when there is one
-        if (model.probe_residual(*h, params, pred, r, nullptr, why)) add(3, std::abs(r) * h->sigma);
-      }
-    }
-  }
-  for (const auto& d : distances) {
-    const auto a = at.find(d.first);
-    const auto b = at.find(d.second);
-    if (a != at.end() && b != at.end())
-      add(4, std::abs((a->second - b->second).norm() - d.observation.measured_distance));
-  }
-  std::vector<TypeResiduals> present;
-  for (auto& t : out)
-    if (t.count > 0) {
-      t.rms = std::sqrt(t.rms / static_cast<double>(t.count));
-      present.push_back(t);
-    }
-  return present;
-}
-
-double spread(const std::vector<Eigen::Vector3d>& pts) {
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (const auto& p : pts) c += p;
-  c /= static_cast<double>(pts.size());
-  double s = 0.0;
-  for (const auto& p : pts) s += (p - c).squaredNorm();
-  return std::sqrt(s / static_cast<double>(pts.size()));
-}
-
-// Observation types whose noise is estimated separately (index = group id used below).
-enum Group : int {
-  kPointRows,
-  kPosePosition,
-  kPoseRotation,
-  kProbeRows,
-  kDistanceRows,
-  kPixelRows
-};
-std::vector<NoiseGroup> observation_groups() {
-  std::vector<NoiseGroup> g(6);
-  g[kPointRows].type = "point";
-  g[kPointRows].unit = "m";
-  g[kPosePosition].type = "pose position";
-  g[kPosePosition].unit = "m";
-  g[kPoseRotation].type = "pose rotation";
-  g[kPoseRotation].unit = "rad";
-  g[kProbeRows].type = "probe height";
-  g[kProbeRows].unit = "m";
-  g[kDistanceRows].type = "distance";
-  g[kDistanceRows].unit = "m";
-  g[kPixelRows].type = "pixel";
-  g[kPixelRows].unit = "px";
-  return g;
-}
-
-// Stated σ of each residual row of an observation (diagonal of the inverse information).
-std::vector<std::pair<int, double>> row_labels(const Observation& obs) {
-  std::vector<std::pair<int, double>> out;
-  auto diag_sigma = [](const auto& weight) {
-    const auto info = (weight.transpose() * weight).eval();
-    return info.inverse().diagonal().cwiseSqrt().eval();
-  };
-  std::visit(
-      [&](const auto& o) {
-        using O = std::decay_t<decltype(o)>;
-        if constexpr (std::is_same_v<O, PoseObservation>) {
-          const auto s = diag_sigma(o.weight);
-          for (int i = 0; i < 6; ++i) out.emplace_back(i < 3 ? kPosePosition : kPoseRotation, s(i));
-        } else if constexpr (std::is_same_v<O, PointObservation>) {
-          const auto s = diag_sigma(o.weight);
-          for (int i = 0; i < 3; ++i) out.emplace_back(kPointRows, s(i));
-        } else if constexpr (std::is_same_v<O, PixelObservation>) {
-          const auto s = diag_sigma(o.weight);
-          for (int i = 0; i < 2; ++i) out.emplace_back(kPixelRows, s(i));
-        } else {
-          out.emplace_back(kProbeRows, o.sigma);
-        }
-      },
-      obs);
-  return out;
-}
-
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
-
-std::string sigma_text(double sigma, const std::string& unit) {
-  if (unit == "m")
-    return sigma < 1e-3 ? fmt::format("{:.3g} µm", sigma * 1e6)
-                        : fmt::format("{:.3g} mm", sigma * 1e3);
-  if (unit == "rad") return fmt::format("{:.3g} mrad", sigma * 1e3);
-  return fmt::format("{:.3g} {}", sigma, unit);
-}
-
-// Plain-words warnings when the residuals say the stated noise was wrong, either way: the
-// interval of the estimated scale excludes 1 and the scale is off by more than 1.5×.
-void add_noise_warnings(const NoiseEstimate& noise, bool applied,
-                        std::vector<std::string>& warnings) {
-  for (const auto& g : noise.groups) {
-    if (!g.estimable || g.rows == 0) continue;
-    const bool over = g.scale_high < 1.0 && g.scale < 1.0 / 1.5;
-    const bool under = g.scale_low > 1.0 && g.scale > 1.5;
-    if (!over && !under) continue;
-    warnings.push_back(fmt::format(
-        "{} noise {}: stated {}, the residuals show {} ({:.2g}x, 95 % interval {:.2g}-{:.2g}x "
-        "from {:.0f} degrees of freedom); {}",
-        g.type, over ? "overstated" : "understated", sigma_text(g.stated_sigma, g.unit),
-        sigma_text(g.estimated_sigma(), g.unit), g.scale, g.scale_low, g.scale_high, g.redundancy,
-        applied ? "uncertainties use the estimated noise (--stated-noise keeps the stated one)"
-                : "uncertainties keep the stated noise as asked, so they are " +
-                      std::string(over ? "pessimistic" : "optimistic")));
-  }
-}
-
-// The assembled least-squares problem over the accepted poses (cost functions owned here so
-// they can be evaluated outside Ceres for Jacobians and diagnostics).
-struct Assembly {
-  int threads = 1;  // workers for the pose blocks (evaluate_all, EvaluateAhead)
-  std::vector<const PoseMeasurement*> poses;
-  std::vector<std::unique_ptr<PoseCost>> pose_costs;
-  std::vector<std::unique_ptr<ceres::CostFunction>> distance_costs;
-  std::vector<std::string> distance_labels;
-  int rows = 0;
-  // Observation type of every residual row (index into `groups`) for the noise estimate.
-  std::vector<int> row_group;
-  std::vector<NoiseGroup> groups = observation_groups();
-  std::vector<std::vector<double>> stated =
-      std::vector<std::vector<double>>(groups.size());  // per group: the stated σ of its rows
-  void label(int group, double sigma) {
-    row_group.push_back(group);
-    stated[static_cast<std::size_t>(group)].push_back(sigma);
-  }
-};
-
-// A cost whose whitened rows are divided by per-row scales (the robust loss's threshold then
-// counts in estimated rather than stated σ). Does not own the wrapped cost.
-class RowScaledCost final : public ceres::CostFunction {
- public:
-  RowScaledCost(const ceres::CostFunction& inner, Eigen::VectorXd inverse_scale)
-      : inner_(inner), inverse_scale_(std::move(inverse_scale)) {
-    set_num_residuals(inner.num_residuals());
-    *mutable_parameter_block_sizes() = inner.parameter_block_sizes();
-  }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    if (!inner_.Evaluate(parameters, residuals, jacobians)) return false;
-    const Eigen::Index m = num_residuals();
-    Eigen::Map<Eigen::VectorXd>(residuals, m).array() *= inverse_scale_.array();
-    if (jacobians != nullptr && jacobians[0] != nullptr) {
-      const Eigen::Index n = parameter_block_sizes()[0];
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(
-          jacobians[0], m, n);
-      J = inverse_scale_.asDiagonal() * J;
-    }
-    return true;
-  }
-
- private:
-  const ceres::CostFunction& inner_;
-  Eigen::VectorXd inverse_scale_;
-};
-
-// Outlier-proof noise scale of each observation type from whitened residual rows
-// (1.4826 · median |r|; 1 where a type has no rows or zero spread).
-std::vector<double> robust_row_scales(const Eigen::VectorXd& r, const std::vector<int>& row_group,
-                                      std::size_t groups, int rows) {
-  std::vector<std::vector<double>> by_group(groups);
-  for (int i = 0; i < rows; ++i)
-    by_group[static_cast<std::size_t>(row_group[static_cast<std::size_t>(i)])].push_back(
-        std::abs(r(i)));
-  std::vector<double> scale(groups, 1.0);
-  for (std::size_t g = 0; g < groups; ++g) {
-    auto& v = by_group[g];
-    if (v.empty()) continue;
-    auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-    std::nth_element(v.begin(), mid, v.end());
-    if (*mid > 0.0) scale[g] = 1.4826 * *mid;
-  }
-  return scale;
-}
 
 // Evaluates every block at `params`: stacked whitened residuals and Jacobian (rows × P), and the
 // row range of each pose block. Returns false when some pose cannot be solved.
@@ -593,118 +92,417 @@ bool evaluate_all(const Assembly& as, const Eigen::VectorXd& params, bool with_j
   return true;
 }
 
-ErrorStatistics finish(const std::vector<double>& pos, const std::vector<double>& ori) {
-  ErrorStatistics s;
-  s.poses = pos.size();
-  for (double e : pos) {
-    s.position_rms += e * e;
-    s.position_max = std::max(s.position_max, e);
-  }
-  for (double e : ori) {
-    s.orientation_rms += e * e;
-    s.orientation_max = std::max(s.orientation_max, e);
-  }
-  if (!pos.empty()) s.position_rms = std::sqrt(s.position_rms / static_cast<double>(pos.size()));
-  if (!ori.empty())
-    s.orientation_rms = std::sqrt(s.orientation_rms / static_cast<double>(ori.size()));
-  return s;
+// The request's sizes and options before anything is assembled: a nominal vector that does not
+// fit the model, duplicate pose ids or an impossible thread count make the input invalid (the
+// message says why); option vectors of the wrong size are a programming error and throw.
+std::optional<std::string> check_request(const FramePredictor& model,
+                                         const Eigen::VectorXd& nominal,
+                                         const Measurements& measurements,
+                                         const SolveOptions& options) {
+  const std::size_t P = model.parameter_count();
+  if (static_cast<std::size_t>(nominal.size()) != P || !nominal.allFinite())
+    return fmt::format("nominal parameter vector has {} finite-checked entries, model has {}",
+                       nominal.size(), P);
+  auto check_size = [&](const auto& v, const char* what) {
+    if (!v.empty() && v.size() != P)
+      throw std::invalid_argument(fmt::format("{} must have one entry per parameter", what));
+  };
+  check_size(options.preference, "preference");
+  check_size(options.prior_sigma, "prior_sigma");
+  check_size(options.lower_bound, "lower_bound");
+  check_size(options.upper_bound, "upper_bound");
+  check_size(options.start_sigma, "start_sigma");
+
+  std::set<std::string> ids;
+  for (const auto& pose : measurements.poses)
+    if (!ids.insert(pose.id).second)
+      return fmt::format("pose id '{}' appears more than once", pose.id);
+
+  if (options.threads < 1 || options.threads > 64)
+    return fmt::format("threads must be in 1..64 (got {})", options.threads);
+  return std::nullopt;
 }
 
-}  // namespace
-
-namespace {
-
-// Predicted quantities over the measured area, as whitened rows (candidate columns): every
-// observation of each measured pose, at that pose and at the quarter points between every two of
-// them in actuator space (at most 16 poses spread over the list; pixel poses are skipped).
-Eigen::MatrixXd measured_area_rows(const FramePredictor& model, const Eigen::VectorXd& params,
-                                   const std::vector<const PoseMeasurement*>& poses,
-                                   const std::vector<std::size_t>& candidates) {
-  std::vector<const PoseMeasurement*> used;
-  for (const auto* pose : poses)
-    if (!pose->observations.empty() && pose->pixel_groups.empty()) used.push_back(pose);
-  constexpr std::size_t kMaxPoses = 16;
-  if (used.size() > kMaxPoses) {
-    std::vector<const PoseMeasurement*> spread_out;
-    for (std::size_t k = 0; k < kMaxPoses; ++k)
-      spread_out.push_back(used[k * (used.size() - 1) / (kMaxPoses - 1)]);
-    used = std::move(spread_out);
-  }
-  Measurements area;
-  for (std::size_t i = 0; i < used.size(); ++i) {
-    area.poses.push_back({"area", used[i]->actuators, used[i]->observations});
-    for (std::size_t j = i + 1; j < used.size(); ++j)
-      for (const double t : {0.25, 0.5, 0.75})
-        area.poses.push_back({"area", (1.0 - t) * used[i]->actuators + t * used[j]->actuators,
-                              used[i]->observations});
-  }
-  Eigen::MatrixXd rows(0, static_cast<Eigen::Index>(candidates.size()));
-  for (const auto& pose : area.poses) {
-    Measurements one;
-    one.poses.push_back(pose);
-    Eigen::MatrixXd J;
+// The least-squares problem over the poses the nominal model can use: a pose with non-finite
+// readings or observations, one the nominal model cannot solve or with malformed pixel groups is
+// excluded with its reason (result.excluded); a distance naming a missing pose is ignored with a
+// warning. Returns the measured positions beside their nominal predictions for the unit check.
+MeasuredAndPredicted assemble_problem(const FramePredictor& model, const Eigen::VectorXd& nominal,
+                                      const Measurements& measurements, const SolveOptions& options,
+                                      Assembly& as, IdentificationResult& result) {
+  as.threads = model.thread_safe() ? options.threads : 1;
+  MeasuredAndPredicted positions;
+  for (std::size_t k = 0; k < measurements.poses.size(); ++k) {
+    const PoseMeasurement& pose = measurements.poses[k];
+    if (!pose.actuators.allFinite()) {
+      result.excluded.push_back({pose.id, "actuator readings are not finite (NaN or infinite)"});
+      continue;
+    }
+    if (!std::all_of(pose.observations.begin(), pose.observations.end(), finite_observation)) {
+      result.excluded.push_back(
+          {pose.id, "an observation is not finite or has non-positive noise"});
+      continue;
+    }
+    FramePrediction pred;
     std::string why;
-    if (!identification_jacobian(model, params, one, J, why)) continue;  // outside the workspace
-    const Eigen::Index n = rows.rows();
-    rows.conservativeResize(n + J.rows(), Eigen::NoChange);
-    for (std::size_t k = 0; k < candidates.size(); ++k)
-      rows.col(static_cast<Eigen::Index>(k)).segment(n, J.rows()) =
-          J.col(static_cast<Eigen::Index>(candidates[k]));
+    if (!model.predict(nominal, pose.actuators, static_cast<int>(k), false, pred, why)) {
+      result.excluded.push_back(
+          {pose.id, fmt::format("the nominal model cannot solve this pose: {}", why)});
+      continue;
+    }
+    if (!valid_pixel_groups(pose, why) || !pixels_project(model, nominal, pose, pred, why)) {
+      result.excluded.push_back({pose.id, why});
+      continue;
+    }
+    as.slot_of[pose.id] = static_cast<int>(k);
+    as.poses.push_back(&pose);
+    if (!pose.observations.empty()) {
+      as.pose_costs.push_back(std::make_unique<PoseCost>(model, pose, static_cast<int>(k)));
+      as.rows += as.pose_costs.back()->num_residuals();
+      for (const auto& obs : pose.observations)
+        for (const auto& [group, sigma] : row_labels(obs)) as.label(group, sigma);
+    }
+    for (const auto& obs : pose.observations)
+      if (auto p = observed_position(obs)) {
+        positions.measured.push_back(*p);
+        positions.predicted.emplace_back(pred.pose.translation());
+      }
   }
-  return rows;
+  std::map<std::string, const PoseMeasurement*> by_id;
+  for (const auto* p : as.poses) by_id[p->id] = p;
+  for (const auto& d : measurements.distances) {
+    if (!by_id.count(d.first) || !by_id.count(d.second)) {
+      result.warnings.push_back(fmt::format(
+          "distance {}–{} ignored: one of its poses is missing or excluded", d.first, d.second));
+      continue;
+    }
+    as.distance_costs.push_back(
+        std::make_unique<DistanceCost>(model, *by_id[d.first], as.slot_of.at(d.first),
+                                       *by_id[d.second], as.slot_of.at(d.second), d.observation));
+    as.rows += 1;
+    as.label(kDistanceRows, d.observation.sigma);
+  }
+  for (std::size_t g = 0; g < as.groups.size(); ++g)
+    as.groups[g].stated_sigma = median_of(as.stated[g]);
+  return positions;
 }
 
-// Little data: which of the confounded candidates are held at nominal (gauge_choice.hpp). The
-// rank analysis' pivot order gives one base set; among the sets of the same size the data
-// separate as well, the one whose held parameters, off nominal by their tolerances, move the
-// predictions over the measured area least. `report` is redone with that set first, so its
-// redundancies explain the held parameters; returns the sentence for the gauge ("" = unchanged
-// or not decidable).
-std::string choose_little_data_gauge(const FramePredictor& model, const Eigen::VectorXd& params,
-                                     const std::vector<const PoseMeasurement*>& poses,
-                                     const Eigen::MatrixXd& Jc,
-                                     const std::vector<std::size_t>& candidates,
-                                     const std::vector<std::string>& cand_names,
-                                     const SolveOptions& options, IdentifiabilityReport& report) {
-  const Eigen::MatrixXd targets = measured_area_rows(model, params, poses, candidates);
-  if (targets.rows() == 0) return "";
-  Eigen::VectorXd sigma(static_cast<Eigen::Index>(candidates.size()));
+// The parameters the user lets change (every one when none is named).
+std::vector<std::size_t> candidate_indices(const SolveOptions& options, std::size_t P) {
+  std::vector<std::size_t> candidates = options.candidates;
+  if (candidates.empty())
+    for (std::size_t i = 0; i < P; ++i) candidates.push_back(i);
+  for (std::size_t c : candidates)
+    if (c >= P) throw std::invalid_argument("candidate parameter index out of range");
+  return candidates;
+}
+
+// The candidates' columns of the whitened Jacobian at the linearisation point, what the rank
+// analysis reads: their names, their visiting preference (`keep` first) and how many of them
+// change the measurements at all.
+struct CandidateColumns {
+  Eigen::MatrixXd Jc;
+  std::vector<std::string> names;
+  std::vector<int> preference;
+  std::size_t with_effect = 0;
+};
+
+CandidateColumns candidate_columns(const Eigen::MatrixXd& J,
+                                   const std::vector<std::size_t>& candidates,
+                                   const std::vector<std::string>& names,
+                                   const SolveOptions& options,
+                                   const std::vector<std::size_t>& keep) {
+  CandidateColumns cc;
+  cc.Jc.resize(J.rows(), static_cast<Eigen::Index>(candidates.size()));
   for (std::size_t k = 0; k < candidates.size(); ++k) {
-    const double s =
-        candidates[k] < options.gauge_sigma.size() ? options.gauge_sigma[candidates[k]] : 0.0;
-    if (!(s > 0.0)) return "";  // no tolerance for a candidate: nothing to weigh
-    sigma(static_cast<Eigen::Index>(k)) = s;
+    cc.Jc.col(static_cast<Eigen::Index>(k)) = J.col(static_cast<Eigen::Index>(candidates[k]));
+    cc.names.push_back(names[candidates[k]]);
+    const int pref = options.preference.empty() ? 0 : options.preference[candidates[k]];
+    const bool kept = std::find(keep.begin(), keep.end(), candidates[k]) != keep.end();
+    if (!options.preference.empty() || !keep.empty())
+      cc.preference.push_back(kept ? pref - (1 << 20) : pref);
   }
-  GaugeOptions gauge_options;
-  gauge_options.rank_tolerance = options.identifiability.ill_conditioning_ratio;
-  const GaugeChoice choice =
-      choose_gauge(Jc, targets, sigma, report.identifiable, {}, report.no_effect, gauge_options);
-  if (!std::isfinite(choice.expected_error)) return "";
-  if (choice.changed) {
-    // The analysis again with the chosen set visited first: it keeps exactly that set and
-    // explains the others through it.
-    IdentifiabilityOptions strict = options.identifiability;
-    strict.rank_tolerance = gauge_options.rank_tolerance;
-    strict.stable_tie_break = true;
-    std::vector<int> preference(candidates.size(), 1);
-    for (std::size_t k : choice.estimated) preference[k] = 0;
-    IdentifiabilityReport redone = analyze_identifiability(Jc, cand_names, strict, preference);
-    if (redone.identifiable != choice.estimated) return "";
-    report = std::move(redone);
-  }
-  return fmt::format(
-      "; they are the ones held because, off nominal by the robot file's tolerances, they move "
-      "the predictions over the measured area least (expected prediction error {:.3g} x the "
-      "measurement noise, of which their bias {:.3g}; the rank analysis' pivot order would hold "
-      "{}: {:.3g}, bias {:.3g})",
-      std::sqrt(choice.expected_error), std::sqrt(choice.bias),
-      choice.changed ? "others" : "the same", std::sqrt(choice.initial_expected_error),
-      std::sqrt(choice.initial_bias));
+  const Eigen::VectorXd norms = cc.Jc.colwise().norm();
+  const double top = norms.size() ? norms.maxCoeff() : 0.0;
+  for (Eigen::Index k = 0; k < norms.size(); ++k)
+    cc.with_effect += norms(k) > options.identifiability.no_effect_tolerance * top ? 1 : 0;
+  return cc;
 }
 
-}  // namespace
+// Candidates with a prior (a tolerance) that change the measurements: priors are information
+// too.
+std::size_t candidates_with_prior(const std::vector<std::size_t>& candidates,
+                                  const SolveOptions& options,
+                                  const IdentifiabilityReport& report) {
+  std::size_t with_prior = 0;
+  for (std::size_t k = 0; k < candidates.size(); ++k)
+    if (!options.prior_sigma.empty() && options.prior_sigma[candidates[k]] > 0.0 &&
+        !std::binary_search(report.no_effect.begin(), report.no_effect.end(), k))
+      ++with_prior;
+  return with_prior;
+}
 
-namespace {
+// With little data (fewer equations than free parameters with an effect) the data determine
+// only `rank` combinations: the weak directions are left to the gauge (or, with priors on every
+// candidate, to the priors: `map_everything`), the gauge is chosen over the measured area, and
+// result.gauge says so in words. Updates result.identifiability and result.limited_data.
+void decide_gauge(const FramePredictor& model, const Eigen::VectorXd& linearisation,
+                  const Assembly& as, const std::vector<std::size_t>& candidates,
+                  const CandidateColumns& cc, const SolveOptions& options,
+                  const std::vector<std::size_t>& keep, bool map_everything,
+                  IdentificationResult& result) {
+  const std::size_t with_effect = cc.with_effect;
+  if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything &&
+      options.identifiability.rank_tolerance < options.identifiability.ill_conditioning_ratio) {
+    // Little data: keep only the directions this design separates well (the ill-conditioning
+    // ratio as rank tolerance), so the gauge holds the weak ones instead of estimating them
+    // from noise (7 bed heights on the linear delta: without this, base tilt and rod lengths
+    // changed by 65 mrad and 8 mm to fit 10 µm of noise).
+    IdentifiabilityOptions strict = options.identifiability;
+    strict.rank_tolerance = options.identifiability.ill_conditioning_ratio;
+    result.identifiability = analyze_identifiability(cc.Jc, cc.names, strict, cc.preference);
+  }
+  std::string gauge_why;
+  if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything && keep.empty() &&
+      !options.gauge_sigma.empty() && !result.identifiability.redundancies.empty())
+    gauge_why = choose_little_data_gauge(model, linearisation, as.poses, cc.Jc, candidates,
+                                         cc.names, options, result.identifiability);
+  if (static_cast<std::size_t>(as.rows) < with_effect) {
+    result.limited_data = true;
+    std::string held;
+    for (std::size_t k : result.identifiability.redundant)
+      if (!std::binary_search(result.identifiability.no_effect.begin(),
+                              result.identifiability.no_effect.end(), k))
+        held += (held.empty() ? "" : ", ") + cc.names[k];
+    result.gauge =
+        map_everything
+            ? fmt::format(
+                  "{} equations for {} free parameters: the data determine {} "
+                  "combinations; the robot file's tolerances (priors) supply the rest, so "
+                  "every parameter is estimated (MAP) and the held directions stay near "
+                  "nominal within their tolerance",
+                  as.rows, with_effect, result.identifiability.rank)
+            : fmt::format(
+                  "{} equations for {} free parameters: the data determine {} "
+                  "combinations, so {} parameters are estimated and {} are held at their "
+                  "nominal values (the gauge, chosen for this robot and this data: each "
+                  "held parameter moves the measurements like a combination of estimated "
+                  "ones, see the redundancies){}{}{}",
+                  as.rows, with_effect, result.identifiability.rank, result.identifiability.rank,
+                  with_effect - result.identifiability.rank, held.empty() ? "" : ": ", held,
+                  gauge_why);
+  }
+}
+
+// The parameters estimated (result.estimated): every candidate with an effect under
+// `map_everything`, else the identifiable ones and those in `keep`. The message when that is
+// not possible, or nothing.
+std::optional<std::string> choose_estimated(const std::vector<std::size_t>& candidates,
+                                            const SolveOptions& options,
+                                            const std::vector<std::size_t>& keep,
+                                            bool map_everything, IdentificationResult& result) {
+  if (map_everything) {
+    // Every candidate that has an effect is estimated; the prior makes the problem well posed.
+    for (std::size_t k = 0; k < candidates.size(); ++k)
+      if (!std::binary_search(result.identifiability.no_effect.begin(),
+                              result.identifiability.no_effect.end(), k))
+        result.estimated.push_back(candidates[k]);
+    bool all_priors = !options.prior_sigma.empty();
+    for (std::size_t i : result.estimated) all_priors = all_priors && options.prior_sigma[i] > 0.0;
+    if (!all_priors && options.estimate_redundant)
+      return "estimate_redundant needs a prior (prior_sigma > 0) on every candidate";
+  } else {
+    std::vector<bool> estimate_it(candidates.size(), false);
+    for (std::size_t k : result.identifiability.identifiable) estimate_it[k] = true;
+    for (std::size_t k = 0; k < candidates.size(); ++k)
+      if (std::find(keep.begin(), keep.end(), candidates[k]) != keep.end()) estimate_it[k] = true;
+    for (std::size_t k = 0; k < candidates.size(); ++k)
+      if (estimate_it[k]) result.estimated.push_back(candidates[k]);
+  }
+  if (result.estimated.empty()) return "no identifiable parameter among the candidates";
+  return std::nullopt;
+}
+
+// What every Ceres solve of one identify_at shares: the assembled costs, the parameters held
+// constant (those not estimated), the priors and the bounds.
+struct CeresSetup {
+  const Assembly& as;
+  const SolveOptions& options;
+  const Eigen::VectorXd& nominal;
+  const std::vector<std::size_t>& estimated;
+  std::vector<int> held;
+  std::vector<std::pair<std::size_t, double>> prior_terms;
+};
+
+CeresSetup ceres_setup(const Assembly& as, const SolveOptions& options,
+                       const Eigen::VectorXd& nominal, const std::vector<std::size_t>& estimated,
+                       std::size_t P) {
+  CeresSetup setup{as, options, nominal, estimated, {}, {}};
+  {
+    std::vector<bool> est(P, false);
+    for (std::size_t i : estimated) est[i] = true;
+    for (std::size_t i = 0; i < P; ++i)
+      if (!est[i]) setup.held.push_back(static_cast<int>(i));
+  }
+  if (!options.prior_sigma.empty())
+    for (std::size_t i : estimated)
+      if (options.prior_sigma[i] > 0.0) setup.prior_terms.emplace_back(i, options.prior_sigma[i]);
+  return setup;
+}
+
+// One Levenberg–Marquardt solve from `x` over the full vector with the non-estimated entries
+// held constant. `row_scale` (one per pose-cost row, may be empty): the robust loss counts in
+// these units.
+Eigen::VectorXd solve_from(const CeresSetup& setup, Eigen::VectorXd x,
+                           ceres::Solver::Summary& summary,
+                           const std::vector<double>& row_scale = {}) {
+  const Assembly& as = setup.as;
+  const SolveOptions& options = setup.options;
+  const auto P = static_cast<std::size_t>(setup.nominal.size());
+  ceres::Problem::Options popt;
+  popt.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  popt.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+  std::vector<const PoseCost*> ahead;
+  ahead.reserve(as.pose_costs.size());
+  for (const auto& c : as.pose_costs) ahead.push_back(c.get());
+  EvaluateAhead evaluate_ahead(std::move(ahead), x.data(), as.threads);
+  if (as.threads > 1) popt.evaluation_callback = &evaluate_ahead;
+  ceres::Problem problem(popt);
+  std::vector<std::unique_ptr<ceres::CostFunction>> scaled;
+  int first_row = 0;
+  for (const auto& c : as.pose_costs) {
+    ceres::LossFunction* loss = nullptr;
+    if (options.robust_loss == RobustLoss::kHuber)
+      loss = new ceres::HuberLoss(options.robust_scale);
+    if (options.robust_loss == RobustLoss::kCauchy)
+      loss = new ceres::CauchyLoss(options.robust_scale);
+    ceres::CostFunction* cost = c.get();
+    if (!row_scale.empty()) {
+      Eigen::VectorXd inverse(c->num_residuals());
+      for (int i = 0; i < c->num_residuals(); ++i)
+        inverse(i) = 1.0 / row_scale[static_cast<std::size_t>(first_row + i)];
+      scaled.push_back(std::make_unique<RowScaledCost>(*c, std::move(inverse)));
+      cost = scaled.back().get();
+    }
+    first_row += c->num_residuals();
+    problem.AddResidualBlock(cost, loss, x.data());
+  }
+  for (const auto& c : as.distance_costs) problem.AddResidualBlock(c.get(), nullptr, x.data());
+  std::unique_ptr<ceres::CostFunction> prior;
+  if (!setup.prior_terms.empty()) {
+    prior = std::make_unique<PriorCost>(setup.nominal, setup.prior_terms);
+    problem.AddResidualBlock(prior.get(), nullptr, x.data());
+  }
+  if (!setup.held.empty())
+    problem.SetManifold(x.data(), new ceres::SubsetManifold(static_cast<int>(P), setup.held));
+  for (std::size_t i : setup.estimated) {
+    if (!options.lower_bound.empty() && std::isfinite(options.lower_bound[i]))
+      problem.SetParameterLowerBound(x.data(), static_cast<int>(i), options.lower_bound[i]);
+    if (!options.upper_bound.empty() && std::isfinite(options.upper_bound[i]))
+      problem.SetParameterUpperBound(x.data(), static_cast<int>(i), options.upper_bound[i]);
+  }
+  ceres::Solver::Options sopt;
+  sopt.linear_solver_type = ceres::DENSE_QR;
+  sopt.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  sopt.function_tolerance = options.function_tolerance;
+  sopt.gradient_tolerance = options.gradient_tolerance;
+  sopt.parameter_tolerance = options.parameter_tolerance;
+  sopt.max_num_iterations = options.max_iterations;
+  sopt.num_threads = 1;
+  ceres::Solve(sopt, &problem, &summary);
+  return x;
+}
+
+// The lowest-objective usable solve so far (nominal and unusable until one is found).
+struct BestSolve {
+  Eigen::VectorXd x;
+  double cost = INFINITY;
+  bool usable = false;
+  ceres::Solver::Summary summary;
+};
+
+// The solve from `start` and from SolveOptions::multi_start perturbed starts; the lowest
+// objective that leaves every pose solvable wins.
+BestSolve multi_start(const CeresSetup& setup, const Eigen::VectorXd& start) {
+  const SolveOptions& options = setup.options;
+  std::mt19937 rng(options.seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  BestSolve best;
+  best.x = setup.nominal;
+  const int starts = 1 + std::max(0, options.multi_start);
+  for (int s = 0; s < starts; ++s) {
+    Eigen::VectorXd x0 = start;
+    if (s > 0) {
+      for (std::size_t i : setup.estimated) {
+        const double sig = !options.start_sigma.empty()   ? options.start_sigma[i]
+                           : !options.prior_sigma.empty() ? options.prior_sigma[i]
+                                                          : 0.0;
+        x0(static_cast<Eigen::Index>(i)) += sig * n01(rng);
+      }
+    }
+    ceres::Solver::Summary summary;
+    const Eigen::VectorXd x = solve_from(setup, x0, summary);
+    Eigen::VectorXd rx;
+    Eigen::MatrixXd unused;
+    const bool solvable = summary.IsSolutionUsable() && x.allFinite() &&
+                          evaluate_all(setup.as, x, false, rx, unused) && rx.allFinite();
+    // Compare with the objective actually minimised (robust loss included).
+    const double cost = solvable ? summary.final_cost : INFINITY;
+    if (solvable && cost < best.cost) {
+      best.x = x;
+      best.cost = cost;
+      best.usable = true;
+      best.summary = summary;
+    }
+  }
+  return best;
+}
+
+// Robust loss at the estimated noise: refit from the first robust fit with the threshold in
+// units of each observation type's outlier-proof residual scale there, and again from that
+// fit (its residuals are no longer spread by the outliers) until the scales settle. Records the
+// scales used in result.robust_loss_noise_scale.
+void refit_at_estimated_noise(const CeresSetup& setup, BestSolve& best,
+                              IdentificationResult& result) {
+  const Assembly& as = setup.as;
+  const SolveOptions& options = setup.options;
+  int pose_cost_rows = 0;
+  for (const auto& c : as.pose_costs) pose_cost_rows += c->num_residuals();
+  for (int pass = 0; pass < 4 && best.usable && pose_cost_rows > 0 &&
+                     options.robust_loss != RobustLoss::kNone && !options.keep_stated_noise;
+       ++pass) {
+    Eigen::VectorXd r1;
+    Eigen::MatrixXd unused;
+    if (evaluate_all(as, best.x, false, r1, unused)) {
+      const auto scale = robust_row_scales(r1, as.row_group, as.groups.size(), pose_cost_rows);
+      bool settled = !result.robust_loss_noise_scale.empty();
+      for (std::size_t g = 0; settled && g < scale.size(); ++g)
+        settled = std::abs(scale[g] / result.robust_loss_noise_scale[g] - 1.0) < 0.02;
+      if (settled) break;
+      std::vector<double> row_scale(static_cast<std::size_t>(pose_cost_rows));
+      for (int i = 0; i < pose_cost_rows; ++i)
+        row_scale[static_cast<std::size_t>(i)] =
+            scale[static_cast<std::size_t>(as.row_group[static_cast<std::size_t>(i)])];
+      ceres::Solver::Summary summary;
+      const Eigen::VectorXd x = solve_from(setup, best.x, summary, row_scale);
+      Eigen::VectorXd rx;
+      if (summary.IsSolutionUsable() && x.allFinite() && evaluate_all(as, x, false, rx, unused) &&
+          rx.allFinite()) {
+        best.x = x;
+        best.cost = summary.final_cost;
+        best.summary = summary;
+        result.robust_loss_noise_scale = scale;
+        continue;
+      }
+    }
+    break;
+  }
+}
+
+// Wall time since `t0` (IdentificationResult::solve_seconds).
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
 
 // One solve. The identifiability analysis is done at `linearisation` (the nominal model for the
 // first solve, the first estimate for the relinearised one); the parameters in `keep` are
@@ -728,175 +526,38 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     result.message = std::move(why);
     return result;
   };
-  if (static_cast<std::size_t>(nominal.size()) != P || !nominal.allFinite())
-    return invalid(fmt::format(
-        "nominal parameter vector has {} finite-checked entries, model has {}", nominal.size(), P));
-  auto check_size = [&](const auto& v, const char* what) {
-    if (!v.empty() && v.size() != P)
-      throw std::invalid_argument(fmt::format("{} must have one entry per parameter", what));
-  };
-  check_size(options.preference, "preference");
-  check_size(options.prior_sigma, "prior_sigma");
-  check_size(options.lower_bound, "lower_bound");
-  check_size(options.upper_bound, "upper_bound");
-  check_size(options.start_sigma, "start_sigma");
+  if (auto why = check_request(model, nominal, measurements, options)) return invalid(*why);
 
-  // 1. Input checks.
-  std::set<std::string> ids;
-  for (const auto& pose : measurements.poses)
-    if (!ids.insert(pose.id).second)
-      return invalid(fmt::format("pose id '{}' appears more than once", pose.id));
-
-  if (options.threads < 1 || options.threads > 64)
-    return invalid(fmt::format("threads must be in 1..64 (got {})", options.threads));
+  // 1. The problem over the usable poses, then the checks that need it: units off by 1000, then
+  // convention swaps (quaternion order, degrees, inverted poses) against the nominal model.
   Assembly as;
-  as.threads = model.thread_safe() ? options.threads : 1;
-  std::map<std::string, int> slot_of;
-  std::vector<Eigen::Vector3d> measured_pts;
-  std::vector<Eigen::Vector3d> predicted_pts;
-  for (std::size_t k = 0; k < measurements.poses.size(); ++k) {
-    const PoseMeasurement& pose = measurements.poses[k];
-    if (!pose.actuators.allFinite()) {
-      result.excluded.push_back({pose.id, "actuator readings are not finite (NaN or infinite)"});
-      continue;
-    }
-    if (!std::all_of(pose.observations.begin(), pose.observations.end(), finite_observation)) {
-      result.excluded.push_back(
-          {pose.id, "an observation is not finite or has non-positive noise"});
-      continue;
-    }
-    FramePrediction pred;
-    std::string why;
-    if (!model.predict(nominal, pose.actuators, static_cast<int>(k), false, pred, why)) {
-      result.excluded.push_back(
-          {pose.id, fmt::format("the nominal model cannot solve this pose: {}", why)});
-      continue;
-    }
-    if (!valid_pixel_groups(pose, why) || !pixels_project(model, nominal, pose, pred, why)) {
-      result.excluded.push_back({pose.id, why});
-      continue;
-    }
-    slot_of[pose.id] = static_cast<int>(k);
-    as.poses.push_back(&pose);
-    if (!pose.observations.empty()) {
-      as.pose_costs.push_back(std::make_unique<PoseCost>(model, pose, static_cast<int>(k)));
-      as.rows += as.pose_costs.back()->num_residuals();
-      for (const auto& obs : pose.observations)
-        for (const auto& [group, sigma] : row_labels(obs)) as.label(group, sigma);
-    }
-    for (const auto& obs : pose.observations)
-      if (auto p = observed_position(obs)) {
-        measured_pts.push_back(*p);
-        predicted_pts.emplace_back(pred.pose.translation());
-      }
-  }
-  std::map<std::string, const PoseMeasurement*> by_id;
-  for (const auto* p : as.poses) by_id[p->id] = p;
-  for (const auto& d : measurements.distances) {
-    if (!by_id.count(d.first) || !by_id.count(d.second)) {
-      result.warnings.push_back(fmt::format(
-          "distance {}–{} ignored: one of its poses is missing or excluded", d.first, d.second));
-      continue;
-    }
-    as.distance_costs.push_back(std::make_unique<DistanceCost>(model, *by_id[d.first],
-                                                               slot_of[d.first], *by_id[d.second],
-                                                               slot_of[d.second], d.observation));
-    as.rows += 1;
-    as.label(kDistanceRows, d.observation.sigma);
-  }
-  if (measured_pts.size() >= 3) {
-    const double ratio = spread(measured_pts) / std::max(spread(predicted_pts), 1e-300);
-    if (ratio > 300.0 || ratio < 1.0 / 300.0)
-      return invalid(fmt::format(
-          "the measured positions spread {:.4g} times as far as the model predicts: units are "
-          "probably mismatched by 1000 (millimetres vs metres); convert the measurements to metres",
-          ratio));
-  }
-
-  // 1a. Probe heights in millimetres declared as metres: at the nominal model a height is off by
-  // at most millimetres; a value 1000x too large is off by decimetres to metres.
-  {
-    std::vector<double> misfit;
-    std::vector<double> misfit_mm;
-    const PoseMeasurement* worst = nullptr;
-    double worst_misfit = 0.0;
-    for (const auto* pose : as.poses) {
-      FramePrediction pred;
-      std::string why;
-      if (!model.predict(nominal, pose->actuators, slot_of[pose->id], false, pred, why)) continue;
-      for (const auto& obs : pose->observations)
-        if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs)) {
-          const double predicted = ph->normal.dot(pred.pose.translation()) - ph->offset;
-          misfit.push_back(std::abs(ph->measured_height - predicted));
-          misfit_mm.push_back(std::abs(1e-3 * ph->measured_height - predicted));
-          if (misfit.back() > worst_misfit) {
-            worst_misfit = misfit.back();
-            worst = pose;
-          }
-        }
-    }
-    if (!misfit.empty() && median_of(misfit) > 0.05 && median_of(misfit_mm) < 0.01)
-      return invalid(fmt::format(
-          "probe heights are implausible in metres: median {:.3g} m from the nominal model, {:.3g} "
-          "m if they were millimetres (largest at pose '{}'{}); declare units: {{length: mm}} or "
-          "convert them",
-          median_of(misfit), median_of(misfit_mm), worst->id,
-          worst->line > 0 ? fmt::format(", line {}", worst->line) : ""));
-  }
-
-  // 1b. Convention swaps (quaternion order, degrees, inverted poses) against the nominal model.
+  const MeasuredAndPredicted positions =
+      assemble_problem(model, nominal, measurements, options, as, result);
+  if (auto why = position_units_mismatch(positions)) return invalid(*why);
+  if (auto why = probe_height_units_mismatch(model, nominal, as)) return invalid(*why);
   if (auto swap = check_conventions(model, nominal, measurements)) return invalid(swap->message);
 
-  // 2. Identifiability over the candidates.
-  std::vector<std::size_t> candidates = options.candidates;
-  if (candidates.empty())
-    for (std::size_t i = 0; i < P; ++i) candidates.push_back(i);
-  for (std::size_t c : candidates)
-    if (c >= P) throw std::invalid_argument("candidate parameter index out of range");
+  // 2. Identifiability over the candidates at the linearisation point, then the estimated set.
+  const std::vector<std::size_t> candidates = candidate_indices(options, P);
   result.candidates = candidates;
   const std::size_t poses_used = as.pose_costs.size();
   if (as.rows == 0) return invalid("no usable measurements (all poses excluded or empty)");
   result.equations = as.rows;
-
   Eigen::VectorXd r;
   Eigen::MatrixXd J;
   if (!evaluate_all(as, linearisation, true, r, J))
     return invalid(&linearisation == &nominal
                        ? "a pose failed to solve while assembling the Jacobian at the nominal model"
                        : "a pose failed to solve while assembling the Jacobian at the estimate");
-  Eigen::MatrixXd Jc(J.rows(), static_cast<Eigen::Index>(candidates.size()));
-  std::vector<std::string> cand_names;
-  std::vector<int> cand_pref;
-  for (std::size_t k = 0; k < candidates.size(); ++k) {
-    Jc.col(static_cast<Eigen::Index>(k)) = J.col(static_cast<Eigen::Index>(candidates[k]));
-    cand_names.push_back(result.names[candidates[k]]);
-    const int pref = options.preference.empty() ? 0 : options.preference[candidates[k]];
-    const bool kept = std::find(keep.begin(), keep.end(), candidates[k]) != keep.end();
-    if (!options.preference.empty() || !keep.empty())
-      cand_pref.push_back(kept ? pref - (1 << 20) : pref);
-  }
-  std::size_t with_effect = 0;
-  {
-    const Eigen::VectorXd norms = Jc.colwise().norm();
-    const double top = norms.size() ? norms.maxCoeff() : 0.0;
-    for (Eigen::Index k = 0; k < norms.size(); ++k)
-      with_effect += norms(k) > options.identifiability.no_effect_tolerance * top ? 1 : 0;
-  }
+  const CandidateColumns cc = candidate_columns(J, candidates, result.names, options, keep);
   result.identifiability =
-      analyze_identifiability(Jc, cand_names, options.identifiability, cand_pref);
-  for (std::size_t g = 0; g < as.groups.size(); ++g)
-    as.groups[g].stated_sigma = median_of(as.stated[g]);
+      analyze_identifiability(cc.Jc, cc.names, options.identifiability, cc.preference);
   // The count check comes after the analysis: with little data (fewer equations than free
   // parameters with an effect) the data determine only `rank` combinations; those are estimated
   // and the rest held at nominal — an automatically chosen gauge, explained in words. Priors are
   // information too: with a prior on every candidate that has an effect, everything is estimated
   // (MAP). Refused only when no parameter changes the measurements at all.
-  std::size_t with_prior = 0;
-  for (std::size_t k = 0; k < candidates.size(); ++k)
-    if (!options.prior_sigma.empty() && options.prior_sigma[candidates[k]] > 0.0 &&
-        !std::binary_search(result.identifiability.no_effect.begin(),
-                            result.identifiability.no_effect.end(), k))
-      ++with_prior;
+  const std::size_t with_prior = candidates_with_prior(candidates, options, result.identifiability);
   if (result.identifiability.rank == 0 && with_prior == 0) {
     result.status = IdentificationStatus::kNotIdentifiable;
     result.message = fmt::format(
@@ -905,68 +566,13 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
         poses_used, as.rows, candidates.size());
     return result;
   }
-  const bool priors_complete = with_prior == with_effect && with_effect > 0;
-  const bool map_everything = options.estimate_redundant ||
-                              (priors_complete && static_cast<std::size_t>(as.rows) < with_effect);
-  if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything &&
-      options.identifiability.rank_tolerance < options.identifiability.ill_conditioning_ratio) {
-    // Little data: keep only the directions this design separates well (the ill-conditioning
-    // ratio as rank tolerance), so the gauge holds the weak ones instead of estimating them
-    // from noise (7 bed heights on the linear delta: without this, base tilt and rod lengths
-    // changed by 65 mrad and 8 mm to fit 10 µm of noise).
-    IdentifiabilityOptions strict = options.identifiability;
-    strict.rank_tolerance = options.identifiability.ill_conditioning_ratio;
-    result.identifiability = analyze_identifiability(Jc, cand_names, strict, cand_pref);
-  }
-  std::string gauge_why;
-  if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything && keep.empty() &&
-      !options.gauge_sigma.empty() && !result.identifiability.redundancies.empty())
-    gauge_why = choose_little_data_gauge(model, linearisation, as.poses, Jc, candidates, cand_names,
-                                         options, result.identifiability);
-  if (static_cast<std::size_t>(as.rows) < with_effect) {
-    result.limited_data = true;
-    std::string held;
-    for (std::size_t k : result.identifiability.redundant)
-      if (!std::binary_search(result.identifiability.no_effect.begin(),
-                              result.identifiability.no_effect.end(), k))
-        held += (held.empty() ? "" : ", ") + cand_names[k];
-    result.gauge =
-        map_everything
-            ? fmt::format(
-                  "{} equations for {} free parameters: the data determine {} "
-                  "combinations; the robot file's tolerances (priors) supply the rest, so "
-                  "every parameter is estimated (MAP) and the held directions stay near "
-                  "nominal within their tolerance",
-                  as.rows, with_effect, result.identifiability.rank)
-            : fmt::format(
-                  "{} equations for {} free parameters: the data determine {} "
-                  "combinations, so {} parameters are estimated and {} are held at their "
-                  "nominal values (the gauge, chosen for this robot and this data: each "
-                  "held parameter moves the measurements like a combination of estimated "
-                  "ones, see the redundancies){}{}{}",
-                  as.rows, with_effect, result.identifiability.rank, result.identifiability.rank,
-                  with_effect - result.identifiability.rank, held.empty() ? "" : ": ", held,
-                  gauge_why);
-  }
-  if (map_everything) {
-    // Every candidate that has an effect is estimated; the prior makes the problem well posed.
-    for (std::size_t k = 0; k < candidates.size(); ++k)
-      if (!std::binary_search(result.identifiability.no_effect.begin(),
-                              result.identifiability.no_effect.end(), k))
-        result.estimated.push_back(candidates[k]);
-    bool all_priors = !options.prior_sigma.empty();
-    for (std::size_t i : result.estimated) all_priors = all_priors && options.prior_sigma[i] > 0.0;
-    if (!all_priors && options.estimate_redundant)
-      return invalid("estimate_redundant needs a prior (prior_sigma > 0) on every candidate");
-  } else {
-    std::vector<bool> estimate_it(candidates.size(), false);
-    for (std::size_t k : result.identifiability.identifiable) estimate_it[k] = true;
-    for (std::size_t k = 0; k < candidates.size(); ++k)
-      if (std::find(keep.begin(), keep.end(), candidates[k]) != keep.end()) estimate_it[k] = true;
-    for (std::size_t k = 0; k < candidates.size(); ++k)
-      if (estimate_it[k]) result.estimated.push_back(candidates[k]);
-  }
-  if (result.estimated.empty()) return invalid("no identifiable parameter among the candidates");
+  const bool priors_complete = with_prior == cc.with_effect && cc.with_effect > 0;
+  const bool map_everything =
+      options.estimate_redundant ||
+      (priors_complete && static_cast<std::size_t>(as.rows) < cc.with_effect);
+  decide_gauge(model, linearisation, as, candidates, cc, options, keep, map_everything, result);
+  if (auto why = choose_estimated(candidates, options, keep, map_everything, result))
+    return invalid(*why);
   if (only_if_added &&
       std::all_of(result.estimated.begin(), result.estimated.end(), [&](std::size_t i) {
         return std::find(keep.begin(), keep.end(), i) != keep.end();
@@ -974,18 +580,7 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     return result;
 
   // 3. Ceres problem over the full vector with the non-estimated entries held constant.
-  std::vector<int> held;
-  {
-    std::vector<bool> est(P, false);
-    for (std::size_t i : result.estimated) est[i] = true;
-    for (std::size_t i = 0; i < P; ++i)
-      if (!est[i]) held.push_back(static_cast<int>(i));
-  }
-  std::vector<std::pair<std::size_t, double>> prior_terms;
-  if (!options.prior_sigma.empty())
-    for (std::size_t i : result.estimated)
-      if (options.prior_sigma[i] > 0.0) prior_terms.emplace_back(i, options.prior_sigma[i]);
-
+  const CeresSetup setup = ceres_setup(as, options, nominal, result.estimated, P);
   Eigen::VectorXd start = options.start.size() ? options.start : linearisation;
   if (static_cast<std::size_t>(start.size()) != P)
     throw std::invalid_argument("start must have one entry per parameter");
@@ -997,151 +592,28 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     else
       result.initial_cost = INFINITY;
   }
-
-  // `row_scale` (one per pose-cost row, may be empty): the robust loss counts in these units.
-  auto solve_from = [&](Eigen::VectorXd x, ceres::Solver::Summary& summary,
-                        const std::vector<double>& row_scale = {}) {
-    ceres::Problem::Options popt;
-    popt.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-    popt.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-    std::vector<const PoseCost*> ahead;
-    ahead.reserve(as.pose_costs.size());
-    for (const auto& c : as.pose_costs) ahead.push_back(c.get());
-    EvaluateAhead evaluate_ahead(std::move(ahead), x.data(), as.threads);
-    if (as.threads > 1) popt.evaluation_callback = &evaluate_ahead;
-    ceres::Problem problem(popt);
-    std::vector<std::unique_ptr<ceres::CostFunction>> scaled;
-    int first_row = 0;
-    for (const auto& c : as.pose_costs) {
-      ceres::LossFunction* loss = nullptr;
-      if (options.robust_loss == RobustLoss::kHuber)
-        loss = new ceres::HuberLoss(options.robust_scale);
-      if (options.robust_loss == RobustLoss::kCauchy)
-        loss = new ceres::CauchyLoss(options.robust_scale);
-      ceres::CostFunction* cost = c.get();
-      if (!row_scale.empty()) {
-        Eigen::VectorXd inverse(c->num_residuals());
-        for (int i = 0; i < c->num_residuals(); ++i)
-          inverse(i) = 1.0 / row_scale[static_cast<std::size_t>(first_row + i)];
-        scaled.push_back(std::make_unique<RowScaledCost>(*c, std::move(inverse)));
-        cost = scaled.back().get();
-      }
-      first_row += c->num_residuals();
-      problem.AddResidualBlock(cost, loss, x.data());
-    }
-    for (const auto& c : as.distance_costs) problem.AddResidualBlock(c.get(), nullptr, x.data());
-    std::unique_ptr<ceres::CostFunction> prior;
-    if (!prior_terms.empty()) {
-      prior = std::make_unique<PriorCost>(nominal, prior_terms);
-      problem.AddResidualBlock(prior.get(), nullptr, x.data());
-    }
-    if (!held.empty())
-      problem.SetManifold(x.data(), new ceres::SubsetManifold(static_cast<int>(P), held));
-    for (std::size_t i : result.estimated) {
-      if (!options.lower_bound.empty() && std::isfinite(options.lower_bound[i]))
-        problem.SetParameterLowerBound(x.data(), static_cast<int>(i), options.lower_bound[i]);
-      if (!options.upper_bound.empty() && std::isfinite(options.upper_bound[i]))
-        problem.SetParameterUpperBound(x.data(), static_cast<int>(i), options.upper_bound[i]);
-    }
-    ceres::Solver::Options sopt;
-    sopt.linear_solver_type = ceres::DENSE_QR;
-    sopt.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-    sopt.function_tolerance = options.function_tolerance;
-    sopt.gradient_tolerance = options.gradient_tolerance;
-    sopt.parameter_tolerance = options.parameter_tolerance;
-    sopt.max_num_iterations = options.max_iterations;
-    sopt.num_threads = 1;
-    ceres::Solve(sopt, &problem, &summary);
-    return x;
-  };
-
-  std::mt19937 rng(options.seed);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  Eigen::VectorXd best = nominal;
-  double best_cost = INFINITY;
-  bool best_usable = false;
-  ceres::Solver::Summary best_summary;
-  const int starts = 1 + std::max(0, options.multi_start);
-  for (int s = 0; s < starts; ++s) {
-    Eigen::VectorXd x0 = start;
-    if (s > 0) {
-      for (std::size_t i : result.estimated) {
-        const double sig = !options.start_sigma.empty()   ? options.start_sigma[i]
-                           : !options.prior_sigma.empty() ? options.prior_sigma[i]
-                                                          : 0.0;
-        x0(static_cast<Eigen::Index>(i)) += sig * n01(rng);
-      }
-    }
-    ceres::Solver::Summary summary;
-    const Eigen::VectorXd x = solve_from(x0, summary);
-    Eigen::VectorXd rx;
-    Eigen::MatrixXd unused;
-    const bool solvable = summary.IsSolutionUsable() && x.allFinite() &&
-                          evaluate_all(as, x, false, rx, unused) && rx.allFinite();
-    // Compare with the objective actually minimised (robust loss included).
-    const double cost = solvable ? summary.final_cost : INFINITY;
-    if (solvable && cost < best_cost) {
-      best = x;
-      best_cost = cost;
-      best_usable = true;
-      best_summary = summary;
-    }
-  }
-  // Robust loss at the estimated noise: refit from the first robust fit with the threshold in
-  // units of each observation type's outlier-proof residual scale there, and again from that
-  // fit (its residuals are no longer spread by the outliers) until the scales settle.
-  int pose_cost_rows = 0;
-  for (const auto& c : as.pose_costs) pose_cost_rows += c->num_residuals();
-  for (int pass = 0; pass < 4 && best_usable && pose_cost_rows > 0 &&
-                     options.robust_loss != RobustLoss::kNone && !options.keep_stated_noise;
-       ++pass) {
-    Eigen::VectorXd r1;
-    Eigen::MatrixXd unused;
-    if (evaluate_all(as, best, false, r1, unused)) {
-      const auto scale = robust_row_scales(r1, as.row_group, as.groups.size(), pose_cost_rows);
-      bool settled = !result.robust_loss_noise_scale.empty();
-      for (std::size_t g = 0; settled && g < scale.size(); ++g)
-        settled = std::abs(scale[g] / result.robust_loss_noise_scale[g] - 1.0) < 0.02;
-      if (settled) break;
-      std::vector<double> row_scale(static_cast<std::size_t>(pose_cost_rows));
-      for (int i = 0; i < pose_cost_rows; ++i)
-        row_scale[static_cast<std::size_t>(i)] =
-            scale[static_cast<std::size_t>(as.row_group[static_cast<std::size_t>(i)])];
-      ceres::Solver::Summary summary;
-      const Eigen::VectorXd x = solve_from(best, summary, row_scale);
-      Eigen::VectorXd rx;
-      if (summary.IsSolutionUsable() && x.allFinite() && evaluate_all(as, x, false, rx, unused) &&
-          rx.allFinite()) {
-        best = x;
-        best_cost = summary.final_cost;
-        best_summary = summary;
-        result.robust_loss_noise_scale = scale;
-        continue;
-      }
-    }
-    break;
-  }
-  result.starts_run = starts;
-  result.iterations = static_cast<int>(best_summary.iterations.size());
+  BestSolve best = multi_start(setup, start);
+  refit_at_estimated_noise(setup, best, result);
+  result.starts_run = 1 + std::max(0, options.multi_start);
+  result.iterations = static_cast<int>(best.summary.iterations.size());
 
   // 4. Divergence guard: keep the nominal model when the solve failed or made the fit worse.
   Eigen::VectorXd rb;
   Eigen::MatrixXd Jb;
   std::vector<std::pair<int, int>> pose_rows;
-  const bool have_best = best_usable && evaluate_all(as, best, true, rb, Jb, &pose_rows);
+  const bool have_best = best.usable && evaluate_all(as, best.x, true, rb, Jb, &pose_rows);
   if (!have_best) {
     result.status = IdentificationStatus::kDiverged;
     result.message =
         fmt::format("the solve diverged or left a pose unsolvable ({}); the nominal model is kept",
-                    best_summary.message.empty() ? "no usable solution" : best_summary.message);
+                    best.summary.message.empty() ? "no usable solution" : best.summary.message);
     result.estimate = nominal;
-    result.solve_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    result.solve_seconds = seconds_since(t0);
     return result;
   }
   result.final_cost = 0.5 * rb.squaredNorm();
-  result.objective = best_cost;
-  if (options.robust_loss == RobustLoss::kNone && prior_terms.empty() &&
+  result.objective = best.cost;
+  if (options.robust_loss == RobustLoss::kNone && setup.prior_terms.empty() &&
       result.final_cost > result.initial_cost * (1.0 + 1e-9)) {
     result.status = IdentificationStatus::kDiverged;
     result.message =
@@ -1150,193 +622,17 @@ IdentificationResult identify_at(const FramePredictor& model, const Eigen::Vecto
     result.estimate = nominal;
     return result;
   }
-  result.estimate = best;
-  result.status = best_summary.termination_type == ceres::CONVERGENCE
+  result.estimate = best.x;
+  result.status = best.summary.termination_type == ceres::CONVERGENCE
                       ? IdentificationStatus::kConverged
                       : IdentificationStatus::kNotConverged;
   result.message = fmt::format("{} parameters estimated from {} poses ({} equations): {}",
-                               result.estimated.size(), poses_used, as.rows, best_summary.message);
+                               result.estimated.size(), poses_used, as.rows, best.summary.message);
 
   // 5. Diagnostics at the estimate.
-  std::vector<PoseResidual> per_pose;
-  std::size_t cost_index = 0;
-  for (const auto* pose : as.poses) {
-    if (pose->observations.empty()) continue;
-    const auto [start_row, count] = pose_rows[cost_index++];
-    PoseResidual pr;
-    pr.id = pose->id;
-    pr.whitened = rb.segment(start_row, count);
-    FramePrediction pred;
-    std::string why;
-    model.predict(best, pose->actuators, slot_of[pose->id], false, pred, why);
-    for (const auto& obs : pose->observations) {
-      if (auto p = observed_position(obs))
-        pr.position_error = std::max(pr.position_error, (pred.pose.translation() - *p).norm());
-      if (const auto* po = std::get_if<PoseObservation>(&obs))
-        pr.orientation_error =
-            Eigen::AngleAxisd(pred.pose.linear() * po->measured_rotation.transpose()).angle();
-      if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs))
-        pr.position_error = std::max(
-            pr.position_error,
-            std::abs(ph->normal.dot(pred.pose.translation()) - ph->offset - ph->measured_height));
-    }
-    per_pose.push_back(std::move(pr));
-  }
-  // Provisional flags (stated noise, robust scale): only used to leave the poses a robust loss
-  // rejected out of the covariance; the final test below uses normalised residuals.
-  result.residuals = diagnose_residuals(per_pose, options.outliers);
-
-  // Covariance from the inlier rows (outliers flagged by the robust fit do not inform it).
-  std::vector<Eigen::Index> keep_rows;
-  std::vector<bool> pose_in_fit(pose_rows.size(), true);
-  for (std::size_t k = 0; k < pose_rows.size(); ++k) {
-    if (options.robust_loss != RobustLoss::kNone && result.residuals.poses[k].outlier) {
-      pose_in_fit[k] = false;
-      continue;
-    }
-    for (int i = 0; i < pose_rows[k].second; ++i) keep_rows.push_back(pose_rows[k].first + i);
-  }
-  for (Eigen::Index i = pose_rows.empty() ? 0 : pose_rows.back().first + pose_rows.back().second;
-       i < Jb.rows(); ++i)
-    keep_rows.push_back(i);
-  const auto n_est = static_cast<Eigen::Index>(result.estimated.size());
-  Eigen::MatrixXd Je(
-      static_cast<Eigen::Index>(keep_rows.size()) + static_cast<Eigen::Index>(prior_terms.size()),
-      n_est);
-  Eigen::VectorXd re(Je.rows());
-  std::vector<int> je_group;
-  Je.setZero();
-  for (std::size_t k = 0; k < keep_rows.size(); ++k) {
-    for (Eigen::Index c = 0; c < n_est; ++c)
-      Je(static_cast<Eigen::Index>(k), c) = Jb(
-          keep_rows[k], static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)]));
-    re(static_cast<Eigen::Index>(k)) = rb(keep_rows[k]);
-    je_group.push_back(as.row_group[static_cast<std::size_t>(keep_rows[k])]);
-  }
-  for (std::size_t t = 0; t < prior_terms.size(); ++t) {
-    const auto row = static_cast<Eigen::Index>(keep_rows.size() + t);
-    const auto it =
-        std::find(result.estimated.begin(), result.estimated.end(), prior_terms[t].first);
-    Je(row, it - result.estimated.begin()) = 1.0 / prior_terms[t].second;
-    re(row) = (best(static_cast<Eigen::Index>(prior_terms[t].first)) -
-               nominal(static_cast<Eigen::Index>(prior_terms[t].first))) /
-              prior_terms[t].second;
-    je_group.push_back(-1);  // a prior is information, not noise to estimate
-  }
-  // A posteriori noise per observation type (noise_estimate.hpp); applied to the covariance
-  // unless the stated noise is declared known.
-  result.noise = estimate_noise(Je, re, je_group, as.groups);
-  Eigen::VectorXd row_scale = Eigen::VectorXd::Ones(Je.rows());
-  if (result.noise.ok) {
-    result.noise_applied = !options.keep_stated_noise &&
-                           std::any_of(result.noise.groups.begin(), result.noise.groups.end(),
-                                       [](const NoiseGroup& g) { return g.estimable; });
-    if (result.noise_applied) row_scale = result.noise.row_scale;
-    add_noise_warnings(result.noise, result.noise_applied, result.warnings);
-  }
-  std::vector<std::string> est_names;
-  for (std::size_t i : result.estimated) est_names.push_back(result.names[i]);
-  result.uncertainty = parameter_uncertainty(row_scale.cwiseInverse().asDiagonal() * Je, est_names,
-                                             options.covariance, re.cwiseQuotient(row_scale));
-  if (result.noise_applied && result.uncertainty.ok) {
-    // One observation type: the classical variance factor; several: per-type, see `noise`.
-    int estimable = 0;
-    double factor = 1.0;
-    for (const auto& g : result.noise.groups)
-      if (g.estimable) {
-        ++estimable;
-        factor = g.scale * g.scale;
-      }
-    if (estimable == 1) result.uncertainty.variance_factor *= factor;
-  }
-  // Final outlier test on normalised residuals: each pose's whitened residual divided by its
-  // type's noise scale (the robust one when asked), tested against its own covariance
-  // I ∓ J_b C J_bᵀ, so leverage and any mix of σ are accounted for.
-  if (result.noise.ok) {
-    const auto& groups = result.noise.groups;  // same order as as.groups
-    auto test_scale_of = [&](const NoiseGroup& g) {
-      return options.outliers.robust_scale ? g.robust_scale : result.noise_applied ? g.scale : 1.0;
-    };
-    // normal_inverse is in the reweighted problem's units (rows / row_scale).
-    // C = S Sᵀ for the factored form (PoseResidual::leverage_factor = J_b S).
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> c_eig(result.noise.normal_inverse);
-    const Eigen::MatrixXd c_root =
-        c_eig.eigenvectors() * c_eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
-    for (std::size_t k = 0; k < per_pose.size(); ++k) {
-      const auto [start_row, count] = pose_rows[k];
-      Eigen::MatrixXd Jp(count, n_est);
-      Eigen::VectorXd fit_scale(count);
-      Eigen::VectorXd test_scale(count);
-      for (int i = 0; i < count; ++i) {
-        const auto& g =
-            groups[static_cast<std::size_t>(as.row_group[static_cast<std::size_t>(start_row + i)])];
-        fit_scale(i) = g.scale;
-        test_scale(i) = test_scale_of(g);
-        for (Eigen::Index c = 0; c < n_est; ++c)
-          Jp(i, c) = Jb(start_row + i,
-                        static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)])) /
-                     fit_scale(i);
-      }
-      // Residual covariance in units of the fit scale, then re-expressed in the test scale.
-      const Eigen::VectorXd ratio = fit_scale.cwiseQuotient(test_scale);
-      const bool one_ratio =
-          count > 0 && ratio.maxCoeff() - ratio.minCoeff() <= 1e-12 * ratio.cwiseAbs().maxCoeff();
-      if (one_ratio) {
-        // One noise scale in the block (e.g. all pixel rows): the factored form, exact and cheap.
-        per_pose[k].leverage_factor = Jp * c_root;
-        per_pose[k].leverage_sign = pose_in_fit[k] ? -1.0 : 1.0;
-        per_pose[k].covariance_factor = ratio(0) * ratio(0);
-      } else {
-        per_pose[k].residual_covariance =
-            ratio.asDiagonal() *
-            pose_residual_covariance(Jp, result.noise.normal_inverse, pose_in_fit[k]) *
-            ratio.asDiagonal();
-      }
-      per_pose[k].whitened = per_pose[k].whitened.cwiseQuotient(test_scale);
-    }
-    result.residuals = diagnose_residuals(per_pose, options.outliers);
-  }
-  result.residuals.by_type =
-      residuals_by_type(model, best, as.poses, slot_of, measurements.distances);
-  if (result.uncertainty.ok) {
-    std::vector<Eigen::MatrixXd> frame_jacobians;
-    for (const auto* pose : as.poses) {
-      FramePrediction pred;
-      std::string why;
-      if (!model.predict(best, pose->actuators, slot_of[pose->id], true, pred, why)) continue;
-      Eigen::MatrixXd Js(6, n_est);
-      for (Eigen::Index c = 0; c < n_est; ++c)
-        Js.col(c) = pred.jacobian.col(
-            static_cast<Eigen::Index>(result.estimated[static_cast<std::size_t>(c)]));
-      frame_jacobians.push_back(std::move(Js));
-    }
-    result.predicted = predict_accuracy(frame_jacobians, result.uncertainty.covariance);
-  } else {
-    result.warnings.push_back("no covariance: " + result.uncertainty.message);
-  }
-  {
-    // Goodness of fit: ‖r‖² should be near the degrees of freedom when the model and the stated
-    // noise are right. Far above it means a local minimum, a wrong model or optimistic noise.
-    const double dof = std::max(1.0, static_cast<double>(as.rows) - static_cast<double>(n_est));
-    const double ratio = 2.0 * result.final_cost / dof;
-    if (ratio > 25.0)
-      result.warnings.push_back(fmt::format(
-          "the residuals are {:.3g} times larger than the stated measurement noise (reduced "
-          "chi-square {:.3g}): a local minimum (try multi-start), an unmodelled error or "
-          "optimistic noise",
-          std::sqrt(ratio), ratio));
-    if (prior_terms.empty() && static_cast<double>(as.rows) <= static_cast<double>(n_est))
-      result.warnings.push_back(fmt::format(
-          "no redundancy: {} equations for {} estimated parameters, so the fit passes through "
-          "every measurement exactly; neither the noise nor outliers can be checked (measure a "
-          "few more points)",
-          as.rows, n_est));
-  }
-  if (result.residuals.outliers > 0)
-    result.warnings.push_back(
-        fmt::format("{} poses flagged as outliers", result.residuals.outliers));
-  result.solve_seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  diagnose_estimate(model, nominal, as, {best.x, rb, Jb, pose_rows, setup.prior_terms},
+                    measurements.distances, options, result);
+  result.solve_seconds = seconds_since(t0);
   return result;
 }
 
@@ -1467,136 +763,6 @@ bool identification_jacobian(const FramePredictor& model, const Eigen::VectorXd&
     return false;
   }
   return true;
-}
-
-ErrorStatistics prediction_errors(const FramePredictor& model, const Eigen::VectorXd& params,
-                                  const std::vector<PoseMeasurement>& poses) {
-  std::vector<double> pos;
-  std::vector<double> ori;
-  for (std::size_t k = 0; k < poses.size(); ++k) {
-    const auto& pose = poses[k];
-    FramePrediction pred;
-    std::string why;
-    if (!pose.actuators.allFinite() ||
-        !model.predict(params, pose.actuators, static_cast<int>(k), false, pred, why))
-      continue;
-    for (const auto& obs : pose.observations) {
-      if (auto p = observed_position(obs)) pos.push_back((pred.pose.translation() - *p).norm());
-      if (const auto* po = std::get_if<PoseObservation>(&obs))
-        ori.push_back(
-            Eigen::AngleAxisd(pred.pose.linear() * po->measured_rotation.transpose()).angle());
-      if (const auto* ph = std::get_if<ProbeHeightObservation>(&obs))
-        pos.push_back(
-            std::abs(ph->normal.dot(pred.pose.translation()) - ph->offset - ph->measured_height));
-    }
-  }
-  return finish(pos, ori);
-}
-
-ValidationReport validate(const FramePredictor& model, const Eigen::VectorXd& nominal,
-                          const Eigen::VectorXd& estimate,
-                          const std::vector<PoseMeasurement>& held_out) {
-  return {prediction_errors(model, nominal, held_out),
-          prediction_errors(model, estimate, held_out)};
-}
-
-KFoldReport k_fold_validation(const FramePredictor& model, const Eigen::VectorXd& nominal,
-                              const Measurements& measurements, int folds,
-                              const SolveOptions& options) {
-  if (folds < 2) throw std::invalid_argument("k-fold validation needs at least 2 folds");
-  KFoldReport report;
-  report.folds = folds;
-  std::vector<PoseMeasurement> all_held;
-  std::vector<PoseMeasurement> pooled_after_dummy;
-  std::vector<double> before_pos, before_ori, after_pos, after_ori;
-  for (int f = 0; f < folds; ++f) {
-    Measurements train;
-    std::vector<PoseMeasurement> held;
-    for (std::size_t k = 0; k < measurements.poses.size(); ++k)
-      (static_cast<int>(k % static_cast<std::size_t>(folds)) == f ? held : train.poses)
-          .push_back(measurements.poses[k]);
-    std::set<std::string> train_ids;
-    for (const auto& p : train.poses) train_ids.insert(p.id);
-    for (const auto& d : measurements.distances)
-      if (train_ids.count(d.first) && train_ids.count(d.second)) train.distances.push_back(d);
-    const auto fit = identify(model, nominal, train, options);
-    report.messages.push_back(
-        fmt::format("fold {}: {} ({})", f + 1, to_string(fit.status), fit.message));
-    report.per_fold.push_back(validate(model, nominal, fit.estimate, held));
-    // Pool the squared errors: recompute per pose for exact pooled RMS.
-    for (const auto& pose : held) {
-      const auto b = prediction_errors(model, nominal, {pose});
-      const auto a = prediction_errors(model, fit.estimate, {pose});
-      if (b.poses > 0) before_pos.push_back(b.position_rms);
-      if (a.poses > 0) after_pos.push_back(a.position_rms);
-      if (b.orientation_rms > 0) before_ori.push_back(b.orientation_rms);
-      if (a.orientation_rms > 0) after_ori.push_back(a.orientation_rms);
-    }
-  }
-  report.before = finish(before_pos, before_ori);
-  report.after = finish(after_pos, after_ori);
-  return report;
-}
-
-Eigen::VectorXd perturb_parameters(const Eigen::VectorXd& nominal, const Eigen::VectorXd& sigma,
-                                   std::mt19937& rng) {
-  if (sigma.size() != nominal.size())
-    throw std::invalid_argument("perturb_parameters: one sigma per parameter needed");
-  std::normal_distribution<double> n01(0.0, 1.0);
-  Eigen::VectorXd out = nominal;
-  for (Eigen::Index i = 0; i < out.size(); ++i)
-    if (sigma(i) > 0.0) out(i) += sigma(i) * n01(rng);
-  return out;
-}
-
-Measurements simulate_measurements(const FramePredictor& model, const Eigen::VectorXd& truth,
-                                   const std::vector<Eigen::VectorXd>& actuators,
-                                   const SimulationOptions& options, std::mt19937& rng) {
-  std::normal_distribution<double> n01(0.0, 1.0);
-  const double noise = options.add_noise ? 1.0 : 0.0;
-  Measurements out;
-  for (std::size_t k = 0; k < actuators.size(); ++k) {
-    FramePrediction pred;
-    std::string why;
-    if (!model.predict(truth, actuators[k], static_cast<int>(k), false, pred, why)) continue;
-    PoseMeasurement m;
-    m.id = fmt::format("p{:04d}", k);
-    m.actuators = actuators[k];
-    if (options.actuator_sigma.size() == actuators[k].size())
-      for (Eigen::Index i = 0; i < m.actuators.size(); ++i)
-        m.actuators(i) += noise * options.actuator_sigma(i) * n01(rng);
-    const Eigen::Vector3d dp(n01(rng), n01(rng), n01(rng));
-    const Eigen::Vector3d p = pred.pose.translation() + noise * options.position_sigma * dp;
-    switch (options.kind) {
-      case SimulatedObservation::kPoint:
-        m.observations.emplace_back(PointObservation::with_sigma(p, options.position_sigma));
-        break;
-      case SimulatedObservation::kPose: {
-        const Eigen::Vector3d dphi =
-            noise * options.rotation_sigma * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
-        Eigen::Isometry3d T = pred.pose;
-        T.translation() = p;
-        if (dphi.norm() > 0)
-          T.linear() = Eigen::AngleAxisd(dphi.norm(), dphi.normalized()).toRotationMatrix() *
-                       pred.pose.linear();
-        m.observations.emplace_back(
-            PoseObservation::with_sigmas(T, options.position_sigma, options.rotation_sigma));
-        break;
-      }
-      case SimulatedObservation::kProbeHeight: {
-        ProbeHeightObservation ph;
-        ph.normal = options.plane_normal.normalized();
-        ph.offset = options.plane_offset;
-        ph.sigma = options.position_sigma;
-        ph.measured_height = ph.normal.dot(pred.pose.translation()) - ph.offset +
-                             noise * options.position_sigma * n01(rng);
-        m.observations.emplace_back(ph);
-        break;
-      }
-    }
-    out.poses.push_back(std::move(m));
-  }
-  return out;
 }
 
 }  // namespace robocal::calib

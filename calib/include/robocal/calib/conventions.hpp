@@ -9,7 +9,10 @@
 // their measured orientations (R_i R_jᵀ is conjugated by the base and the tool cancels), against
 // the same quantities predicted by the nominal model. A nominal model is a few millimetres off;
 // a convention swap is off by the size of the working volume, so the test is decisive.
-#include "robocal/calib/identification.hpp"
+#include "robocal/calib/frame_predictor.hpp"
+#include "robocal/calib/measurements.hpp"
+
+#include <Eigen/Core>
 
 #include <optional>
 #include <string>
