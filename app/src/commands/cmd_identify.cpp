@@ -109,7 +109,7 @@ int run_simulate(const IdentifyOptions& o) {
   else if (o.kind == "probe")
     sim.kind = SimulatedObservation::kProbeHeight;
   else if (o.kind != "point" && o.kind != "pixel")
-    throw InputError("--kind must be point, pose, probe or pixel");
+    throw UsageError("--kind must be point, pose, probe or pixel");
   MeasurementsFile file;
   file.robot = model.name;
   nlohmann::json cameras_json;
@@ -202,8 +202,8 @@ nlohmann::json advice_json(const MeasurementAdvice& a) {
 }
 
 int run_identify(const IdentifyOptions& o) {
-  if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
-  if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
+  if (o.robot.empty()) throw UsageError("--robot is required (or give a SESSION folder)");
+  if (o.measurements.empty()) throw UsageError("--measurements is required (or --simulate)");
   const std::string robot_file = resolve_robot(o.robot);  // a file or a library robot
   const Mechanism model = load_robot(robot_file);
   const MeasurementsFile file = load_measurements_file(o.measurements);
@@ -248,7 +248,7 @@ int run_identify(const IdentifyOptions& o) {
           o.free_patterns.empty() ? model.parameters[i].free : matches(n, o.free_patterns);
       if (free && !matches(n, o.fix_patterns)) candidates.push_back(i);
     }
-    if (candidates.empty()) throw InputError("--free/--fix leave no parameter to estimate");
+    if (candidates.empty()) throw UsageError("--free/--fix leave no parameter to estimate");
     opt.candidates = candidates;
     if (o.priors) {
       opt.prior_sigma.assign(model.parameters.size(), 0.0);
@@ -260,7 +260,7 @@ int run_identify(const IdentifyOptions& o) {
   else if (o.robust == "cauchy")
     opt.robust_loss = RobustLoss::kCauchy;
   else if (o.robust != "none")
-    throw InputError("--robust must be none, huber or cauchy");
+    throw UsageError("--robust must be none, huber or cauchy");
   opt.robust_scale = o.robust_scale;
   opt.keep_stated_noise = o.stated_noise;
   opt.multi_start = o.multi_start;

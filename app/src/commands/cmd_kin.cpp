@@ -41,7 +41,7 @@ std::vector<double> parse_list(const std::string& text, const std::string& optio
     try {
       out.push_back(evaluate_expression(item));
     } catch (const std::invalid_argument& e) {
-      throw InputError(option + ": " + e.what());
+      throw UsageError(option + ": " + e.what());
     }
   }
   return out;
@@ -51,7 +51,7 @@ Eigen::VectorXd parse_vector(const std::string& text, std::size_t expected,
                              const std::string& option, const std::string& what) {
   const std::vector<double> v = parse_list(text, option);
   if (v.size() != expected)
-    throw InputError(option + " needs " + std::to_string(expected) + " comma-separated " + what +
+    throw UsageError(option + " needs " + std::to_string(expected) + " comma-separated " + what +
                      ", got " + std::to_string(v.size()));
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }

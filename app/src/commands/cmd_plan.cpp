@@ -117,7 +117,7 @@ int run_plan(const PlanCommandOptions& o) {
   po.selection.max_condition = o.max_condition;
   po.selection.target_accuracy = o.target_um * 1e-6;
   if (!parse_index(o.index, &po.selection.index))
-    throw InputError("--index must be O1, O2, O3, O4 or O5 (got '" + o.index + "')");
+    throw UsageError("--index must be O1, O2, O3, O4 or O5 (got '" + o.index + "')");
   if (!o.measured.empty()) po.measured = read_plan_actuators(o.measured);
   po.progress = [&](const std::string& line) {
     if (!o.json) fmt::print(stderr, "plan: {}\n", line);

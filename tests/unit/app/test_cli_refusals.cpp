@@ -1,0 +1,141 @@
+// A user's mistakes, as a hostile tester makes them: each case is the command, the exit code it
+// must end with, the words its message must contain, and that nothing the command could have
+// written has changed. A bad value, an unknown command, options that conflict or do not apply are
+// a bad command line (exit 2), refused before anything runs; a file with a key it does not know
+// or values in the wrong units is a bad input file (exit 3) named with the line and the likely
+// cause; a fit or an answer that cannot be relied on is no success (exit 1).
+#include "cli/command_registry.hpp"
+#include "run_robocal.hpp"
+#include "scratch_dir.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+using robocal::test::CliRun;
+using robocal::test::read_text;
+
+struct RefusalCase {
+  std::vector<std::string> args;
+  int code;
+  std::vector<std::string> says;  // each must be in the message
+};
+
+// `text` with its first `from` replaced by `to` (a test that does not find it fails).
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+std::string joined(const std::vector<std::string>& args) {
+  std::string text = "robocal";
+  for (const std::string& a : args) text += " " + a;
+  return text;
+}
+
+// Every file under `dir`, by relative path, with its bytes: what "unchanged" is compared on.
+std::map<std::string, std::string> files_under(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file())
+      out[fs::relative(e.path(), dir).generic_string()] = read_text(e.path().string());
+  return out;
+}
+
+struct CliRefusals : robocal::test::ScratchDirTest {
+  CliRefusals() : ScratchDirTest("robocal_cli_refusals_") {}
+
+  std::string testdata = ROBOCAL_TESTDATA_DIR;
+  std::string robot = testdata + "/robots/linear_delta.yaml";
+  std::string target = std::string(ROBOCAL_TESTDATA_DIR) + "/vision/apriltag_4x3.yaml";
+
+  // A session folder with results a refused command must leave as they are.
+  std::string session() {
+    const fs::path s = dir / "session";
+    fs::create_directories(s / "results");
+    std::ofstream(s / "session.yaml") << "robot: linear_delta\n";
+    std::ofstream(s / "results" / "identification.json") << "{\"status\": \"ok\"}\n";
+    std::ofstream(s / "results" / "calibrated_robot.yaml") << "# previous result\n";
+    return s.string();
+  }
+
+  // A copy of testdata file `from` at `name` in the scratch folder, with `edit` (from, to) made.
+  std::string edited(const std::string& from, const std::string& name,
+                     const std::pair<std::string, std::string>& edit) {
+    std::ofstream(dir / name) << replaced(read_text(testdata + "/" + from), edit.first,
+                                          edit.second);
+    return file(name);
+  }
+
+  // Runs every case; each must end with its code and words, and leave the scratch folder as it
+  // was (no file written, none changed).
+  void expect_refused(const std::vector<RefusalCase>& cases) {
+    for (const RefusalCase& c : cases) {
+      const auto before = files_under(dir);
+      const CliRun r = robocal::test::run_robocal_captured(c.args);
+      EXPECT_EQ(r.code, c.code) << joined(c.args) << "\n" << r.err;
+      for (const std::string& word : c.says)
+        EXPECT_NE(r.err.find(word), std::string::npos)
+            << joined(c.args) << ": no '" << word << "' in:\n"
+            << r.err;
+      EXPECT_EQ(files_under(dir), before) << joined(c.args) << " changed files";
+    }
+  }
+};
+
+TEST_F(CliRefusals, BadValuesAreABadCommandLine) {
+  expect_refused({
+      {{"kin", "fk", robot, "--actuators", "abc"}, 2, {"--actuators", "abc"}},
+      {{"kin", "fk", robot, "--actuators", "0.1,0.2"}, 2, {"--actuators needs 3"}},
+      {{"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "foo"},
+       2,
+       {"--kind", "point, pose, probe or pixel"}},
+      {{"intrinsics", "--images", dir.string(), "--target", target, "--model", "foo"},
+       2,
+       {"--model", "foo", "pinhole_radtan"}},
+      {{"sim-controller", "--robot", "linear_delta", "--firmware", "foo", "--max-seconds", "1"},
+       2,
+       {"--firmware", "foo"}},
+      {{"sim-controller", "--robot", "linear_delta", "--faults", "bogus=0.5", "--max-seconds", "1"},
+       2,
+       {"--faults", "bogus", "unknown kind"}},
+  });
+}
+
+TEST_F(CliRefusals, AnUnknownCommandIsNamedWithTheCommands) {
+  expect_refused({
+      {{"frobnicate"}, 2, {"unknown command 'frobnicate'", "measure", "identify", "wizard"}},
+      {{"frobnicate", "--help"}, 2, {"unknown command 'frobnicate'"}},
+  });
+}
+
+TEST_F(CliRefusals, SimControllerValuesOutOfRangeNameTheOption) {
+  const std::vector<std::string> sim = {"sim-controller", "--robot", "linear_delta",
+                                        "--max-seconds", "1"};
+  const auto with = [&sim](const std::vector<std::string>& more) {
+    std::vector<std::string> args = sim;
+    args.insert(args.end(), more.begin(), more.end());
+    return args;
+  };
+  expect_refused({
+      {with({"--tcp-port", "99999"}), 2, {"--tcp-port", "99999"}},
+      {with({"--pose-port", "70000"}), 2, {"--pose-port"}},
+      {with({"--steps-per-mm", "-80"}), 2, {"--steps-per-mm"}},
+      {with({"--steps-per-degree", "-1"}), 2, {"--steps-per-degree"}},
+      {with({"--noise", "-1e-6"}), 2, {"--noise"}},
+      {with({"--backlash", "-1e-6"}), 2, {"--backlash"}},
+  });
+}
+
+}  // namespace
