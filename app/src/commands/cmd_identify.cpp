@@ -394,6 +394,39 @@ int run_identify(const IdentifyOptions& o) {
   return kExitOk;
 }
 
+// Each way of calling identify has its own options; one of another way has no effect and is
+// refused (a --holdout-every given with a SESSION would otherwise report no held-out figures
+// without a word).
+void refuse_options_of_other_modes(const CLI::App& cmd, const IdentifyOptions& o) {
+  if (!o.session.empty()) {
+    refuse_options(cmd, {"--measurements", "--simulate",
+                         "--kfold",        "--holdout-every",
+                         "--free",         "--fix",
+                         "--robust",       "--robust-scale",
+                         "--multi-start",  "--seed",
+                         "--out-robot",    "--bed-tilt",
+                         "--stated-noise", "--free-intrinsics",
+                         "--kind",         "--poses",
+                         "--point-sigma",  "--pixel-sigma",
+                         "--length-sigma", "--angle-sigma-deg"},
+                   "with a SESSION folder (its options: --robot, --route, --json, --no-priors, "
+                   "--accept-implausible)");
+    return;
+  }
+  if (!o.simulate.empty()) {
+    refuse_options(
+        cmd,
+        {"--measurements", "--route", "--no-priors", "--priors", "--accept-implausible", "--kfold",
+         "--holdout-every", "--free", "--fix", "--robust", "--robust-scale", "--multi-start",
+         "--out-robot", "--bed-tilt", "--stated-noise", "--free-intrinsics"},
+        "with --simulate (it writes a measurements file and identifies nothing)");
+    return;
+  }
+  refuse_options(cmd, {"--route", "--no-priors"},
+                 "with --measurements (a SESSION's options; a measurements file is fitted without "
+                 "priors unless --priors)");
+}
+
 }  // namespace
 
 CommandSpec identify_command() {
@@ -448,7 +481,8 @@ CommandSpec identify_command() {
                          "SESSION always does unless --no-priors");
             cmd.add_flag("--no-priors", o->no_priors,
                          "SESSION: maximum likelihood from the measurements alone (default: the "
-                         "robot file's tolerances as priors, base frame free)");
+                         "robot file's tolerances as priors, base frame free)")
+                ->excludes("--priors");
             cmd.add_option("--robust", o->robust, "Robust loss: none, huber or cauchy");
             cmd.add_option("--robust-scale", o->robust_scale, "Robust loss scale in sigmas")
                 ->check(CLI::Range(0.1, 100.0))
@@ -484,9 +518,10 @@ CommandSpec identify_command() {
                            "Simulation: perturbation sigma of lengths (m)");
             cmd.add_option("--angle-sigma-deg", o->angle_sigma_deg,
                            "Simulation: perturbation sigma of angles (deg)");
-            return [o]() {
+            return [o, &cmd]() {
+              refuse_options_of_other_modes(cmd, *o);
               if (!o->session.empty()) return run_identify_session(*o);
-              if (o->robot.empty()) throw InputError("--robot is required (or give a SESSION)");
+              if (o->robot.empty()) throw UsageError("--robot is required (or give a SESSION)");
               return o->simulate.empty() ? run_identify(*o) : run_simulate(*o);
             };
           }};

@@ -120,6 +120,38 @@ TEST_F(CliRefusals, AnUnknownCommandIsNamedWithTheCommands) {
   });
 }
 
+TEST_F(CliRefusals, ConflictingOptionsAreRefused) {
+  expect_refused({
+      {{"identify", "--robot", robot, "--measurements", file("m.yaml"), "--priors", "--no-priors"},
+       2,
+       {"--priors", "--no-priors"}},
+  });
+}
+
+TEST_F(CliRefusals, OptionsOfAnotherModeAreRefusedNotIgnored) {
+  const std::string s = session();
+  expect_refused({
+      {{"identify", s, "--measurements", file("m.yaml")}, 2, {"--measurements", "SESSION"}},
+      {{"identify", s, "--kfold", "5"}, 2, {"--kfold", "does not apply", "SESSION"}},
+      {{"identify", s, "--holdout-every", "4"}, 2, {"--holdout-every", "SESSION"}},
+      {{"identify", s, "--kfold", "5", "--holdout-every", "4"},
+       2,
+       {"--kfold, --holdout-every do not apply"}},
+      {{"measure", s, "--rig", file("rig.json")}, 2, {"--rig", "SESSION"}},
+      {{"measure", s, "--target", target}, 2, {"--target", "SESSION"}},
+      {{"identify", "--robot", robot, "--measurements", file("m.yaml"), "--route", "pose"},
+       2,
+       {"--route", "--measurements"}},
+      {{"identify", "--robot", robot, "--measurements", file("m.yaml"), "--no-priors"},
+       2,
+       {"--no-priors"}},
+      {{"measure", "--rig", file("rig.json"), "--target", target, "--poses", dir.string(),
+        "--accept-implausible"},
+       2,
+       {"--accept-implausible", "SESSION"}},
+  });
+}
+
 TEST_F(CliRefusals, SimControllerValuesOutOfRangeNameTheOption) {
   const std::vector<std::string> sim = {"sim-controller", "--robot", "linear_delta",
                                         "--max-seconds", "1"};
