@@ -170,4 +170,33 @@ TEST_F(CliRefusals, SimControllerValuesOutOfRangeNameTheOption) {
   });
 }
 
+// Keys a file does not know are refused at their line with the keys allowed there: a misspelled
+// optional key (target_mount) would otherwise be ignored, and the run fail later for another
+// reason.
+TEST_F(CliRefusals, UnknownKeysOfSessionAndAnswersFilesAreNamed) {
+  const std::string s = session();
+  std::ofstream(dir / "session" / "session.yaml")
+      << "format: robocal-session-1\n"
+         "robot:\n"
+         "  file: robot.yaml\n"
+         "  name: linear_delta\n"
+         "  actuators: 3\n"
+         "  target_mont: {tool.z: 0.01}\n"
+         "cameras:\n"
+         "  - {name: cam0, width: 640, height: 480}\n"
+         "targets: {end_effector: ee.yaml, calibration: cal.yaml}\n"
+         "folders: {intrinsics: i, rig: r, poses: p}\n";
+  std::ofstream(dir / "answers.yaml") << "robot:\n  model: linear_delta\nplan:\n  cuont: 6\n";
+  expect_refused({
+      {{"measure", s},
+       3,
+       {"session.yaml:6: unknown key 'target_mont'", "allowed:", "target_mount"}},
+      {{"identify", s}, 3, {"session.yaml:6: unknown key 'target_mont'"}},
+      {{"wizard", file("wizard_run"), "--answers", file("answers.yaml")},
+       3,
+       {"answers.yaml: unknown key 'plan.cuont'", "plan.count"}},
+  });
+  EXPECT_FALSE(fs::exists(dir / "wizard_run"));
+}
+
 }  // namespace
