@@ -2,6 +2,8 @@
 // every error names file, line and problem.
 #include "robocal/calib/robot_file.hpp"
 
+#include "robot_units.hpp"
+
 #include "robocal/calib/assembly_mode.hpp"
 #include "robocal/calib/kinematics.hpp"
 
@@ -980,7 +982,9 @@ Mechanism parse_robot_yaml(const std::string& text_in, const std::string& source
                          ": malformed YAML: " + e.msg);
   }
   try {
-    return parse(root, source);
+    Mechanism m = parse(root, source);
+    check_robot_units(m, source);
+    return m;
   } catch (const YAML::Exception& e) {
     throw RobotFileError(source + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
   }

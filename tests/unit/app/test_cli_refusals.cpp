@@ -199,4 +199,36 @@ TEST_F(CliRefusals, UnknownKeysOfSessionAndAnswersFilesAreNamed) {
   EXPECT_FALSE(fs::exists(dir / "wizard_run"));
 }
 
+// Millimetres among metres, degrees among radians: the file is refused at the value's line with
+// the likely cause, by `kin check` and by every command that reads the file.
+TEST_F(CliRefusals, RobotAndCellValuesInTheWrongUnitsAreRefused) {
+  const std::string mm_length = edited("robots/linear_delta.yaml", "mm_length.yaml",
+                                       {"params: {y: 0.174}", "params: {y: 174}"});
+  const std::string mm_limits = edited("robots/linear_delta.yaml", "mm_limits.yaml",
+                                       {"limits: [0.0, 0.45]", "limits: [0.0, 450]"});
+  const std::string degree_limits = edited("robots/rotary_delta.yaml", "degree_limits.yaml",
+                                           {"limits: [-pi/3, pi/2]", "limits: [-60, 90]"});
+  const std::string degree_angle = edited(
+      "robots/rotary_delta.yaml", "degree_angle.yaml",
+      {"params: {a1: -pi/2, a2: 2*pi/3, d1: 0.2805}", "params: {a1: -90, a2: 2*pi/3, d1: 0.2805}"});
+  fs::copy(testdata + "/cells/linear_delta", dir / "cell", fs::copy_options::recursive);
+  std::ofstream(dir / "cell" / "cell.yaml")
+      << replaced(read_text(testdata + "/cells/linear_delta/cell.yaml"),
+                  "rpy: [1.570796326795, 3.141592653590, 1.570796326795]", "rpy: [90, 180, 90]");
+  expect_refused({
+      {{"kin", "check", mm_length}, 3, {"mm_length.yaml:", "tower_c.y", "174", "millimetres"}},
+      {{"kin", "check", mm_limits},
+       3,
+       {"mm_limits.yaml:", "carriage_a", "limit", "450", "millimetres"}},
+      {{"kin", "check", degree_limits},
+       3,
+       {"degree_limits.yaml:", "limit", "-60", "degrees", "deg(-60)"}},
+      {{"kin", "check", degree_angle}, 3, {"degree_angle.yaml:", "a1", "-90", "degrees"}},
+      {{"kin", "fk", degree_limits, "--actuators", "0,0,0"}, 3, {"degrees"}},
+      {{"plan", "--cell", file("cell/cell.yaml"), "--robot", robot, "--out", file("p.yaml")},
+       3,
+       {"cell.yaml:", "target.rpy", "90", "degrees"}},
+  });
+}
+
 }  // namespace
