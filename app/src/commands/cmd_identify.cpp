@@ -338,8 +338,18 @@ int run_identify(const IdentifyOptions& o) {
     doc["advice"] = advice_json(advice);
   }
 
-  const bool usable = res.status == IdentificationStatus::kConverged ||
-                      res.status == IdentificationStatus::kNotConverged;
+  // The session route's gate, in its words: a fit far beyond its stated noise is refused and no
+  // calibrated robot file written (unless --accept-implausible).
+  if (res.status == IdentificationStatus::kConverged ||
+      res.status == IdentificationStatus::kNotConverged) {
+    PipelineLog log;
+    log.out = o.quiet ? nullptr : human_stream(o.json);
+    apply_fit_gate(res, fit_gate_options(model.unmodelled_error, 0.0), {o.accept_implausible},
+                   "measurements file", doc, log);
+  }
+  const bool implausible = doc.value("status", "") == "implausible";
+  const bool usable = !implausible && (res.status == IdentificationStatus::kConverged ||
+                                       res.status == IdentificationStatus::kNotConverged);
   // The calibrated robot file and its report are written together or not at all
   // (core/staging.hpp): never a calibrated file without the report that explains it.
   core::StagedFiles files;
@@ -388,7 +398,8 @@ int run_identify(const IdentifyOptions& o) {
     return kExitFailure;
   }
   if (!usable) {
-    fmt::print(stderr, "identification failed: {}\n", res.message);
+    fmt::print(stderr, "identification failed: {}\n",
+               implausible ? doc.value("message", "") : res.message);
     return kExitFailure;
   }
   return kExitOk;
@@ -508,9 +519,9 @@ CommandSpec identify_command() {
             cmd.add_option("--pixel-sigma", o->pixel_sigma, "Simulation: pixel noise sigma (px)")
                 ->check(CLI::Range(0.0, 100.0));
             cmd.add_flag("--accept-implausible", o->accept_implausible,
-                         "Session mode: write the calibrated robot file even when the fit gate "
-                         "fails (not converged, residuals far beyond the measurement noise); "
-                         "recorded in identification.json");
+                         "Write the calibrated robot file even when the fit gate fails (not "
+                         "converged, residuals far beyond the measurement noise); recorded in the "
+                         "JSON report (fit_gate.overridden)");
             cmd.add_flag(
                 "--free-intrinsics", o->free_intrinsics,
                 "Pixel observations: estimate the cameras' intrinsics too (default: held)");

@@ -38,6 +38,25 @@ std::string replaced(std::string text, const std::string& from, const std::strin
   return text;
 }
 
+// `text` with every rotation vector's components multiplied by 180/π: degrees written where the
+// file says radians.
+std::string rotation_vectors_in_degrees(const std::string& text) {
+  const std::string key = "rotation_vector: [";
+  std::string out;
+  std::size_t at = 0;
+  for (std::size_t next = 0; (next = text.find(key, at)) != std::string::npos;) {
+    const std::size_t begin = next + key.size();
+    const std::size_t end = text.find(']', begin);
+    out += text.substr(at, begin - at);
+    std::stringstream in(text.substr(begin, end - begin));
+    std::string item;
+    for (int k = 0; std::getline(in, item, ','); ++k)
+      out += (k > 0 ? ", " : "") + std::to_string(std::stod(item) * 180.0 / M_PI);
+    at = end;
+  }
+  return out + text.substr(at);
+}
+
 std::string joined(const std::vector<std::string>& args) {
   std::string text = "robocal";
   for (const std::string& a : args) text += " " + a;
@@ -229,6 +248,36 @@ TEST_F(CliRefusals, RobotAndCellValuesInTheWrongUnitsAreRefused) {
        3,
        {"cell.yaml:", "target.rpy", "90", "degrees"}},
   });
+}
+
+// The measurements file route refuses what the session route refuses, in its words: rotation
+// vectors written in degrees under `angle: rad` fit 57x beyond their stated noise. No calibrated
+// robot file is written unless the user accepts the fit.
+TEST_F(CliRefusals, AnImplausibleFitFromAMeasurementsFileIsRefused) {
+  const CliRun sim = robocal::test::run_robocal_captured(
+      {"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "pose", "--poses",
+       "30", "--json", file("sim.json")});
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  std::ofstream(file("degrees.yaml")) << rotation_vectors_in_degrees(read_text(file("m.yaml")));
+  const std::vector<std::string> identify = {"identify",
+                                             "--robot",
+                                             robot,
+                                             "--measurements",
+                                             file("degrees.yaml"),
+                                             "--out-robot",
+                                             file("calibrated.yaml")};
+  expect_refused({{identify,
+                   1,
+                   {"identification failed: the fit residuals of the pose rotation measurements",
+                    "their stated noise", "the model cannot explain the measurements"}}});
+  EXPECT_FALSE(fs::exists(file("calibrated.yaml")));
+  // Accepted by the user: written, and the report says it was overridden.
+  std::vector<std::string> accepted = identify;
+  accepted.insert(accepted.end(), {"--accept-implausible", "--json", file("r.json")});
+  const CliRun r = robocal::test::run_robocal_captured(accepted);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(file("calibrated.yaml")));
+  EXPECT_NE(read_text(file("r.json")).find("\"overridden\": true"), std::string::npos);
 }
 
 }  // namespace
