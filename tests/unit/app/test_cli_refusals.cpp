@@ -280,4 +280,15 @@ TEST_F(CliRefusals, AnImplausibleFitFromAMeasurementsFileIsRefused) {
   EXPECT_NE(read_text(file("r.json")).find("\"overridden\": true"), std::string::npos);
 }
 
+// Readings near a singularity of the rotary Delta, where the loops close on more than one
+// assembly mode: the JSON's status is "ambiguous", never "converged" with exit 0.
+TEST_F(CliRefusals, AnAmbiguousForwardAnswerIsNoSuccess) {
+  const std::vector<std::string> fk = {"kin", "fk", testdata + "/robots/rotary_delta.yaml",
+                                       "--actuators", "0.9,0,0.2"};
+  expect_refused({{fk, 1, {"assembly mode ambiguous", "move away from the singularity"}}});
+  const CliRun r = robocal::test::run_robocal_captured(fk);
+  EXPECT_NE(r.out.find("\"status\": \"ambiguous\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"verdict\": \"ambiguous\""), std::string::npos) << r.out;
+}
+
 }  // namespace
