@@ -291,4 +291,27 @@ TEST_F(CliRefusals, AnAmbiguousForwardAnswerIsNoSuccess) {
   EXPECT_NE(r.out.find("\"verdict\": \"ambiguous\""), std::string::npos) << r.out;
 }
 
+// A robot file that cannot assemble over its actuator range (rods of 0.05 m for 0.27 m, of
+// 0.1 m for 0.9 m) is the user's mistake: named with the cause (exit 3), never an internal
+// error; nothing written.
+TEST_F(CliRefusals, ARobotThatCannotAssembleIsNamedNotAnInternalError) {
+  std::string short_rods = read_text(testdata + "/robots/rotary_delta.yaml");
+  for (std::size_t at = 0; (at = short_rods.find("d1: 0.9}", at)) != std::string::npos;)
+    short_rods.replace(at, 8, "d1: 0.1}");
+  std::ofstream(dir / "short_rods.yaml") << short_rods;
+  std::string linear = read_text(robot);
+  for (std::size_t at = 0; (at = linear.find("length: 0.27}", at)) != std::string::npos;)
+    linear.replace(at, 13, "length: 0.05}");
+  std::ofstream(dir / "short_linear.yaml") << linear;
+  expect_refused({
+      {{"simulate", "--robot", file("short_linear.yaml"), "--quick", "--out", file("s")},
+       3,
+       {"short_linear.yaml", "too few reachable configurations", "cannot assemble"}},
+      {{"plan", "--cell", testdata + "/cells/rotary_delta/cell.yaml", "--robot",
+        file("short_rods.yaml"), "--count", "10", "--out", file("p.yaml")},
+       3,
+       {"short_rods.yaml", "cannot assemble"}},
+  });
+}
+
 }  // namespace
