@@ -59,7 +59,7 @@ const char* status_word(PlanStatus s) {
 // parameter identifiable from its reachable poses) with std::invalid_argument: a fault of the
 // robot file given, named with it (exit 3), not an internal error.
 template <typename PlannerCall>
-auto for_robot(const calib::Mechanism& model, PlannerCall&& call) {
+auto for_robot(const calib::Mechanism& model, const PlannerCall& call) {
   try {
     return call();
   } catch (const std::invalid_argument& e) {

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -51,7 +52,7 @@ std::string rotation_vectors_in_degrees(const std::string& text) {
     std::stringstream in(text.substr(begin, end - begin));
     std::string item;
     for (int k = 0; std::getline(in, item, ','); ++k)
-      out += (k > 0 ? ", " : "") + std::to_string(std::stod(item) * 180.0 / M_PI);
+      out += (k > 0 ? ", " : "") + std::to_string(std::stod(item) * 180.0 / std::numbers::pi);
     at = end;
   }
   return out + text.substr(at);
