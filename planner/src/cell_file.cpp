@@ -70,7 +70,7 @@ struct Reader {
   // Roll, pitch, yaw in radians. A value beyond ±2π is degrees taken for radians: the file
   // loads, but every camera or obstacle so turned points elsewhere than drawn.
   Eigen::Vector3d rpy(const YAML::Node& node, const std::string& what) const {
-    const Eigen::Vector3d v = vec3(node, what, 1.0);
+    Eigen::Vector3d v = vec3(node, what, 1.0);
     constexpr double kMaxAngle = 2.0 * std::numbers::pi + 0.01;
     for (int i = 0; i < 3; ++i)
       if (std::abs(v[i]) > kMaxAngle) fail(node[i], degrees_for_radians(what, v[i]));
