@@ -55,7 +55,9 @@ void YamlContext::reject_unknown_keys(const YAML::Node& map,
     if (ok) continue;
     std::string allowed;
     for (const std::string& k : known) allowed += (allowed.empty() ? "" : ", ") + k;
-    fail(kv.first, "unknown key '" + key + "' (allowed: " + allowed + ")");
+    std::string message = "unknown key '";
+    message.append(key).append("' (allowed: ").append(allowed).append(")");
+    fail(kv.first, message);
   }
 }
 
