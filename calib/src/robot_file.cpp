@@ -3,6 +3,7 @@
 #include "robocal/calib/robot_file.hpp"
 
 #include "robot_file_parse.hpp"
+#include "robot_units.hpp"
 
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
@@ -100,7 +101,9 @@ Mechanism parse_robot_yaml(const std::string& text_in, const std::string& source
                          ": malformed YAML: " + e.msg);
   }
   try {
-    return parse(root, source);
+    Mechanism m = parse(root, source);
+    check_robot_units(m, source);
+    return m;
   } catch (const YAML::Exception& e) {
     throw RobotFileError(source + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
   }

@@ -52,7 +52,12 @@ void YamlContext::reject_unknown_keys(const YAML::Node& map,
     const std::string key = kv.first.Scalar();
     bool ok = false;
     for (const std::string& k : known) ok = ok || k == key;
-    if (!ok) fail(kv.first, "unknown key '" + key + "'");
+    if (ok) continue;
+    std::string allowed;
+    for (const std::string& k : known) allowed += (allowed.empty() ? "" : ", ") + k;
+    std::string message = "unknown key '";
+    message.append(key).append("' (allowed: ").append(allowed).append(")");
+    fail(kv.first, message);
   }
 }
 

@@ -17,12 +17,22 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 
 namespace robocal::planner {
 namespace {
 
 namespace fs = std::filesystem;
+
+// Why an angle of `value` "radians" is likely degrees, and what to write instead.
+std::string degrees_for_radians(const std::string& what, double value) {
+  std::ostringstream msg;
+  msg << what << " value " << value
+      << " is beyond ±2π rad: likely degrees written where the cell file takes radians (write deg("
+      << value << "))";
+  return msg.str();
+}
 
 // Reading context: the file name for messages, the folder relative names resolve against, and
 // the length unit of the file.
@@ -56,6 +66,15 @@ struct Reader {
     if (!node.IsSequence() || node.size() != 3) fail(node, what + " must be a list of 3 numbers");
     return {number(node[0], what) * unit, number(node[1], what) * unit,
             number(node[2], what) * unit};
+  }
+  // Roll, pitch, yaw in radians. A value beyond ±2π is degrees taken for radians: the file
+  // loads, but every camera or obstacle so turned points elsewhere than drawn.
+  Eigen::Vector3d rpy(const YAML::Node& node, const std::string& what) const {
+    Eigen::Vector3d v = vec3(node, what, 1.0);
+    constexpr double kMaxAngle = 2.0 * std::numbers::pi + 0.01;
+    for (int i = 0; i < 3; ++i)
+      if (std::abs(v[i]) > kMaxAngle) fail(node[i], degrees_for_radians(what, v[i]));
+    return v;
   }
   Eigen::Vector3d point(const YAML::Node& node, const std::string& what) const {
     return vec3(node, what, length_unit);
@@ -138,7 +157,7 @@ Eigen::Isometry3d read_pose(const Reader& r, const YAML::Node& node, const std::
   }
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = p;
-  if (node["rpy"]) T.linear() = rpy_rotation(r.vec3(node["rpy"], where + ".rpy", 1.0));
+  if (node["rpy"]) T.linear() = rpy_rotation(r.rpy(node["rpy"], where + ".rpy"));
   return T;
 }
 
@@ -198,7 +217,7 @@ Obstacle read_obstacle(const Reader& r, const YAML::Node& node, std::size_t inde
   auto placement = [&](const YAML::Node& s, const std::string& key) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.translation() = r.point(r.require(s, key, where), where + "." + key);
-    if (s["rpy"]) T.linear() = rpy_rotation(r.vec3(s["rpy"], where + ".rpy", 1.0));
+    if (s["rpy"]) T.linear() = rpy_rotation(r.rpy(s["rpy"], where + ".rpy"));
     return T;
   };
   auto positive = [&](const YAML::Node& n, const std::string& what) {
@@ -245,8 +264,7 @@ Obstacle read_obstacle(const Reader& r, const YAML::Node& node, std::size_t inde
     ob.world_T_obstacle = Eigen::Isometry3d::Identity();
     if (s["position"])
       ob.world_T_obstacle.translation() = r.point(s["position"], where + ".mesh.position");
-    if (s["rpy"])
-      ob.world_T_obstacle.linear() = rpy_rotation(r.vec3(s["rpy"], where + ".rpy", 1.0));
+    if (s["rpy"]) ob.world_T_obstacle.linear() = rpy_rotation(r.rpy(s["rpy"], where + ".rpy"));
   }
   return ob;
 }
@@ -286,7 +304,7 @@ void read_target(const Reader& r, const YAML::Node& node, TargetMount& t) {
   t.frame_T_board = Eigen::Isometry3d::Identity();
   if (node["position"])
     t.frame_T_board.translation() = r.point(node["position"], "target.position");
-  if (node["rpy"]) t.frame_T_board.linear() = rpy_rotation(r.vec3(node["rpy"], "target.rpy", 1.0));
+  if (node["rpy"]) t.frame_T_board.linear() = rpy_rotation(r.rpy(node["rpy"], "target.rpy"));
 }
 
 void read_visibility(const Reader& r, const YAML::Node& node, VisibilityRequirements& v) {

@@ -56,6 +56,23 @@ void install_interrupt_handler(const std::string& command) {
   sigaction(SIGTERM, &sa, nullptr);
 }
 
+// The command names, as `robocal --help` lists them, for the refusal of an unknown one.
+std::string command_list(const std::vector<CommandSpec>& commands) {
+  std::string list;
+  for (const CommandSpec& spec : commands) list += (list.empty() ? "" : ", ") + spec.name;
+  return list;
+}
+
+// The first argument names the command; a word that is no command is named as such (the
+// parser alone would say only that a command is missing).
+bool is_unknown_command(int argc, const char* const* argv,
+                        const std::vector<CommandSpec>& commands) {
+  if (argc < 2 || argv[1][0] == '-') return false;
+  const std::string word = argv[1];
+  return std::none_of(commands.begin(), commands.end(),
+                      [&word](const CommandSpec& spec) { return spec.name == word; });
+}
+
 }  // namespace
 
 // Each command file defines one of these.
@@ -105,11 +122,20 @@ int run_cli(int argc, const char* const* argv) {
       "\n"
       "Run `robocal <command> --help` for what each command does and its options.\n"
       "Exit codes: 0 ok, 1 result not acceptable (or a camera or controller failed), 2 bad\n"
-      "command line, 3 bad input file, 4 internal error.",
+      "command line (an unknown command or option, a value outside its choices, options that\n"
+      "conflict or do not apply), 3 bad input file, 4 internal error.",
       "robocal"};
   cli.set_version_flag("--version", std::string("robocal ") + kVersion);
   cli.require_subcommand(1);
   cli.fallthrough(false);
+
+  if (is_unknown_command(argc, argv, all_commands())) {
+    fmt::print(stderr,
+               "error: unknown command '{}'; the commands are: {}\nRun `robocal --help` for what "
+               "each does.\n",
+               argv[1], command_list(all_commands()));
+    return kExitUsage;
+  }
 
   std::map<const CLI::App*, CommandAction> actions;
   for (const CommandSpec& spec : all_commands()) {
@@ -134,6 +160,10 @@ int run_cli(int argc, const char* const* argv) {
     install_interrupt_handler(sub->get_name());
     try {
       return actions.at(sub)();
+    } catch (const UsageError& e) {
+      fmt::print(stderr, "error: {}\nRun `robocal {} --help` for its options.\n", e.what(),
+                 sub->get_name());
+      return kExitUsage;
     } catch (const InputError& e) {
       fmt::print(stderr, "error: {}\n", e.what());
       return kExitBadInput;

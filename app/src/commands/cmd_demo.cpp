@@ -44,7 +44,7 @@ struct DemoOptions {
 };
 
 int run_live(const DemoOptions& o) {
-  if (o.no_priors) throw InputError("--no-priors is not available with --live");
+  if (o.no_priors) throw UsageError("--no-priors is not available with --live");
   LiveDemoOptions l;
   l.robot = o.simulate.robot;
   l.seed = o.simulate.seed;

@@ -109,7 +109,7 @@ int run_simulate(const IdentifyOptions& o) {
   else if (o.kind == "probe")
     sim.kind = SimulatedObservation::kProbeHeight;
   else if (o.kind != "point" && o.kind != "pixel")
-    throw InputError("--kind must be point, pose, probe or pixel");
+    throw UsageError("--kind must be point, pose, probe or pixel");
   MeasurementsFile file;
   file.robot = model.name;
   nlohmann::json cameras_json;
@@ -202,8 +202,8 @@ nlohmann::json advice_json(const MeasurementAdvice& a) {
 }
 
 int run_identify(const IdentifyOptions& o) {
-  if (o.robot.empty()) throw InputError("--robot is required (or give a SESSION folder)");
-  if (o.measurements.empty()) throw InputError("--measurements is required (or --simulate)");
+  if (o.robot.empty()) throw UsageError("--robot is required (or give a SESSION folder)");
+  if (o.measurements.empty()) throw UsageError("--measurements is required (or --simulate)");
   const std::string robot_file = resolve_robot(o.robot);  // a file or a library robot
   const Mechanism model = load_robot(robot_file);
   const MeasurementsFile file = load_measurements_file(o.measurements);
@@ -248,7 +248,7 @@ int run_identify(const IdentifyOptions& o) {
           o.free_patterns.empty() ? model.parameters[i].free : matches(n, o.free_patterns);
       if (free && !matches(n, o.fix_patterns)) candidates.push_back(i);
     }
-    if (candidates.empty()) throw InputError("--free/--fix leave no parameter to estimate");
+    if (candidates.empty()) throw UsageError("--free/--fix leave no parameter to estimate");
     opt.candidates = candidates;
     if (o.priors) {
       opt.prior_sigma.assign(model.parameters.size(), 0.0);
@@ -260,7 +260,7 @@ int run_identify(const IdentifyOptions& o) {
   else if (o.robust == "cauchy")
     opt.robust_loss = RobustLoss::kCauchy;
   else if (o.robust != "none")
-    throw InputError("--robust must be none, huber or cauchy");
+    throw UsageError("--robust must be none, huber or cauchy");
   opt.robust_scale = o.robust_scale;
   opt.keep_stated_noise = o.stated_noise;
   opt.multi_start = o.multi_start;
@@ -338,8 +338,18 @@ int run_identify(const IdentifyOptions& o) {
     doc["advice"] = advice_json(advice);
   }
 
-  const bool usable = res.status == IdentificationStatus::kConverged ||
-                      res.status == IdentificationStatus::kNotConverged;
+  // The session route's gate, in its words: a fit far beyond its stated noise is refused and no
+  // calibrated robot file written (unless --accept-implausible).
+  if (res.status == IdentificationStatus::kConverged ||
+      res.status == IdentificationStatus::kNotConverged) {
+    PipelineLog log;
+    log.out = o.quiet ? nullptr : human_stream(o.json);
+    apply_fit_gate(res, fit_gate_options(model.unmodelled_error, 0.0), {o.accept_implausible},
+                   "measurements file", doc, log);
+  }
+  const bool implausible = doc.value("status", "") == "implausible";
+  const bool usable = !implausible && (res.status == IdentificationStatus::kConverged ||
+                                       res.status == IdentificationStatus::kNotConverged);
   // The calibrated robot file and its report are written together or not at all
   // (core/staging.hpp): never a calibrated file without the report that explains it.
   core::StagedFiles files;
@@ -388,10 +398,44 @@ int run_identify(const IdentifyOptions& o) {
     return kExitFailure;
   }
   if (!usable) {
-    fmt::print(stderr, "identification failed: {}\n", res.message);
+    fmt::print(stderr, "identification failed: {}\n",
+               implausible ? doc.value("message", "") : res.message);
     return kExitFailure;
   }
   return kExitOk;
+}
+
+// Each way of calling identify has its own options; one of another way has no effect and is
+// refused (a --holdout-every given with a SESSION would otherwise report no held-out figures
+// without a word).
+void refuse_options_of_other_modes(const CLI::App& cmd, const IdentifyOptions& o) {
+  if (!o.session.empty()) {
+    refuse_options(cmd, {"--measurements", "--simulate",
+                         "--kfold",        "--holdout-every",
+                         "--free",         "--fix",
+                         "--robust",       "--robust-scale",
+                         "--multi-start",  "--seed",
+                         "--out-robot",    "--bed-tilt",
+                         "--stated-noise", "--free-intrinsics",
+                         "--kind",         "--poses",
+                         "--point-sigma",  "--pixel-sigma",
+                         "--length-sigma", "--angle-sigma-deg"},
+                   "with a SESSION folder (its options: --robot, --route, --json, --no-priors, "
+                   "--accept-implausible)");
+    return;
+  }
+  if (!o.simulate.empty()) {
+    refuse_options(
+        cmd,
+        {"--measurements", "--route", "--no-priors", "--priors", "--accept-implausible", "--kfold",
+         "--holdout-every", "--free", "--fix", "--robust", "--robust-scale", "--multi-start",
+         "--out-robot", "--bed-tilt", "--stated-noise", "--free-intrinsics"},
+        "with --simulate (it writes a measurements file and identifies nothing)");
+    return;
+  }
+  refuse_options(cmd, {"--route", "--no-priors"},
+                 "with --measurements (a SESSION's options; a measurements file is fitted without "
+                 "priors unless --priors)");
 }
 
 }  // namespace
@@ -448,7 +492,8 @@ CommandSpec identify_command() {
                          "SESSION always does unless --no-priors");
             cmd.add_flag("--no-priors", o->no_priors,
                          "SESSION: maximum likelihood from the measurements alone (default: the "
-                         "robot file's tolerances as priors, base frame free)");
+                         "robot file's tolerances as priors, base frame free)")
+                ->excludes("--priors");
             cmd.add_option("--robust", o->robust, "Robust loss: none, huber or cauchy");
             cmd.add_option("--robust-scale", o->robust_scale, "Robust loss scale in sigmas")
                 ->check(CLI::Range(0.1, 100.0))
@@ -474,9 +519,9 @@ CommandSpec identify_command() {
             cmd.add_option("--pixel-sigma", o->pixel_sigma, "Simulation: pixel noise sigma (px)")
                 ->check(CLI::Range(0.0, 100.0));
             cmd.add_flag("--accept-implausible", o->accept_implausible,
-                         "Session mode: write the calibrated robot file even when the fit gate "
-                         "fails (not converged, residuals far beyond the measurement noise); "
-                         "recorded in identification.json");
+                         "Write the calibrated robot file even when the fit gate fails (not "
+                         "converged, residuals far beyond the measurement noise); recorded in the "
+                         "JSON report (fit_gate.overridden)");
             cmd.add_flag(
                 "--free-intrinsics", o->free_intrinsics,
                 "Pixel observations: estimate the cameras' intrinsics too (default: held)");
@@ -484,9 +529,10 @@ CommandSpec identify_command() {
                            "Simulation: perturbation sigma of lengths (m)");
             cmd.add_option("--angle-sigma-deg", o->angle_sigma_deg,
                            "Simulation: perturbation sigma of angles (deg)");
-            return [o]() {
+            return [o, &cmd]() {
+              refuse_options_of_other_modes(cmd, *o);
               if (!o->session.empty()) return run_identify_session(*o);
-              if (o->robot.empty()) throw InputError("--robot is required (or give a SESSION)");
+              if (o->robot.empty()) throw UsageError("--robot is required (or give a SESSION)");
               return o->simulate.empty() ? run_identify(*o) : run_simulate(*o);
             };
           }};

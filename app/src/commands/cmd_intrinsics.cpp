@@ -132,14 +132,16 @@ CommandSpec intrinsics_command() {
             ->check(CLI::Range(1, 64))
             ->capture_default_str();
         return [a]() {
+          const auto kind = vision::kind_from_name(a->model);
+          if (!kind)
+            throw UsageError("--model: unknown camera model '" + a->model +
+                             "' (pinhole_radtan, pinhole_rational or fisheye_kb4)");
           vision::TargetBoard board;
           try {
             board = vision::load_target_file(a->target);
           } catch (const vision::FileFormatError& e) {
             throw InputError(e.what());
           }
-          const auto kind = vision::kind_from_name(a->model);
-          if (!kind) throw InputError("--model: unknown camera model '" + a->model + "'");
           vision::IntrinsicsPipelineOptions opt;
           opt.calibration.kind = *kind;
           opt.apriltag.quad_decimate = a->decimate;

@@ -41,7 +41,7 @@ std::vector<double> parse_list(const std::string& text, const std::string& optio
     try {
       out.push_back(evaluate_expression(item));
     } catch (const std::invalid_argument& e) {
-      throw InputError(option + ": " + e.what());
+      throw UsageError(option + ": " + e.what());
     }
   }
   return out;
@@ -51,7 +51,7 @@ Eigen::VectorXd parse_vector(const std::string& text, std::size_t expected,
                              const std::string& option, const std::string& what) {
   const std::vector<double> v = parse_list(text, option);
   if (v.size() != expected)
-    throw InputError(option + " needs " + std::to_string(expected) + " comma-separated " + what +
+    throw UsageError(option + " needs " + std::to_string(expected) + " comma-separated " + what +
                      ", got " + std::to_string(v.size()));
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }
@@ -168,6 +168,18 @@ int run_fk(const KinOptions& o, bool jacobian) {
                         : std::string("the loops do not close at these readings (") +
                               to_string(fk.closure.status) + ")";
   if (ok) doc["pose"] = pose_json(fk.pose);
+  // Near a singularity the loops close on more than one assembly mode within the ambiguity
+  // band: the pose may be another mode's (centimetres off), so it is no answer to rely on.
+  const bool ambiguous = ok && !serial && fk.closure.mode.verdict == ModeVerdict::kAmbiguous;
+  if (ambiguous) {
+    doc["closure_status"] = doc["status"];
+    doc["status"] = "ambiguous";
+    doc["reason"] = "these readings are within the assembly-mode ambiguity band (" +
+                    fk.closure.mode.describe() +
+                    "): the loops close on more than one mode here, so the pose may be another "
+                    "mode's; move away from the singularity";
+    fmt::print(stderr, "kin fk: assembly mode ambiguous: {}\n", doc["reason"].get<std::string>());
+  }
   if (ok && jacobian) {
     const FrameJacobians J = frame_jacobians(m, r.params, fk.state, q, r.frame);
     doc["jacobian_convention"] =
@@ -192,7 +204,7 @@ int run_fk(const KinOptions& o, bool jacobian) {
     doc["actuators"] = acts;
   }
   write_json(doc, o.output);
-  return ok ? int{kExitOk} : int{kExitFailure};
+  return ok && !ambiguous ? int{kExitOk} : int{kExitFailure};
 }
 
 int run_ik(const KinOptions& o) {

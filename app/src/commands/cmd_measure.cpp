@@ -113,15 +113,21 @@ CommandSpec measure_command() {
                      "Session mode: use poses whose board fits fail the plausibility gate "
                      "(recorded in measure.json); only when you know why they fit badly");
         cmd.add_option("--out", a->out, "JSON to write (- = stdout)");
-        return [a]() {
+        return [a, &cmd]() {
           if (!a->session.empty()) {
+            // The session's own rig, boards and pose folders are measured.
+            refuse_options(cmd, {"--rig", "--target", "--poses", "--sigma-px", "--no-raw", "--out"},
+                           "with a SESSION folder (its options: --robot, --threads, --json, "
+                           "--accept-implausible)");
             if (!is_session(a->session))
               throw InputError(a->session +
                                ": not a session folder (no session.yaml; see app/SESSION.md)");
             return run_measure_session(*a);
           }
+          refuse_options(cmd, {"--robot", "--json", "--accept-implausible"},
+                         "without a SESSION folder (they are a session's options)");
           if (a->rig.empty() || a->target.empty() || a->poses.empty())
-            throw InputError("give a SESSION folder, or all of --rig, --target and --poses");
+            throw UsageError("give a SESSION folder, or all of --rig, --target and --poses");
           return run_measure(*a);
         };
       }};

@@ -15,6 +15,7 @@
 #include <fmt/core.h>
 
 #include <filesystem>
+#include <stdexcept>
 
 namespace robocal::app {
 namespace {
@@ -54,6 +55,19 @@ const char* status_word(PlanStatus s) {
   return "?";
 }
 
+// The planner refuses a robot it cannot plan for (one that cannot assemble where it must, no
+// parameter identifiable from its reachable poses) with std::invalid_argument: a fault of the
+// robot file given, named with it (exit 3), not an internal error.
+template <typename PlannerCall>
+auto for_robot(const calib::Mechanism& model, const PlannerCall& call) {
+  try {
+    return call();
+  } catch (const std::invalid_argument& e) {
+    const std::string why = e.what();
+    throw InputError(why.rfind(model.source, 0) == 0 ? why : model.source + ": " + why);
+  }
+}
+
 int run_plan(const PlanCommandOptions& o) {
   const Cell cell = load_cell_file(o.cell);  // bad input: core::InputError, exit 3
   std::string robot = o.robot.empty() ? cell.robot_file : o.robot;
@@ -73,7 +87,8 @@ int run_plan(const PlanCommandOptions& o) {
   if (o.suggest_cameras) {
     PlacementOptions placement;
     placement.max_cameras = o.max_cameras;
-    const CameraPlacement p = propose_cameras(model, params, cell, placement);
+    const CameraPlacement p =
+        for_robot(model, [&] { return propose_cameras(model, params, cell, placement); });
     // Camera i looks at its station's point (an array), or the pair's.
     const auto look_at_of = [&p](std::size_t i) {
       return p.cameras_per_station > 0
@@ -117,12 +132,13 @@ int run_plan(const PlanCommandOptions& o) {
   po.selection.max_condition = o.max_condition;
   po.selection.target_accuracy = o.target_um * 1e-6;
   if (!parse_index(o.index, &po.selection.index))
-    throw InputError("--index must be O1, O2, O3, O4 or O5 (got '" + o.index + "')");
+    throw UsageError("--index must be O1, O2, O3, O4 or O5 (got '" + o.index + "')");
   if (!o.measured.empty()) po.measured = read_plan_actuators(o.measured);
   po.progress = [&](const std::string& line) {
     if (!o.json) fmt::print(stderr, "plan: {}\n", line);
   };
-  const PlanResult plan = plan_measurements(model, params, cell, po);
+  const PlanResult plan =
+      for_robot(model, [&] { return plan_measurements(model, params, cell, po); });
   report["status"] = status_word(plan.status);
   report["message"] = plan.message;
   report["feasibility"] = plan.counts.summary();

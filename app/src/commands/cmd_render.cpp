@@ -43,20 +43,20 @@ int run_render(const RenderArgs& a) {
   }
   if (a.views.empty()) {
     if (a.poses.size() != boards.size())
-      throw InputError(fmt::format("give one --pose per --target ({} targets, {} poses) or --views",
+      throw UsageError(fmt::format("give one --pose per --target ({} targets, {} poses) or --views",
                                    boards.size(), a.poses.size()));
     vision::RenderView v;
     v.name = "view000";
     for (const auto& p : a.poses) {
-      if (p.size() != 6) throw InputError("--pose needs 6 numbers: rx,ry,rz,tx,ty,tz");
+      if (p.size() != 6) throw UsageError("--pose needs 6 numbers: rx,ry,rz,tx,ty,tz");
       v.camera_T_board.push_back(vision::pose_from_rvec_tvec(Eigen::Vector3d(p[0], p[1], p[2]),
                                                              Eigen::Vector3d(p[3], p[4], p[5])));
     }
     views.push_back(v);
   }
-  if (a.bit_depth != 8 && a.bit_depth != 16) throw InputError("--bit-depth must be 8 or 16");
+  if (a.bit_depth != 8 && a.bit_depth != 16) throw UsageError("--bit-depth must be 8 or 16");
   if (!a.gradient.empty() && a.gradient.size() != 2)
-    throw InputError("--gradient needs 2 numbers: gx,gy");
+    throw UsageError("--gradient needs 2 numbers: gx,gy");
   std::error_code ec;
   std::filesystem::create_directories(a.out, ec);
   if (ec) throw InputError(fmt::format("cannot create output folder {}: {}", a.out, ec.message()));

@@ -32,14 +32,14 @@ int run_rig(const RigArgs& a) {
   for (const auto& spec : a.cameras) {
     const auto eq = spec.find('=');
     if (eq == std::string::npos || eq == 0)
-      throw InputError(fmt::format("--camera {}: expected NAME=camera.yaml", spec));
+      throw UsageError(fmt::format("--camera {}: expected NAME=camera.yaml", spec));
     vision::RigCamera c;
     c.name = spec.substr(0, eq);
     c.model = vision::load_camera_file(spec.substr(eq + 1));
     cams.push_back(c);
   }
   const vision::TargetBoard board = load_board(a.target);
-  if (cams.empty()) throw InputError("give at least one --camera NAME=camera.yaml");
+  if (cams.empty()) throw UsageError("give at least one --camera NAME=camera.yaml");
   std::vector<std::string> names;
   names.reserve(cams.size());
   for (const auto& c : cams) names.push_back(c.name);
@@ -49,7 +49,7 @@ int run_rig(const RigArgs& a) {
   opt.default_sigma_px = a.sigma_px;
   if (!a.reference.empty()) {
     const auto it = std::find(names.begin(), names.end(), a.reference);
-    if (it == names.end()) throw InputError("--reference " + a.reference + ": no such camera");
+    if (it == names.end()) throw UsageError("--reference " + a.reference + ": no such camera");
     opt.reference_camera = static_cast<int>(it - names.begin());
   }
   const auto sets = scan_image_folder(a.views, names);

@@ -95,6 +95,19 @@ robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
   return r;
 }
 
+// --faults as the simulator reads it: a spec it cannot read is a bad command line.
+CLI::Validator fault_spec_check() {
+  return {[](const std::string& spec) {
+            try {
+              robotio::parse_fault_spec(spec);
+              return std::string();
+            } catch (const std::invalid_argument& e) {
+              return std::string(e.what());
+            }
+          },
+          "FAULTS"};
+}
+
 int run_sim_controller(const SimCliOptions& o) {
   robotio::SimOptions s;
   if (o.firmware == "marlin") {
@@ -204,31 +217,40 @@ CommandSpec sim_controller_command() {
             cmd.add_option("--angle-sigma", o->angle_sigma_deg, "Perturbation of angles, deg");
             cmd.add_option("--protocol", o->protocol,
                            "gcode (TCP and pty) or open (the open link protocol, "
-                           "robotio/OPEN_LINK.md, TCP only)");
+                           "robotio/OPEN_LINK.md, TCP only)")
+                ->check(CLI::IsMember({"gcode", "open"}));
             cmd.add_option("--open-version", o->open_version,
                            "Open protocol version the controller speaks (MAJOR.MINOR)");
-            cmd.add_option("--firmware", o->firmware, "marlin or rrf");
+            cmd.add_option("--firmware", o->firmware, "marlin or rrf")
+                ->check(CLI::IsMember({"marlin", "rrf", "reprapfirmware"}));
             cmd.add_option("--firmware-name", o->firmware_name,
                            "Replace the M115 firmware name (to test unknown firmwares)");
             cmd.add_flag("--mute", o->mute, "Accept connections but never answer");
-            cmd.add_option("--tcp-port", o->tcp_port, "TCP port (0 = any free, -1 = none)");
+            cmd.add_option("--tcp-port", o->tcp_port, "TCP port (0 = any free, -1 = none)")
+                ->check(CLI::Range(-1, 65535));
             cmd.add_flag("--no-pty", o->no_pty, "Do not open a pseudo-terminal");
             cmd.add_option("--pty-link", o->pty_link,
                            "Keep a symlink here to the current pty (it changes after a drop)");
             cmd.add_option("--pose-port", o->pose_port,
-                           "TCP port of the true-pose channel (0 = any free, -1 = none)");
+                           "TCP port of the true-pose channel (0 = any free, -1 = none)")
+                ->check(CLI::Range(-1, 65535));
             cmd.add_option("--log", o->log, "JSONL log of every line and motion");
-            cmd.add_option("--steps-per-mm", o->steps_per_mm, "Prismatic actuators");
-            cmd.add_option("--steps-per-degree", o->steps_per_degree, "Revolute actuators");
-            cmd.add_option("--noise", o->noise, "Actuator repeatability (1 sigma), readings");
-            cmd.add_option("--backlash", o->backlash, "Backlash, readings");
+            cmd.add_option("--steps-per-mm", o->steps_per_mm, "Prismatic actuators")
+                ->check(CLI::Range(0.01, 1e6));
+            cmd.add_option("--steps-per-degree", o->steps_per_degree, "Revolute actuators")
+                ->check(CLI::Range(0.01, 1e6));
+            cmd.add_option("--noise", o->noise, "Actuator repeatability (1 sigma), readings")
+                ->check(CLI::Range(0.0, 1.0));
+            cmd.add_option("--backlash", o->backlash, "Backlash, readings")
+                ->check(CLI::Range(0.0, 1.0));
             cmd.add_option("--feed", o->feed, "Default feed, G-code units/min");
             cmd.add_option("--acceleration", o->acceleration, "Default, G-code units/s^2");
             cmd.add_option("--busy-interval", o->busy_interval,
                            "Seconds between busy: keep-alives (Marlin; M113 changes it)");
             cmd.add_option("--temperature-interval", o->temperature_interval,
                            "Auto-report temperatures every N s (0 = off)");
-            cmd.add_option("--faults", o->faults, "Fault rates, e.g. all=0.05");
+            cmd.add_option("--faults", o->faults, "Fault rates, e.g. all=0.05")
+                ->check(fault_spec_check());
             cmd.add_option("--fault-script", o->fault_script, "Scripted faults file");
             cmd.add_option("--fault-seed", o->fault_seed, "Seed of the fault draws");
             cmd.add_option("--slow-ms", o->slow_ms, "Delay of a slow reply, ms");

@@ -139,7 +139,7 @@ std::string answers_yaml(const std::vector<Answer>& answers) {
 }  // namespace
 
 int run_sim_cell(const SimCellOptions& o) {
-  if (o.seed == 0) throw InputError("--seed must be 1 or more (0 would be the nominal robot)");
+  if (o.seed == 0) throw UsageError("--seed must be 1 or more (0 would be the nominal robot)");
   if (o.tcp_port < 0 || o.tcp_port > 65535)
     throw InputError(
         fmt::format("--port {}: give a TCP port 1-65535, or 0 for any free one", o.tcp_port));

@@ -35,6 +35,8 @@ Session parse_session_yaml(const std::string& text, const std::string& source) {
   if (!root.IsMap())
     throw InputError(fmt::format("{}: a session file is a YAML mapping (see app/SESSION.md)",
                                  core::yaml_where(source, root)));
+  ctx.reject_unknown_keys(root, {"format", "software", "created", "source", "seed", "robot",
+                                 "cameras", "targets", "folders"});
   Session s;
   s.format = ctx.required<std::string>(root, "format");
   if (s.format != kSessionFormat)
@@ -47,6 +49,7 @@ Session parse_session_yaml(const std::string& text, const std::string& source) {
   s.seed = ctx.optional<unsigned>(root, "seed", 1U);
 
   const YAML::Node robot = ctx.require_map(root, "robot");
+  ctx.reject_unknown_keys(robot, {"file", "name", "measured_frame", "actuators", "target_mount"});
   s.robot_file = ctx.required<std::string>(robot, "file");
   s.robot_name = ctx.required<std::string>(robot, "name");
   s.measured_frame = ctx.optional<std::string>(robot, "measured_frame", "");
@@ -77,6 +80,7 @@ Session parse_session_yaml(const std::string& text, const std::string& source) {
     if (!c.IsMap())
       throw InputError(fmt::format("{}: a camera is a mapping {{name, width, height}}",
                                    core::yaml_where(source, c)));
+    ctx.reject_unknown_keys(c, {"name", "width", "height"});
     SessionCamera cam{ctx.required<std::string>(c, "name"), ctx.required<int>(c, "width"),
                       ctx.required<int>(c, "height")};
     if (cam.width <= 0 || cam.height <= 0)
@@ -89,9 +93,11 @@ Session parse_session_yaml(const std::string& text, const std::string& source) {
     s.cameras.push_back(cam);
   }
   const YAML::Node targets = ctx.require_map(root, "targets");
+  ctx.reject_unknown_keys(targets, {"end_effector", "calibration"});
   s.ee_target = ctx.required<std::string>(targets, "end_effector");
   s.calibration_target = ctx.required<std::string>(targets, "calibration");
   const YAML::Node folders = ctx.require_map(root, "folders");
+  ctx.reject_unknown_keys(folders, {"intrinsics", "rig", "poses"});
   s.intrinsics_views = ctx.required<std::string>(folders, "intrinsics");
   s.rig_views = ctx.required<std::string>(folders, "rig");
   s.poses = ctx.required<std::string>(folders, "poses");

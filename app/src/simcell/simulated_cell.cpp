@@ -11,6 +11,8 @@
 #include "robocal/planner/task_sampling.hpp"
 #include "robocal/vision/pose.hpp"
 
+#include <fmt/core.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -328,7 +330,12 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   calib::MechanismPredictor nominal_predictor(cell.model);
   const auto configs = calib::sample_actuators(nominal_predictor, {cell.nominal}, 200, rng);
   if (configs.size() < 20)
-    throw std::runtime_error(robot_file + ": too few reachable configurations to build a cell");
+    throw calib::RobotFileError(fmt::format(
+        "{}: too few reachable configurations to build a cell: the robot assembles at {} of "
+        "up to 20000 random actuator readings within its limits (200 looked for, at least 20 "
+        "needed): it cannot assemble over most of its actuator range; check its lengths "
+        "(metres), its joint limits and home values (`robocal kin check {}`)",
+        robot_file, configs.size(), robot_file));
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
   std::vector<Eigen::Isometry3d> tool_poses;
   for (const auto& q : configs) {
@@ -435,7 +442,7 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   try {
     cell.placement = planner::propose_cameras(cell.model, cell.nominal, cell.plan_cell, placement);
   } catch (const std::invalid_argument& e) {
-    throw std::runtime_error(robot_file + ": no camera placement: " + e.what());
+    throw calib::RobotFileError(robot_file + ": no camera placement for this robot: " + e.what());
   }
   // Where the planner's proposal sees none of the sampled reachable poses of a platform robot
   // (a level board its own bed hides from every camera below it), the board goes on the

@@ -281,13 +281,13 @@ calib::GcodeAxes gcode_axes(const CompensateOptions& o, const SessionRobot& robo
   // A printer firmware with delta settings computes the robot's kinematics: X Y Z is the nozzle.
   if (!o.firmware.empty()) {
     if (o.axes == "actuators")
-      throw InputError("--firmware " + o.firmware +
+      throw UsageError("--firmware " + o.firmware +
                        " runs delta kinematics (X Y Z = the nozzle): not with --axes actuators");
     return calib::GcodeAxes::kTool;
   }
   if (o.axes == "tool") return calib::GcodeAxes::kTool;
   if (o.axes == "actuators") return calib::GcodeAxes::kActuators;
-  if (!o.axes.empty()) throw InputError("--axes " + o.axes + ": expected tool or actuators");
+  if (!o.axes.empty()) throw UsageError("--axes " + o.axes + ": expected tool or actuators");
   if (robot.model.controller.gcode_axes != calib::GcodeAxes::kUnknown)
     return robot.model.controller.gcode_axes;
   throw InputError(fmt::format(
@@ -300,7 +300,7 @@ calib::GcodeAxes gcode_axes(const CompensateOptions& o, const SessionRobot& robo
 }
 
 nlohmann::json compensate_gcode(const CompensateOptions& o, Models& m, const PipelineLog& log) {
-  if (o.out.empty()) throw InputError("--gcode needs --out FILE for the rewritten program");
+  if (o.out.empty()) throw UsageError("--gcode needs --out FILE for the rewritten program");
   std::error_code ec;
   if (fs::exists(o.out) && fs::equivalent(o.out, o.gcode, ec))
     throw InputError(o.out.string() + ": is the program itself; write the rewrite elsewhere");

@@ -38,29 +38,6 @@ std::string measure_first(const fs::path& dir) {
   return "run `robocal measure " + dir.string() + "` first";
 }
 
-// The fit gate (calib/fit_gate.hpp) on a route's result: "implausible" unless it passes or the
-// operator accepted it; recorded in the report either way.
-void apply_fit_gate(const calib::IdentificationResult& result, const calib::FitGateOptions& options,
-                    const GateOptions& gates, const std::string& route, nlohmann::json& report,
-                    const PipelineLog& log) {
-  const calib::FitVerdict verdict = calib::judge_identification(result, options);
-  report["fit_gate"] = {{"plausible", verdict.plausible},
-                        {"overridden", !verdict.plausible && gates.accept_implausible},
-                        {"max_noise_scale", options.max_noise_scale},
-                        {"model_error_m", options.model_error_m},
-                        {"model_error_rad", options.model_error_rad},
-                        {"model_error_px", options.model_error_px}};
-  if (verdict.plausible) return;
-  report["fit_gate"]["reason"] = verdict.reason;
-  say(log, "  {} RESULT NOT PLAUSIBLE: {}\n", route, verdict.reason);
-  if (gates.accept_implausible) {
-    say(log, "  accepted anyway (--accept-implausible)\n");
-    return;
-  }
-  report["status"] = "implausible";
-  report["message"] = verdict.reason;
-}
-
 // The camera-in-the-loop route on a session: the corner pixels of results/pixel_observations.json
 // (the poses the pose route used, first frame per camera) with the measured rig's cameras, camera
 // 0 as the world, camera 1.. poses estimated with the robot; started from the pose route's
@@ -137,6 +114,27 @@ std::string frames_note(const Session& s, const calib::Mechanism& model, int fra
 }
 
 }  // namespace
+
+void apply_fit_gate(const calib::IdentificationResult& result, const calib::FitGateOptions& options,
+                    const GateOptions& gates, const std::string& route, nlohmann::json& report,
+                    const PipelineLog& log) {
+  const calib::FitVerdict verdict = calib::judge_identification(result, options);
+  report["fit_gate"] = {{"plausible", verdict.plausible},
+                        {"overridden", !verdict.plausible && gates.accept_implausible},
+                        {"max_noise_scale", options.max_noise_scale},
+                        {"model_error_m", options.model_error_m},
+                        {"model_error_rad", options.model_error_rad},
+                        {"model_error_px", options.model_error_px}};
+  if (verdict.plausible) return;
+  report["fit_gate"]["reason"] = verdict.reason;
+  say(log, "  {} RESULT NOT PLAUSIBLE: {}\n", route, verdict.reason);
+  if (gates.accept_implausible) {
+    say(log, "  accepted anyway (--accept-implausible)\n");
+    return;
+  }
+  report["status"] = "implausible";
+  report["message"] = verdict.reason;
+}
 
 nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
                                 const PipelineLog& log, const std::string& route, bool priors,

@@ -12,6 +12,7 @@
 // Bad input (missing or malformed files, a robot file that does not match) throws InputError.
 #include "cli/command_registry.hpp"
 #include "cli/progress.hpp"
+#include "robocal/calib/fit_gate.hpp"
 #include "stages/measure_steps.hpp"
 
 #include <nlohmann/json.hpp>
@@ -121,6 +122,14 @@ nlohmann::json measure_session(const std::filesystem::path& dir, const std::stri
 nlohmann::json identify_session(const std::filesystem::path& dir, const std::string& robot_override,
                                 const PipelineLog& log, const std::string& route = "both",
                                 bool priors = true, const GateOptions& gates = {});
+// The fit gate (calib/fit_gate.hpp) on the result of identification `route` ("pose route",
+// "measurements file"), recorded in report["fit_gate"]; unless it passes or
+// gates.accept_implausible, report["status"] becomes "implausible" with the reason as its
+// "message". Every way of identifying calls it, so a fit is refused in the same words whichever
+// way its measurements came.
+void apply_fit_gate(const calib::IdentificationResult& result, const calib::FitGateOptions& options,
+                    const GateOptions& gates, const std::string& route, nlohmann::json& report,
+                    const PipelineLog& log);
 // stages/validate.cpp
 nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
                                 const PipelineLog& log);

@@ -3,6 +3,7 @@
 #include "cli/cli_common.hpp"
 
 #include <fmt/core.h>
+#include <fnmatch.h>
 #include <readline/history.h>
 #include <readline/readline.h>
 #include <yaml-cpp/yaml.h>
@@ -78,6 +79,24 @@ std::map<std::string, std::string> load_answers(const std::string& path) {
     out[trim(t.substr(0, eq))] = trim(t.substr(eq + 1));
   }
   return out;
+}
+
+void reject_unknown_answers(const std::map<std::string, std::string>& answers,
+                            const std::string& path, const std::vector<std::string>& known) {
+  const auto is_known = [&known](const std::string& key) {
+    return std::any_of(known.begin(), known.end(), [&key](const std::string& pattern) {
+      return ::fnmatch(pattern.c_str(), key.c_str(), 0) == 0;
+    });
+  };
+  for (const auto& answer : answers) {
+    if (is_known(answer.first)) continue;
+    std::string allowed;
+    for (const std::string& k : known) allowed += (allowed.empty() ? "" : ", ") + k;
+    throw InputError(
+        fmt::format("{}: unknown key '{}' (the wizard's questions: {}; * is a "
+                    "camera's name)",
+                    path, answer.first, allowed));
+  }
 }
 
 Prompter::Prompter(std::map<std::string, std::string> answers, bool interactive,

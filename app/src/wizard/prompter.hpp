@@ -34,6 +34,13 @@ class OperatorQuit : public std::runtime_error {
 // robot.model) or `key=value` lines (# comments). Throws core::InputError naming the file.
 std::map<std::string, std::string> load_answers(const std::string& path);
 
+// Refuses (core::InputError naming `path`, the key and the keys allowed) an answer whose key
+// matches none of `known` (glob patterns, e.g. "intrinsics.*.view"): a misspelled key would
+// otherwise be ignored and its question answered by the default, or end the run on a question
+// that seems to have no answer.
+void reject_unknown_answers(const std::map<std::string, std::string>& answers,
+                            const std::string& path, const std::vector<std::string>& known);
+
 class Prompter {
  public:
   // interactive: ask on the terminal when the answers file has no (usable) answer.

@@ -47,6 +47,8 @@ class Step {
 
 // The steps, in the order they run (steps_*.cpp).
 std::vector<std::unique_ptr<Step>> all_steps();
+// The keys an answers file may hold (glob patterns; * is a camera name).
+std::vector<std::string> answer_keys();
 
 // steps_setup.cpp
 std::unique_ptr<Step> robot_step();

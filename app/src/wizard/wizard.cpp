@@ -20,6 +20,43 @@ void say_check(const WizardContext& ctx, bool ok, const std::string& text,
   std::fflush(ctx.out);
 }
 
+// Every key a step asks (steps_*.cpp, live_views.cpp), so that an answers file's key that no
+// question asks is refused before the first step. A new question adds its key here.
+std::vector<std::string> answer_keys() {
+  return {"robot.model",
+          "controller.steps_per_mm",
+          "controller.steps_per_degree",
+          "controller.link",
+          "controller.home",
+          "controller.problem",
+          "cameras.list",
+          "cameras.target",
+          "cameras.size",
+          "cameras.problem",
+          "cell.file",
+          "intrinsics.board",
+          "intrinsics.problem",
+          "intrinsics.*",
+          "intrinsics.*.view",
+          "plan.count",
+          "plan.pool",
+          "plan.problem",
+          "safety.speed",
+          "safety.acceleration",
+          "safety.confirm",
+          "safety.problem",
+          "collection.speed",
+          "collection.continue",
+          "identify.views",
+          "identify.rig_view",
+          "validate.holdout_every",
+          "validate.problem",
+          "export.format",
+          "export.problem",
+          "export.gcode",
+          "export.gcode_problem"};
+}
+
 std::vector<std::unique_ptr<Step>> all_steps() {
   std::vector<std::unique_ptr<Step>> s;
   s.push_back(robot_step());
@@ -56,11 +93,16 @@ WizardState start_state(const WizardOptions& o) {
 
 int run_wizard(const WizardOptions& o) {
   std::FILE* out = stdout;
+  // The answers are checked before the folder is made or resumed: a refused file changes nothing.
+  std::map<std::string, std::string> answers;
+  if (!o.answers.empty()) {
+    answers = load_answers(o.answers);
+    reject_unknown_answers(answers, o.answers, answer_keys());
+  }
   WizardState state = start_state(o);
   state.folder = fs::absolute(state.folder);
   const bool interactive = ::isatty(STDIN_FILENO) != 0;
-  Prompter ask(o.answers.empty() ? std::map<std::string, std::string>{} : load_answers(o.answers),
-               interactive, o.accept_defaults, out);
+  Prompter ask(std::move(answers), interactive, o.accept_defaults, out);
   WizardContext ctx{ask, state, out};
   const auto steps = all_steps();
   const std::string resume_hint = fmt::format("robocal wizard --resume {}", state.folder.string());

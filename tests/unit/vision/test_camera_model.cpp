@@ -218,7 +218,8 @@ TEST(CameraFile, ErrorsNameFileAndLine) {
   EXPECT_EQ(error_of(head + "fy: 500\ncx: 320\ncy: 240\ndistortion: [0,0,0,0,0]\n"),
             "cam.yaml:1: missing required key 'fx'");
   EXPECT_EQ(error_of(head + "fx: 1\nfy: 1\ncx: 1\ncy: 1\ndistortion: [0,0,0,0,0]\nfz: 3\n"),
-            "cam.yaml:9: unknown key 'fz'");
+            "cam.yaml:9: unknown key 'fz' (allowed: model, width, height, fx, fy, cx, cy, "
+            "distortion, pixel_convention, name, calibration)");
   EXPECT_NE(error_of("model: [pinhole\n").find("cam.yaml:"), std::string::npos);
   EXPECT_EQ(error_of(""), "cam.yaml: a camera file must be a YAML mapping (model, width, ...)");
   try {

@@ -219,7 +219,8 @@ TEST(TargetFile, ErrorsNameFileAndLine) {
   EXPECT_EQ(target_error("type: chessboard\ncols: 1\nrows: 4\nsquare_size: 0.04\n"),
             "board.yaml:2: cols must be at least 2 (got 1)");
   EXPECT_EQ(target_error("type: chessboard\ncols: 5\nrows: 4\nsquare: 0.04\n"),
-            "board.yaml:4: unknown key 'square'");
+            "board.yaml:4: unknown key 'square' (allowed: type, name, cols, rows, margin, "
+            "square_size)");
   EXPECT_EQ(target_error("type: circles\n"),
             "board.yaml:1: unknown target type 'circles' (expected apriltag_grid, chessboard or "
             "charuco)");

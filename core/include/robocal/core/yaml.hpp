@@ -41,6 +41,8 @@ struct YamlContext {
   int to_int(const YAML::Node& n, const std::string& key) const;
   std::string to_string(const YAML::Node& n, const std::string& key) const;
   std::vector<double> to_doubles(const YAML::Node& n, const std::string& key) const;
+  // A key of `map` not in `known` fails at its line, naming it and the allowed keys: a
+  // misspelled optional key would otherwise be ignored in silence.
   void reject_unknown_keys(const YAML::Node& map, const std::vector<std::string>& known) const;
 
   // A required value of `map`, converted to T ("missing required key", "has a value of the
