@@ -187,6 +187,17 @@ void run_in_background() {
   (void)::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 19);
 }
 
+// The link a library robot's real controller offers: the printer-style linear delta runs G-code
+// firmware; the UR5 stays on G-code until the Universal Robots interfaces exist; the lab and
+// research robots, which have no standard interface, speak the open link protocol
+// (robotio/OPEN_LINK.md). A robot file outside the library keeps G-code, the link most hobby
+// controllers offer.
+bool speaks_open_link(const std::string& robot_name) {
+  static const std::set<std::string> open = {"rotary_delta", "gantry_tau", "four_bar",
+                                             "modular_arm", "wire_robot_branch"};
+  return open.count(robot_name) > 0;
+}
+
 // The controller's simulated motion time logged since `first` motions (homing left out).
 double motion_seconds_since(const fs::path& log, std::size_t first) {
   const std::vector<double> motions = robotio::simulated_motion_seconds(log);
@@ -223,14 +234,20 @@ int run_live_demo(const LiveDemoOptions& o) {
   // The true robot in its own process: every true parameter given, so its geometry is the
   // offline demo's (its elastic sag is added where the cameras look: SaggingBoard).
   stage(log, "live: start sim-controller");
+  const bool open_link = speaks_open_link(lc.cell.model.name);
   robotio::SimControllerProcess sim(
       robocal_binary(),
       {"--robot", robot_file, "--seed", std::to_string(o.seed), "--perturbation",
-       files.perturbation.string(), "--no-pty", "--log", (setup / "sim-controller.jsonl").string(),
-       "--busy-interval", "1", "--max-seconds", "3600"});
-  say(log, "sim-controller (pid {}): G-code at {}, truth channel at {}\n", sim.pid(), sim.tcp(),
-      sim.pose());
-  report["controller"] = {{"link", sim.tcp()}, {"pid", sim.pid()}};
+       files.perturbation.string(), "--protocol", open_link ? "open" : "gcode", "--no-pty", "--log",
+       (setup / "sim-controller.jsonl").string(), "--busy-interval", "1", "--max-seconds", "3600"});
+  // tcp() is "tcp:HOST:PORT"; the open protocol is served on the same port.
+  const std::string host_port = sim.tcp().substr(sim.tcp().find(':') + 1);
+  const std::string link_address = open_link ? "open:" + host_port : sim.tcp();
+  const std::string link_note =
+      fmt::format("{} at {}", open_link ? "open link" : "G-code", host_port);
+  say(log, "sim-controller (pid {}): {}, truth channel at {}\n", sim.pid(), link_note, sim.pose());
+  report["controller"] = {
+      {"link", link_address}, {"protocol", open_link ? "open" : "gcode"}, {"pid", sim.pid()}};
 
   stage(log, "live: calibration views");
   if (!fs::exists(session / "calibration") && !fs::exists(setup / "calibration" / "done")) {
@@ -298,7 +315,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   co.robot = robot_file;
   co.cell = files.cell.string();
   co.plan = plan_file.string();
-  co.link = sim.tcp();
+  co.link = link_address;
   for (std::size_t c = 0; c < specs.size(); ++c)
     co.cameras.push_back({specs[c].name, cams.source(c)});
   co.speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
@@ -382,6 +399,7 @@ int run_live_demo(const LiveDemoOptions& o) {
                ov.value("waiting_for_check_and_write_s_per_pose", 0.0) * 1e3,
                ov.value("detect_and_check_s_per_pose", 0.0) * 1e3,
                ov.value("write_s_per_pose", 0.0) * 1e3);
+  fmt::print(out, "\n  robot driven through the {}\n", link_note);
   fmt::print(out, "\n  time per stage:\n{}", clock.table());
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& s : clock.stages()) stages[s.name] = s.seconds;
