@@ -13,8 +13,10 @@ namespace robocal::calib {
 
 namespace {
 
-// A value a little beyond 2π (a full turn typed as 6.2832) is still radians.
-constexpr double kMaxPlausibleAngleRad = 2.0 * std::numbers::pi + 0.01;
+// A revolute joint may turn more than a full turn each way (a UR joint's ±2π with its zero offset
+// added, an ABB wrist's ±400°); beyond two full turns a value is degrees. Degrees below 720° that
+// read as radians under two turns (a ±10° limit) are not told apart.
+constexpr double kMaxPlausibleAngleRad = 4.0 * std::numbers::pi;
 
 std::string where(const std::string& source, int line) {
   return line > 0 ? fmt::format("{}:{}", source, line) : source;
@@ -28,10 +30,11 @@ std::string where(const std::string& source, int line) {
 }
 
 [[noreturn]] void refuse_angle(const std::string& at, const std::string& key, double value) {
-  throw RobotFileError(fmt::format(
-      "{}: {} is {:g} rad, beyond ±2π: likely degrees written where the robot file takes "
-      "radians ({:g}° is {:.4g} rad; write deg({:g}))",
-      at, key, value, value, core::radians(value), value));
+  throw RobotFileError(
+      fmt::format("{}: {} is {:g} rad, beyond ±4π (two turns): likely degrees written where the "
+                  "robot file takes "
+                  "radians ({:g}° is {:.4g} rad; write deg({:g}))",
+                  at, key, value, value, core::radians(value), value));
 }
 
 void check_parameters(const Mechanism& m, const std::string& source) {

@@ -15,8 +15,8 @@ inline constexpr double kMaxPlausibleLengthM = 10.0;
 
 // Throws RobotFileError ("<source>:<line>: ...") for the first value whose unit it cannot be in:
 // a length parameter, a prismatic joint's limit or home beyond kMaxPlausibleLengthM; an angle
-// parameter, a revolute joint's limit or home beyond ±2π. The message names the key, the value
-// and the likely cause.
+// parameter, a revolute joint's limit or home beyond ±4π (two turns). The message names the key,
+// the value and the likely cause.
 void check_robot_units(const Mechanism& m, const std::string& source);
 
 }  // namespace robocal::calib
