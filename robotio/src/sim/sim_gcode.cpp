@@ -230,15 +230,7 @@ void SimController::Impl::handle_line(Channel& c, Pending& item) {
 
 // Bytes arrived on a channel: split lines, act on emergency commands at once.
 void SimController::Impl::receive(Channel& c) {
-  char buf[4096];
-  const ssize_t n = ::read(c.fd, buf, sizeof buf);
-  if (n < 0 && (errno == EINTR || errno == EAGAIN)) return;
-  if (n <= 0) {
-    // TCP: the client left. pty: the master never sees EOF while we hold the slave open.
-    close_channel(c, false);
-    return;
-  }
-  c.inbuf.append(buf, static_cast<std::size_t>(n));
+  if (!read_input(c)) return;
   std::size_t eol;
   while ((eol = c.inbuf.find_first_of("\r\n")) != std::string::npos) {
     std::string line = c.inbuf.substr(0, eol);

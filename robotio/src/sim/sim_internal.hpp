@@ -130,6 +130,9 @@ struct SimController::Impl {
   void accept_on(int listen_fd, Channel* channel);
 
   void on_connect(Channel& c);
+  // Appends the bytes waiting on the channel to its input; false when none came (closed: the
+  // channel is closed too).
+  bool read_input(Channel& c);
   void receive_any(Channel& c);
   void process_any(Channel& c, double now);
 

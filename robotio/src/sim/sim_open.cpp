@@ -83,14 +83,7 @@ void SimController::Impl::open_stop(Channel& c, const std::string& kind) {
 }
 
 void SimController::Impl::open_receive(Channel& c) {
-  char buf[4096];
-  const ssize_t n = ::read(c.fd, buf, sizeof buf);
-  if (n < 0 && (errno == EINTR || errno == EAGAIN)) return;
-  if (n <= 0) {
-    close_channel(c, false);
-    return;
-  }
-  c.inbuf.append(buf, static_cast<std::size_t>(n));
+  if (!read_input(c)) return;
   std::size_t eol;
   while (c.open() && (eol = c.inbuf.find('\n')) != std::string::npos) {
     std::string line = c.inbuf.substr(0, eol);

@@ -204,6 +204,19 @@ void SimController::Impl::on_connect(Channel& c) {
   write_log({{"ev", "connect"}, {"ch", c.name}});
 }
 
+bool SimController::Impl::read_input(Channel& c) {
+  char buf[4096];
+  const ssize_t n = ::read(c.fd, buf, sizeof buf);
+  if (n < 0 && (errno == EINTR || errno == EAGAIN)) return false;
+  if (n <= 0) {
+    // TCP: the client left. pty: the master never sees EOF while we hold the slave open.
+    close_channel(c, false);
+    return false;
+  }
+  c.inbuf.append(buf, static_cast<std::size_t>(n));
+  return true;
+}
+
 void SimController::Impl::receive_any(Channel& c) {
   if (options.protocol == SimProtocol::kOpen) {
     open_receive(c);
