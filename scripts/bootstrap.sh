@@ -50,6 +50,9 @@ if [ "$with_tests" -eq 1 ]; then
     iproute2
     # CI's format and static checks (scripts/check-format.sh, scripts/tidy.sh list files by git)
     clang-format clang-tidy git
+    # the open link's reference adapter (robotio/adapters, Python standard library) is run
+    # against link-check
+    python3
   )
 fi
 
