@@ -39,10 +39,9 @@ struct SimulateOptions {
   int poses = 60;
   // Calibration views: the intrinsics' error sets the rig frame itself (camera 0's), which every
   // measured pose inherits (a focal length 0.04 px off scales depth by 25 ppm: 30 µm at the
-  // working volume), and the rig's baseline scales every stereo depth. 24 views per camera left
-  // 0.02-0.10 px against the truth, 48 about half, which still put the measured board positions
-  // 20-45 µm off, nearly the same offset at every pose (app/SESSION.md, error budget); 96 views
-  // and 24 rig views bring that offset to 12-22 µm (seeds 1-3) for about 20 s more.
+  // working volume), and the rig's baseline scales every stereo depth. With 96 views per camera
+  // and 24 rig views the measured board positions share an offset of 12-22 µm from the truth
+  // (seeds 1-3; app/SESSION.md, error budget); half as many views leave it near twice that.
   int intrinsic_views = 96;  // per camera
   int rig_views = 24;
   bool quick = false;  // 1280x960 images (CI)
