@@ -1,4 +1,4 @@
-#include "corner_noise.hpp"
+#include "fit/corner_noise.hpp"
 
 #include <Eigen/Cholesky>
 

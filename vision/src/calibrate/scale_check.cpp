@@ -1,6 +1,6 @@
 #include "robocal/vision/scale_check.hpp"
 
-#include "rig_internal.hpp"
+#include "fit/board_pose.hpp"
 
 #include <fmt/format.h>
 #include <Eigen/Dense>

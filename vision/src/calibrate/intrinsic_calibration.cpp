@@ -15,7 +15,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
-#include "corner_noise.hpp"
+#include "fit/corner_noise.hpp"
 #include "robocal/vision/pose.hpp"
 
 namespace robocal::vision {

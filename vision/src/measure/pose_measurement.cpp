@@ -1,7 +1,7 @@
 #include "robocal/vision/pose_measurement.hpp"
 
-#include "corner_noise.hpp"
-#include "rig_internal.hpp"
+#include "fit/board_pose.hpp"
+#include "fit/corner_noise.hpp"
 
 #include <ceres/ceres.h>
 #include <fmt/format.h>

@@ -1,8 +1,8 @@
 #include "robocal/vision/render_io.hpp"
 
+#include "models/yaml_util.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/pose.hpp"
-#include "yaml_util.hpp"
 
 #include <nlohmann/json.hpp>
 

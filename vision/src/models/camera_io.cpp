@@ -1,6 +1,6 @@
 #include "robocal/vision/camera_io.hpp"
 
-#include "yaml_util.hpp"
+#include "models/yaml_util.hpp"
 
 #include <sstream>
 

@@ -1,6 +1,6 @@
 #include "robocal/vision/target_io.hpp"
 
-#include "yaml_util.hpp"
+#include "models/yaml_util.hpp"
 
 #include <cstdio>
 #include <sstream>

@@ -1,4 +1,4 @@
-#include "rig_internal.hpp"
+#include "fit/board_pose.hpp"
 
 #include <opencv2/calib3d.hpp>
 
