@@ -9,6 +9,12 @@
 # Inside app, each folder of app/src lists the folders it may include (ARCHITECTURE.md,
 # "app/src: the product's shape"); a folder with no rule fails the check, so a new folder gets
 # its arrows when it is made.
+#
+# Inside vision the same holds for the rooms of vision/src (ARCHITECTURE.md, "vision/src"): a
+# room includes its own headers and those of the rooms it lists. A room's internal header is
+# included by room ("fit/corner_noise.hpp"); a public header robocal/vision/X.hpp belongs to the
+# room that holds X.cpp, and the public headers with no source of their own (camera_models.hpp,
+# observations.hpp, errors.hpp: the types every room speaks) to models/.
 cmake_minimum_required(VERSION 3.25)
 if(NOT ROOT)
   message(FATAL_ERROR "pass -DROOT=<source dir>")
@@ -46,7 +52,84 @@ set(app_allowed_live "cli;session;simcell;stages;summary")
 set(app_allowed_wizard "cli;live;session;stages;summary")
 set(app_allowed_commands "batch;cli;live;session;simcell;stages;summary;wizard")
 
+# vision/src room -> vision/src rooms it may include (besides itself). detect/ sits above
+# calibrate/: it hands its detections to the intrinsic calibration (to_calibration_view, the
+# image-folder pipeline); calibrate/ reads measure/'s pose measurements (hand-eye).
+set(vision_allowed_models "")
+set(vision_allowed_fit "models")
+set(vision_allowed_render "models")
+set(vision_allowed_measure "fit;models")
+set(vision_allowed_calibrate "fit;measure;models")
+set(vision_allowed_detect "calibrate;models")
+
 set(violations "")
+
+# The rooms of vision/src, and the room of every source file by its name (for public headers).
+file(GLOB vision_entries LIST_DIRECTORIES true RELATIVE "${ROOT}/vision/src" "${ROOT}/vision/src/*")
+set(vision_rooms "")
+foreach(entry IN LISTS vision_entries)
+  if(IS_DIRECTORY "${ROOT}/vision/src/${entry}")
+    list(APPEND vision_rooms "${entry}")
+    if(NOT DEFINED vision_allowed_${entry})
+      list(APPEND violations "vision/src/${entry}: a room with no arrows (add its rule here and in ARCHITECTURE.md)")
+    endif()
+    file(GLOB room_sources RELATIVE "${ROOT}/vision/src/${entry}" "${ROOT}/vision/src/${entry}/*.cpp")
+    foreach(room_source IN LISTS room_sources)
+      string(REGEX REPLACE "\\.cpp$" "" stem "${room_source}")
+      set(vision_room_of_${stem} "${entry}")
+    endforeach()
+  endif()
+endforeach()
+
+# The room a vision file belongs to ("" when it is in none: not checked).
+function(vision_room_of_file source out)
+  file(RELATIVE_PATH rel "${ROOT}/vision" "${source}")
+  set(room "")
+  if(rel MATCHES "^src/([a-z_]+)/")
+    set(room "${CMAKE_MATCH_1}")
+  elseif(rel MATCHES "^include/robocal/vision/([a-z_0-9]+)\\.hpp$")
+    set(room "${vision_room_of_${CMAKE_MATCH_1}}")
+    if(room STREQUAL "" AND NOT EXISTS "${ROOT}/vision/src/${CMAKE_MATCH_1}.cpp")
+      set(room "models")
+    endif()
+  endif()
+  set(${out} "${room}" PARENT_SCOPE)
+endfunction()
+
+# The room an include of a vision file reaches ("" for the same folder or outside vision).
+function(vision_room_of_include header out)
+  set(room "")
+  if(header MATCHES "^robocal/vision/([a-z_0-9]+)\\.hpp$")
+    set(room "${vision_room_of_${CMAKE_MATCH_1}}")
+    if(room STREQUAL "" AND NOT EXISTS "${ROOT}/vision/src/${CMAKE_MATCH_1}.cpp")
+      set(room "models")
+    endif()
+  elseif(header MATCHES "^([a-z_]+)/")
+    if(CMAKE_MATCH_1 IN_LIST vision_rooms)
+      set(room "${CMAKE_MATCH_1}")
+    endif()
+  endif()
+  set(${out} "${room}" PARENT_SCOPE)
+endfunction()
+
+file(GLOB_RECURSE vision_files "${ROOT}/vision/*.hpp" "${ROOT}/vision/*.cpp")
+foreach(source IN LISTS vision_files)
+  vision_room_of_file("${source}" from_room)
+  if(from_room STREQUAL "")
+    continue()
+  endif()
+  file(STRINGS "${source}" lines REGEX "^[ \t]*#[ \t]*include[ \t]*[<\"]")
+  foreach(line IN LISTS lines)
+    string(REGEX MATCH "[<\"]([^>\"]+)[>\"]" _ "${line}")
+    vision_room_of_include("${CMAKE_MATCH_1}" to_room)
+    if(NOT to_room STREQUAL "" AND NOT to_room STREQUAL from_room
+       AND NOT to_room IN_LIST vision_allowed_${from_room})
+      file(RELATIVE_PATH rel "${ROOT}" "${source}")
+      list(APPEND violations "${rel}: ${from_room}/ includes <${CMAKE_MATCH_1}> (${to_room}/)")
+    endif()
+  endforeach()
+endforeach()
+
 file(GLOB app_entries LIST_DIRECTORIES true RELATIVE "${ROOT}/app/src" "${ROOT}/app/src/*")
 set(app_folders "")
 foreach(entry IN LISTS app_entries)
@@ -119,4 +202,4 @@ if(violations)
   list(JOIN violations "\n  " text)
   message(FATAL_ERROR "includes against the arrows of ARCHITECTURE.md:\n  ${text}")
 endif()
-message(STATUS "include arrows: every part includes only the parts it may use")
+message(STATUS "include arrows: every part, app folder and vision room includes only what it may use")
