@@ -247,6 +247,9 @@ CommandSpec sim_controller_command() {
                 ->check(CLI::Range(0.0, 1.0));
             cmd.add_flag("--ur-protective-stop", o->ur.protective_stop,
                          "ur: start in a protective stop");
+            cmd.add_option("--ur-unknown-output", o->ur.unknown_outputs,
+                           "ur: an RTDE output this controller's software predates (answered "
+                           "NOT_FOUND); repeatable");
             cmd.add_option("--ur-unlock-delay", o->ur.unlock_delay,
                            "ur: seconds after a protective stop before it may be unlocked")
                 ->check(CLI::Range(0.0, 60.0));

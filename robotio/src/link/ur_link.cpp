@@ -368,7 +368,9 @@ void UrLink::check_dashboard_state() {
           "the UR is in a protective stop: inspect its cause, then unlock it on the pendant (or "
           "let robocal unlock it after you confirm)",
           safety);
-    unlock_protective_stop();
+    // Unlocked before the first move (require_motion_allowed), which the guard passed only once
+    // the operator confirmed: connecting alone never releases a stop.
+    status_.last_error = "in a protective stop: unlocked before the first move, as allowed";
   } else if (status != "NORMAL" && status != "REDUCED") {
     fail(fmt::format("the UR's safety status is {}: clear it on the pendant", status), safety);
   }

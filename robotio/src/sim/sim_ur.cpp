@@ -207,8 +207,11 @@ void SimController::Impl::ur_rtde_package(Channel& c, std::uint8_t type,
       ur.names = r.names;
       ur.types.clear();
       bool all_known = r.frequency >= 1.0 && r.frequency <= options.ur.max_frequency;
+      const auto& predated = options.ur.unknown_outputs;
       for (const std::string& n : r.names) {
-        const auto found = output_types().find(n);
+        auto found = output_types().find(n);
+        if (std::find(predated.begin(), predated.end(), n) != predated.end())
+          found = output_types().end();
         ur.types.push_back(found == output_types().end() ? "NOT_FOUND" : found->second);
         all_known = all_known && found != output_types().end();
       }

@@ -293,9 +293,15 @@ TEST_F(UrLinkTest, ArmInProtectiveStopIsRefusedAtConnectNamingWhatTheDashboardSa
 TEST_F(UrLinkTest, ProtectiveStopIsUnlockedOnlyWhenTheOperatorAllowedIt) {
   start({"--ur-protective-stop", "--ur-unlock-delay", "0.5"});
   auto l = link(/*unlock=*/true);
-  l->connect();  // refused for the first 0.5 s with the controller's own words, then released
-  EXPECT_EQ(events(log(), "unlock_protective_stop").size(), 1u);
+  l->connect();
+  EXPECT_TRUE(events(log(), "unlock_protective_stop").empty()) << "connecting never unlocks";
+  guard_->disarm();
+  EXPECT_THROW(l->move_actuators(targets(1, 4)[0], kSpeed), MotionRefused);
+  EXPECT_TRUE(events(log(), "unlock_protective_stop").empty()) << "nor does a refused move";
+  guard_->arm("test: the operator confirmed");
+  // Refused for the first 0.5 s with the controller's own words, then released.
   EXPECT_TRUE(l->move_actuators(targets(1, 4)[0], kSpeed).confirmed);
+  EXPECT_EQ(events(log(), "unlock_protective_stop").size(), 1u);
 }
 
 TEST_F(UrLinkTest, RemoteControlOffIsRefusedAndNothingIsSent) {
@@ -323,6 +329,27 @@ TEST_F(UrLinkTest, SpeedSliderBelowFullIsRefusedBeforeTheMovej) {
   }
   EXPECT_EQ(scripts("movej"), 0);
   EXPECT_TRUE(events(log(), "motion_start").empty());
+}
+
+TEST_F(UrLinkTest, RecipeFieldTheControllerDoesNotKnowIsRefusedByName) {
+  start({"--ur-unknown-output", "target_speed_fraction"});
+  auto l = link();
+  try {
+    l->connect();
+    FAIL() << "a recipe with a NOT_FOUND field must be refused";
+  } catch (const LinkError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("does not know the output 'target_speed_fraction' (NOT_FOUND)"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("URControl 5.11.0.108"), std::string::npos) << what;
+  }
+  EXPECT_EQ(scripts("movej"), 0);
+  // The simulator answered the recipe and was never asked to stream.
+  int starts = 0;
+  for (const auto& rx : events(log(), "rx"))
+    if (rx.value("ch", "") == "rtde" && rx.value("type", "") == "S") ++starts;
+  EXPECT_EQ(starts, 0);
 }
 
 TEST_F(UrLinkTest, NothingMovesUnconfirmed) {

@@ -19,6 +19,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace robocal::robotio {
 
@@ -79,6 +80,8 @@ struct SimUrOptions {
   bool protective_stop = false;  // start in a protective stop
   double unlock_delay = 5.0;     // s after a protective stop before it may be unlocked
   double max_frequency = 500.0;  // RTDE output frequency limit (e-Series)
+  // Outputs this controller's software predates: answered NOT_FOUND like any unknown name.
+  std::vector<std::string> unknown_outputs;
 };
 
 struct SimOptions {

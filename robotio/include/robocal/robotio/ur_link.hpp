@@ -71,7 +71,8 @@ struct UrLinkOptions {
   int settle_packages = 3;         // data packages in a row that must be settled
   double stop_deceleration = 2.0;  // rad/s^2 of stopj
   // The operator confirmed that a protective stop may be unlocked from here (after inspecting
-  // its cause). Without it a protective stop is refused.
+  // its cause). Without it a protective stop is refused. With it, the unlock happens only before
+  // a move the guard passed (never on connect).
   bool unlock_protective_stop = false;
 };
 
