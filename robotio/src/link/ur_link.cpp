@@ -491,6 +491,7 @@ void UrLink::stop_for(const std::string& why) {
 
 void UrLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
   status_.state = LinkState::kMoving;
+  settled_state_ = false;
   target_si_ = to_si(target);
   (void)fresh_state();
   require_motion_allowed();
@@ -599,13 +600,16 @@ void UrLink::do_wait_settled(milliseconds timeout) {
     send_script(last_script_);
     start_deadline = start_window();
   }
-  pause_stream();
   status_.state = LinkState::kIdle;
+  settled_state_ = true;
 }
 
+// Right after a settle the last package is the reading: the arm has been at rest for
+// settle_packages packages, so waiting for one more would only add a period.
 ActuatorReadings UrLink::do_read() {
   ActuatorReadings r;
-  r.values = fresh_state().actual_q.cwiseQuotient(scale_);
+  r.values = (settled_state_ ? state_ : fresh_state()).actual_q.cwiseQuotient(scale_);
+  settled_state_ = false;
   pause_stream();
   return r;
 }

@@ -135,6 +135,7 @@ class UrLink final : public RobotLink {
   UrState state_;
   int settled_run_ = 0;
   bool move_started_ = false;
+  bool settled_state_ = false;  // state_ is the settle's last package, not yet read
   Eigen::VectorXd scale_;  // SI joint units per reading (the robot file's nominal encoder scale)
   Eigen::VectorXd target_si_;
   std::string last_script_;
