@@ -252,18 +252,24 @@ nlohmann::json overheads(int moves, unsigned seed, const fs::path& dir) {
     j["robot"] = "linear_delta";
     out.push_back(j);
   }
+  // The UR at CB3's RTDE rate (125 Hz) and e-Series' (500 Hz): the settle's dwell is
+  // settle_packages packages, so its share of the overhead scales with the period.
   const calib::Mechanism arm = ur5();
-  robotio::SafetyGuard guard(arm, arm.nominal_parameters(), ur5_limits());
-  guard.arm("bench");
-  const std::string log = (dir / "overhead_ur.jsonl").string();
-  robotio::SimControllerProcess sim(ROBOCAL_BINARY, ur_sim_args(log, {}));
-  robotio::UrLink link(guard, ur_options(sim.ur(), false));
-  link.connect();
-  nlohmann::json j = overhead_of(link, ur5_targets(arm, moves, seed + 200), kUrSpeed, sim, log);
-  j["link"] = "ur";
-  j["robot"] = "ur5";
-  j["rtde_frequency_hz"] = 125.0;
-  out.push_back(j);
+  for (const double hz : {125.0, 500.0}) {
+    robotio::SafetyGuard guard(arm, arm.nominal_parameters(), ur5_limits());
+    guard.arm("bench");
+    const std::string log = (dir / fmt::format("overhead_ur_{}hz.jsonl", hz)).string();
+    robotio::SimControllerProcess sim(ROBOCAL_BINARY, ur_sim_args(log, {}));
+    robotio::UrLinkOptions o = ur_options(sim.ur(), false);
+    o.frequency = hz;
+    robotio::UrLink link(guard, o);
+    link.connect();
+    nlohmann::json j = overhead_of(link, ur5_targets(arm, moves, seed + 200), kUrSpeed, sim, log);
+    j["link"] = "ur";
+    j["robot"] = "ur5";
+    j["rtde_frequency_hz"] = hz;
+    out.push_back(j);
+  }
   return out;
 }
 
