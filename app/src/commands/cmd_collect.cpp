@@ -125,6 +125,9 @@ CommandSpec collect_command() {
             ->check(CLI::Range(0.05, 60.0));
         cmd.add_flag("--accept-unknown-firmware", o.accept_unknown_firmware,
                      "Talk to a controller whose firmware is neither Marlin nor RepRapFirmware");
+        cmd.add_flag("--unlock-protective-stop", o.unlock_protective_stop,
+                     "UR link: unlock a protective stop through the dashboard server before the "
+                     "next move (the start confirmation says so; inspect each stop's cause)");
         cmd.add_option("--camera", a->cameras,
                        "NAME=SOURCE per cell camera: aravis:ID|SERIAL|IP or v4l2:/dev/videoN");
         cmd.add_flag("--list-cameras", a->list_cameras, "List the cameras found and exit");

@@ -57,6 +57,8 @@ struct SimCliOptions {
   double slow_ms = 250.0;
   double max_seconds = 0.0;
   bool exit_with_parent = false;
+  robotio::SimUrOptions ur;
+  bool ur_remote_off = false;
 };
 
 robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
@@ -121,13 +123,17 @@ int run_sim_controller(const SimCliOptions& o) {
     s.protocol = robotio::SimProtocol::kOpen;
     if (std::sscanf(o.open_version.c_str(), "%d.%d", &s.open_major, &s.open_minor) != 2)
       throw InputError("--open-version must be MAJOR.MINOR, got '" + o.open_version + "'");
+  } else if (o.protocol == "ur") {
+    s.protocol = robotio::SimProtocol::kUr;
+    s.ur = o.ur;
+    s.ur.remote_control = !o.ur_remote_off;
   } else if (o.protocol != "gcode") {
-    throw InputError("--protocol must be gcode or open, got '" + o.protocol + "'");
+    throw InputError("--protocol must be gcode, open or ur, got '" + o.protocol + "'");
   }
   s.firmware_name = o.firmware_name;
   s.mute = o.mute;
   s.tcp_port = o.tcp_port;
-  // The open link protocol is served on TCP only (robotio/OPEN_LINK.md).
+  // The open link protocol and the UR's ports are TCP only.
   s.pty = s.protocol == robotio::SimProtocol::kGcode && !o.no_pty;
   s.pty_link = o.pty_link;
   s.pose_port = o.pose_port;
@@ -161,6 +167,8 @@ int run_sim_controller(const SimCliOptions& o) {
   const std::string speaks =
       s.protocol == robotio::SimProtocol::kOpen
           ? fmt::format("open link protocol {}.{}", s.open_major, s.open_minor)
+      : s.protocol == robotio::SimProtocol::kUr
+          ? std::string("Universal Robots (RTDE, secondary interface, dashboard server)")
           : fmt::format("{} dialect", robotio::to_string(s.dialect));
   fmt::print("robocal sim-controller: {}, robot {} (axes {}), truth {}\n", speaks, robot_name,
              letters,
@@ -169,6 +177,7 @@ int run_sim_controller(const SimCliOptions& o) {
   if (!sim.pty_path().empty()) fmt::print("pty {}\n", sim.pty_path());
   if (!o.pty_link.empty()) fmt::print("pty-link {}\n", o.pty_link);
   if (!sim.pose_address().empty()) fmt::print("pose {}\n", sim.pose_address());
+  if (!sim.ur_address().empty()) fmt::print("ur {}\n", sim.ur_address());
   if (!o.log.empty()) fmt::print("log {}\n", o.log);
   fmt::print("ready\n");
   std::fflush(stdout);
@@ -207,6 +216,11 @@ CommandSpec sim_controller_command() {
                 "partial; --fault-script FILE for '<command index> <kind>' lines.\n"
                 "--protocol open serves the open link protocol (JSON lines, robotio/OPEN_LINK.md)\n"
                 "on the TCP port instead; its faults: drop busy error stall lost_ok slow garbage.\n"
+                "--protocol ur serves a Universal Robots controller: RTDE on the TCP port,\n"
+                "URScript (movej, stopj) on --secondary-port, the dashboard server on\n"
+                "--dashboard-port, announced as 'ur ur:127.0.0.1:RTDE:SECONDARY:DASHBOARD' (a\n"
+                "--link address); its faults (on movej): drop error stall slow (late RTDE\n"
+                "packages) missing (RTDE packages not sent) pstop (a protective stop).\n"
                 "Stops on Ctrl-C or SIGTERM. Exit codes: 0 ok, 2 bad command line, 3 bad input.");
             cmd.add_option("--robot", o->robot, "Robot file or library robot name")->required();
             cmd.add_option("--seed", o->seed,
@@ -216,9 +230,29 @@ CommandSpec sim_controller_command() {
             cmd.add_option("--length-sigma", o->length_sigma, "Perturbation of lengths, m");
             cmd.add_option("--angle-sigma", o->angle_sigma_deg, "Perturbation of angles, deg");
             cmd.add_option("--protocol", o->protocol,
-                           "gcode (TCP and pty) or open (the open link protocol, "
-                           "robotio/OPEN_LINK.md, TCP only)")
-                ->check(CLI::IsMember({"gcode", "open"}));
+                           "gcode (TCP and pty), open (the open link protocol, "
+                           "robotio/OPEN_LINK.md, TCP only) or ur (Universal Robots: RTDE, "
+                           "secondary interface, dashboard server)")
+                ->check(CLI::IsMember({"gcode", "open", "ur"}));
+            cmd.add_option("--secondary-port", o->ur.secondary_port,
+                           "ur: URScript port (0 = any free; 30002 on a real UR)")
+                ->check(CLI::Range(0, 65535));
+            cmd.add_option("--dashboard-port", o->ur.dashboard_port,
+                           "ur: dashboard server port (0 = any free; 29999 on a real UR)")
+                ->check(CLI::Range(0, 65535));
+            cmd.add_flag("--ur-remote-off", o->ur_remote_off,
+                         "ur: the pendant is in local control (URScript is ignored)");
+            cmd.add_option("--ur-speed-slider", o->ur.speed_fraction,
+                           "ur: the pendant's speed slider, 0..1")
+                ->check(CLI::Range(0.0, 1.0));
+            cmd.add_flag("--ur-protective-stop", o->ur.protective_stop,
+                         "ur: start in a protective stop");
+            cmd.add_option("--ur-unknown-output", o->ur.unknown_outputs,
+                           "ur: an RTDE output this controller's software predates (answered "
+                           "NOT_FOUND); repeatable");
+            cmd.add_option("--ur-unlock-delay", o->ur.unlock_delay,
+                           "ur: seconds after a protective stop before it may be unlocked")
+                ->check(CLI::Range(0.0, 60.0));
             cmd.add_option("--open-version", o->open_version,
                            "Open protocol version the controller speaks (MAJOR.MINOR)");
             cmd.add_option("--firmware", o->firmware, "marlin or rrf")

@@ -260,6 +260,10 @@ std::int64_t continue_session(const CollectOptions& o, const CollectInputs& in) 
 bool operator_confirms(const CollectOptions& o, std::FILE* out) {
   if (o.yes) return true;
   if (::isatty(STDIN_FILENO) == 0) return false;  // nobody to ask: never move unconfirmed
+  if (o.unlock_protective_stop)
+    fmt::print(out,
+               "A protective stop of the UR will be unlocked from here before the next move: "
+               "inspect the cause of each one on the robot first.\n");
   fmt::print(out, "Type yes to start moving the robot (anything else cancels): ");
   std::fflush(out);
   std::string answer;
@@ -443,7 +447,9 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   lo.axes = robotio::axes_for_robot(in.model, o.steps_per_mm, o.steps_per_degree);
   lo.reply_timeout = std::chrono::milliseconds(static_cast<long>(o.reply_timeout_s * 1000));
   lo.accept_unknown_firmware = o.accept_unknown_firmware;
-  // The address names the protocol: open:HOST:PORT is the open link, anything else G-code.
+  lo.unlock_protective_stop = o.unlock_protective_stop;
+  // The address names the protocol: open:HOST:PORT is the open link, ur:HOST a Universal Robots
+  // controller, manual the operator, anything else G-code.
   const std::unique_ptr<robotio::RobotLink> link_owner = robotio::make_robot_link(guard, lo);
   robotio::RobotLink& link = *link_owner;
   try {

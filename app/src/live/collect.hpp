@@ -42,6 +42,9 @@ struct CollectOptions {
   double steps_per_degree = 100.0;  // steps per degree (revolute actuators)
   double reply_timeout_s = 2.0;
   bool accept_unknown_firmware = false;
+  // A Universal Robots link may unlock a protective stop through the dashboard server: only
+  // after the start confirmation (which names it), and only before a move the guard passed.
+  bool unlock_protective_stop = false;
   std::vector<CollectCamera> cameras;
   double speed = 0.02;        // actuator units/s (m/s prismatic, rad/s revolute)
   double acceleration = 0.5;  // actuator units/s^2

@@ -187,15 +187,23 @@ void run_in_background() {
   (void)::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 19);
 }
 
-// The link a library robot's real controller offers: the printer-style linear delta runs G-code
-// firmware; the UR5 stays on G-code until the Universal Robots interfaces exist; the lab and
-// research robots, which have no standard interface, speak the open link protocol
-// (robotio/OPEN_LINK.md). A robot file outside the library keeps G-code, the link most hobby
-// controllers offer.
-bool speaks_open_link(const std::string& robot_name) {
+// The link a library robot's real controller offers: the UR5 is driven through the Universal
+// Robots interfaces (RTDE, URScript, dashboard); the printer-style linear delta runs G-code
+// firmware; the lab and research robots, which have no standard interface, speak the open link
+// protocol (robotio/OPEN_LINK.md). A robot file outside the library keeps G-code, the link most
+// hobby controllers offer.
+std::string natural_protocol(const std::string& robot_name) {
   static const std::set<std::string> open = {"rotary_delta", "gantry_tau", "four_bar",
                                              "modular_arm", "wire_robot_branch"};
-  return open.count(robot_name) > 0;
+  if (robot_name == "ur5") return "ur";
+  return open.count(robot_name) > 0 ? "open" : "gcode";
+}
+
+// The --link address of the simulator's protocol.
+std::string link_address_of(const robotio::SimControllerProcess& sim, const std::string& protocol) {
+  if (protocol == "ur") return sim.ur();
+  // tcp() is "tcp:HOST:PORT"; the open protocol is served on the same port.
+  return protocol == "open" ? "open:" + sim.tcp().substr(4) : sim.tcp();
 }
 
 // The controller's simulated motion time logged since `first` motions (homing left out).
@@ -234,20 +242,22 @@ int run_live_demo(const LiveDemoOptions& o) {
   // The true robot in its own process: every true parameter given, so its geometry is the
   // offline demo's (its elastic sag is added where the cameras look: SaggingBoard).
   stage(log, "live: start sim-controller");
-  const bool open_link = speaks_open_link(lc.cell.model.name);
+  const std::string protocol = natural_protocol(lc.cell.model.name);
   robotio::SimControllerProcess sim(
       robocal_binary(),
       {"--robot", robot_file, "--seed", std::to_string(o.seed), "--perturbation",
-       files.perturbation.string(), "--protocol", open_link ? "open" : "gcode", "--no-pty", "--log",
+       files.perturbation.string(), "--protocol", protocol, "--no-pty", "--log",
        (setup / "sim-controller.jsonl").string(), "--busy-interval", "1", "--max-seconds", "3600"});
-  // tcp() is "tcp:HOST:PORT"; the open protocol is served on the same port.
-  const std::string host_port = sim.tcp().substr(sim.tcp().find(':') + 1);
-  const std::string link_address = open_link ? "open:" + host_port : sim.tcp();
-  const std::string link_note =
-      fmt::format("{} at {}", open_link ? "open link" : "G-code", host_port);
+  const std::string link_address = link_address_of(sim, protocol);
+  // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D" (the address after the
+  // protocol's prefix).
+  const std::string link_note = fmt::format("{} at {}",
+                                            protocol == "ur"     ? "Universal Robots link"
+                                            : protocol == "open" ? "open link"
+                                                                 : "G-code",
+                                            link_address.substr(link_address.find(':') + 1));
   say(log, "sim-controller (pid {}): {}, truth channel at {}\n", sim.pid(), link_note, sim.pose());
-  report["controller"] = {
-      {"link", link_address}, {"protocol", open_link ? "open" : "gcode"}, {"pid", sim.pid()}};
+  report["controller"] = {{"link", link_address}, {"protocol", protocol}, {"pid", sim.pid()}};
 
   stage(log, "live: calibration views");
   if (!fs::exists(session / "calibration") && !fs::exists(setup / "calibration" / "done")) {

@@ -2,6 +2,7 @@
 
 #include "robocal/robotio/manual_link.hpp"
 #include "robocal/robotio/open_link.hpp"
+#include "robocal/robotio/ur_link.hpp"
 
 namespace robocal::robotio {
 
@@ -14,6 +15,14 @@ std::unique_ptr<RobotLink> make_robot_link(SafetyGuard& guard, const GcodeLinkOp
     o.attempts = options.attempts;
     o.reconnect_attempts = options.reconnect_attempts;
     return std::make_unique<OpenLink>(guard, o);
+  }
+  if (is_ur_link_address(options.address)) {
+    UrLinkOptions o;
+    o.address = options.address;
+    o.reply_timeout = options.reply_timeout;
+    o.reconnect_attempts = options.reconnect_attempts;
+    o.unlock_protective_stop = options.unlock_protective_stop;
+    return std::make_unique<UrLink>(guard, o);
   }
   return std::make_unique<GcodeLink>(guard, options);
 }

@@ -66,6 +66,7 @@ SimControllerProcess::SimControllerProcess(const std::string& robocal,
       if (line.rfind("pty ", 0) == 0) pty_ = line.substr(4);
       if (line.rfind("pty-link ", 0) == 0) pty_ = line.substr(9);  // survives a re-plug
       if (line.rfind("pose ", 0) == 0) pose_ = line.substr(5);
+      if (line.rfind("ur ", 0) == 0) ur_ = line.substr(3);
       if (line == "ready") return;
     }
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(

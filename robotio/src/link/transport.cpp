@@ -77,8 +77,11 @@ void FdTransport::close() {
 }
 
 void FdTransport::write_line(const std::string& line) {
+  write_bytes(line + "\n");
+}
+
+void FdTransport::write_bytes(const std::string& data) {
   if (fd_ < 0) throw LinkError(device(), "not connected");
-  const std::string data = line + "\n";
   std::size_t sent = 0;
   while (sent < data.size()) {
     const ssize_t n = ::write(fd_, data.data() + sent, data.size() - sent);
@@ -133,6 +136,28 @@ std::optional<std::string> FdTransport::read_line(Clock::time_point deadline) {
       throw LinkError(device(), "no line end in 64 KiB of data (wrong baud rate or protocol?)",
                       head);
     }
+  }
+}
+
+std::optional<std::string> FdTransport::read_some(Clock::time_point deadline) {
+  if (!buffer_.empty()) return std::exchange(buffer_, std::string());
+  for (;;) {
+    if (fd_ < 0) throw LinkError(device(), "not connected");
+    pollfd p{fd_, POLLIN, 0};
+    const int ready = ::poll(&p, 1, millis_until(deadline));
+    if (ready < 0 && errno == EINTR) {
+      if (Clock::now() >= deadline) return std::nullopt;
+      continue;
+    }
+    if (ready == 0) return std::nullopt;
+    char chunk[8192];
+    const ssize_t n = ::read(fd_, chunk, sizeof chunk);
+    if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+    if (n <= 0) {
+      close();
+      throw LinkError(device(), "connection lost");
+    }
+    return std::string(chunk, static_cast<std::size_t>(n));
   }
 }
 

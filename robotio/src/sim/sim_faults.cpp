@@ -17,7 +17,8 @@ namespace robocal::robotio {
 namespace {
 
 constexpr std::array<const char*, kFaultKindCount> kFaultNames = {
-    "drop", "busy", "error", "stall", "corrupt", "lost_ok", "resend", "slow", "garbage", "partial"};
+    "drop",   "busy", "error",   "stall",   "corrupt", "lost_ok",
+    "resend", "slow", "garbage", "partial", "pstop",   "missing"};
 
 }  // namespace
 
@@ -57,7 +58,7 @@ FaultPlan parse_fault_spec(const std::string& spec) {
     if (!k)
       throw std::invalid_argument("fault '" + kind +
                                   "': unknown kind (drop, busy, error, stall, corrupt, lost_ok, "
-                                  "resend, slow, garbage, partial, all)");
+                                  "resend, slow, garbage, partial, pstop, missing, all)");
     plan.rate[static_cast<std::size_t>(*k)] = rate;
   }
   return plan;
@@ -93,7 +94,10 @@ std::optional<FaultKind> SimController::Impl::draw_fault() {
     f = scripted->second;
   } else {
     std::uniform_real_distribution<double> u(0.0, 1.0);
-    for (std::size_t k = 0; k < kFaultNames.size() && !f; ++k) {
+    // The line protocols draw only their kinds, so their fault sequences stay as they were.
+    const std::size_t kinds =
+        options.protocol == SimProtocol::kUr ? kFaultNames.size() : kLineFaultKindCount;
+    for (std::size_t k = 0; k < kinds && !f; ++k) {
       const double r = u(fault_rng);  // always drawn: the sequence does not depend on hits
       if (r < options.faults.rate[k]) f = static_cast<FaultKind>(k);
     }
@@ -123,6 +127,25 @@ std::optional<FaultKind> SimController::Impl::open_roll_fault(const std::string&
     return std::nullopt;
   if (*f == FaultKind::kStall && cmd != "move") return std::nullopt;
   return f;
+}
+
+// A UR's faults act on the motion (movej): a dropped connection, a refused script, a stall, late
+// or missing RTDE packages, a protective stop. stopj and the dashboard always get through.
+std::optional<FaultKind> SimController::Impl::ur_roll_fault(const std::string& cmd) {
+  if (cmd != "movej") return std::nullopt;
+  const std::optional<FaultKind> f = draw_fault();
+  if (!f) return f;
+  switch (*f) {
+    case FaultKind::kDrop:
+    case FaultKind::kError:
+    case FaultKind::kStall:
+    case FaultKind::kSlow:
+    case FaultKind::kProtectiveStop:
+    case FaultKind::kMissing:
+      return f;
+    default:
+      return std::nullopt;
+  }
 }
 
 // A fault drawn for a line the firmware then rejects (a duplicate line number after a lost ok)

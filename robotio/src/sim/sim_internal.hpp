@@ -5,7 +5,9 @@
 //   sim_motion.cpp  the true robot: motion queue, trapezoid timing, backlash, noise, the log;
 //   sim_faults.cpp  fault plans and the per-command draw;
 //   sim_gcode.cpp   the G-code firmware (Marlin / RepRapFirmware dialects);
-//   sim_open.cpp    the open link protocol (robotio/OPEN_LINK.md).
+//   sim_open.cpp    the open link protocol (robotio/OPEN_LINK.md);
+//   sim_ur.cpp      a Universal Robots controller: RTDE, URScript on the secondary interface,
+//                   the dashboard server.
 // A further protocol is one more file with its receive/process pair, dispatched in run().
 #include "robocal/robotio/sim_controller.hpp"
 
@@ -22,6 +24,9 @@ namespace robocal::robotio {
 
 // Steady-clock seconds (the simulator's time base).
 double now_seconds();
+// A listening TCP socket on 127.0.0.1 (`port` 0 = any free one, reported in `bound_port`). Throws
+// std::runtime_error.
+int listen_loopback(int port, int* bound_port);
 // Writes all of `data` to a non-blocking descriptor; a peer that went away is left to the read
 // side to notice.
 void write_all(int fd, const std::string& data);
@@ -69,6 +74,32 @@ struct Channel {
   std::string wait_cmd;
   long notified_motion = 0;  // motions whose "settled" event was sent
   bool open() const { return fd >= 0; }
+};
+
+// The simulated UR controller's state beside the motion (sim_ur.cpp). The RTDE client is the
+// `tcp` channel; URScript and the dashboard have channels of their own.
+struct SimUr {
+  int secondary_listen = -1, secondary_port = -1;
+  int dashboard_listen = -1, dashboard_port = -1;
+  Channel secondary{"secondary"};
+  Channel dashboard{"dashboard"};
+  // RTDE session of the connected client.
+  int protocol = 1;  // until a client asks for version 2
+  std::vector<std::string> names, types;
+  std::uint8_t recipe_id = 0;
+  bool streaming = false;
+  double period = 1.0 / 125.0;
+  double next_package = 0.0;
+  double late_until = 0.0;     // fault: packages held back until then, then sent at once
+  std::string late_packages;   // what was held back
+  double missing_until = 0.0;  // fault: no packages until then
+  // The controller.
+  bool remote = true;
+  double speed_fraction = 1.0;
+  int robot_mode = 7;      // RUNNING
+  int safety = 1;          // NORMAL
+  double pstop_at = -1e9;  // when the last protective stop happened
+  long pstop_motion = 0;   // fault: the motion that ends in a protective stop
 };
 
 struct SimController::Impl {
@@ -165,6 +196,23 @@ struct SimController::Impl {
   // A stop acts on receipt, even while a wait_settled blocks the request queue.
   void open_stop(Channel& c, const std::string& kind);
   std::optional<FaultKind> open_roll_fault(const std::string& cmd);
+
+  // ---- Universal Robots (sim_ur.cpp) ---------------------------------------------------------
+  SimUr ur;
+  void ur_start();
+  void ur_close();
+  void ur_on_connect(Channel& c);
+  void ur_receive(Channel& c);
+  void ur_process(Channel& c, double now);
+  void ur_rtde_package(Channel& c, std::uint8_t type, const std::string& payload);
+  std::string ur_data_package(double now) const;
+  void ur_send_packages(Channel& c, double now);
+  void ur_script(Channel& c, const std::string& line);
+  void ur_movej(Channel& c, const std::vector<double>& q, double a, double v,
+                std::optional<FaultKind> fault);
+  std::string ur_dashboard_reply(Channel& c, const std::string& command);
+  void ur_protective_stop(const std::string& why);
+  std::optional<FaultKind> ur_roll_fault(const std::string& cmd);
 };
 
 }  // namespace robocal::robotio

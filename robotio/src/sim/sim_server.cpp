@@ -24,9 +24,7 @@
 #include <vector>
 
 namespace robocal::robotio {
-namespace {
-
-int listen_tcp(int port, int* bound_port) {
+int listen_loopback(int port, int* bound_port) {
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
   if (fd < 0) throw std::runtime_error(std::string("socket: ") + std::strerror(errno));
   const int one = 1;
@@ -45,8 +43,6 @@ int listen_tcp(int port, int* bound_port) {
   *bound_port = ntohs(addr.sin_port);
   return fd;
 }
-
-}  // namespace
 
 double now_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -80,6 +76,7 @@ SimController::Impl::Impl(SimRobot r, SimOptions o)
 }
 
 SimController::Impl::~Impl() {
+  ur_close();
   for (Channel* c : {&tcp, &pty}) close_channel(*c, false);
   if (pty.slave >= 0) ::close(pty.slave);
   for (int fd : pose_clients) ::close(fd);
@@ -154,6 +151,8 @@ double SimController::Impl::next_event(double now) const {
     if (c->blocked) next = std::min(next, c->next_busy);
     if (!c->pending.empty() && c->hold_until > now) next = std::min(next, c->hold_until);
   }
+  if (options.protocol == SimProtocol::kUr && ur.streaming && tcp.open())
+    next = std::min(next, std::max(now, ur.next_package));
   return next;
 }
 
@@ -200,6 +199,10 @@ void SimController::Impl::on_connect(Channel& c) {
     greet(c);
     return;
   }
+  if (options.protocol == SimProtocol::kUr) {
+    ur_on_connect(c);
+    return;
+  }
   ++counters.connections;
   write_log({{"ev", "connect"}, {"ch", c.name}});
 }
@@ -220,6 +223,8 @@ bool SimController::Impl::read_input(Channel& c) {
 void SimController::Impl::receive_any(Channel& c) {
   if (options.protocol == SimProtocol::kOpen) {
     open_receive(c);
+  } else if (options.protocol == SimProtocol::kUr) {
+    ur_receive(c);
   } else {
     receive(c);
   }
@@ -228,6 +233,8 @@ void SimController::Impl::receive_any(Channel& c) {
 void SimController::Impl::process_any(Channel& c, double now) {
   if (options.protocol == SimProtocol::kOpen) {
     open_process(c, now);
+  } else if (options.protocol == SimProtocol::kUr) {
+    ur_process(c, now);
   } else {
     process(c, now);
   }
@@ -245,15 +252,19 @@ void SimController::start() {
       throw std::runtime_error(s.options.log_path +
                                ": cannot write the log: " + std::strerror(errno));
   }
-  if (s.options.tcp_port >= 0) s.tcp_listen = listen_tcp(s.options.tcp_port, &s.tcp_port);
-  if (s.options.pose_port >= 0) s.pose_listen = listen_tcp(s.options.pose_port, &s.pose_port);
+  if (s.options.tcp_port >= 0) s.tcp_listen = listen_loopback(s.options.tcp_port, &s.tcp_port);
+  if (s.options.pose_port >= 0) s.pose_listen = listen_loopback(s.options.pose_port, &s.pose_port);
+  if (s.options.protocol == SimProtocol::kUr) s.ur_start();
   if (s.options.pty) {
     s.open_pty();
     s.greet(s.pty);
   }
   s.write_log({{"ev", "start"},
                {"robot", s.robot.model.name},
-               {"protocol", s.options.protocol == SimProtocol::kOpen ? "open" : "gcode"},
+               {"protocol", s.options.protocol == SimProtocol::kOpen ? "open"
+                            : s.options.protocol == SimProtocol::kUr ? "ur"
+                                                                     : "gcode"},
+               {"ur", ur_address()},
                {"firmware", to_string(s.options.dialect)},
                {"tcp", tcp_address()},
                {"pty", s.pty_path},
@@ -272,6 +283,11 @@ std::string SimController::pty_path() const {
 std::string SimController::pose_address() const {
   return impl_->pose_listen >= 0 ? fmt::format("127.0.0.1:{}", impl_->pose_port) : "";
 }
+std::string SimController::ur_address() const {
+  if (impl_->options.protocol != SimProtocol::kUr || impl_->tcp_listen < 0) return "";
+  return fmt::format("ur:127.0.0.1:{}:{}:{}", impl_->tcp_port, impl_->ur.secondary_port,
+                     impl_->ur.dashboard_port);
+}
 SimCounters SimController::counters() const {
   return impl_->counters;
 }
@@ -282,7 +298,18 @@ void SimController::run(const std::atomic<bool>& stop) {
   bool parent_gone = false;
   while (!stop.load() && now_seconds() < end) {
     std::vector<pollfd> fds;
-    enum Src { kTcpListen, kPoseListen, kTcp, kPty, kPose, kParent };
+    enum Src {
+      kTcpListen,
+      kPoseListen,
+      kTcp,
+      kPty,
+      kPose,
+      kParent,
+      kSecondaryListen,
+      kDashboardListen,
+      kSecondary,
+      kDashboard
+    };
     std::vector<std::pair<Src, std::size_t>> src;
     auto add = [&](int fd, Src what, std::size_t i = 0) {
       if (fd < 0) return;
@@ -295,6 +322,10 @@ void SimController::run(const std::atomic<bool>& stop) {
     add(s.pty.fd, kPty);
     for (std::size_t i = 0; i < s.pose_clients.size(); ++i) add(s.pose_clients[i], kPose, i);
     if (s.options.exit_with_parent) add(STDIN_FILENO, kParent);
+    add(s.ur.secondary_listen, kSecondaryListen);
+    add(s.ur.dashboard_listen, kDashboardListen);
+    add(s.ur.secondary.fd, kSecondary);
+    add(s.ur.dashboard.fd, kDashboard);
     const double now = now_seconds();
     const double wait = std::max(0.0, std::min(s.next_event(now), end) - now);
     timespec ts{static_cast<time_t>(wait), static_cast<long>((wait - std::floor(wait)) * 1e9)};
@@ -320,6 +351,18 @@ void SimController::run(const std::atomic<bool>& stop) {
           break;
         case kPose:
           s.serve_pose(src[k].second);
+          break;
+        case kSecondaryListen:
+          s.accept_on(s.ur.secondary_listen, &s.ur.secondary);
+          break;
+        case kDashboardListen:
+          s.accept_on(s.ur.dashboard_listen, &s.ur.dashboard);
+          break;
+        case kSecondary:
+          if (s.ur.secondary.fd == fds[k].fd) s.receive_any(s.ur.secondary);
+          break;
+        case kDashboard:
+          if (s.ur.dashboard.fd == fds[k].fd) s.receive_any(s.ur.dashboard);
           break;
         case kParent: {
           char buf[256];

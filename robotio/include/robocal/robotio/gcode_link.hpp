@@ -53,6 +53,9 @@ struct GcodeLinkOptions {
   // Marlin's host keep-alive interval (M113 S<n>, sent on connect): `busy:` lines come this
   // often while a blocking command (M400, G28) runs.
   std::chrono::seconds keepalive{1};
+  // The UR link only (make_robot_link): the operator confirmed that a protective stop may be
+  // unlocked through the dashboard server.
+  bool unlock_protective_stop = false;
 };
 
 class GcodeLink final : public RobotLink {

@@ -5,10 +5,11 @@
 // link never needs the robot's geometry. Every motion goes through the SafetyGuard here, in the
 // base class, before the protocol-specific code runs: a link implementation cannot bypass it.
 //
-// Implementations: GcodeLink (Marlin / RepRapFirmware over serial or TCP) and OpenLink (the open
-// link protocol, robotio/OPEN_LINK.md, for controllers without a standard interface);
-// make_robot_link (link_factory.hpp) picks one from the --link address. robotio/README.md shows
-// how UR (RTDE/URScript), ABB (EGM/RWS) and KUKA (RSI) links plug in.
+// Implementations: GcodeLink (Marlin / RepRapFirmware over serial or TCP), OpenLink (the open
+// link protocol, robotio/OPEN_LINK.md, for controllers without a standard interface), UrLink
+// (Universal Robots: RTDE, URScript on the secondary interface, the dashboard server) and
+// ManualLink (the operator); make_robot_link (link_factory.hpp) picks one from the --link
+// address. robotio/README.md shows how ABB (EGM/RWS) and KUKA (RSI) links plug in.
 #include "robocal/robotio/gcode_dialect.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 

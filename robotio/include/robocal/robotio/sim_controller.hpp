@@ -19,6 +19,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace robocal::robotio {
 
@@ -33,8 +34,13 @@ enum class FaultKind : std::uint8_t {
   kSlow,     // the reply comes late (slow_seconds)
   kGarbage,  // noise bytes (control characters) precede the reply
   kPartial,  // an M114 report is cut short (no stepper counts)
+  // Universal Robots only (--protocol ur):
+  kProtectiveStop,  // the arm halts partway with a protective stop
+  kMissing,         // RTDE data packages are not sent for a while (slow_seconds)
 };
-constexpr int kFaultKindCount = 10;
+constexpr int kFaultKindCount = 12;
+// The kinds the G-code and open protocols draw (the UR protocol draws all kFaultKindCount).
+constexpr int kLineFaultKindCount = 10;
 const char* to_string(FaultKind kind);
 std::optional<FaultKind> fault_kind_from_string(const std::string& name);
 
@@ -60,9 +66,23 @@ struct SimRobot {
   double backlash = 0.0;          // lost motion on a reversal, readings
 };
 
-// What the TCP port speaks: G-code (and the pty), or the open link protocol (robotio/OPEN_LINK.md,
-// TCP only).
-enum class SimProtocol : std::uint8_t { kGcode, kOpen };
+// What the TCP port speaks: G-code (and the pty), the open link protocol (robotio/OPEN_LINK.md,
+// TCP only), or a Universal Robots controller (RTDE on the TCP port, URScript on a secondary
+// client port, the dashboard server on a third; robotio/README.md).
+enum class SimProtocol : std::uint8_t { kGcode, kOpen, kUr };
+
+// The Universal Robots controller's own state and ports (--protocol ur).
+struct SimUrOptions {
+  int secondary_port = 0;        // URScript (30002 on a real UR); 0 = any free port
+  int dashboard_port = 0;        // dashboard server (29999); 0 = any free port
+  bool remote_control = true;    // false: "is in remote control" says false, URScript is ignored
+  double speed_fraction = 1.0;   // the pendant's speed slider (RTDE target_speed_fraction)
+  bool protective_stop = false;  // start in a protective stop
+  double unlock_delay = 5.0;     // s after a protective stop before it may be unlocked
+  double max_frequency = 500.0;  // RTDE output frequency limit (e-Series)
+  // Outputs this controller's software predates: answered NOT_FOUND like any unknown name.
+  std::vector<std::string> unknown_outputs;
+};
 
 struct SimOptions {
   SimProtocol protocol = SimProtocol::kGcode;
@@ -87,6 +107,7 @@ struct SimOptions {
   bool exit_with_parent = false;
   std::uint32_t seed = 1;  // actuator noise
   FaultPlan faults;
+  SimUrOptions ur;
 };
 
 // Counts of what happened (also in the log).
@@ -107,6 +128,8 @@ class SimController {
   std::string tcp_address() const;   // "127.0.0.1:PORT" ("" if off)
   std::string pty_path() const;      // current pty slave ("" if off)
   std::string pose_address() const;  // "127.0.0.1:PORT" ("" if off)
+  // --protocol ur: the link address of all three ports, "ur:127.0.0.1:RTDE:SECONDARY:DASHBOARD".
+  std::string ur_address() const;
 
   // Serves until `stop` becomes true (or max_seconds pass).
   void run(const std::atomic<bool>& stop);

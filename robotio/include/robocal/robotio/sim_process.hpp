@@ -1,7 +1,8 @@
 #pragma once
 // Runs `robocal sim-controller` as a separate process (tests, benches, the demo) and reads the
 // endpoints it announces on stdout ("tcp 127.0.0.1:P", "pty /dev/pts/N", "pose 127.0.0.1:P",
-// "ready"). The process is stopped (SIGTERM, then SIGKILL) when this object goes away.
+// "ur ur:127.0.0.1:R:S:D", "ready"). The process is stopped (SIGTERM, then SIGKILL) when this
+// object goes away.
 #include <sys/types.h>
 #include <chrono>
 #include <filesystem>
@@ -25,6 +26,8 @@ class SimControllerProcess {
   // "/dev/pts/N", or the stable --pty-link when one was asked for.
   const std::string& pty() const { return pty_; }
   const std::string& pose() const { return pose_; }  // "127.0.0.1:P"
+  // --protocol ur: the UR link address of the three ports ("ur:127.0.0.1:R:S:D"), else "".
+  const std::string& ur() const { return ur_; }
   pid_t pid() const { return pid_; }
   // Stops the process and returns its exit status (waits at most `timeout`).
   int stop(std::chrono::milliseconds timeout = std::chrono::milliseconds(5000));
@@ -35,7 +38,7 @@ class SimControllerProcess {
   pid_t pid_ = -1;
   int out_ = -1;
   int parent_ = -1;  // write end of the simulator's standard input, never written
-  std::string tcp_, pty_, pose_;
+  std::string tcp_, pty_, pose_, ur_;
 };
 
 // The durations (s) of the motions a sim-controller logged (its --log JSONL file), in order,

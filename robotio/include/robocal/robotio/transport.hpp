@@ -38,6 +38,10 @@ class FdTransport : public Transport {
   std::optional<std::string> read_line(Clock::time_point deadline) override;
   void drain() override;
   ~FdTransport() override;
+  // Byte streams (binary protocols such as RTDE): all of `data`, and whatever arrived (at least
+  // one byte) or nullopt when the deadline passes first. Both throw LinkError like the line forms.
+  void write_bytes(const std::string& data);
+  std::optional<std::string> read_some(Clock::time_point deadline);
 
  protected:
   int fd_ = -1;
