@@ -244,3 +244,52 @@ TEST_F(Gates, HeldOutCountEqualsTheRequestedCountForEverySeed) {
 }
 
 }  // namespace
+
+namespace {
+
+// Validation certifies the calibrated robot file the user takes away: one that does not read as a
+// robot file, or whose values are not the identified ones (edited by hand, copied from another
+// run), is refused with exit 3 naming the file (and the parameter), not validated.
+TEST_F(Gates, ValidateRefusesACalibratedFileThatIsNotTheIdentifiedModel) {
+  const fs::path s = scratch("calibrated_file");
+  copy_recorded(recorded_, s);
+  ASSERT_EQ(run_cli({"measure", s.string()}), 0);
+  ASSERT_EQ(run_cli({"identify", s.string(), "--route", "pose"}), 0);
+  const fs::path file = s / "results" / "calibrated_robot.yaml";
+  const std::string good = read_file(file);
+  ASSERT_EQ(run_cli({"validate", s.string(), "--held-out", "20"}), 0);
+
+  std::ofstream(file, std::ios::trunc) << "robot: [\n";
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_cli({"validate", s.string(), "--held-out", "20"}), 3);
+  std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("calibrated_robot.yaml: cannot be read as a robot file"), std::string::npos)
+      << err;
+
+  // The first parameter value written as a number (`params: {a1: 0.00547...`), changed by 1 mm or
+  // 1 mrad in the text.
+  std::size_t at = 0;
+  for (std::size_t key = good.find("params: {"); key != std::string::npos;
+       key = good.find("params: {", key + 1)) {
+    const std::size_t value = good.find(": ", key + 9);
+    if (value != std::string::npos &&
+        std::string("-0123456789").find(good[value + 2]) != std::string::npos) {
+      at = value + 2;
+      break;
+    }
+  }
+  ASSERT_GT(at, 0u) << "no numeric parameter value in " << file;
+  std::size_t end = at;
+  while (end < good.size() && std::string("+-0123456789.e").find(good[end]) != std::string::npos)
+    ++end;
+  std::string edited = good;
+  edited.replace(at, end - at, std::to_string(std::stod(good.substr(at, end - at)) + 1e-3));
+  std::ofstream(file, std::ios::trunc) << edited;
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_cli({"validate", s.string(), "--held-out", "20"}), 3);
+  err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("in the file but"), std::string::npos) << err;
+  EXPECT_EQ(err.find("internal error"), std::string::npos) << err;
+}
+
+}  // namespace

@@ -15,11 +15,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <map>
 #include <memory>
 #include <mutex>
-#include <set>
 
 namespace robocal::app {
+
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -89,19 +92,23 @@ int run_batch(const BatchOptions& o) {
   // The folders this run processes: the whole list, or this shard's slice of it.
   std::vector<std::string> sessions = o.sessions;
   nlohmann::json shard_doc;
+  // A folder named twice (also as `s/`, `./s` or through a link) would be processed twice, with
+  // --jobs at the same time, into one results/ folder.
+  std::map<std::string, std::string> seen;  // canonical path -> as given
+  for (const auto& dir : o.sessions) {
+    std::error_code ec;
+    const fs::path canonical = fs::weakly_canonical(fs::path(dir), ec);
+    const std::string key = ec ? dir : canonical.string();
+    const auto [it, first] = seen.emplace(key, dir);
+    if (!first) {
+      fmt::print(stderr,
+                 "batch: '{}' and '{}' are the same session folder; name each session once\n",
+                 it->second, dir);
+      return kExitUsage;
+    }
+  }
   if (!o.shard.empty()) {
     const Shard shard = parse_shard(o.shard);  // CLI11 checked the syntax
-    // A folder named twice would be processed by two shards at once, writing the same results/.
-    std::set<std::string> seen;
-    for (const auto& dir : o.sessions) {
-      if (!seen.insert(dir).second) {
-        fmt::print(stderr,
-                   "--shard: the folder list names '{}' twice; a sharded batch needs each folder "
-                   "once\n",
-                   dir);
-        return kExitUsage;
-      }
-    }
     const auto taken = shard_positions(o.sessions, shard);
     sessions.clear();
     for (const std::size_t p : taken) sessions.push_back(o.sessions[p]);

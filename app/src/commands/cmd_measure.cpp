@@ -26,6 +26,32 @@ struct MeasureArgs {
   bool accept_implausible = false;
 };
 
+// A camera that gives no corners at any pose (recorded at another resolution, another camera's
+// name in the rig file, a lens cap): every pose would be measured by the others alone, which is
+// not the rig the user calibrated. Returns the refusal, or "" when every camera contributes.
+std::string silent_camera(const std::vector<std::string>& names,
+                          const std::vector<PoseImages>& measured) {
+  for (std::size_t c = 0; c < names.size() && names.size() > 1; ++c) {
+    bool seen = false;
+    std::string first_problem;
+    for (const PoseImages& images : measured) {
+      for (const auto& frame : images.frames)
+        seen = seen || (c < frame.size() && !frame[c].corners.empty());
+      for (const auto& problem : images.problems)
+        if (first_problem.empty() && problem.find(names[c]) != std::string::npos)
+          first_problem = problem;
+    }
+    if (!seen && !measured.empty())
+      return fmt::format(
+          "camera '{}' gives no board corners at any of the {} poses{}: its "
+          "images are not this rig's (another resolution or camera), or it never "
+          "sees the board",
+          names[c], measured.size(),
+          first_problem.empty() ? "" : " (first: " + first_problem + ")");
+  }
+  return "";
+}
+
 int run_measure(const MeasureArgs& a) {
   const RigFile rig_file = read_rig_file(a.rig);
   const auto& rig = rig_file.cameras;
@@ -39,6 +65,14 @@ int run_measure(const MeasureArgs& a) {
   options.measurement.default_sigma_px =
       a.sigma_px > 0 ? a.sigma_px : (rig_file.corner_sigma_px > 0 ? rig_file.corner_sigma_px : 0.1);
   const auto measured = measure_board_poses(rig, board, sets, options, {stderr, a.threads});
+  if (const std::string silent = silent_camera(names, measured); !silent.empty())
+    throw InputError(a.poses + ": " + silent + "; nothing written");
+  // The same gate as a session's measure, with the same words.
+  const BoardFitGate gate = judge_pose_fits(measured);
+  const bool refuse_all = !gate.verdict.plausible && !a.accept_implausible;
+  if (!gate.verdict.plausible)
+    fmt::print(stderr, "MEASUREMENTS NOT PLAUSIBLE: {}{}\n", gate.verdict.reason,
+               a.accept_implausible ? " (accepted: --accept-implausible)" : "");
 
   nlohmann::json poses = nlohmann::json::array();
   int usable = 0;
@@ -50,10 +84,22 @@ int run_measure(const MeasureArgs& a) {
     if (!a.no_raw)
       pj["observations"] = corner_observations_json(measured[p].frames, names,
                                                     options.measurement.default_sigma_px, false);
-    usable += m.usable() ? 1 : 0;
+    std::string excluded;
+    if (!gate.pose_problem[p].empty() && !a.accept_implausible)
+      excluded = gate.pose_problem[p];
+    else if (refuse_all && m.usable())
+      excluded = "measurements not plausible (see board_fit_gate)";
+    if (!excluded.empty()) {
+      pj["usable"] = false;
+      pj["excluded"] = excluded;
+    }
+    const bool used = m.usable() && excluded.empty();
+    usable += used ? 1 : 0;
     poses.push_back(pj);
-    fmt::print(stderr, "{}: {}{}\n", sets[p].name, vision::pose_status_name(m.status),
-               m.message.empty() ? "" : " (" + m.message + ")");
+    fmt::print(stderr, "{}: {}{}{}\n", sets[p].name, vision::pose_status_name(m.status),
+               m.message.empty() ? "" : " (" + m.message + ")",
+               excluded.empty() ? "" : "; not usable: " + excluded);
+    for (const auto& problem : measured[p].problems) fmt::print(stderr, "  {}\n", problem);
   }
   nlohmann::json doc;
   doc["rig"] = a.rig;
@@ -61,9 +107,14 @@ int run_measure(const MeasureArgs& a) {
   doc["corner_sigma_px"] = options.measurement.default_sigma_px;
   doc["observation_format"] = "corners: [id, u, v, sigma_px], OpenCV pixel convention";
   doc["poses"] = poses;
+  doc["board_fit_gate"] = {{"plausible", gate.verdict.plausible},
+                           {"median_chi2_dof", gate.verdict.median_chi2_dof},
+                           {"inconsistent_poses", gate.inconsistent()},
+                           {"overridden", !gate.verdict.plausible && a.accept_implausible}};
+  if (!gate.verdict.plausible) doc["board_fit_gate"]["reason"] = gate.verdict.reason;
   doc["summary"] = {{"poses", sets.size()}, {"usable", usable}};
   write_json(doc, a.out);
-  return kExitOk;
+  return refuse_all ? kExitFailure : kExitOk;
 }
 
 }  // namespace
@@ -110,8 +161,9 @@ CommandSpec measure_command() {
             ->check(CLI::Range(1e-6, 100.0));
         cmd.add_flag("--no-raw", a->no_raw, "Leave the raw pixel observations out");
         cmd.add_flag("--accept-implausible", a->accept_implausible,
-                     "Session mode: use poses whose board fits fail the plausibility gate "
-                     "(recorded in measure.json); only when you know why they fit badly");
+                     "Use poses whose board fits fail the plausibility gate (recorded in "
+                     "measure.json or the output's board_fit_gate); only when you know why they "
+                     "fit badly");
         cmd.add_option("--out", a->out, "JSON to write (- = stdout)");
         return [a, &cmd]() {
           if (!a->session.empty()) {
@@ -124,7 +176,7 @@ CommandSpec measure_command() {
                                ": not a session folder (no session.yaml; see app/SESSION.md)");
             return run_measure_session(*a);
           }
-          refuse_options(cmd, {"--robot", "--json", "--accept-implausible"},
+          refuse_options(cmd, {"--robot", "--json"},
                          "without a SESSION folder (they are a session's options)");
           if (a->rig.empty() || a->target.empty() || a->poses.empty())
             throw UsageError("give a SESSION folder, or all of --rig, --target and --poses");

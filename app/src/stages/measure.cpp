@@ -271,35 +271,13 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   const auto measured_images = measure_board_poses(measured_rig, ee_board, sets, pose_options,
                                                    step_log(log), early_detections);
 
-  // Plausibility of the board fits (vision/measurement_gate.hpp): the whole session, then single
-  // poses whose cameras disagree.
-  std::vector<double> fit_chi2_dof;
-  std::vector<std::size_t> fit_pose;
-  for (std::size_t p = 0; p < measured_images.size(); ++p) {
-    const vision::PoseMeasurement& m = measured_images[p].measurement;
-    if (m.usable() && m.dof > 0) {
-      fit_chi2_dof.push_back(m.chi2 / m.dof);
-      fit_pose.push_back(p);
-    }
-  }
-  const vision::BoardFitVerdict fits = vision::judge_board_fits(fit_chi2_dof);
-  // Single poses against the session's median: every pose with a fit, ambiguous ones included
-  // (a pose whose cameras saw different board poses has no good fit, so its runner-up is as bad).
-  std::vector<std::string> fit_problem(records.size());
-  if (fits.plausible) {
-    const double pose_limit = vision::inconsistent_pose_limit(fits.median_chi2_dof);
-    for (std::size_t p = 0; p < measured_images.size(); ++p) {
-      const vision::PoseMeasurement& m = measured_images[p].measurement;
-      if (m.dof > 0 && !(m.chi2 / m.dof <= pose_limit))
-        fit_problem[p] = vision::inconsistent_pose_reason(m.chi2 / m.dof, fits.median_chi2_dof);
-    }
-  }
-  report["board_fit_gate"] = {
-      {"plausible", fits.plausible},
-      {"median_chi2_dof", fits.median_chi2_dof},
-      {"inconsistent_poses", std::count_if(fit_problem.begin(), fit_problem.end(),
-                                           [](const std::string& w) { return !w.empty(); })},
-      {"overridden", !fits.plausible && gates.accept_implausible}};
+  const BoardFitGate fit_gate = judge_pose_fits(measured_images);
+  const vision::BoardFitVerdict& fits = fit_gate.verdict;
+  const std::vector<std::string>& fit_problem = fit_gate.pose_problem;
+  report["board_fit_gate"] = {{"plausible", fits.plausible},
+                              {"median_chi2_dof", fits.median_chi2_dof},
+                              {"inconsistent_poses", fit_gate.inconsistent()},
+                              {"overridden", !fits.plausible && gates.accept_implausible}};
   if (!fits.plausible) {
     report["board_fit_gate"]["reason"] = fits.reason;
     say(log, "  MEASUREMENTS NOT PLAUSIBLE: {}\n", fits.reason);

@@ -225,4 +225,29 @@ std::vector<PoseImages> measure_board_poses(
   return out;
 }
 
+int BoardFitGate::inconsistent() const {
+  return static_cast<int>(std::count_if(pose_problem.begin(), pose_problem.end(),
+                                        [](const std::string& w) { return !w.empty(); }));
+}
+
+BoardFitGate judge_pose_fits(const std::vector<PoseImages>& measured) {
+  std::vector<double> chi2_dof;
+  for (const PoseImages& images : measured) {
+    const vision::PoseMeasurement& m = images.measurement;
+    if (m.usable() && m.dof > 0) chi2_dof.push_back(m.chi2 / m.dof);
+  }
+  BoardFitGate gate{vision::judge_board_fits(chi2_dof), std::vector<std::string>(measured.size())};
+  if (!gate.verdict.plausible) return gate;
+  // Every pose with a fit, ambiguous ones included (a pose whose cameras saw different board
+  // poses has no good fit, so its runner-up is as bad).
+  const double pose_limit = vision::inconsistent_pose_limit(gate.verdict.median_chi2_dof);
+  for (std::size_t p = 0; p < measured.size(); ++p) {
+    const vision::PoseMeasurement& m = measured[p].measurement;
+    if (m.dof > 0 && !(m.chi2 / m.dof <= pose_limit))
+      gate.pose_problem[p] =
+          vision::inconsistent_pose_reason(m.chi2 / m.dof, gate.verdict.median_chi2_dof);
+  }
+  return gate;
+}
+
 }  // namespace robocal::app

@@ -7,6 +7,7 @@
 
 #include "robocal/vision/detection_record.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
+#include "robocal/vision/measurement_gate.hpp"
 #include "robocal/vision/observations.hpp"
 #include "robocal/vision/pose_measurement.hpp"
 #include "robocal/vision/rig_calibration.hpp"
@@ -88,5 +89,15 @@ std::vector<PoseImages> measure_board_poses(
     const std::vector<vision::RigCamera>& rig, const vision::TargetBoard& board,
     const std::vector<ImageSet>& poses, const PoseStepOptions& options, const StepLog& log,
     const std::map<std::string, vision::DetectionRecord>* early = nullptr);
+
+// 4. Plausibility of the board fits (vision/measurement_gate.hpp), the same for a session and for
+// `measure --rig`: the whole set against the stated corner noise, then single poses whose cameras
+// disagree (images swapped, a board that moved between exposures) against the set's median.
+struct BoardFitGate {
+  vision::BoardFitVerdict verdict;
+  std::vector<std::string> pose_problem;  // per pose; empty: consistent (or not fitted)
+  int inconsistent() const;
+};
+BoardFitGate judge_pose_fits(const std::vector<PoseImages>& measured);
 
 }  // namespace robocal::app

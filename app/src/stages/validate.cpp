@@ -15,6 +15,7 @@
 #include "robocal/calib/closure.hpp"
 #include "robocal/calib/held_out_errors.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
 #include "robocal/vision/camera_io.hpp"
 
 #include <fmt/core.h>
@@ -32,6 +33,42 @@ namespace robocal::app {
 namespace fs = std::filesystem;
 
 namespace {
+
+// Validation certifies the calibrated robot file a user takes away, not only the estimate inside
+// identification.json: the file must read as a robot file and hold that estimate. Values are
+// written to read back exactly (calibrated_robot_file.hpp); 1e-9 (m or rad) allows the decimal
+// text of derived values.
+void check_calibrated_file(const fs::path& file, const calib::Mechanism& model,
+                           const Eigen::VectorXd& estimate) {
+  const std::string again = "run `robocal identify` on the session again";
+  if (!fs::exists(file))
+    throw InputError(
+        fmt::format("{}: missing, although results/identification.json says the "
+                    "identification succeeded; {}",
+                    file.string(), again));
+  calib::Mechanism written;
+  try {
+    written = calib::load_robot_file(file.string());
+  } catch (const std::exception& e) {
+    throw InputError(
+        fmt::format("{}: cannot be read as a robot file ({}); {}", file.string(), e.what(), again));
+  }
+  const Eigen::VectorXd values = written.nominal_parameters();
+  if (values.size() != estimate.size())
+    throw InputError(
+        fmt::format("{}: {} parameters, the identified model has {}: the file is not "
+                    "this session's calibrated robot; {}",
+                    file.string(), values.size(), estimate.size(), again));
+  constexpr double kTolerance = 1e-9;
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    if (std::abs(values(i) - estimate(i)) <= kTolerance) continue;
+    throw InputError(fmt::format(
+        "{}: {} is {:.9g} in the file but {:.9g} in results/identification.json: the file was "
+        "edited or comes from another run; {}",
+        file.string(), model.parameter_display_name(static_cast<std::size_t>(i)), values(i),
+        estimate(i), again));
+  }
+}
 
 nlohmann::json stats_json(const calib::PositionErrorStats& e, int failures = 0) {
   return {{"rms_m", e.rms}, {"max_m", e.max}, {"poses", e.n}, {"failures", failures}};
@@ -63,6 +100,9 @@ nlohmann::json validate_session(const fs::path& dir, int held_out, const Pipelin
   const Eigen::VectorXd& start = ident.start;
   const Eigen::VectorXd& estimate = ident.estimate;
   const std::optional<Eigen::VectorXd>& pixel_estimate = ident.pixel_estimate;
+  check_calibrated_file(results.calibrated_robot(), model, estimate);
+  if (pixel_estimate)
+    check_calibrated_file(results.calibrated_robot_pixels(), model, *pixel_estimate);
   const TruthFile truth_file = read_truth(results, model);
   const Eigen::VectorXd& truth = truth_file.truth;
   const Eigen::VectorXd& true_nominal = truth_file.nominal;

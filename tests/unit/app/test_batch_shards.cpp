@@ -134,8 +134,18 @@ TEST_F(BatchShards, BadShardValuesAreUsageErrorsNamingTheOption) {
   // A folder named twice would be processed by two shards at once.
   const auto twice = batch("0/2", {file("a"), file("b"), file("a")}, file("s.json"));
   EXPECT_EQ(twice.code, robocal::app::kExitUsage);
-  EXPECT_NE(twice.err.find("twice"), std::string::npos) << twice.err;
+  EXPECT_NE(twice.err.find("same session folder"), std::string::npos) << twice.err;
   EXPECT_NE(twice.err.find(file("a")), std::string::npos) << twice.err;
+}
+
+// Without shards too: the same folder spelt three ways would be processed three times (with
+// --jobs, at once) into one results/ folder. Refused before anything runs.
+TEST_F(BatchShards, TheSameFolderNamedTwiceIsAUsageError) {
+  std::filesystem::create_directories(file("s"));
+  const auto r = batch("", {file("s"), file("s") + "/", file("s") + "/."}, file("s.json"));
+  EXPECT_EQ(r.code, robocal::app::kExitUsage) << r.err;
+  EXPECT_NE(r.err.find("same session folder"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(file("s.json"))) << "nothing processed";
 }
 
 TEST_F(BatchShards, MergedShardsAreTheUnshardedSummary) {

@@ -165,10 +165,10 @@ TEST_F(CliRefusals, OptionsOfAnotherModeAreRefusedNotIgnored) {
       {{"identify", "--robot", robot, "--measurements", file("m.yaml"), "--no-priors"},
        2,
        {"--no-priors"}},
-      {{"measure", "--rig", file("rig.json"), "--target", target, "--poses", dir.string(),
-        "--accept-implausible"},
+      {{"measure", "--rig", file("rig.json"), "--target", target, "--poses", dir.string(), "--json",
+        file("m.json")},
        2,
-       {"--accept-implausible", "SESSION"}},
+       {"--json", "SESSION"}},
   });
 }
 

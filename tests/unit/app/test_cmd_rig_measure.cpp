@@ -185,6 +185,85 @@ TEST(RigMeasureCli, CalibratesARigAndMeasuresPosesWithPerPoseStatus) {
       << bad["message"];
 }
 
+// `measure --rig` refuses what a session's measure refuses, with the same words (issue 49): one
+// camera whose every image is of another size (nothing written, exit 3), a rig file whose camera
+// names are swapped (every fit 1e6x the corner noise: exit 1, nothing usable), and one camera's
+// images swapped between two poses (those two excluded, the rest used).
+TEST(RigMeasureCli, FileModeHasTheSessionsPlausibilityGate) {
+  const fs::path root = fs::current_path() / "rig_cli_gate";
+  fs::remove_all(root);
+  Scene scene;
+  std::mt19937_64 rng(11);
+  const char* names[2] = {"left", "right"};
+  fs::create_directories(root);
+  for (int i = 0; i < 2; ++i)
+    rv::save_camera_file(scene.cams[static_cast<size_t>(i)],
+                         root / (std::string(names[i]) + ".yaml"), names[i]);
+  for (int v = 0; v < 10; ++v) {
+    const auto pose = scene.random_pose(rng, 35.0);
+    for (int c = 0; c < 2; ++c) scene.write(root / "views" / fmt_view(v), names[c], c, pose);
+  }
+  ASSERT_EQ(run({"rig", "--camera", "left=" + (root / "left.yaml").string(), "--camera",
+                 "right=" + (root / "right.yaml").string(), "--target", kTarget.string(), "--views",
+                 (root / "views").string(), "--out", (root / "rig.json").string()}),
+            0);
+  constexpr int kPoses = 6;
+  for (int p = 0; p < kPoses; ++p) {
+    const auto pose = scene.random_pose(rng, 30.0);
+    for (int c = 0; c < 2; ++c) scene.write(root / "poses" / fmt_view(p), names[c], c, pose);
+  }
+  auto measure = [&](const fs::path& rig, const fs::path& poses, const fs::path& out) {
+    return run({"measure", "--rig", rig.string(), "--target", kTarget.string(), "--poses",
+                poses.string(), "--out", out.string()});
+  };
+  ASSERT_EQ(measure(root / "rig.json", root / "poses", root / "good.json"), 0);
+  EXPECT_TRUE(read_json(root / "good.json")["board_fit_gate"]["plausible"].get<bool>());
+
+  // One camera's images swapped between pose_001 and pose_004.
+  fs::copy(root / "poses", root / "swapped", fs::copy_options::recursive);
+  fs::rename(root / "swapped" / "pose_001" / "right.png", root / "swapped" / "right.png");
+  fs::rename(root / "swapped" / "pose_004" / "right.png",
+             root / "swapped" / "pose_001" / "right.png");
+  fs::rename(root / "swapped" / "right.png", root / "swapped" / "pose_004" / "right.png");
+  ASSERT_EQ(measure(root / "rig.json", root / "swapped", root / "swapped.json"), 0);
+  const auto swapped = read_json(root / "swapped.json");
+  for (int p = 0; p < kPoses; ++p) {
+    const bool foreign = p == 1 || p == 4;
+    EXPECT_EQ(swapped["poses"][p]["usable"].get<bool>(), !foreign) << fmt_view(p);
+    if (foreign) {
+      EXPECT_NE(swapped["poses"][p]["excluded"].get<std::string>().find("images disagree"),
+                std::string::npos)
+          << swapped["poses"][p].dump(1);
+    }
+  }
+
+  // The rig file's camera names swapped: every pose is seen "from the wrong side".
+  auto rig = read_json(root / "rig.json");
+  std::swap(rig["cameras"][0]["name"], rig["cameras"][1]["name"]);
+  std::ofstream(root / "rig_swapped.json") << rig.dump(2);
+  EXPECT_EQ(measure(root / "rig_swapped.json", root / "poses", root / "names.json"), 1);
+  const auto names_swapped = read_json(root / "names.json");
+  EXPECT_FALSE(names_swapped["board_fit_gate"]["plausible"].get<bool>());
+  EXPECT_EQ(names_swapped["summary"]["usable"].get<int>(), 0);
+
+  // Every image of one camera at another resolution: refused, nothing written.
+  fs::copy(root / "poses", root / "resized", fs::copy_options::recursive);
+  for (int p = 0; p < kPoses; ++p) {
+    const fs::path f = root / "resized" / fmt_view(p) / "right.png";
+    cv::Mat small;
+    cv::resize(cv::imread(f.string(), cv::IMREAD_GRAYSCALE), small, cv::Size(320, 240));
+    cv::imwrite(f.string(), small);
+  }
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(measure(root / "rig.json", root / "resized", root / "resized.json"), 3);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("camera 'right' gives no board corners at any of the 6 poses"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("calibrated for 640x480"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(root / "resized.json"));
+}
+
 // The cameras' intrinsics solved side by side (calibrate_cameras) are those of one camera at a
 // time, bit for bit, and each result belongs to its own camera (their focal lengths differ by 10
 // %).
