@@ -40,6 +40,13 @@ CommandSpec sim_cell_command() {
             cmd.add_option("--firmware", o->firmware, "Controller dialect: marlin or rrf")
                 ->check(CLI::IsMember({"marlin", "rrf"}))
                 ->capture_default_str();
+            cmd.add_option(
+                   "--protocol", o->protocol,
+                   "What the controller speaks: gcode (the --firmware dialect) or open (the "
+                   "open link protocol, robotio/OPEN_LINK.md, reporting the flange pose "
+                   "as an industrial controller does)")
+                ->check(CLI::IsMember({"gcode", "open"}))
+                ->capture_default_str();
             cmd.add_option("--port", o->tcp_port, "The controller's TCP port (0: any free one)")
                 ->check(CLI::Range(0, 65535));
             cmd.add_option("--max-seconds", o->max_seconds, "Stop after this long (0: at Ctrl-C)")

@@ -10,6 +10,7 @@
 #include "robocal/core/files.hpp"
 #include "robocal/planner/cell.hpp"
 #include "robocal/robotio/gcode_link.hpp"
+#include "robocal/robotio/link_factory.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/robotio/sim_process.hpp"
 #include "robocal/robotio/sim_truth.hpp"
@@ -98,11 +99,12 @@ void jog_into_view(const LiveCell& lc, const std::string& robot_file, const Live
   robotio::GcodeLinkOptions lo;
   lo.address = link_address;
   lo.axes = robotio::axes_for_robot(model, 80.0, 100.0);  // sim-controller's defaults
-  robotio::GcodeLink link(guard, lo);
-  link.connect();
-  link.home();
-  link.move_actuators(poses.front(), move);
-  link.disconnect();
+  // The address names the protocol (open:HOST:PORT or tcp:HOST:PORT).
+  const std::unique_ptr<robotio::RobotLink> link = robotio::make_robot_link(guard, lo);
+  link->connect();
+  link->home();
+  link->move_actuators(poses.front(), move);
+  link->disconnect();
 }
 
 struct Answer {
@@ -178,12 +180,16 @@ int run_sim_cell(const SimCellOptions& o) {
       "--seed",          std::to_string(o.seed),
       "--perturbation",  truth_txt.string(),
       "--firmware",      o.firmware,
+      "--protocol",      o.protocol,
       "--tcp-port",      std::to_string(o.tcp_port),
       "--pty-link",      (at.simulator() / "tty").string(),
       "--log",           (at.simulator() / "sim-controller.jsonl").string(),
       "--busy-interval", "1"};
   robotio::SimControllerProcess sim(robocal_binary(), args);
-  jog_into_view(lc, robot_file, files, sim.tcp(), o.seed, out);
+  // tcp:HOST:PORT as the simulator announces it; the open link's address says its protocol.
+  const std::string link_address =
+      o.protocol == "open" ? "open:" + sim.tcp().substr(sim.tcp().find(':') + 1) : sim.tcp();
+  jog_into_view(lc, robot_file, files, link_address, o.seed, out);
   robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
   SaggingBoard seen(truth, lc.cell.elastic_sag);
   LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("S{}-", ::getpid()));
@@ -200,11 +206,16 @@ int run_sim_cell(const SimCellOptions& o) {
     camera_list += (camera_list.empty() ? "" : " ") + specs[c].name + "=" + source;
     names.push_back(specs[c].name);
   }
-  const auto answers = wizard_answers(o, at, sim.tcp(), camera_list, names);
+  const auto answers = wizard_answers(o, at, link_address, camera_list, names);
   core::write_file_atomic(at.answers(), answers_yaml(answers));
 
-  fmt::print(out, "\ncontroller: {} firmware, G-code at {} (serial: {})\n", o.firmware, sim.tcp(),
-             (at.simulator() / "tty").string());
+  if (o.protocol == "open")
+    fmt::print(out,
+               "\ncontroller: the open link protocol at {} (read replies carry the flange pose)\n",
+               link_address);
+  else
+    fmt::print(out, "\ncontroller: {} firmware, G-code at {} (serial: {})\n", o.firmware, sim.tcp(),
+               (at.simulator() / "tty").string());
   for (std::size_t c = 0; c < specs.size(); ++c)
     fmt::print(out, "camera {}: {}\n", specs[c].name,
                cams.served(c) ? fmt::format("GigE Vision through Aravis' fake camera on {}",
