@@ -34,6 +34,9 @@ CommandSpec sim_cell_command() {
                            "The cell's folder (default: ./sim-cell-ROBOT-seedN; an earlier "
                            "sim-cell folder of the same robot and seed is reused)");
             cmd.add_flag("--quick", o->quick, "Smaller images (faster, less accurate)");
+            cmd.add_flag("--idealised-truth", o->idealised_truth,
+                         "A rigid true robot that differs from its file only where the model can "
+                         "follow (no unmodelled error, no elastic sag)");
             cmd.add_flag(
                 "--in-process", [o](std::int64_t) { o->gige = false; },
                 "Do not serve GigE cameras: every camera is a sim:FILE camera");

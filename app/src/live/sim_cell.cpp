@@ -40,8 +40,8 @@ extern "C" void on_cell_signal(int /*signal*/) {
 
 // The folder's identity: a folder made for another robot or seed is not reused.
 std::string identity(const SimCellOptions& o, const std::string& robot_file) {
-  return fmt::format("robot: {}\nseed: {}\nquick: {}\n", fs::absolute(robot_file).string(), o.seed,
-                     o.quick);
+  return fmt::format("robot: {}\nseed: {}\nquick: {}\nidealised_truth: {}\n",
+                     fs::absolute(robot_file).string(), o.seed, o.quick, o.idealised_truth);
 }
 
 void prepare_folder(const SimCellOptions& o, const std::string& robot_file,
@@ -159,6 +159,7 @@ int run_sim_cell(const SimCellOptions& o) {
   lo.robot = o.robot;
   lo.seed = o.seed;
   lo.quick = o.quick;
+  lo.idealised_truth = o.idealised_truth;
   const LiveCell lc = make_live_cell(lo, robot_file);
   const LiveCellFiles files = write_live_cell(lc.cell, robot_file, at.cell_dir());
   // The true geometry is the simulator's, not the operator's: out of the cell's folder.
@@ -199,8 +200,8 @@ int run_sim_cell(const SimCellOptions& o) {
     std::string source = cams.source(c);
     if (!cams.served(c)) {
       const fs::path file = at.simulator() / (specs[c].name + ".camera.yaml");
-      core::write_file_atomic(
-          file, sim_camera_yaml({robot_file, o.seed, o.quick, false, specs[c].name, sim.pose()}));
+      core::write_file_atomic(file, sim_camera_yaml({robot_file, o.seed, o.quick, o.idealised_truth,
+                                                     specs[c].name, sim.pose()}));
       source = "sim:" + file.string();
     }
     camera_list += (camera_list.empty() ? "" : " ") + specs[c].name + "=" + source;
