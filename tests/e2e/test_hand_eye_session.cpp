@@ -152,21 +152,25 @@ Vector6 error_of(const Iso& estimate, const Iso& truth) {
   return d;
 }
 
-// The estimate against the truth: within 3 sigma of its reported covariance (chi-square, 6 dof).
-void expect_within_covariance(const Estimate& e, const Iso& truth, const std::string& what) {
+// The estimate's error against the truth, printed with its reported 1-sigma; its chi-square
+// under the reported covariance (6 dof) is returned.
+double report_error(const Estimate& e, const Iso& truth, const std::string& what) {
   const Vector6 d = error_of(e.pose, truth);
   const double chi2 = d.dot(e.covariance.ldlt().solve(d));
-  EXPECT_LT(chi2, kChi2Six3Sigma) << what << ": error (m, rad) " << d.transpose() << "\n  sigma "
-                                  << e.covariance.diagonal().cwiseSqrt().transpose();
   fmt::print(
       "{}: position error {:.1f} um (1-sigma {:.1f} um), rotation error {:.2f} mdeg, "
       "chi2 {:.2f}\n",
       what, 1e6 * d.head<3>().norm(), 1e6 * std::sqrt(e.covariance.topLeftCorner<3, 3>().trace()),
       1e3 * d.tail<3>().norm() * 180.0 / std::numbers::pi, chi2);
+  return chi2;
 }
 
-// Both cameras' files (PREFIX_<camera>.yaml) against the truth.
-void expect_files_match_truth(const fs::path& prefix, const Truth& truth) {
+// Both cameras' files (PREFIX_<camera>.yaml) against the truth. `within_covariance`: the error
+// within 3 sigma of the reported covariance (chi-square, 6 dof), which holds only where the
+// covariance holds every error source (intrinsics estimated with the transforms); otherwise
+// the figure, a position error of at most 0.2 mm at the demo's noise, and a rotation
+// error of at most 0.01 degrees (0.2 mm over the board's 1.2 m from the cameras).
+void expect_files_match_truth(const fs::path& prefix, const Truth& truth, bool within_covariance) {
   for (const auto& [name, base_T_camera] : truth.base_T_camera) {
     SCOPED_TRACE(name);
     const fs::path file = prefix.string() + "_" + name + ".yaml";
@@ -176,9 +180,20 @@ void expect_files_match_truth(const fs::path& prefix, const Truth& truth) {
     const Estimate board = read_transform(doc["target"]);
     EXPECT_EQ(camera.parent, "base");
     EXPECT_EQ(board.parent, "flange");
-    expect_within_covariance(camera, base_T_camera, file.filename().string() + " camera in base");
-    expect_within_covariance(board, truth.flange_T_board,
-                             file.filename().string() + " board in flange");
+    const std::vector<std::pair<const Estimate*, const Iso*>> pairs = {
+        {&camera, &base_T_camera}, {&board, &truth.flange_T_board}};
+    for (const auto& [estimate, true_pose] : pairs) {
+      const std::string what =
+          file.filename().string() + " " + estimate->child + " in " + estimate->parent;
+      const double chi2 = report_error(*estimate, *true_pose, what);
+      const Vector6 d = error_of(estimate->pose, *true_pose);
+      if (within_covariance) {
+        EXPECT_LT(chi2, kChi2Six3Sigma) << what << ": error (m, rad) " << d.transpose();
+      } else {
+        EXPECT_LT(d.head<3>().norm(), 0.2e-3) << what;
+        EXPECT_LT(d.tail<3>().norm(), 0.01 * std::numbers::pi / 180.0) << what;
+      }
+    }
   }
 }
 
@@ -233,15 +248,19 @@ TEST_F(HandEyeFromController, Ur5WizardRouteAndHandeyeCommandAgainstTheSimulator
   const Truth truth = read_truth(cell.dir);
   const fs::path session = wizard / "session";
   expect_recorded_flange_poses(session, truth);
-  expect_files_match_truth(wizard / "export" / "handeye", truth);
+  // The wizard keeps the intrinsics its intrinsics step calibrated: their own uncertainty is
+  // not in the transforms' covariance, so the absolute figure is the bound.
+  expect_files_match_truth(wizard / "export" / "handeye", truth, false);
 
-  // The command on the session collect recorded: the same answer, said to come from the
-  // controller's flange poses.
-  const auto cmd = rt::run_robocal_captured({"handeye", session.string(), "-o", file("he.yaml")});
+  // The command on the session collect recorded, the intrinsics estimated with the transforms:
+  // the covariance then holds every error source the cell has (pixel noise, the intrinsics),
+  // and the truth lies within 3 sigma of it.
+  const auto cmd = rt::run_robocal_captured(
+      {"handeye", session.string(), "--estimate-intrinsics", "-o", file("he.yaml")});
   ASSERT_EQ(cmd.code, 0) << cmd.out << cmd.err;
   EXPECT_NE(cmd.out.find("flange poses: as the controller reported them"), std::string::npos)
       << cmd.out;
-  expect_files_match_truth(dir / "he", truth);
+  expect_files_match_truth(dir / "he", truth, true);
 
   cell.process->signal(SIGINT);
   EXPECT_EQ(cell.process->wait(60s), 0) << cell.process->output();
