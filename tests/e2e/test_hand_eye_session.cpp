@@ -159,9 +159,9 @@ double report_error(const Estimate& e, const Iso& truth, const std::string& what
   const double chi2 = d.dot(e.covariance.ldlt().solve(d));
   fmt::print(
       "{}: position error {:.1f} um (1-sigma {:.1f} um), rotation error {:.2f} mdeg, "
-      "chi2 {:.2f}\n",
+      "chi2 {:.2f} (3 sigma: {:.2f})\n",
       what, 1e6 * d.head<3>().norm(), 1e6 * std::sqrt(e.covariance.topLeftCorner<3, 3>().trace()),
-      1e3 * d.tail<3>().norm() * 180.0 / std::numbers::pi, chi2);
+      1e3 * d.tail<3>().norm() * 180.0 / std::numbers::pi, chi2, kChi2Six3Sigma);
   return chi2;
 }
 

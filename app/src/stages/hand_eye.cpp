@@ -121,9 +121,9 @@ vision::HandEyeResult solve_views(const ViewSources& sources, const vision::Targ
 // wizard's intrinsics step calibrated).
 fs::path session_camera_file(const Session& session, const std::string& camera,
                              const PipelineLog& log) {
-  const fs::path measured = ResultsLayout{session.dir}.camera(camera);
+  fs::path measured = ResultsLayout{session.dir}.camera(camera);
   if (fs::exists(measured)) return measured;
-  const fs::path recorded = session.dir / "cameras" / (camera + ".yaml");
+  fs::path recorded = session.dir / "cameras" / (camera + ".yaml");
   if (fs::exists(recorded)) {
     fmt::print(log.out, "camera {}: the intrinsics recorded at collection ({})\n", camera,
                recorded.string());
