@@ -331,9 +331,10 @@ TEST_F(HandEyeCommand, AMissingPoseFileNamesTheImage) {
   EXPECT_FALSE(fs::exists(file("he.yaml")));
 }
 
-// A session recorded like `robocal collect` records one (here simulated: a UR5 whose true
-// geometry is millimetres off its robot file): each camera solved with measure's intrinsics, the
-// flange being the measured frame at the nominal model. The cameras land where the simulation
+// A session recorded like `robocal collect` records one from a controller that reports actuator
+// positions only (here simulated: a UR5 whose true geometry is millimetres off its robot file):
+// each camera solved with measure's intrinsics, the flange being the measured frame at the
+// nominal model. The cameras land where the simulation
 // put them to within the robot's own error (its nominal model is 4-7 mm off the truth over the
 // working volume, see docs/figures.md), and the board where the session designed it.
 class HandEyeSession : public rt::ScratchDirTest {
@@ -350,6 +351,10 @@ TEST_F(HandEyeSession, EachCameraOfASimulatedUr5Session) {
   ASSERT_EQ(rt::run_robocal_captured({"measure", session}).code, 0);
   const auto run = rt::run_robocal_captured({"handeye", session, "-o", file("he.yaml")});
   ASSERT_EQ(run.code, 0) << run.out << run.err;
+  // A simulated session has actuator readings only: the command says where its flange is from.
+  EXPECT_NE(run.out.find("flange poses: the controller reported none; the measured frame"),
+            std::string::npos)
+      << run.out;
   const auto truth = nlohmann::json::parse(rt::read_text(session + "/truth/truth.json"));
   for (const auto& camera : truth["cameras"]) {
     const std::string name = camera["name"];

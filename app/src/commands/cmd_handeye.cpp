@@ -4,49 +4,13 @@
 #include "cli/command_registry.hpp"
 #include "stages/hand_eye.hpp"
 
-#include "robocal/core/angles.hpp"
 #include "robocal/vision/hand_eye_io.hpp"
 
 #include <fmt/core.h>
 
-#include <cmath>
 #include <memory>
 
 namespace robocal::app {
-
-namespace {
-
-void print_transform(std::FILE* out, const char* what, const Eigen::Isometry3d& pose,
-                     const core::PoseCovariance& cov) {
-  const Eigen::Vector3d t = pose.translation();
-  const Eigen::Quaterniond q(pose.linear());
-  fmt::print(out,
-             "  {}: translation ({:.5f}, {:.5f}, {:.5f}) m +- {:.2f} mm, quaternion xyzw ({:.5f}, "
-             "{:.5f}, {:.5f}, {:.5f}) +- {:.3f} deg\n",
-             what, t.x(), t.y(), t.z(), 1e3 * std::sqrt(cov.topLeftCorner<3, 3>().trace()), q.x(),
-             q.y(), q.z(), q.w(), core::degrees(std::sqrt(cov.bottomRightCorner<3, 3>().trace())));
-}
-
-void print_result(std::FILE* out, const vision::HandEyeResult& r, const std::string& file) {
-  int used = 0;
-  for (const auto& v : r.views) {
-    used += v.used ? 1 : 0;
-    if (!v.used) fmt::print(out, "  {}: not used: {}\n", v.name, v.rejection);
-  }
-  if (r.status != vision::HandEyeStatus::kOk) return;
-  const bool fixed = r.mount == vision::HandEyeMount::kFixedCamera;
-  fmt::print(out, "{} of {} views used, reprojection {:.3f} px RMS ({} corners)\n", used,
-             r.views.size(), r.rms_px, r.corners_used);
-  print_transform(out, fixed ? "camera in base  " : "camera in flange", r.camera_pose,
-                  r.camera_pose_covariance);
-  print_transform(out, fixed ? "board in flange " : "board in base   ", r.target_pose,
-                  r.target_pose_covariance);
-  for (const auto& w : r.warnings) fmt::print(out, "warning: {}\n", w);
-  fmt::print(out, "written: {}\n  {}\n", file,
-             vision::ros2_static_transform(r.camera_pose, fixed ? "base" : "flange", "camera"));
-}
-
-}  // namespace
 
 CommandSpec handeye_command() {
   return {"handeye",
@@ -69,9 +33,12 @@ CommandSpec handeye_command() {
                 "in the flange frame and the board in the base frame.\n\n"
                 "IMAGES is a folder of images with --poses and --target, or a session folder "
                 "recorded by `robocal collect` or the wizard: then each camera is solved with the "
-                "intrinsics `robocal measure` calibrated, and the flange is the session's measured "
-                "frame at the robot file's nominal model for the recorded readings (one result "
-                "file per camera, OUT_<camera>.yaml, when there are several).\n\n"
+                "intrinsics `robocal measure` calibrated (or else those collect recorded), and the "
+                "flange is the pose the controller reported with each pose (pose.yaml "
+                "flange_pose: a UR, an industrial arm, an open link adapter with flange_pose) when "
+                "every usable pose has one, otherwise the session's measured frame at the robot "
+                "file's nominal model for the recorded readings; the command says which (one "
+                "result file per camera, OUT_<camera>.yaml, when there are several).\n\n"
                 "POSES is a folder with one YAML file per image (3.png -> 3.yaml: x y z in "
                 "metres, qx qy qz qw) or a YAML list of {image, pose} entries. Without --camera "
                 "the intrinsics are calibrated from the same images first. A closed form starts a "
@@ -109,7 +76,7 @@ CommandSpec handeye_command() {
               bool all_ok = true;
               for (const auto& o : outcomes) {
                 if (outcomes.size() > 1) fmt::print("camera {}:\n", o.camera);
-                print_result(stdout, o.result, o.file.string());
+                fmt::print("{}", hand_eye_summary(o.result, o.file.string()));
                 all_ok = all_ok && o.result.status == vision::HandEyeStatus::kOk;
               }
               if (all_ok) return 0;

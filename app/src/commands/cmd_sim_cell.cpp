@@ -34,11 +34,21 @@ CommandSpec sim_cell_command() {
                            "The cell's folder (default: ./sim-cell-ROBOT-seedN; an earlier "
                            "sim-cell folder of the same robot and seed is reused)");
             cmd.add_flag("--quick", o->quick, "Smaller images (faster, less accurate)");
+            cmd.add_flag("--idealised-truth", o->idealised_truth,
+                         "A rigid true robot that differs from its file only where the model can "
+                         "follow (no unmodelled error, no elastic sag)");
             cmd.add_flag(
                 "--in-process", [o](std::int64_t) { o->gige = false; },
                 "Do not serve GigE cameras: every camera is a sim:FILE camera");
             cmd.add_option("--firmware", o->firmware, "Controller dialect: marlin or rrf")
                 ->check(CLI::IsMember({"marlin", "rrf"}))
+                ->capture_default_str();
+            cmd.add_option(
+                   "--protocol", o->protocol,
+                   "What the controller speaks: gcode (the --firmware dialect) or open (the "
+                   "open link protocol, robotio/OPEN_LINK.md, reporting the flange pose "
+                   "as an industrial controller does)")
+                ->check(CLI::IsMember({"gcode", "open"}))
                 ->capture_default_str();
             cmd.add_option("--port", o->tcp_port, "The controller's TCP port (0: any free one)")
                 ->check(CLI::Range(0, 65535));

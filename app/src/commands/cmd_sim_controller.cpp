@@ -17,6 +17,7 @@
 #include <atomic>
 #include <csignal>
 #include <cstdio>
+#include <numbers>
 #include <random>
 
 namespace robocal::app {
@@ -59,6 +60,9 @@ struct SimCliOptions {
   bool exit_with_parent = false;
   robotio::SimUrOptions ur;
   bool ur_remote_off = false;
+  bool no_flange_pose = false;
+  double flange_noise_mm = 0.0;
+  double flange_noise_deg = 0.0;
 };
 
 robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
@@ -144,6 +148,9 @@ int run_sim_controller(const SimCliOptions& o) {
   s.acceleration = o.acceleration;
   s.max_seconds = o.max_seconds;
   s.exit_with_parent = o.exit_with_parent;
+  s.flange_pose = !o.no_flange_pose;
+  s.flange_noise_m = o.flange_noise_mm * 1e-3;
+  s.flange_noise_rad = o.flange_noise_deg * std::numbers::pi / 180.0;
   s.seed = o.seed + 1;
   try {
     s.faults = robotio::parse_fault_spec(o.faults);
@@ -221,6 +228,9 @@ CommandSpec sim_controller_command() {
                 "--dashboard-port, announced as 'ur ur:127.0.0.1:RTDE:SECONDARY:DASHBOARD' (a\n"
                 "--link address); its faults (on movej): drop error stall slow (late RTDE\n"
                 "packages) missing (RTDE packages not sent) pstop (a protective stop).\n"
+                "Its read replies carry the true robot's base -> flange pose (capability\n"
+                "flange_pose, as an accurate industrial controller reports it; --flange-noise-mm\n"
+                "and --flange-noise-deg add noise, --no-flange-pose leaves the capability out).\n"
                 "Stops on Ctrl-C or SIGTERM. Exit codes: 0 ok, 2 bad command line, 3 bad input.");
             cmd.add_option("--robot", o->robot, "Robot file or library robot name")->required();
             cmd.add_option("--seed", o->seed,
@@ -290,6 +300,17 @@ CommandSpec sim_controller_command() {
             cmd.add_option("--slow-ms", o->slow_ms, "Delay of a slow reply, ms");
             cmd.add_option("--max-seconds", o->max_seconds,
                            "Exit after this long (0 = until stopped)");
+            cmd.add_flag("--no-flange-pose", o->no_flange_pose,
+                         "Open protocol: no flange_pose capability (a controller that reports "
+                         "actuator positions only)");
+            cmd.add_option("--flange-noise-mm", o->flange_noise_mm,
+                           "Open protocol: noise of the reported flange position (1 sigma per "
+                           "axis, mm)")
+                ->check(CLI::Range(0.0, 100.0));
+            cmd.add_option("--flange-noise-deg", o->flange_noise_deg,
+                           "Open protocol: noise of the reported flange rotation (1 sigma per "
+                           "axis, degrees)")
+                ->check(CLI::Range(0.0, 10.0));
             cmd.add_flag("--exit-with-parent", o->exit_with_parent,
                          "Exit when standard input closes (a pipe from the starting process: "
                          "robocal demo and the tests start it so)");

@@ -58,6 +58,7 @@ class PausableRobot final : public robotio::CaptureRobot {
   }
   Eigen::VectorXd read_actuators() override { return inner_->read_actuators(); }
   void stop(const std::string& reason) override { inner_->stop(reason); }
+  std::optional<Eigen::Isometry3d> flange_pose() const override { return inner_->flange_pose(); }
 
  private:
   void wait_while_paused() {
@@ -456,6 +457,13 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
     const auto firmware = link.connect();
     r["firmware"] = firmware.name;
     if (out) fmt::print(out, "controller at {}: {}\n", o.link, firmware.name);
+    // A controller that computes its own flange pose (an industrial arm, an open link adapter
+    // with `flange_pose`) has it recorded with every pose, for `robocal handeye`.
+    r["flange_pose"] = link.reports_flange_pose();
+    if (out && r["flange_pose"].get<bool>())
+      fmt::print(out,
+                 "the controller reports its base -> flange pose: recorded with every pose "
+                 "(pose.yaml flange_pose), for `robocal handeye`\n");
   } catch (const robotio::LinkError& e) {
     res.status = "failed";
     res.message = fmt::format("controller at {}: {}", o.link, e.what());

@@ -10,6 +10,7 @@
 #include "robocal/core/files.hpp"
 #include "robocal/planner/cell.hpp"
 #include "robocal/robotio/gcode_link.hpp"
+#include "robocal/robotio/link_factory.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/robotio/sim_process.hpp"
 #include "robocal/robotio/sim_truth.hpp"
@@ -39,8 +40,8 @@ extern "C" void on_cell_signal(int /*signal*/) {
 
 // The folder's identity: a folder made for another robot or seed is not reused.
 std::string identity(const SimCellOptions& o, const std::string& robot_file) {
-  return fmt::format("robot: {}\nseed: {}\nquick: {}\n", fs::absolute(robot_file).string(), o.seed,
-                     o.quick);
+  return fmt::format("robot: {}\nseed: {}\nquick: {}\nidealised_truth: {}\n",
+                     fs::absolute(robot_file).string(), o.seed, o.quick, o.idealised_truth);
 }
 
 void prepare_folder(const SimCellOptions& o, const std::string& robot_file,
@@ -98,11 +99,12 @@ void jog_into_view(const LiveCell& lc, const std::string& robot_file, const Live
   robotio::GcodeLinkOptions lo;
   lo.address = link_address;
   lo.axes = robotio::axes_for_robot(model, 80.0, 100.0);  // sim-controller's defaults
-  robotio::GcodeLink link(guard, lo);
-  link.connect();
-  link.home();
-  link.move_actuators(poses.front(), move);
-  link.disconnect();
+  // The address names the protocol (open:HOST:PORT or tcp:HOST:PORT).
+  const std::unique_ptr<robotio::RobotLink> link = robotio::make_robot_link(guard, lo);
+  link->connect();
+  link->home();
+  link->move_actuators(poses.front(), move);
+  link->disconnect();
 }
 
 struct Answer {
@@ -157,6 +159,7 @@ int run_sim_cell(const SimCellOptions& o) {
   lo.robot = o.robot;
   lo.seed = o.seed;
   lo.quick = o.quick;
+  lo.idealised_truth = o.idealised_truth;
   const LiveCell lc = make_live_cell(lo, robot_file);
   const LiveCellFiles files = write_live_cell(lc.cell, robot_file, at.cell_dir());
   // The true geometry is the simulator's, not the operator's: out of the cell's folder.
@@ -178,12 +181,16 @@ int run_sim_cell(const SimCellOptions& o) {
       "--seed",          std::to_string(o.seed),
       "--perturbation",  truth_txt.string(),
       "--firmware",      o.firmware,
+      "--protocol",      o.protocol,
       "--tcp-port",      std::to_string(o.tcp_port),
       "--pty-link",      (at.simulator() / "tty").string(),
       "--log",           (at.simulator() / "sim-controller.jsonl").string(),
       "--busy-interval", "1"};
   robotio::SimControllerProcess sim(robocal_binary(), args);
-  jog_into_view(lc, robot_file, files, sim.tcp(), o.seed, out);
+  // tcp:HOST:PORT as the simulator announces it; the open link's address says its protocol.
+  const std::string link_address =
+      o.protocol == "open" ? "open:" + sim.tcp().substr(sim.tcp().find(':') + 1) : sim.tcp();
+  jog_into_view(lc, robot_file, files, link_address, o.seed, out);
   robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
   SaggingBoard seen(truth, lc.cell.elastic_sag);
   LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("S{}-", ::getpid()));
@@ -193,18 +200,23 @@ int run_sim_cell(const SimCellOptions& o) {
     std::string source = cams.source(c);
     if (!cams.served(c)) {
       const fs::path file = at.simulator() / (specs[c].name + ".camera.yaml");
-      core::write_file_atomic(
-          file, sim_camera_yaml({robot_file, o.seed, o.quick, false, specs[c].name, sim.pose()}));
+      core::write_file_atomic(file, sim_camera_yaml({robot_file, o.seed, o.quick, o.idealised_truth,
+                                                     specs[c].name, sim.pose()}));
       source = "sim:" + file.string();
     }
     camera_list += (camera_list.empty() ? "" : " ") + specs[c].name + "=" + source;
     names.push_back(specs[c].name);
   }
-  const auto answers = wizard_answers(o, at, sim.tcp(), camera_list, names);
+  const auto answers = wizard_answers(o, at, link_address, camera_list, names);
   core::write_file_atomic(at.answers(), answers_yaml(answers));
 
-  fmt::print(out, "\ncontroller: {} firmware, G-code at {} (serial: {})\n", o.firmware, sim.tcp(),
-             (at.simulator() / "tty").string());
+  if (o.protocol == "open")
+    fmt::print(out,
+               "\ncontroller: the open link protocol at {} (read replies carry the flange pose)\n",
+               link_address);
+  else
+    fmt::print(out, "\ncontroller: {} firmware, G-code at {} (serial: {})\n", o.firmware, sim.tcp(),
+               (at.simulator() / "tty").string());
   for (std::size_t c = 0; c < specs.size(); ++c)
     fmt::print(out, "camera {}: {}\n", specs[c].name,
                cams.served(c) ? fmt::format("GigE Vision through Aravis' fake camera on {}",

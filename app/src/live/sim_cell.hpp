@@ -17,12 +17,16 @@ struct SimCellOptions {
   std::string robot = "rotary_delta";
   unsigned seed = 1;
   bool quick = false;
+  // The truth without the realistic cell's unmodelled error and elastic sag (a rigid robot that
+  // differs from its file only where the model can follow), as `robocal demo --idealised-truth`.
+  bool idealised_truth = false;
   bool gige = true;  // serve the cameras through Aravis' fake camera where possible
   std::string out;   // the cell's folder (created; a folder of an earlier sim-cell of the
                      // same robot and seed is reused)
   std::string firmware = "marlin";
-  int tcp_port = 0;        // the controller's TCP port (0: any free one)
-  double max_seconds = 0;  // stop after this long (0: at Ctrl-C)
+  std::string protocol = "gcode";  // or "open": the open link protocol with flange poses
+  int tcp_port = 0;                // the controller's TCP port (0: any free one)
+  double max_seconds = 0;          // stop after this long (0: at Ctrl-C)
 };
 
 // The folder's layout, for the command's own output and the tests.

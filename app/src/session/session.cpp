@@ -4,6 +4,7 @@
 
 #include "robocal/core/files.hpp"
 #include "robocal/core/yaml.hpp"
+#include "robocal/vision/hand_eye_io.hpp"
 
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
@@ -159,6 +160,14 @@ std::string pose_record_yaml(const PoseRecord& pose) {
   for (Eigen::Index i = 0; i < pose.actuators.size(); ++i)
     text += fmt::format("{}{:.17g}", i ? ", " : "", pose.actuators[i]);
   text += fmt::format("]\ntimestamp: {:.3f}\n", pose.timestamp);
+  if (pose.base_T_flange) {
+    const Eigen::Vector3d p = pose.base_T_flange->translation();
+    const Eigen::Quaterniond q(pose.base_T_flange->linear());
+    text += fmt::format(
+        "flange_pose: {{x: {:.17g}, y: {:.17g}, z: {:.17g}, qx: {:.17g}, qy: {:.17g}, qz: "
+        "{:.17g}, qw: {:.17g}}}\n",
+        p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
+  }
   return text;
 }
 
@@ -197,6 +206,13 @@ std::vector<PoseRecord> load_pose_records(const Session& session) {
         }
       }
       r.timestamp = ctx.optional<double>(root, "timestamp", 0.0);
+      if (const YAML::Node flange = root["flange_pose"]) {
+        try {
+          r.base_T_flange = vision::read_flange_pose(ctx, flange);
+        } catch (const InputError& e) {
+          r.flange_problem = e.what();
+        }
+      }
       if (r.actuators.size() != session.actuators)
         throw InputError(fmt::format("{}: {} actuator readings, the session's robot has {}",
                                      core::yaml_where(source, q), r.actuators.size(),

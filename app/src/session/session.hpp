@@ -6,9 +6,11 @@
 // Recorded data is written once and never replaced or deleted; results are replaced atomically.
 // Every file is written under a temporary name and renamed, so a reader never sees half a file.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -69,6 +71,12 @@ struct PoseRecord {
   Eigen::VectorXd actuators;
   double timestamp = 0.0;  // s since the session started
   std::string problem;     // non-empty: the pose cannot be used (missing/malformed pose.yaml)
+  // The base -> flange pose the controller reported with the readings (pose.yaml
+  // `flange_pose`, recorded by collect from a controller that computes it); none in sessions
+  // of controllers that report actuator positions only. A malformed one leaves it empty and
+  // says why in `flange_problem`: the readings stay usable.
+  std::optional<Eigen::Isometry3d> base_T_flange;
+  std::string flange_problem;
 };
 // Pose sub-folders of the session, sorted by name; a bad pose.yaml gives a record with `problem`.
 std::vector<PoseRecord> load_pose_records(const Session& session);

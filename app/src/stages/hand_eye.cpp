@@ -8,6 +8,7 @@
 
 #include "robocal/calib/closure.hpp"
 
+#include "robocal/core/angles.hpp"
 #include "robocal/core/files.hpp"
 #include "robocal/core/input_error.hpp"
 #include "robocal/vision/camera_io.hpp"
@@ -21,6 +22,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 
 namespace robocal::app {
@@ -114,45 +116,126 @@ vision::HandEyeResult solve_views(const ViewSources& sources, const vision::Targ
   return result;
 }
 
-// A session: each camera's first frame at every pose, the measured frame's nominal pose for the
-// recorded readings as the flange.
-std::vector<HandEyeOutcome> session_hand_eye(const HandEyeRequest& request,
-                                             const PipelineLog& log) {
-  const Session session = load_session(request.images);
-  const SessionRobot robot = session_robot(session, "");
-  const vision::TargetBoard board = load_board(session.path(session.ee_target));
-  std::map<std::string, PoseRecord> records;
-  for (PoseRecord& r : load_pose_records(session)) records[r.name] = std::move(r);
-  const std::vector<std::string> names = session.camera_names();
-  const std::vector<ImageSet> sets = scan_image_folder(session.path(session.poses), names);
+// A session camera's intrinsics: calibrated by `robocal measure` from the session's calibration
+// views, or else the camera file collect recorded with the session (the cell's, which the
+// wizard's intrinsics step calibrated).
+fs::path session_camera_file(const Session& session, const std::string& camera,
+                             const PipelineLog& log) {
+  fs::path measured = ResultsLayout{session.dir}.camera(camera);
+  if (fs::exists(measured)) return measured;
+  fs::path recorded = session.dir / "cameras" / (camera + ".yaml");
+  if (fs::exists(recorded)) {
+    fmt::print(log.out, "camera {}: the intrinsics recorded at collection ({})\n", camera,
+               recorded.string());
+    return recorded;
+  }
+  throw core::InputError(fmt::format(
+      "{}: camera '{}' has no calibrated intrinsics ({}, or {} from collect): run "
+      "`robocal measure {}` first, or give --camera",
+      session.dir.string(), camera, measured.string(), recorded.string(), session.dir.string()));
+}
+
+// The flange pose of every image set of a session (none: why not, in `problems`).
+struct SessionFlanges {
   std::vector<std::optional<Eigen::Isometry3d>> poses;
   std::vector<std::string> problems;
+};
+
+// The poses the controller reported, when every usable pose has one: what the robot's own
+// (calibrated) controller knows beats the robot file's nominal model, but a mix of the two
+// frames (flange, measured frame) would be no rigid hand-eye problem.
+std::optional<SessionFlanges> reported_flanges(const std::vector<ImageSet>& sets,
+                                               const std::map<std::string, PoseRecord>& records) {
+  SessionFlanges f;
   for (const ImageSet& set : sets) {
     const auto it = records.find(set.name);
     if (it == records.end() || !it->second.problem.empty()) {
-      poses.emplace_back();
-      problems.push_back(it == records.end() ? "no pose.yaml" : it->second.problem);
+      f.poses.emplace_back();
+      f.problems.push_back(it == records.end() ? "no pose.yaml" : it->second.problem);
+      continue;
+    }
+    if (!it->second.base_T_flange) return std::nullopt;
+    f.poses.push_back(it->second.base_T_flange);
+    f.problems.emplace_back();
+  }
+  return f;
+}
+
+// The measured frame's pose at the robot file's nominal model for the recorded readings.
+SessionFlanges nominal_flanges(const std::vector<ImageSet>& sets,
+                               const std::map<std::string, PoseRecord>& records,
+                               const SessionRobot& robot) {
+  SessionFlanges f;
+  for (const ImageSet& set : sets) {
+    const auto it = records.find(set.name);
+    if (it == records.end() || !it->second.problem.empty()) {
+      f.poses.emplace_back();
+      f.problems.push_back(it == records.end() ? "no pose.yaml" : it->second.problem);
       continue;
     }
     const auto fk =
         calib::forward_kinematics(robot.model, robot.nominal, it->second.actuators, robot.frame);
     if (fk.closure.status != calib::SolveStatus::kConverged) {
-      poses.emplace_back();
-      problems.emplace_back(
+      f.poses.emplace_back();
+      f.problems.emplace_back(
           "the robot file's model cannot place the measured frame for these readings");
       continue;
     }
-    poses.emplace_back(fk.pose);
-    problems.emplace_back();
+    f.poses.emplace_back(fk.pose);
+    f.problems.emplace_back();
   }
+  return f;
+}
+
+// The usable poses without a reported flange pose, named (at most a few) for the message.
+std::string poses_without_flange(const std::map<std::string, PoseRecord>& records) {
+  std::vector<std::string> names;
+  for (const auto& [name, r] : records)
+    if (r.problem.empty() && !r.base_T_flange)
+      names.push_back(r.flange_problem.empty() ? name : r.flange_problem);
+  std::string text;
+  for (std::size_t i = 0; i < names.size() && i < 3; ++i) text += (i ? "; " : "") + names[i];
+  if (names.size() > 3) text += fmt::format(" and {} more", names.size() - 3);
+  return fmt::format("{} of {} poses ({})", names.size(), records.size(), text);
+}
+
+SessionFlanges session_flanges(const Session& session, const std::vector<ImageSet>& sets,
+                               const PipelineLog& log) {
+  std::map<std::string, PoseRecord> records;
+  for (PoseRecord& r : load_pose_records(session)) records[r.name] = std::move(r);
+  if (auto reported = reported_flanges(sets, records)) {
+    fmt::print(log.out,
+               "flange poses: as the controller reported them (pose.yaml flange_pose): the "
+               "camera and board are located relative to its base and flange\n");
+    return *reported;
+  }
+  const SessionRobot robot = session_robot(session, "");
+  const bool none = std::none_of(records.begin(), records.end(),
+                                 [](const auto& r) { return r.second.base_T_flange.has_value(); });
+  fmt::print(log.out,
+             "flange poses: {}; the measured frame '{}' at the robot file's nominal model for "
+             "the recorded readings is taken as the flange instead\n",
+             none ? std::string("the controller reported none")
+                  : "no reported flange pose at " + poses_without_flange(records),
+             session.measured_frame);
+  return nominal_flanges(sets, records, robot);
+}
+
+// A session: each camera's first frame at every pose, with the flange the controller reported
+// (or the measured frame's nominal pose).
+std::vector<HandEyeOutcome> session_hand_eye(const HandEyeRequest& request,
+                                             const PipelineLog& log) {
+  const Session session = load_session(request.images);
+  const vision::TargetBoard board = load_board(session.path(session.ee_target));
+  const std::vector<std::string> names = session.camera_names();
+  const std::vector<ImageSet> sets = scan_image_folder(session.path(session.poses), names);
+  const SessionFlanges flanges = session_flanges(session, sets, log);
+  const auto& poses = flanges.poses;
+  const auto& problems = flanges.problems;
   std::vector<HandEyeOutcome> out;
   for (std::size_t c = 0; c < names.size(); ++c) {
-    const fs::path camera_file = ResultsLayout{session.dir}.camera(names[c]);
-    if (!request.camera && !fs::exists(camera_file))
-      throw core::InputError(fmt::format(
-          "{}: camera '{}' has no calibrated intrinsics ({}): run `robocal measure {}` first",
-          session.dir.string(), names[c], camera_file.string(), session.dir.string()));
-    const fs::path source = request.camera ? *request.camera : camera_file;
+    const fs::path source =
+        request.camera ? *request.camera : session_camera_file(session, names[c], log);
     ViewSources sources;
     for (std::size_t k = 0; k < sets.size(); ++k) {
       if (sets[k].frames_of_camera[c].empty()) continue;
@@ -175,7 +258,40 @@ std::vector<HandEyeOutcome> session_hand_eye(const HandEyeRequest& request,
   return out;
 }
 
+std::string transform_line(const char* what, const Eigen::Isometry3d& pose,
+                           const core::PoseCovariance& cov) {
+  const Eigen::Vector3d t = pose.translation();
+  const Eigen::Quaterniond q(pose.linear());
+  return fmt::format(
+      "  {}: translation ({:.5f}, {:.5f}, {:.5f}) m +- {:.2f} mm, quaternion xyzw ({:.5f}, "
+      "{:.5f}, {:.5f}, {:.5f}) +- {:.3f} deg\n",
+      what, t.x(), t.y(), t.z(), 1e3 * std::sqrt(cov.topLeftCorner<3, 3>().trace()), q.x(), q.y(),
+      q.z(), q.w(), core::degrees(std::sqrt(cov.bottomRightCorner<3, 3>().trace())));
+}
+
 }  // namespace
+
+std::string hand_eye_summary(const vision::HandEyeResult& r, const std::string& file) {
+  std::string text;
+  int used = 0;
+  for (const auto& v : r.views) {
+    used += v.used ? 1 : 0;
+    if (!v.used) text += fmt::format("  {}: not used: {}\n", v.name, v.rejection);
+  }
+  if (r.status != vision::HandEyeStatus::kOk) return text;
+  const bool fixed = r.mount == vision::HandEyeMount::kFixedCamera;
+  text += fmt::format("{} of {} views used, reprojection {:.3f} px RMS ({} corners)\n", used,
+                      r.views.size(), r.rms_px, r.corners_used);
+  text += transform_line(fixed ? "camera in base  " : "camera in flange", r.camera_pose,
+                         r.camera_pose_covariance);
+  text += transform_line(fixed ? "board in flange " : "board in base   ", r.target_pose,
+                         r.target_pose_covariance);
+  for (const auto& w : r.warnings) text += fmt::format("warning: {}\n", w);
+  text += fmt::format(
+      "written: {}\n  {}\n", file,
+      vision::ros2_static_transform(r.camera_pose, fixed ? "base" : "flange", "camera"));
+  return text;
+}
 
 std::vector<HandEyeOutcome> run_hand_eye(const HandEyeRequest& request, const PipelineLog& log) {
   std::vector<HandEyeOutcome> outcomes;

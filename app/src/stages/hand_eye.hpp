@@ -37,4 +37,9 @@ struct HandEyeOutcome {
 
 std::vector<HandEyeOutcome> run_hand_eye(const HandEyeRequest& request, const PipelineLog& log);
 
+// What a person reads of one answer: the views left out and why, the reprojection, both
+// transforms with their 1-sigma, the warnings, the file and the ROS 2 static transform command
+// (only the views left out when the estimate was not accepted).
+std::string hand_eye_summary(const vision::HandEyeResult& result, const std::string& file);
+
 }  // namespace robocal::app

@@ -42,8 +42,16 @@ class Step {
   [[nodiscard]] virtual std::string key() const = 0;    // prompt prefix and state name
   [[nodiscard]] virtual std::string title() const = 0;  // one line, plain words
   [[nodiscard]] virtual std::string what() const = 0;   // what the step does and why
+  // Whether the step belongs to the route the operator chose (robot.goal): a hand-eye
+  // calibration has no identification, validation or robot export.
+  [[nodiscard]] virtual bool applies(const WizardState& /*state*/) const { return true; }
   virtual StepOutcome run(WizardContext& ctx) = 0;
 };
+
+// The operator chose to locate only the cameras and the board (robot.goal: handeye).
+inline bool hand_eye_only(const WizardState& state) {
+  return state.get("robot.goal") == "handeye";
+}
 
 // The steps, in the order they run (steps_*.cpp).
 std::vector<std::unique_ptr<Step>> all_steps();
@@ -64,6 +72,8 @@ std::unique_ptr<Step> collection_step();
 std::unique_ptr<Step> identify_step();
 std::unique_ptr<Step> validate_step();
 std::unique_ptr<Step> export_step();
+// steps_hand_eye.cpp
+std::unique_ptr<Step> hand_eye_step();
 
 // Prints "check: ok - text" or "check: PROBLEM - text" and advice.
 void say_check(const WizardContext& ctx, bool ok, const std::string& text,

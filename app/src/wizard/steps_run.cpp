@@ -210,6 +210,7 @@ std::string views_folder_guess(const WizardState& state) {
 
 class IdentifyStep final : public Step {
  public:
+  bool applies(const WizardState& state) const override { return !hand_eye_only(state); }
   std::string key() const override { return "identify"; }
   std::string title() const override { return "Identify the geometry"; }
   std::string what() const override {
@@ -359,6 +360,7 @@ HeldOutRecord held_out_record(const fs::path& fit, const std::vector<MeasuredPos
 
 class ValidateStep final : public Step {
  public:
+  bool applies(const WizardState& state) const override { return !hand_eye_only(state); }
   std::string key() const override { return "validate"; }
   std::string title() const override { return "Validate on held-out poses"; }
   std::string what() const override {
@@ -433,6 +435,7 @@ std::vector<std::string> formats_for(const fs::path& session) {
 
 class ExportStep final : public Step {
  public:
+  bool applies(const WizardState& state) const override { return !hand_eye_only(state); }
   std::string key() const override { return "export"; }
   std::string title() const override { return "Export"; }
   std::string what() const override {

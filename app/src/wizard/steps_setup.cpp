@@ -91,6 +91,19 @@ void explain_identifiability(const WizardContext& ctx, const calib::Mechanism& m
             "the model has nothing the cameras can measure: check its free parameters");
 }
 
+// What the operator wants from the cell: the robot's geometry (with where the cameras are), or
+// only where the cameras and the board are for a robot whose controller is trusted.
+void ask_goal(const WizardContext& ctx) {
+  fmt::print(ctx.out,
+             "geometry: calibrate the robot's kinematics (identify, validate, export the "
+             "calibrated robot).\nhandeye: only locate the camera(s) and the board relative to "
+             "the robot, from the flange poses its controller reports (an accurate arm with its "
+             "own calibration); the robot's model is not changed.\n");
+  ctx.state.set("robot.goal",
+                ctx.ask.choose("robot.goal", "What to calibrate", {"geometry", "handeye"},
+                               ctx.state.get("robot.goal", "geometry")));
+}
+
 class RobotStep final : public Step {
  public:
   std::string key() const override { return "robot"; }
@@ -111,7 +124,8 @@ class RobotStep final : public Step {
         ctx.state.set("robot.file", fs::absolute(file).string());
         fmt::print(ctx.out, "Robot: {} ({} actuators), from {}\n", model.name,
                    model.actuated.size(), file);
-        explain_identifiability(ctx, model);
+        ask_goal(ctx);
+        if (!hand_eye_only(ctx.state)) explain_identifiability(ctx, model);
         return StepOutcome::done();
       } catch (const InputError& e) {
         say_check(ctx, false, e.what(),
@@ -198,6 +212,18 @@ class ControllerStep final : public Step {
         ctx.state.set("controller.link", link);
         ctx.state.set("controller.firmware", fw.name);
         say_check(ctx, true, "the controller answers and reports its axes");
+        // The hand-eye route trusts the flange pose; without one it falls back to the robot
+        // file's nominal model, which the operator should know before anything is recorded.
+        if (readings.base_T_flange)
+          fmt::print(ctx.out,
+                     "The controller reports its flange pose: recorded with every pose.\n");
+        else if (hand_eye_only(ctx.state))
+          say_check(ctx, false,
+                    "the controller reports no flange pose: the hand-eye calibration will take "
+                    "the flange from the robot file's nominal model for its readings",
+                    "for a controller's own, calibrated pose, connect through a link that reports "
+                    "it (an open link adapter with the flange_pose capability, "
+                    "robotio/OPEN_LINK.md)");
         if (ctx.ask.confirm("controller.home",
                             "Home the robot now? Every axis moves to its endstop (collection "
                             "homes anyway, after the safety confirmation)",

@@ -7,6 +7,7 @@
 #include <fmt/core.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 
 namespace robocal::app::wizard {
@@ -24,6 +25,7 @@ void say_check(const WizardContext& ctx, bool ok, const std::string& text,
 // question asks is refused before the first step. A new question adds its key here.
 std::vector<std::string> answer_keys() {
   return {"robot.model",
+          "robot.goal",
           "controller.steps_per_mm",
           "controller.steps_per_degree",
           "controller.link",
@@ -54,7 +56,8 @@ std::vector<std::string> answer_keys() {
           "export.format",
           "export.problem",
           "export.gcode",
-          "export.gcode_problem"};
+          "export.gcode_problem",
+          "handeye.mount"};
 }
 
 std::vector<std::unique_ptr<Step>> all_steps() {
@@ -70,6 +73,7 @@ std::vector<std::unique_ptr<Step>> all_steps() {
   s.push_back(identify_step());
   s.push_back(validate_step());
   s.push_back(export_step());
+  s.push_back(hand_eye_step());
   return s;
 }
 
@@ -111,14 +115,18 @@ int run_wizard(const WizardOptions& o) {
                state.current.empty() ? std::string() : fmt::format(" at step '{}'", state.current));
   int n = 0;
   for (const auto& step : steps) {
+    if (!step->applies(state)) continue;
     ++n;
+    // Counted on the route chosen so far (the robot step's goal decides which steps follow).
+    const auto total = std::count_if(steps.begin(), steps.end(),
+                                     [&state](const auto& s) { return s->applies(state); });
     if (state.is_done(step->key())) {
-      if (o.resume) fmt::print(out, "Step {}/{} {}: done before\n", n, steps.size(), step->title());
+      if (o.resume) fmt::print(out, "Step {}/{} {}: done before\n", n, total, step->title());
       continue;
     }
     state.current = step->key();
     state.save();
-    fmt::print(out, "\n== Step {}/{}: {} ==\n{}\n", n, steps.size(), step->title(), step->what());
+    fmt::print(out, "\n== Step {}/{}: {} ==\n{}\n", n, total, step->title(), step->what());
     std::fflush(out);
     StepOutcome r;
     try {
@@ -160,8 +168,9 @@ int run_wizard(const WizardOptions& o) {
     state.current.clear();
     state.save();
   }
-  fmt::print(out, "\nAll steps done. The session is in {}, the export in {}.\n",
-             state.session().string(), (state.folder / "export").string());
+  fmt::print(out, "\nAll steps done. The session is in {}, the {} in {}.\n",
+             state.session().string(), hand_eye_only(state) ? "transforms" : "export",
+             (state.folder / "export").string());
   return kExitOk;
 }
 

@@ -18,6 +18,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <system_error>
 
@@ -197,6 +198,17 @@ std::string numbers(const Eigen::VectorXd& values) {
   return text + "]";
 }
 
+// The controller's flange pose as pose.yaml keeps it: the keys of a hand-eye pose file
+// (vision/hand_eye_io.hpp), so the line is one a person can copy into one.
+std::string flange_pose_line(const Eigen::Isometry3d& base_T_flange) {
+  const Eigen::Vector3d p = base_T_flange.translation();
+  const Eigen::Quaterniond q(base_T_flange.linear());
+  return fmt::format(
+      "flange_pose: {{x: {:.17g}, y: {:.17g}, z: {:.17g}, qx: {:.17g}, qy: {:.17g}, qz: {:.17g}, "
+      "qw: {:.17g}}}   # base -> flange as the controller reported it with `actuators` (m)\n",
+      p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w());
+}
+
 std::string frame_file_name(const std::string& camera, int shot, int shots) {
   return shots == 1 ? camera + ".png" : fmt::format("{}_{}.png", camera, shot);
 }
@@ -214,8 +226,9 @@ void write_text(const fs::path& file, const std::string& text) {
 void write_pose(const fs::path& staging, const fs::path& poses_dir, const std::string& name,
                 const ShotSeries& shots, const std::vector<CaptureCamera>& cameras,
                 const Eigen::VectorXd& before, const Eigen::VectorXd& after,
-                const PoseCaptureReport& report, const MotionVerdict& verdict,
-                const std::string& detector, const CaptureOptions& options) {
+                const std::optional<Eigen::Isometry3d>& flange, const PoseCaptureReport& report,
+                const MotionVerdict& verdict, const std::string& detector,
+                const CaptureOptions& options) {
   const fs::path dir = staging / name;
   std::error_code error;
   fs::remove_all(dir, error);
@@ -271,6 +284,7 @@ void write_pose(const fs::path& staging, const fs::path& poses_dir, const std::s
       fmt::format("# robot pose {} (format: app/SESSION.md), recorded by capture\n", name);
   text += fmt::format("actuators: {}   # settled readings before the shots\n", numbers(before));
   text += fmt::format("timestamp: {:.6f}\n", timestamp);
+  if (flange) text += flange_pose_line(*flange);
   text += fmt::format("actuators_after: {}   # readings after the last shot\n", numbers(after));
   text += fmt::format("retakes: {}\nstill_moving: {}\nmotion_chi2: {:.6g}\n", report.retakes,
                       report.still_moving ? "true" : "false", report.motion_chi2);
@@ -315,7 +329,8 @@ struct TakenPose {
   ShotSeries shots;
   Eigen::VectorXd before;
   Eigen::VectorXd after;
-  bool moving = false;  // set by the check
+  std::optional<Eigen::Isometry3d> flange;  // reported with `before`
+  bool moving = false;                      // set by the check
   bool written = false;
   MotionVerdict verdict;  // set by the check
 };
@@ -438,7 +453,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
     taken.report.still_moving = taken.moving;
     t = Clock::now();
     write_pose(staging, poses_dir, taken.report.name, taken.shots, cameras, taken.before,
-               taken.after, taken.report, taken.verdict, detector_signature, writing);
+               taken.after, taken.flange, taken.report, taken.verdict, detector_signature, writing);
     taken.report.write_s = seconds_since(t);
     taken.written = true;
     return taken;
@@ -513,6 +528,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
     try {
       auto t = Clock::now();
       taken.before = robot.move_and_settle(targets[static_cast<std::size_t>(index)]);
+      taken.flange = robot.flange_pose();
       taken.report.move_s = seconds_since(t);
       visited.push_back(index);
       // The readings tell at once whether the robot moved during the shots: retake right away.
@@ -529,6 +545,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
         }
         ++taken.report.retakes;
         taken.before = taken.after;
+        taken.flange = robot.flange_pose();
       }
       t = Clock::now();
       while (in_flight.size() >= in_flight_limit) {

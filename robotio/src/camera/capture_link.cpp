@@ -9,11 +9,14 @@ Eigen::VectorXd LinkCaptureRobot::move_and_settle(const Eigen::VectorXd& target)
   if (!moved.confirmed && !moved.dry_run) {
     throw std::runtime_error("the controller did not confirm the move: " + moved.reason);
   }
+  flange_ = moved.readings.base_T_flange;
   return moved.readings.values;
 }
 
 Eigen::VectorXd LinkCaptureRobot::read_actuators() {
-  return link_->read_actuators().values;
+  ActuatorReadings readings = link_->read_actuators();
+  flange_ = readings.base_T_flange;
+  return readings.values;
 }
 
 void LinkCaptureRobot::stop(const std::string& reason) {

@@ -149,7 +149,7 @@ ActuatorReadings ManualLink::do_read() {
                               "order above:",
                               n),
                   false);
-    if (const auto values = parse_typed_readings(last, n)) return {{}, *values};
+    if (const auto values = parse_typed_readings(last, n)) return {{}, *values, std::nullopt};
     fmt::print(options_.out, "That is not {} numbers.\n", n);
   }
   throw LinkError(kDevice, fmt::format("{} answers were not {} readings", options_.attempts, n),

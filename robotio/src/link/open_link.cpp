@@ -9,9 +9,11 @@
 #include <fmt/core.h>
 
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 #include <utility>
+#include <vector>
 
 namespace robocal::robotio {
 namespace {
@@ -27,7 +29,49 @@ Eigen::VectorXd nominal_scales(const SafetyGuard& guard) {
   return calib::encoder_scales(guard.model(), guard.model().nominal_parameters());
 }
 
+// `count` finite numbers in `field` of `pose`; empty, with the problem named, when not.
+std::vector<double> finite_numbers(const json& pose, const char* field, std::size_t count,
+                                   std::string& problem) {
+  const json& v = pose.contains(field) ? pose[field] : json();
+  std::vector<double> out;
+  if (v.is_array() && v.size() == count)
+    for (const json& x : v)
+      if (x.is_number() && std::isfinite(x.get<double>())) out.push_back(x.get<double>());
+  if (out.size() != count) {
+    problem = fmt::format("\"flange_pose\" needs \"{}\": {} finite numbers", field, count);
+    out.clear();
+  }
+  return out;
+}
+
 }  // namespace
+
+std::optional<Eigen::Isometry3d> parse_open_flange_pose(const json& reply, std::string& problem) {
+  problem.clear();
+  const json& pose = reply.contains("flange_pose") ? reply["flange_pose"] : json();
+  if (!pose.is_object()) {
+    problem = "the reply has no \"flange_pose\" object";
+    return std::nullopt;
+  }
+  const std::vector<double> p = finite_numbers(pose, "position", 3, problem);
+  if (!problem.empty()) return std::nullopt;
+  const std::vector<double> q = finite_numbers(pose, "quaternion_xyzw", 4, problem);
+  if (!problem.empty()) return std::nullopt;
+  const Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);
+  // A unit quaternion written with 6+ digits is within 1e-5 of length 1; far from it, the
+  // fields are not a rotation (another order, degrees, a scaled vector).
+  if (std::abs(rotation.norm() - 1.0) > 1e-3) {
+    problem = fmt::format(
+        "\"flange_pose\" quaternion_xyzw [{}, {}, {}, {}] has length {:.6f}, not 1 (x y z w "
+        "of a unit quaternion expected)",
+        q[0], q[1], q[2], q[3], rotation.norm());
+    return std::nullopt;
+  }
+  Eigen::Isometry3d base_T_flange = Eigen::Isometry3d::Identity();
+  base_T_flange.linear() = rotation.normalized().toRotationMatrix();
+  base_T_flange.translation() = Eigen::Vector3d(p[0], p[1], p[2]);
+  return base_T_flange;
+}
 
 OpenLink::OpenLink(SafetyGuard& guard, const OpenLinkOptions& options)
     : OpenLink(guard, options, open_link_transport(options.address)) {}
@@ -296,6 +340,16 @@ ActuatorReadings OpenLink::readings_from(const json& reply) const {
         throw LinkError(client_.device(), "a count is not an integer", client_.last_line());
       r.counts.push_back(v.get<long>());
     }
+  }
+  if (hello_.has("flange_pose")) {
+    std::string problem;
+    r.base_T_flange = parse_open_flange_pose(reply, problem);
+    if (!r.base_T_flange)
+      throw LinkError(client_.device(),
+                      "the controller has the flange_pose capability but its read reply is "
+                      "wrong: " +
+                          problem,
+                      client_.last_line());
   }
   return r;
 }

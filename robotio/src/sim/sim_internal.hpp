@@ -108,6 +108,7 @@ struct SimController::Impl {
   SimCounters counters;
   std::mt19937 noise_rng;
   std::mt19937 fault_rng;
+  std::mt19937 flange_rng;  // its own stream: the actuator noise is the same with or without it
   std::FILE* log = nullptr;
   double t0 = now_seconds();
 
@@ -193,6 +194,9 @@ struct SimController::Impl {
                                              std::optional<FaultKind> fault);
   void open_reply(Channel& c, const nlohmann::json& id, nlohmann::json reply, bool lost);
   nlohmann::json open_position() const;
+  // The `flange_pose` field of a read reply: the true robot's pose where it stands, with the
+  // configured noise; null where the true robot cannot assemble.
+  nlohmann::json open_flange_pose();
   // A stop acts on receipt, even while a wait_settled blocks the request queue.
   void open_stop(Channel& c, const std::string& kind);
   std::optional<FaultKind> open_roll_fault(const std::string& cmd);

@@ -2,17 +2,43 @@
 // quantisation, backlash and repeatability noise, the true actuator positions and end-effector
 // pose, and the JSONL log that records every motion (the independent record tests read).
 #include "robocal/calib/closure.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "robocal/robotio/motion_profile.hpp"
 #include "sim_internal.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
 namespace robocal::robotio {
+
+FlangeFrames flange_frames(const calib::Mechanism& model) {
+  FlangeFrames f;
+  const int tool = model.task.frame >= 0 ? model.task.frame : model.tool;
+  f.flange = tool;
+  if (tool >= 0) {
+    const calib::Body& b = model.bodies[static_cast<std::size_t>(tool)];
+    if (b.joint == calib::JointType::kFixed && b.parent >= 0) f.flange = b.parent;
+  }
+  if (!model.bodies.empty() && model.bodies.front().parent < 0 &&
+      model.bodies.front().joint == calib::JointType::kFixed && f.flange != 0)
+    f.base = 0;
+  return f;
+}
+
+std::optional<Eigen::Isometry3d> true_flange_pose(const SimRobot& robot,
+                                                  const Eigen::VectorXd& true_readings) {
+  const FlangeFrames f = flange_frames(robot.model);
+  const calib::ForwardResult fk =
+      calib::forward_kinematics(robot.model, robot.truth, true_readings, f.flange);
+  if (!fk.closure.ok()) return std::nullopt;
+  if (f.base < 0) return fk.pose;
+  return calib::frame_pose(robot.model, robot.truth, fk.state, f.base).inverse() * fk.pose;
+}
 
 std::string pose_channel_reply(const SimRobot& robot, const Eigen::VectorXd& true_readings,
                                double t, bool moving, long motion) {

@@ -10,6 +10,8 @@
 #include <cerrno>
 #include <cmath>
 #include <numbers>
+#include <optional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -57,6 +59,23 @@ json SimController::Impl::open_position() const {
     position[static_cast<std::size_t>(i)] =
         units_of(counts[static_cast<std::size_t>(i)], i) * si_per_unit(robot, i);
   return {{"position", position}, {"counts", counts}};
+}
+
+json SimController::Impl::open_flange_pose() {
+  const std::optional<Eigen::Isometry3d> pose =
+      true_flange_pose(robot, true_readings(now_seconds()));
+  if (!pose) return nullptr;
+  std::normal_distribution<double> unit(0.0, 1.0);
+  const Eigen::Vector3d dp(unit(flange_rng), unit(flange_rng), unit(flange_rng));
+  const Eigen::Vector3d dphi(unit(flange_rng), unit(flange_rng), unit(flange_rng));
+  const Eigen::Vector3d p = pose->translation() + options.flange_noise_m * dp;
+  // The rotation noise is a world-frame rotation vector, as the pose covariances are taken.
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(options.flange_noise_rad * dphi.norm(),
+                                               dphi.norm() > 0.0
+                                                   ? Eigen::Vector3d(dphi.normalized())
+                                                   : Eigen::Vector3d::UnitZ()) *
+                             pose->linear());
+  return {{"position", {p.x(), p.y(), p.z()}}, {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
 }
 
 void SimController::Impl::open_reply(Channel& c, const json& id, json reply, bool lost) {
@@ -217,19 +236,27 @@ std::optional<json> SimController::Impl::open_execute(Channel& c, const json& re
                            {"unit", is_prismatic(robot, i) ? "m" : "rad"},
                            {"resolution", si_per_unit(robot, i) / robot.axes.steps_per_unit[k]}});
     }
+    json capabilities = {"counts", "home", "emergency_stop", "settled_event"};
+    if (options.flange_pose) capabilities.push_back("flange_pose");
     return json{{"ok", true},
                 {"protocol", kProtocol},
                 {"version", {options.open_major, options.open_minor}},
                 {"controller", options.firmware_name.empty()
                                    ? "robocal simulated controller (" + robot.model.name + ")"
                                    : options.firmware_name},
-                {"capabilities", {"counts", "home", "emergency_stop", "settled_event"}},
+                {"capabilities", capabilities},
                 {"actuators", actuators},
                 {"keepalive_s", busy_interval}};
   }
   if (cmd == "read") {
     json reply = {{"ok", true}, {"moving", !queue.empty()}};
     reply.update(open_position());
+    if (options.flange_pose) {
+      json flange = open_flange_pose();
+      if (flange.is_null())
+        return error_reply(203, "the robot's kinematics cannot place the flange here");
+      reply["flange_pose"] = std::move(flange);
+    }
     return reply;
   }
   if (cmd == "state") {

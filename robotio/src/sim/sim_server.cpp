@@ -67,6 +67,7 @@ SimController::Impl::Impl(SimRobot r, SimOptions o)
       options(std::move(o)),
       noise_rng(options.seed),
       fault_rng(options.faults.seed),
+      flange_rng(options.seed + 7919U),
       feed(options.feed / 60.0),
       acceleration(options.acceleration),
       busy_interval(options.busy_interval) {

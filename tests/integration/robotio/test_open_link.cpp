@@ -3,15 +3,19 @@
 // record of what the controller received and executed; stand-in controllers answer garbage, an
 // old version or the wrong actuators.
 #include "open_link_support.hpp"
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/motion_profile.hpp"
 #include "robocal/robotio/open_link.hpp"
+#include "robocal/robotio/sim_controller.hpp"
 #include "robotio_sim.hpp"
 #include "scratch_dir.hpp"
 
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <numbers>
 #include <ostream>
 #include <thread>
 
@@ -401,6 +405,72 @@ TEST_F(OpenLinkTest, ControllerOfAnOlderVersionIsRefusedWithBothVersions) {
                         "robocal's 1.0: update the controller's adapter"),
               std::string::npos)
         << what;
+  }
+}
+
+}  // namespace
+}  // namespace robocal::test
+
+namespace robocal::test {
+namespace {
+
+// The flange_pose capability (OPEN_LINK.md, `read`): every read carries the controller's base ->
+// flange pose. The simulator's truth is the nominal robot here (no --seed), so the pose must be
+// the robot file's at the link's readings, to the simulated actuators' noise and backlash
+// (2 + 5 um per actuator).
+TEST_F(OpenLinkTest, ReadsCarryTheControllersFlangePoseWhenItHasTheCapability) {
+  start();
+  auto l = link();
+  l->connect();
+  EXPECT_TRUE(l->reports_flange_pose());
+  l->home();
+  const robotio::FlangeFrames frames = robotio::flange_frames(model_);
+  const Eigen::VectorXd nominal = model_.nominal_parameters();
+  for (const Eigen::VectorXd& target : delta_targets(model_, 3, 7)) {
+    const robotio::MoveResult r = l->move_actuators(target, kSpeed);
+    ASSERT_TRUE(r.confirmed) << r.reason;
+    ASSERT_TRUE(r.readings.base_T_flange.has_value());
+    const auto fk = calib::forward_kinematics(model_, nominal, r.readings.values, frames.flange);
+    ASSERT_TRUE(fk.closure.ok());
+    const Eigen::Isometry3d base = frames.base >= 0
+                                       ? calib::frame_pose(model_, nominal, fk.state, frames.base)
+                                       : Eigen::Isometry3d::Identity();
+    const Eigen::Isometry3d expected = base.inverse() * fk.pose;
+    const Eigen::Isometry3d& got = *r.readings.base_T_flange;
+    EXPECT_LT((got.translation() - expected.translation()).norm(), 20e-6);
+    EXPECT_LT(Eigen::AngleAxisd(got.linear() * expected.linear().transpose()).angle(), 1e-4);
+  }
+}
+
+TEST_F(OpenLinkTest, AControllerWithoutTheFlangePoseCapabilityReportsNone) {
+  start({"--no-flange-pose"});
+  auto l = link();
+  l->connect();
+  EXPECT_FALSE(l->reports_flange_pose());
+  EXPECT_FALSE(l->read_actuators().base_T_flange.has_value());
+}
+
+// A reply's flange pose that is not one is named, field and all; a unit quaternion in x y z w
+// order is read as such.
+TEST(OpenLinkFlangePose, MalformedPosesAreNamedAndAGoodOneIsRead) {
+  std::string problem;
+  const auto good = robotio::parse_open_flange_pose(
+      nlohmann::json::parse(
+          R"({"flange_pose":{"position":[0.4,-0.1,0.3],"quaternion_xyzw":[0,0,0.7071068,0.7071068]}})"),
+      problem);
+  ASSERT_TRUE(good.has_value()) << problem;
+  EXPECT_NEAR(good->translation().x(), 0.4, 1e-12);
+  EXPECT_NEAR(Eigen::AngleAxisd(good->linear()).angle(), std::numbers::pi / 2, 1e-6);
+  EXPECT_NEAR(Eigen::AngleAxisd(good->linear()).axis().z(), 1.0, 1e-6);
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {R"({"position":[1,2,3]})", "no \"flange_pose\""},
+      {R"({"flange_pose":{"position":[1,2],"quaternion_xyzw":[0,0,0,1]}})", "\"position\""},
+      {R"({"flange_pose":{"position":[1,2,3],"quaternion_xyzw":[90,0,45,1]}})", "has length"},
+      {R"({"flange_pose":{"position":[1,2,3]}})", "\"quaternion_xyzw\""},
+  };
+  for (const auto& [reply, says] : bad) {
+    EXPECT_FALSE(robotio::parse_open_flange_pose(nlohmann::json::parse(reply), problem)) << reply;
+    EXPECT_NE(problem.find(says), std::string::npos) << problem;
   }
 }
 

@@ -13,9 +13,7 @@ namespace robocal::vision {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-Eigen::Isometry3d flange_pose(const core::YamlContext& ctx, const YAML::Node& map) {
+Eigen::Isometry3d read_flange_pose(const core::YamlContext& ctx, const YAML::Node& map) {
   if (!map.IsMap()) ctx.fail(map, "a flange pose must be a mapping of x y z qx qy qz qw");
   ctx.reject_unknown_keys(map, {"x", "y", "z", "qx", "qy", "qz", "qw"});
   const Eigen::Vector3d t(ctx.required<double>(map, "x"), ctx.required<double>(map, "y"),
@@ -36,9 +34,11 @@ Eigen::Isometry3d flange_pose(const core::YamlContext& ctx, const YAML::Node& ma
   return pose;
 }
 
+namespace {
+
 Eigen::Isometry3d pose_from_file(const fs::path& file) {
   const core::YamlContext ctx{file.string()};
-  return flange_pose(ctx, core::load_yaml_text(core::read_text_file(file), file.string()));
+  return read_flange_pose(ctx, core::load_yaml_text(core::read_text_file(file), file.string()));
 }
 
 // The poses of a pairing list, by the image's file name.
@@ -55,7 +55,7 @@ std::map<std::string, Eigen::Isometry3d> read_pairing_list(const fs::path& list)
     const YAML::Node pose = ctx.require(entry, "pose");
     const Eigen::Isometry3d p = pose.IsScalar()
                                     ? pose_from_file(list.parent_path() / pose.as<std::string>())
-                                    : flange_pose(ctx, pose);
+                                    : read_flange_pose(ctx, pose);
     if (!out.emplace(image, p).second)
       ctx.fail(entry, fmt::format("image '{}' is listed twice", image));
   }

@@ -19,6 +19,7 @@
 #include "robocal/vision/target.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <chrono>
 #include <cstdint>
@@ -46,6 +47,9 @@ class CaptureRobot {
   // once it reports the robot settled. Throws (any std::exception) when it cannot.
   virtual Eigen::VectorXd move_and_settle(const Eigen::VectorXd& target) = 0;
   virtual Eigen::VectorXd read_actuators() = 0;
+  // The base -> flange pose the controller reported with the last readings (move_and_settle or
+  // read_actuators); nullopt when it reports none (robotio::ActuatorReadings::base_T_flange).
+  virtual std::optional<Eigen::Isometry3d> flange_pose() const { return std::nullopt; }
   // Stops any motion now and keeps the robot stopped (a camera was lost, a pose failed);
   // `reason` names the pose and the camera.
   virtual void stop(const std::string& reason) = 0;

@@ -18,10 +18,12 @@ class LinkCaptureRobot final : public CaptureRobot {
   Eigen::VectorXd move_and_settle(const Eigen::VectorXd& target) override;
   Eigen::VectorXd read_actuators() override;
   void stop(const std::string& reason) override;
+  std::optional<Eigen::Isometry3d> flange_pose() const override { return flange_; }
 
  private:
   RobotLink* link_;
   MoveSpeed speed_;
+  std::optional<Eigen::Isometry3d> flange_;
 };
 
 }  // namespace robocal::robotio

@@ -52,6 +52,12 @@ OpenLinkHello parse_open_hello(const nlohmann::json& reply);
 // otherwise what differs, naming both sides.
 std::string open_hello_mismatch(const OpenLinkHello& hello, const calib::Mechanism& model);
 
+// The `flange_pose` of a read reply (capability `flange_pose`): {"position": [x, y, z] in metres,
+// "quaternion_xyzw": [x, y, z, w] of a unit quaternion}, base -> flange. nullopt and `problem`
+// (naming the field) when it is missing or malformed.
+std::optional<Eigen::Isometry3d> parse_open_flange_pose(const nlohmann::json& reply,
+                                                        std::string& problem);
+
 // An error reply's code and message; code 0 for a success.
 struct OpenLinkFailure {
   int code = 0;
@@ -129,6 +135,7 @@ class OpenLink final : public RobotLink {
   void disconnect() override;
   LinkStatus status() const override;
   int actuator_count() const override { return static_cast<int>(scale_.size()); }
+  bool reports_flange_pose() const override { return hello_.has("flange_pose"); }
   const OpenLinkHello& hello() const { return hello_; }
   // The controller's counts at `readings` (what it reports at that target).
   std::vector<long> counts_for(const Eigen::VectorXd& readings) const;

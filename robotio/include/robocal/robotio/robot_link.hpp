@@ -14,8 +14,10 @@
 #include "robocal/robotio/safety_guard.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <chrono>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,6 +27,11 @@ namespace robocal::robotio {
 struct ActuatorReadings {
   std::vector<long> counts;  // raw: stepper microsteps / encoder counts (empty if none)
   Eigen::VectorXd values;    // converted: robot-file reading units (m, rad)
+  // The base -> flange pose the controller computes with its own kinematics (an industrial
+  // controller's calibrated model), read together with the positions; empty when the controller
+  // does not report one (G-code firmwares, an open link controller without `flange_pose`). A
+  // hand-eye calibration uses it instead of robocal's nominal model.
+  std::optional<Eigen::Isometry3d> base_T_flange;
 };
 
 enum class LinkState : std::uint8_t { kDisconnected, kIdle, kMoving, kStopped, kFault };
@@ -65,6 +72,9 @@ class RobotLink {
   virtual void disconnect() = 0;
   virtual LinkStatus status() const = 0;
   virtual int actuator_count() const = 0;
+  // Whether the readings carry the controller's base -> flange pose
+  // (ActuatorReadings::base_T_flange); known once connected.
+  virtual bool reports_flange_pose() const { return false; }
 
   // Motion: guard first, then the protocol. Throws MotionRefused before anything is sent.
   void home();

@@ -11,6 +11,7 @@
 #include "robocal/robotio/gcode_link.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <array>
 #include <atomic>
@@ -106,6 +107,12 @@ struct SimOptions {
   // ended, even by a crash or SIGKILL, so no simulator is left serving.
   bool exit_with_parent = false;
   std::uint32_t seed = 1;  // actuator noise
+  // Open protocol: announce the `flange_pose` capability and report the true robot's base ->
+  // flange pose with every `read` (what an accurate industrial controller reports), with
+  // Gaussian noise per reading (1 sigma per axis: metres, radians of a rotation vector).
+  bool flange_pose = true;
+  double flange_noise_m = 0.0;
+  double flange_noise_rad = 0.0;
   FaultPlan faults;
   SimUrOptions ur;
 };
@@ -140,6 +147,22 @@ class SimController {
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+// The frames a controller reports its flange pose between (capability `flange_pose`): the
+// flange is the body the robot file's tool frame is mounted on (the tool is a fixed auxiliary
+// frame: where the board sits on the flange), or the tool frame itself when it is a moving body;
+// the base is the root body when it is a fixed frame (where the robot stands in the world),
+// otherwise the world (-1).
+struct FlangeFrames {
+  int base = -1;
+  int flange = -1;
+};
+FlangeFrames flange_frames(const calib::Mechanism& model);
+
+// The true robot's base -> flange pose for true actuator readings, as an accurate controller
+// computes it; nullopt where the true robot cannot assemble.
+std::optional<Eigen::Isometry3d> true_flange_pose(const SimRobot& robot,
+                                                  const Eigen::VectorXd& true_readings);
 
 // The true end-effector pose reply of the pose channel for true actuator readings (JSON line).
 std::string pose_channel_reply(const SimRobot& robot, const Eigen::VectorXd& true_readings,

@@ -8,6 +8,7 @@
 // `--poses` names either a folder with one such file per image (3.png -> 3.yaml) or a YAML list
 // pairing them: `- {image: images/3.png, pose: poses/3.yaml}` (paths relative to the list), where
 // `pose` may also be the mapping itself.
+#include "robocal/core/yaml.hpp"
 #include "robocal/vision/hand_eye.hpp"
 
 #include <Eigen/Geometry>
@@ -17,6 +18,10 @@
 #include <vector>
 
 namespace robocal::vision {
+
+// One flange pose mapping at `node` of the file `ctx` reads (also the `flange_pose` that
+// `robocal collect` records in a pose folder's pose.yaml). InputError naming file:line.
+Eigen::Isometry3d read_flange_pose(const core::YamlContext& ctx, const YAML::Node& node);
 
 // One flange pose file (InputError naming the file and line: a missing or unknown key, a
 // quaternion that is not of unit length).
