@@ -7,6 +7,7 @@
 #include "live/simulated_setup.hpp"
 #include "live/truth_log.hpp"
 #include "robocal/core/files.hpp"
+#include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/sim_process.hpp"
 #include "robocal/robotio/sim_truth.hpp"
 #include "robocal/vision/camera_io.hpp"
@@ -235,16 +236,24 @@ int run_live_demo(const LiveDemoOptions& o) {
   // offline demo's (its elastic sag is added where the cameras look: SaggingBoard).
   stage(log, "live: start sim-controller");
   const bool open_link = speaks_open_link(lc.cell.model.name);
+  // A delta printer runs its firmware's own kinematics unless raw-axis mode is asked for.
+  const bool native = !open_link && o.gcode_mode != "raw" &&
+                      robotio::robot_file_delta(lc.cell.model).problem.empty();
   robotio::SimControllerProcess sim(
       robocal_binary(),
       {"--robot", robot_file, "--seed", std::to_string(o.seed), "--perturbation",
        files.perturbation.string(), "--protocol", open_link ? "open" : "gcode", "--no-pty", "--log",
-       (setup / "sim-controller.jsonl").string(), "--busy-interval", "1", "--max-seconds", "3600"});
+       (setup / "sim-controller.jsonl").string(), "--busy-interval", "1", "--max-seconds", "3600",
+       "--firmware", o.firmware, "--kinematics", native ? "delta" : "axes"});
   // tcp() is "tcp:HOST:PORT"; the open protocol is served on the same port.
   const std::string host_port = sim.tcp().substr(sim.tcp().find(':') + 1);
   const std::string link_address = open_link ? "open:" + host_port : sim.tcp();
   const std::string link_note =
-      fmt::format("{} at {}", open_link ? "open link" : "G-code", host_port);
+      fmt::format("{} at {}",
+                  open_link ? "open link"
+                            : (native ? o.firmware + " G-code, firmware-native delta"
+                                      : o.firmware + " G-code, raw axes"),
+                  host_port);
   say(log, "sim-controller (pid {}): {}, truth channel at {}\n", sim.pid(), link_note, sim.pose());
   report["controller"] = {
       {"link", link_address}, {"protocol", open_link ? "open" : "gcode"}, {"pid", sim.pid()}};
@@ -316,6 +325,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   co.cell = files.cell.string();
   co.plan = plan_file.string();
   co.link = link_address;
+  co.gcode_mode = native ? robotio::GcodeMode::kNativeDelta : robotio::GcodeMode::kRawAxes;
   for (std::size_t c = 0; c < specs.size(); ++c)
     co.cameras.push_back({specs[c].name, cams.source(c)});
   co.speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);

@@ -31,6 +31,10 @@ struct LiveDemoOptions {
   bool resume = false;
   double speed = 0.0;  // actuator units/s; 0: 2 rad/s revolute, 0.5 m/s prismatic
   std::string route = "both";
+  // G-code printers (the linear delta): the firmware the simulated printer runs (marlin, rrf) and
+  // how it is driven: native (its own delta kinematics) or raw (one axis per motor).
+  std::string firmware = "marlin";
+  std::string gcode_mode = "native";
   std::string out;   // demo folder: session/ and setup/ inside
   std::string json;  // report path ('-' stdout)
 };

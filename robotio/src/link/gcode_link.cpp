@@ -28,6 +28,20 @@ bool is_garbage(const std::string& line) {
 
 }  // namespace
 
+std::optional<GcodeMode> gcode_mode_from_string(const std::string& word) {
+  if (word == "auto") return GcodeMode::kAuto;
+  if (word == "native") return GcodeMode::kNativeDelta;
+  if (word == "raw") return GcodeMode::kRawAxes;
+  return std::nullopt;
+}
+
+std::optional<GeometryChoice> geometry_choice_from_string(const std::string& word) {
+  if (word == "ask") return GeometryChoice::kAsk;
+  if (word == "firmware") return GeometryChoice::kFirmware;
+  if (word == "robot-file") return GeometryChoice::kRobotFile;
+  return std::nullopt;
+}
+
 ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
                             double steps_per_degree) {
   static const std::string kLetters = "XYZUVWABC";
@@ -70,58 +84,64 @@ std::vector<long> axis_counts(const ActuatorAxes& axes, const Eigen::VectorXd& r
 }
 
 std::vector<long> GcodeLink::counts_for(const Eigen::VectorXd& readings) const {
-  if (options_.mode == GcodeMode::kNativeDelta) {
-    if (!native_)
-      throw LinkError(status_.device, "native delta mode: the firmware's geometry is not read yet");
-    return delta_counts(*native_, readings);
-  }
+  if (native_) return delta_counts(*native_, readings);
+  if (options_.mode == GcodeMode::kNativeDelta)
+    throw LinkError(status_.device, "native delta mode: the firmware's geometry is not read yet");
   return axis_counts(options_.axes, readings);
 }
 
 // Marlin lists its delta settings in M503; RepRapFirmware answers M665 and M666 without
-// parameters. A firmware that is not a delta says no such thing: the caller refuses it.
-DeltaGeometry GcodeLink::query_delta_geometry() {
+// parameters. A firmware that is not a delta says no such thing.
+std::optional<DeltaGeometry> GcodeLink::query_delta_geometry(std::string& said) {
   const milliseconds total = options_.reply_timeout * (options_.attempts + 1);
   const Firmware fw = status_.firmware.firmware;
-  std::vector<std::string> said;
+  std::vector<std::string> lines;
   std::optional<DeltaGeometry> g;
   try {
     if (fw == Firmware::kRepRapFirmware) {
-      said = exchange("M665", options_.reply_timeout, total, false);
+      lines = exchange("M665", options_.reply_timeout, total, false);
       const std::vector<std::string> m666 = exchange("M666", options_.reply_timeout, total, false);
-      g = parse_rrf_delta_settings(said, m666);
+      g = parse_rrf_delta_settings(lines, m666);
     } else {
-      said = exchange("M503", options_.reply_timeout, total, false);
-      g = parse_marlin_delta_settings(said);
+      lines = exchange("M503", options_.reply_timeout, total, false);
+      g = parse_marlin_delta_settings(lines);
     }
   } catch (const LinkError& e) {
     // A firmware without delta kinematics may refuse the query outright.
     if (!transport_->is_open()) throw;
-    said = {status_.last_error.empty() ? e.controller_said() : status_.last_error};
+    lines = {status_.last_error.empty() ? e.controller_said() : status_.last_error};
   }
-  if (!g) {
+  said = lines.empty() ? last_line_ : lines.back();
+  return g;
+}
+
+// The robot file must be a linear delta its firmware computes (raw axes otherwise, in kAuto);
+// the firmware's geometry is compared with the file's before anything moves.
+void GcodeLink::read_native_geometry() {
+  const calib::Mechanism& model = guard().model();
+  const RobotFileDelta file = robot_file_delta(model);
+  const bool wanted = options_.mode == GcodeMode::kNativeDelta;
+  if (!wanted && (!file.problem.empty() || model.controller.gcode_axes != calib::GcodeAxes::kTool))
+    return;
+  if (!file.problem.empty() || options_.axes.size() != 3) {
     status_.state = LinkState::kFault;
-    const std::string query = fw == Firmware::kRepRapFirmware ? "M665" : "M503";
+    throw LinkError(status_.device, file.problem);
+  }
+  std::string said;
+  const std::optional<DeltaGeometry> geometry = query_delta_geometry(said);
+  if (!geometry && !wanted) return;  // reconfigured to one axis per motor: raw-axis mode
+  if (!geometry) {
+    status_.state = LinkState::kFault;
+    const bool rrf = status_.firmware.firmware == Firmware::kRepRapFirmware;
     throw LinkError(status_.device,
                     fmt::format("{} reports no delta geometry ({} names no M665 delta settings): "
                                 "the printer is not a delta, so firmware-native delta mode cannot "
                                 "drive it (raw-axis mode drives one G-code axis per motor)",
-                                to_string(fw), query),
-                    said.empty() ? last_line_ : said.back());
+                                to_string(status_.firmware.firmware), rrf ? "M665" : "M503"),
+                    said);
   }
-  return *g;
-}
-
-void GcodeLink::read_native_geometry() {
-  const RobotFileDelta file = robot_file_delta(guard().model());
-  if (!file.problem.empty()) {
-    status_.state = LinkState::kFault;
-    throw LinkError(status_.device, file.problem);
-  }
-  if (options_.axes.size() != 3)
-    throw LinkError(status_.device, "native delta mode drives three towers");
   CarriageFrame frame;
-  frame.geometry = query_delta_geometry();
+  frame.geometry = *geometry;
   frame.endstop_reading = file.endstop_reading;
   frame.steps_per_mm = options_.axes.steps_per_unit[0];
   disagreements_ = robotio::geometry_disagreements(frame.geometry, file);
@@ -133,7 +153,7 @@ void GcodeLink::read_native_geometry() {
                     fmt::format("the firmware's delta geometry disagrees with the robot file '{}' "
                                 "(nothing moved):{}\nchoose which to trust: the firmware's or the "
                                 "robot file's (--firmware-geometry firmware|robot-file)",
-                                guard().model().name, list));
+                                model.name, list));
   }
   native_ = frame;
 }
@@ -145,7 +165,7 @@ FirmwareInfo GcodeLink::connect() {
       transport_->open();
       handshake();
       FirmwareInfo info = identify();
-      if (options_.mode == GcodeMode::kNativeDelta) read_native_geometry();
+      if (options_.mode != GcodeMode::kRawAxes) read_native_geometry();
       status_.state = LinkState::kIdle;
       set_last_known(do_read().values);
       return info;
@@ -438,7 +458,7 @@ std::vector<std::string> GcodeLink::native_move_gcodes(const Eigen::VectorXd& fr
 
 double GcodeLink::gcode_per_joint_unit(const Eigen::VectorXd& from,
                                        const Eigen::VectorXd& to) const {
-  if (options_.mode == GcodeMode::kNativeDelta && native_ && from.size() == to.size()) {
+  if (native_ && from.size() == to.size()) {
     // The firmware's acceleration is Cartesian too: the whole move's ratio.
     const auto a = native_cartesian(from), b = native_cartesian(to);
     const double joint = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
@@ -491,7 +511,7 @@ void GcodeLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
         exchange(fmt::format("M204 S{:.3f}", accel), options_.reply_timeout, total, true);
         acceleration_sent_ = accel;
       }
-      if (options_.mode == GcodeMode::kNativeDelta) {
+      if (native_) {
         for (const std::string& g : native_move_gcodes(from, target, speed))
           exchange(g, options_.reply_timeout, total, true);
         return;
@@ -544,7 +564,7 @@ void GcodeLink::do_wait_settled(milliseconds timeout) {
 }
 
 ActuatorReadings GcodeLink::parse_readings(const std::vector<std::string>& lines) const {
-  const bool native = options_.mode == GcodeMode::kNativeDelta && native_;
+  const bool native = native_.has_value();
   // Marlin names a delta's counts by tower (A B C); RRF lists them in motor order.
   const std::string count_letters =
       native && native_->geometry.firmware == Firmware::kMarlin ? "ABC" : "";
@@ -600,7 +620,7 @@ double GcodeLink::expected_seconds(const Eigen::VectorXd& from, const Eigen::Vec
                                    const MoveSpeed& speed) const {
   // The firmware's trapezoid in G-code units is this one scaled by gcode_per_joint_unit.
   double s = 0.0;
-  if (options_.mode == GcodeMode::kNativeDelta && native_) {
+  if (native_) {
     // Each native segment is its own move, standstill to standstill at worst.
     Eigen::VectorXd previous = from;
     for (const Eigen::VectorXd& point : native_waypoints(from, to)) {

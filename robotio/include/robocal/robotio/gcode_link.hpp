@@ -47,7 +47,10 @@ std::vector<long> axis_counts(const ActuatorAxes& axes, const Eigen::VectorXd& r
 
 // How the firmware is driven: one G-code axis per motor, or a delta printer in its own
 // kinematics (the firmware's Cartesian G1, its geometry read from it).
-enum class GcodeMode : std::uint8_t { kRawAxes, kNativeDelta };
+// kAuto: native when the robot file says its firmware computes the robot's kinematics
+// (`controller: {gcode_axes: tool}`, a linear delta) and the firmware reports delta geometry, raw
+// axes otherwise (a firmware reconfigured to one axis per motor reports none).
+enum class GcodeMode : std::uint8_t { kRawAxes, kNativeDelta, kAuto };
 // Which geometry the operator trusts when the firmware's delta geometry disagrees with the robot
 // file's beyond the file's tolerance. kAsk: the link refuses to connect and names every
 // difference (nothing moves); kFirmware / kRobotFile: the operator's answer. Moves are computed
@@ -55,6 +58,11 @@ enum class GcodeMode : std::uint8_t { kRawAxes, kNativeDelta };
 // the answer is the operator's record of which drawing is right (GcodeLink::geometry_disagreements
 // keeps what was accepted; collect writes both into the session).
 enum class GeometryChoice : std::uint8_t { kAsk, kFirmware, kRobotFile };
+
+// The option words (`--gcode-mode auto|native|raw`, `--firmware-geometry
+// ask|firmware|robot-file`); nullopt for any other word.
+std::optional<GcodeMode> gcode_mode_from_string(const std::string& word);
+std::optional<GeometryChoice> geometry_choice_from_string(const std::string& word);
 
 struct GcodeLinkOptions {
   std::string address;  // serial device path, or tcp:HOST:PORT
@@ -99,6 +107,7 @@ class GcodeLink final : public RobotLink {
   std::vector<long> counts_for(const Eigen::VectorXd& readings) const;
   // Native mode, once connected: the firmware's delta geometry and how its carriage coordinates
   // map to readings; the differences from the robot file the operator accepted (plain words).
+  // Empty in raw-axis mode (also when kAuto found no delta).
   const std::optional<CarriageFrame>& native_frame() const { return native_; }
   const std::vector<std::string>& geometry_disagreements() const { return disagreements_; }
 
@@ -130,7 +139,8 @@ class GcodeLink final : public RobotLink {
   // Native mode: the firmware's delta geometry, checked against the robot file (throws
   // LinkError for a printer that is not a delta or a disagreement nobody chose on).
   void read_native_geometry();
-  DeltaGeometry query_delta_geometry();
+  // nullopt when the firmware reports no delta geometry (`said`: its last words on it).
+  std::optional<DeltaGeometry> query_delta_geometry(std::string& said);
   // Native mode: the points (readings) the straight path from `from` to `to` is sent through.
   std::vector<Eigen::VectorXd> native_waypoints(const Eigen::VectorXd& from,
                                                 const Eigen::VectorXd& to) const;
