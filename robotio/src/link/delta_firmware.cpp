@@ -259,29 +259,36 @@ double homing_backoff(const DeltaGeometry& g, int tower) {
              : 0.0;
 }
 
+long endstop_count(const CarriageFrame& f, int tower) {
+  return std::lround(endstop_coordinate(f.geometry, tower) * f.steps_per_mm);
+}
+
 double carriage_coordinate_of_reading(const CarriageFrame& f, int tower, double reading) {
-  return (reading - f.endstop_reading[static_cast<std::size_t>(tower)]) * 1000.0 +
-         endstop_coordinate(f.geometry, tower);
+  return static_cast<double>(endstop_count(f, tower)) / f.steps_per_mm +
+         (reading - f.endstop_reading[static_cast<std::size_t>(tower)]) * 1000.0;
 }
 
 double reading_of_carriage_coordinate(const CarriageFrame& f, int tower, double coordinate) {
-  return (coordinate - endstop_coordinate(f.geometry, tower)) / 1000.0 +
-         f.endstop_reading[static_cast<std::size_t>(tower)];
+  return f.endstop_reading[static_cast<std::size_t>(tower)] +
+         (coordinate - static_cast<double>(endstop_count(f, tower)) / f.steps_per_mm) / 1000.0;
 }
 
 std::vector<long> delta_counts(const CarriageFrame& f, const Eigen::VectorXd& readings) {
   std::vector<long> c(3);
   for (int i = 0; i < 3; ++i)
     c[static_cast<std::size_t>(i)] =
-        std::lround(carriage_coordinate_of_reading(f, i, readings[i]) * f.steps_per_mm);
+        endstop_count(f, i) +
+        std::lround((readings[i] - f.endstop_reading[static_cast<std::size_t>(i)]) * 1000.0 *
+                    f.steps_per_mm);
   return c;
 }
 
 Eigen::VectorXd delta_readings(const CarriageFrame& f, const std::vector<long>& counts) {
   Eigen::VectorXd r(3);
   for (int i = 0; i < 3; ++i)
-    r[i] = reading_of_carriage_coordinate(
-        f, i, static_cast<double>(counts[static_cast<std::size_t>(i)]) / f.steps_per_mm);
+    r[i] = f.endstop_reading[static_cast<std::size_t>(i)] +
+           static_cast<double>(counts[static_cast<std::size_t>(i)] - endstop_count(f, i)) /
+               f.steps_per_mm / 1000.0;
   return r;
 }
 

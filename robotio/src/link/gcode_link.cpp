@@ -149,11 +149,12 @@ void GcodeLink::read_native_geometry() {
     status_.state = LinkState::kFault;
     std::string list;
     for (const std::string& d : disagreements_) list += "\n  " + d;
-    throw LinkError(status_.device,
-                    fmt::format("the firmware's delta geometry disagrees with the robot file '{}' "
-                                "(nothing moved):{}\nchoose which to trust: the firmware's or the "
-                                "robot file's (--firmware-geometry firmware|robot-file)",
-                                model.name, list));
+    throw GeometryDisagreement(
+        status_.device,
+        fmt::format("the firmware's delta geometry disagrees with the robot file '{}' "
+                    "(nothing moved):{}\nchoose which to trust: the firmware's or the "
+                    "robot file's (--firmware-geometry firmware|robot-file)",
+                    model.name, list));
   }
   native_ = frame;
 }

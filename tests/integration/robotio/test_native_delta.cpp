@@ -5,7 +5,8 @@
 // model's closed form written out here: carriage coordinate c_i = z + sqrt(L_i^2 - |xy - T_i|^2),
 // towers T_i at 210 + X, 330 + Y, 90 + Z degrees on radius R; step count lround(c_i * 80); at the
 // endstop (reading 0.45 m, the robot file's upper carriage limit) c_i = H + sqrt(L_i^2 - R^2) +
-// |M666_i| (Marlin) or + M666_i (RepRapFirmware).
+// |M666_i| (Marlin) or + M666_i (RepRapFirmware), and a reading r is lround(c_endstop * 80) +
+// lround((r - 0.45) * 1000 * 80) steps.
 #include "robocal/robotio/link_error.hpp"
 #include "robotio_sim.hpp"
 #include "scratch_dir.hpp"
@@ -72,7 +73,9 @@ std::vector<long> expected_counts(const Eigen::VectorXd& readings, bool marlin) 
     const double adj = kM666[static_cast<std::size_t>(i)];
     const double endstop =
         kHeight + std::sqrt(kRod * kRod - kRadius * kRadius) + (marlin ? std::abs(adj) : adj);
-    out.push_back(std::lround(((readings[i] - kEndstopReading) * 1000.0 + endstop) * kStepsPerMm));
+    // The reading at the endstop is tied to the whole step counted there.
+    out.push_back(std::lround(endstop * kStepsPerMm) +
+                  std::lround((readings[i] - kEndstopReading) * 1000.0 * kStepsPerMm));
   }
   return out;
 }
@@ -202,9 +205,8 @@ TEST_P(NativeDeltaTest, AGeometryThatDisagreesIsNamedAndNothingMovesUntilTheOper
   const double endstop = kHeight + std::sqrt(272.0 * 272.0 - kRadius * kRadius);
   const double adj = kM666[0];
   EXPECT_EQ(events(log(), "motion_end").back()["counts"][0].get<long>(),
-            std::lround(((target[0] - kEndstopReading) * 1000.0 + endstop +
-                         (GetParam().marlin ? std::abs(adj) : adj)) *
-                        kStepsPerMm));
+            std::lround((endstop + (GetParam().marlin ? std::abs(adj) : adj)) * kStepsPerMm) +
+                std::lround((target[0] - kEndstopReading) * 1000.0 * kStepsPerMm));
 }
 
 TEST_P(NativeDeltaTest, APrinterThatIsNotADeltaIsRefusedNamingTheDevice) {

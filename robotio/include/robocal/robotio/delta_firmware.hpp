@@ -76,12 +76,16 @@ double homing_backoff(const DeltaGeometry& g, int tower);
 // The carriage readings of the robot file (m) and the firmware's carriage coordinates (mm) differ
 // by a constant per tower: both are carriage heights, the firmware's counted from its own zero.
 // The endstop is where they are tied together: at tower i's endstop the reading is
-// `endstop_reading[i]` (the robot file's upper carriage limit, as the firmware exports assume).
+// `endstop_reading[i]` (the robot file's upper carriage limit, as the firmware exports assume),
+// taken at the whole step the firmware counts there, so a homed carriage reads exactly that
+// limit (not half a step beyond it, which the guard would refuse).
 struct CarriageFrame {
   DeltaGeometry geometry;
   std::array<double, 3> endstop_reading{};  // m
   double steps_per_mm = 80.0;
 };
+// The step count the firmware holds at tower i's endstop.
+long endstop_count(const CarriageFrame& f, int tower);
 double carriage_coordinate_of_reading(const CarriageFrame& f, int tower, double reading);
 double reading_of_carriage_coordinate(const CarriageFrame& f, int tower, double coordinate);
 // Step counts of readings (what the firmware counts there) and readings of step counts.

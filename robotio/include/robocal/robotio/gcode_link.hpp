@@ -18,6 +18,7 @@
 // line, so nothing executes twice), reconnects after a lost connection and checks the
 // controller's position before re-issuing a move (so no motion is duplicated or lost).
 #include "robocal/robotio/delta_firmware.hpp"
+#include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/robot_link.hpp"
 #include "robocal/robotio/transport.hpp"
 
@@ -58,6 +59,14 @@ enum class GcodeMode : std::uint8_t { kRawAxes, kNativeDelta, kAuto };
 // the answer is the operator's record of which drawing is right (GcodeLink::geometry_disagreements
 // keeps what was accepted; collect writes both into the session).
 enum class GeometryChoice : std::uint8_t { kAsk, kFirmware, kRobotFile };
+
+// The firmware's delta geometry differs from the robot file's beyond its tolerance and the
+// operator has not chosen which to trust (GeometryChoice::kAsk): nothing moved. what() names
+// every difference.
+class GeometryDisagreement final : public LinkError {
+ public:
+  using LinkError::LinkError;
+};
 
 // The option words (`--gcode-mode auto|native|raw`, `--firmware-geometry
 // ask|firmware|robot-file`); nullopt for any other word.
