@@ -27,6 +27,7 @@
 
 #include <array>
 #include <atomic>
+#include <functional>
 #include <future>
 #include <optional>
 #include <random>
@@ -295,8 +296,20 @@ int run_live_demo(const LiveDemoOptions& o) {
   const fs::path plan_file = setup / "plan.yaml";
   if (!(o.resume && fs::exists(plan_file))) {
     const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
+    // The simulated firmware's kinematics is the robot file's drawing (sim-controller
+    // --kinematics delta): a pose it cannot command is left out of the plan.
+    std::function<bool(const Eigen::VectorXd&)> commandable;
+    if (native) {
+      robotio::CarriageFrame frame;
+      const robotio::RobotFileDelta file = robotio::robot_file_delta(lc.cell.model);
+      frame.geometry = robotio::drawing_geometry(file, robotio::Firmware::kMarlin);
+      frame.endstop_reading = file.endstop_reading;
+      commandable = [frame](const Eigen::VectorXd& q) {
+        return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));
+      };
+    }
     const LivePlan plan = plan_live_poses(lc.cell, robot_file, files, o.poses, o.seed, o.quick,
-                                          plan_file, {speed, 10.0 * speed}, out);
+                                          plan_file, {speed, 10.0 * speed}, out, commandable);
     say(log, "plan: {}\n", plan.how);
     report["plan"] = {{"poses", plan.readings.size()},
                       {"planner", plan.planner},

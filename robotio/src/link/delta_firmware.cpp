@@ -310,6 +310,13 @@ std::optional<std::vector<long>> counts_for_cartesian(const CarriageFrame& f,
   return c;
 }
 
+bool firmware_can_command(const CarriageFrame& f, const std::vector<long>& counts) {
+  const auto xyz = cartesian_for_counts(f, counts);
+  if (!xyz) return false;
+  const auto back = counts_for_cartesian(f, *xyz);
+  return back && *back == counts;
+}
+
 RobotFileDelta robot_file_delta(const calib::Mechanism& model) {
   RobotFileDelta out;
   const calib::ClosedFormSpec& s = model.closed_form;

@@ -437,6 +437,11 @@ std::vector<std::string> GcodeLink::native_move_gcodes(const Eigen::VectorXd& fr
   Eigen::VectorXd previous = known ? from : to;
   std::optional<Eigen::Vector3d> at = known ? native_cartesian(from) : std::nullopt;
   for (const Eigen::VectorXd& point : native_waypoints(from, to)) {
+    if (!firmware_can_command(*native_, counts_for(point)))
+      throw MotionRefused(fmt::format(
+          "move refused: the firmware's delta kinematics cannot command carriage readings "
+          "({:.6f}, {:.6f}, {:.6f}) m on the way (a carriage below the nozzle): nothing was sent",
+          point[0], point[1], point[2]));
     const std::optional<Eigen::Vector3d> xyz = native_cartesian(point);
     if (!xyz)
       throw LinkError(

@@ -247,6 +247,32 @@ TEST_P(NativeDeltaTest, AnErrorReplyStopsTheMoveWithWhatTheFirmwareSaidAndNothin
   EXPECT_TRUE(events(log(), "motion_start").empty());
 }
 
+// A pose the robot file reaches with rod A rising from its carriage to the effector (nozzle at
+// the rim, x = 141 mm, 30 mm above carriage A) has no Cartesian command in the firmware's
+// kinematics (every carriage above the nozzle): refused before anything is sent.
+TEST_P(NativeDeltaTest, APoseTheFirmwareCannotCommandIsRefusedBeforeAnythingIsSent) {
+  start(concat({"--kinematics", "delta"}, firmware_settings()));
+  robotio::SafetyLimits wide = native_limits();
+  wide.workspace_min = Eigen::Vector3d(-0.2, -0.2, 0.0);
+  wide.workspace_max = Eigen::Vector3d(0.2, 0.2, 0.225);
+  guard_ = std::make_unique<SafetyGuard>(model_, model_.nominal_parameters(), wide);
+  guard_->arm("test: simulated cell, nothing can be hurt");
+  auto l = link(false, robotio::GeometryChoice::kAsk);
+  l->connect();
+  calib::TaskTarget rim;
+  rim.pose.translation() = Eigen::Vector3d(0.1415, -0.0153, 0.1776);
+  const calib::IkResult ik = calib::solve_ik(model_, model_.nominal_parameters(), rim);
+  ASSERT_TRUE(ik.ok());
+  const std::size_t g1_before = static_cast<std::size_t>(received(log(), "G1"));
+  try {
+    l->move_actuators(ik.actuator_readings, kSpeed);
+    FAIL() << "a pose with a carriage below the nozzle was sent";
+  } catch (const robotio::MotionRefused& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot command"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(static_cast<std::size_t>(received(log(), "G1")), g1_before);
+}
+
 INSTANTIATE_TEST_SUITE_P(Firmwares, NativeDeltaTest,
                          ::testing::Values(Firmware{"Marlin", true}, Firmware{"Rrf", false}),
                          [](const ::testing::TestParamInfo<Firmware>& p) {

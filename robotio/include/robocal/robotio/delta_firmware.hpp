@@ -100,6 +100,11 @@ std::optional<Eigen::Vector3d> cartesian_for_counts(const CarriageFrame& f,
 std::optional<std::vector<long>> counts_for_cartesian(const CarriageFrame& f,
                                                       const Eigen::Vector3d& xyz);
 
+// Whether the firmware's kinematics can hold the carriages on `counts`: its inverse kinematics
+// puts every carriage above the nozzle (z + sqrt(...)), so a configuration with a rod rising
+// from its carriage to the effector has no Cartesian command; the round trip then fails.
+bool firmware_can_command(const CarriageFrame& f, const std::vector<long>& counts);
+
 // The robot file's drawing as firmware geometry (mm, degrees), with the tolerance of each figure
 // (3 sigma of the robot file's own tolerances): the closed form's rails, rods and platform
 // offsets. Empty `problem` when the robot is a linear delta the firmware can drive.
