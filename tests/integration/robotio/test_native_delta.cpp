@@ -7,6 +7,7 @@
 // endstop (reading 0.45 m, the robot file's upper carriage limit) c_i = H + sqrt(L_i^2 - R^2) +
 // |M666_i| (Marlin) or + M666_i (RepRapFirmware), and a reading r is lround(c_endstop * 80) +
 // lround((r - 0.45) * 1000 * 80) steps.
+#include "robocal/calib/kinematics.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robotio_sim.hpp"
 #include "scratch_dir.hpp"
@@ -247,9 +248,9 @@ TEST_P(NativeDeltaTest, AnErrorReplyStopsTheMoveWithWhatTheFirmwareSaidAndNothin
   EXPECT_TRUE(events(log(), "motion_start").empty());
 }
 
-// A pose the robot file reaches with rod A rising from its carriage to the effector (nozzle at
-// the rim, x = 141 mm, 30 mm above carriage A) has no Cartesian command in the firmware's
-// kinematics (every carriage above the nozzle): refused before anything is sent.
+// A pose the robot file reaches with rod A rising from its carriage to the effector has no
+// Cartesian command in the firmware's kinematics (every carriage above the nozzle): refused
+// before anything is sent.
 TEST_P(NativeDeltaTest, APoseTheFirmwareCannotCommandIsRefusedBeforeAnythingIsSent) {
   start(concat({"--kinematics", "delta"}, firmware_settings()));
   robotio::SafetyLimits wide = native_limits();
@@ -259,13 +260,15 @@ TEST_P(NativeDeltaTest, APoseTheFirmwareCannotCommandIsRefusedBeforeAnythingIsSe
   guard_->arm("test: simulated cell, nothing can be hurt");
   auto l = link(false, robotio::GeometryChoice::kAsk);
   l->connect();
-  calib::TaskTarget rim;
-  rim.pose.translation() = Eigen::Vector3d(0.1415, -0.0153, 0.1776);
-  const calib::IkResult ik = calib::solve_ik(model_, model_.nominal_parameters(), rim);
-  ASSERT_TRUE(ik.ok());
+  // Carriage A 0.148 m, B 0.441 m, C 0.347 m: the nominal robot assembles there with the
+  // effector joint of rod A about 30 mm above carriage A (a live-demo plan's pose).
+  Eigen::VectorXd rim(3);
+  rim << 0.147848771, 0.441185325, 0.347218821;
+  const auto fk = calib::forward_kinematics(model_, model_.nominal_parameters(), rim, model_.tool);
+  ASSERT_TRUE(fk.closure.ok());
   const std::size_t g1_before = static_cast<std::size_t>(received(log(), "G1"));
   try {
-    l->move_actuators(ik.actuator_readings, kSpeed);
+    l->move_actuators(rim, kSpeed);
     FAIL() << "a pose with a carriage below the nozzle was sent";
   } catch (const robotio::MotionRefused& e) {
     EXPECT_NE(std::string(e.what()).find("cannot command"), std::string::npos) << e.what();
