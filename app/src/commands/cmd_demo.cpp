@@ -42,7 +42,7 @@ struct DemoOptions {
   bool resume = false;
   double speed = 0.0;
   std::string firmware = "marlin";
-  std::string gcode_mode = "native";
+  std::string gcode_mode = "raw";
 };
 
 int run_live(const DemoOptions& o) {
@@ -215,8 +215,8 @@ CommandSpec demo_command() {
                            "firmware, marlin or rrf")
                 ->check(CLI::IsMember({"marlin", "rrf"}));
             cmd.add_option("--gcode-mode", o->gcode_mode,
-                           "--live, a delta printer: native (its firmware's own delta "
-                           "kinematics) or raw (one G-code axis per motor)")
+                           "--live, a delta printer: raw (one G-code axis per motor, the "
+                           "default) or native (its firmware's own delta kinematics)")
                 ->check(CLI::IsMember({"native", "raw"}));
             cmd.add_option("--json", o->json,
                            "Write the JSON report here ('-' = stdout; default: "
