@@ -13,13 +13,15 @@ namespace robocal::robotio {
 namespace {
 
 TEST(DeltaFirmware, ReadsMarlinsM503DeltaLines) {
+  const std::string heading =
+      "echo:; Delta (L<diagonal rod> R<radius> H<height> S<segments per sec> XYZ<tower angle "
+      "trim> ABC<rod trim>):";
   const std::vector<std::string> m503 = {
       "echo:; Steps per unit:",
       "echo:  M92 X80.00 Y80.00 Z80.00 E93.00",
       "echo:; Endstop adjustment:",
       "echo:  M666 X-0.41 Y0.00 Z-1.20",
-      "echo:; Delta (L<diagonal rod> R<radius> H<height> S<segments per sec> XYZ<tower angle "
-      "trim> ABC<rod trim>):",
+      heading,
       "echo:  M665 L215.00 R105.20 H250.50 S200.00 X0.30 Y-0.20 Z0.00 A0.00 B0.50 C-0.25"};
   const auto g = parse_marlin_delta_settings(m503);
   ASSERT_TRUE(g);
