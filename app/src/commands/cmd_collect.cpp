@@ -20,6 +20,8 @@ struct CollectArgs {
   std::string json;
   bool list_cameras = false;
   bool no_home = false;
+  std::string gcode_mode = "auto";
+  std::string firmware_geometry = "ask";
 };
 
 int list_cameras() {
@@ -45,6 +47,10 @@ int run_collect(CollectArgs& a) {
   CollectOptions& o = a.options;
   o.session = a.session;
   o.home = !a.no_home;
+  // Both words were checked by the command line (IsMember).
+  o.gcode_mode = robotio::gcode_mode_from_string(a.gcode_mode).value_or(o.gcode_mode);
+  o.firmware_geometry =
+      robotio::geometry_choice_from_string(a.firmware_geometry).value_or(o.firmware_geometry);
   for (const std::string& c : a.cameras) {
     const std::size_t eq = c.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == c.size()) {
@@ -128,6 +134,14 @@ CommandSpec collect_command() {
         cmd.add_flag("--unlock-protective-stop", o.unlock_protective_stop,
                      "UR link: unlock a protective stop through the dashboard server before the "
                      "next move (the start confirmation says so; inspect each stop's cause)");
+        cmd.add_option("--gcode-mode", a->gcode_mode,
+                       "auto (default: a delta printer in its own kinematics when its firmware "
+                       "reports delta geometry, else one axis per motor), native, or raw")
+            ->check(CLI::IsMember({"auto", "native", "raw"}));
+        cmd.add_option("--firmware-geometry", a->firmware_geometry,
+                       "When the firmware's delta geometry differs from the robot file's: ask "
+                       "(refuse, naming each difference), firmware or robot-file (trust it)")
+            ->check(CLI::IsMember({"ask", "firmware", "robot-file"}));
         cmd.add_option("--camera", a->cameras,
                        "NAME=SOURCE per cell camera: aravis:ID|SERIAL|IP or v4l2:/dev/videoN");
         cmd.add_flag("--list-cameras", a->list_cameras, "List the cameras found and exit");

@@ -41,6 +41,8 @@ struct DemoOptions {
   bool yes = false;
   bool resume = false;
   double speed = 0.0;
+  std::string firmware = "marlin";
+  std::string gcode_mode = "raw";
 };
 
 int run_live(const DemoOptions& o) {
@@ -60,6 +62,8 @@ int run_live(const DemoOptions& o) {
   l.yes = o.yes;
   l.resume = o.resume;
   l.speed = o.speed;
+  l.firmware = o.firmware;
+  l.gcode_mode = o.gcode_mode;
   l.route = o.route;
   l.out = o.out;
   l.json = o.json;
@@ -206,6 +210,14 @@ CommandSpec demo_command() {
             cmd.add_option("--speed", o->speed,
                            "--live: actuator speed, m/s or rad/s (default 0.5 m/s prismatic, "
                            "2 rad/s revolute)");
+            cmd.add_option("--firmware", o->firmware,
+                           "--live, a G-code printer (linear_delta): the simulated printer's "
+                           "firmware, marlin or rrf")
+                ->check(CLI::IsMember({"marlin", "rrf"}));
+            cmd.add_option("--gcode-mode", o->gcode_mode,
+                           "--live, a delta printer: raw (one G-code axis per motor, the "
+                           "default) or native (its firmware's own delta kinematics)")
+                ->check(CLI::IsMember({"native", "raw"}));
             cmd.add_option("--json", o->json,
                            "Write the JSON report here ('-' = stdout; default: "
                            "<session>/results/demo.json)");

@@ -56,6 +56,8 @@ struct SimCliOptions {
   std::string fault_script;
   unsigned fault_seed = 1;
   double slow_ms = 250.0;
+  std::string kinematics = "axes";
+  std::vector<std::string> delta_settings;
   double max_seconds = 0.0;
   bool exit_with_parent = false;
   robotio::SimUrOptions ur;
@@ -99,6 +101,26 @@ robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
   r.noise_sigma = o.noise;
   r.backlash = o.backlash;
   return r;
+}
+
+// The delta firmware's own geometry: the robot file's drawing, as its owner entered it, with
+// any --delta-setting changes.
+robotio::CarriageFrame delta_firmware(const calib::Mechanism& model, robotio::Firmware dialect,
+                                      const SimCliOptions& o) {
+  const robotio::RobotFileDelta file = robotio::robot_file_delta(model);
+  if (!file.problem.empty()) throw InputError("--kinematics delta: " + file.problem);
+  robotio::CarriageFrame f;
+  f.geometry = robotio::drawing_geometry(file, dialect);
+  for (const std::string& item : o.delta_settings) {
+    try {
+      robotio::apply_delta_setting(f.geometry, item);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--delta-setting: ") + e.what());
+    }
+  }
+  f.endstop_reading = file.endstop_reading;
+  f.steps_per_mm = o.steps_per_mm;
+  return f;
 }
 
 // --faults as the simulator reads it: a spec it cannot read is a bad command line.
@@ -162,6 +184,13 @@ int run_sim_controller(const SimCliOptions& o) {
   s.faults.slow_seconds = o.slow_ms / 1000.0;
 
   robotio::SimRobot robot = make_sim_robot(o);
+  if (o.kinematics == "delta") {
+    s.delta = delta_firmware(robot.model, s.dialect, o);
+    // The firmware homes to its endstops (Marlin then backs off by M666).
+    for (int i = 0; i < 3; ++i)
+      robot.home_readings[i] = s.delta->endstop_reading[static_cast<std::size_t>(i)] -
+                               robotio::homing_backoff(s.delta->geometry, i) / 1000.0;
+  }
   const std::string robot_name = robot.model.name;
   const std::string letters = robot.axes.letters;
   robotio::SimController sim(std::move(robot), s);
@@ -176,7 +205,8 @@ int run_sim_controller(const SimCliOptions& o) {
           ? fmt::format("open link protocol {}.{}", s.open_major, s.open_minor)
       : s.protocol == robotio::SimProtocol::kUr
           ? std::string("Universal Robots (RTDE, secondary interface, dashboard server)")
-          : fmt::format("{} dialect", robotio::to_string(s.dialect));
+          : fmt::format("{} dialect{}", robotio::to_string(s.dialect),
+                        s.delta ? " in delta kinematics" : "");
   fmt::print("robocal sim-controller: {}, robot {} (axes {}), truth {}\n", speaks, robot_name,
              letters,
              o.seed != 0 ? fmt::format("perturbed with seed {}", o.seed) : std::string("nominal"));
@@ -267,6 +297,13 @@ CommandSpec sim_controller_command() {
                            "Open protocol version the controller speaks (MAJOR.MINOR)");
             cmd.add_option("--firmware", o->firmware, "marlin or rrf")
                 ->check(CLI::IsMember({"marlin", "rrf", "reprapfirmware"}));
+            cmd.add_option("--kinematics", o->kinematics,
+                           "axes (one G-code axis per actuator) or delta (the firmware's own "
+                           "delta kinematics, M665/M666 from the robot file's drawing)")
+                ->check(CLI::IsMember({"axes", "delta"}));
+            cmd.add_option("--delta-setting", o->delta_settings,
+                           "Change one figure of the delta firmware's geometry, NAME=VALUE (mm, "
+                           "deg): L, L_A, L_B, L_C, R, H, X, Y, Z, M666_X, M666_Y, M666_Z");
             cmd.add_option("--firmware-name", o->firmware_name,
                            "Replace the M115 firmware name (to test unknown firmwares)");
             cmd.add_flag("--mute", o->mute, "Accept connections but never answer");

@@ -306,6 +306,31 @@ std::size_t recorded_on_disk(const fs::path& session, std::size_t count) {
 // ---- dry run -----------------------------------------------------------------------------------
 
 // Checks the plan's motions in order; the summary gets the refusals, `status` the verdict.
+// How a G-code firmware is driven, and the geometry differences the operator accepted, in the
+// summary and on the terminal (the session keeps what the calibration was collected under).
+void note_gcode_mode(const robotio::RobotLink& link, const CollectOptions& o, nlohmann::json& r,
+                     std::FILE* out) {
+  const auto* gcode = dynamic_cast<const robotio::GcodeLink*>(&link);
+  if (gcode == nullptr) return;
+  const bool native = gcode->native_frame().has_value();
+  r["gcode_mode"] = native ? "native delta" : "raw axes";
+  if (out)
+    fmt::print(out, "  driven {}\n",
+               native ? "in the firmware's own delta kinematics (firmware-native mode)"
+                      : "one G-code axis per motor (raw-axis mode)");
+  if (gcode->geometry_disagreements().empty()) return;
+  const bool firmware = o.firmware_geometry == robotio::GeometryChoice::kFirmware;
+  r["geometry_disagreements"] = gcode->geometry_disagreements();
+  r["geometry_trusted"] = firmware ? "firmware" : "robot-file";
+  if (out) {
+    fmt::print(out,
+               "  the firmware's delta geometry differs from the robot file's; you chose to "
+               "trust the {}:\n",
+               firmware ? "firmware's" : "robot file's");
+    for (const std::string& d : gcode->geometry_disagreements()) fmt::print(out, "    {}\n", d);
+  }
+}
+
 nlohmann::json dry_run(const CollectInputs& in, SafetyGuard& guard, const CollectOptions& o,
                        std::FILE* out, std::string& status) {
   guard.set_dry_run(true);
@@ -449,6 +474,8 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   lo.reply_timeout = std::chrono::milliseconds(static_cast<long>(o.reply_timeout_s * 1000));
   lo.accept_unknown_firmware = o.accept_unknown_firmware;
   lo.unlock_protective_stop = o.unlock_protective_stop;
+  lo.mode = o.gcode_mode;
+  lo.geometry = o.firmware_geometry;
   // The address names the protocol: open:HOST:PORT is the open link, ur:HOST a Universal Robots
   // controller, manual the operator, anything else G-code.
   const std::unique_ptr<robotio::RobotLink> link_owner = robotio::make_robot_link(guard, lo);
@@ -464,6 +491,7 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
       fmt::print(out,
                  "the controller reports its base -> flange pose: recorded with every pose "
                  "(pose.yaml flange_pose), for `robocal handeye`\n");
+    note_gcode_mode(link, o, r, out);
   } catch (const robotio::LinkError& e) {
     res.status = "failed";
     res.message = fmt::format("controller at {}: {}", o.link, e.what());

@@ -13,6 +13,7 @@
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/robotio/camera_source.hpp"
 #include "robocal/robotio/capture.hpp"
+#include "robocal/robotio/gcode_link.hpp"
 #include "stages/stages.hpp"
 
 #include <Eigen/Core>
@@ -45,6 +46,12 @@ struct CollectOptions {
   // A Universal Robots link may unlock a protective stop through the dashboard server: only
   // after the start confirmation (which names it), and only before a move the guard passed.
   bool unlock_protective_stop = false;
+  // G-code: a delta printer in its own kinematics or one axis per motor (auto: native when the
+  // robot file's firmware computes a linear delta and the firmware reports delta geometry), and
+  // which geometry to trust when the firmware's disagrees with the robot file's (ask: refuse
+  // before anything moves, naming each difference).
+  robotio::GcodeMode gcode_mode = robotio::GcodeMode::kAuto;
+  robotio::GeometryChoice firmware_geometry = robotio::GeometryChoice::kAsk;
   std::vector<CollectCamera> cameras;
   double speed = 0.02;        // actuator units/s (m/s prismatic, rad/s revolute)
   double acceleration = 0.5;  // actuator units/s^2

@@ -18,6 +18,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <functional>
 #include <random>
 
 namespace robocal::app {
@@ -164,8 +165,8 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
 
 LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
                          const LiveCellFiles& files, int count, unsigned seed, bool quick,
-                         const fs::path& plan_file, const robotio::MoveSpeed& speed,
-                         std::FILE* out) {
+                         const fs::path& plan_file, const robotio::MoveSpeed& speed, std::FILE* out,
+                         const std::function<bool(const Eigen::VectorXd&)>& commandable) {
   LivePlan plan;
   const calib::Mechanism library = calib::load_robot_file(robot_file);
   std::string why;
@@ -197,10 +198,15 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
       // Where the cell sees so small a part of the robot's range that the pool cannot hold the
       // poses asked (the wire robot's pair: one feasible candidate in 1500), sampled again as
       // the offline demo does; other robots' plans stay as they were.
-      const planner::PlanResult r = planner::plan_with_enough_candidates(
+      planner::PlanResult r = planner::plan_with_enough_candidates(
           library, library.nominal_parameters(), pcell, po, po.selection.count);
+      const std::size_t planned = r.poses.size();
+      if (commandable)
+        std::erase_if(r.poses,
+                      [&](const planner::PlannedPose& p) { return !commandable(p.readings); });
+      const std::size_t left_out = planned - r.poses.size();
       if ((r.status != planner::PlanStatus::kOk && r.status != planner::PlanStatus::kNotAccepted) ||
-          static_cast<int>(r.poses.size()) != count) {
+          r.poses.size() + left_out != static_cast<std::size_t>(count)) {
         why +=
             (why.empty() ? "" : "; then ") +
             (r.message.empty() ? fmt::format("{} of {} poses", r.poses.size(), count) : r.message);
@@ -216,6 +222,11 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
                 : fmt::format("not ordered into a tour ({}); the guard checks each motion", why),
           r.selection.predicted_rms * 1e6,
           r.selection.accepted ? "" : "; the acceptance test is not met");
+      if (left_out > 0)
+        plan.how += fmt::format(
+            "; {} left out: the firmware's delta kinematics cannot command them (a carriage "
+            "below the nozzle)",
+            left_out);
       core::write_file_atomic(plan_file, planner::plan_to_yaml(library, pcell, r, po));
       core::write_file_atomic(fs::path(plan_file).replace_extension(".svg"),
                               planner::plan_to_svg(pcell, r));

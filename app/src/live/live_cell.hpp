@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -47,10 +48,13 @@ struct LivePlan {
 // Plans `count` measurement poses with the planner on the cell file (nominal robot) and writes
 // the plan file; where the planner cannot plan for this robot, falls back to poses sampled on
 // the nominal robot where both cameras see the board whose motions the safety guard allows (at
-// `speed`), and says so. Deterministic in `seed`.
+// `speed`), and says so. Deterministic in `seed`. `commandable`, when given, leaves out the
+// planned poses the controller cannot command (a delta firmware's kinematics cannot put a
+// carriage below the nozzle), saying how many.
 LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
                          const LiveCellFiles& files, int count, unsigned seed, bool quick,
                          const std::filesystem::path& plan_file, const robotio::MoveSpeed& speed,
-                         std::FILE* out);
+                         std::FILE* out,
+                         const std::function<bool(const Eigen::VectorXd&)>& commandable = {});
 
 }  // namespace robocal::app

@@ -7,6 +7,7 @@
 #include "live/simulated_setup.hpp"
 #include "live/truth_log.hpp"
 #include "robocal/core/files.hpp"
+#include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/sim_process.hpp"
 #include "robocal/robotio/sim_truth.hpp"
 #include "robocal/vision/camera_io.hpp"
@@ -26,6 +27,7 @@
 
 #include <array>
 #include <atomic>
+#include <functional>
 #include <future>
 #include <optional>
 #include <random>
@@ -243,18 +245,37 @@ int run_live_demo(const LiveDemoOptions& o) {
   // offline demo's (its elastic sag is added where the cameras look: SaggingBoard).
   stage(log, "live: start sim-controller");
   const std::string protocol = natural_protocol(lc.cell.model.name);
-  robotio::SimControllerProcess sim(
-      robocal_binary(),
-      {"--robot", robot_file, "--seed", std::to_string(o.seed), "--perturbation",
-       files.perturbation.string(), "--protocol", protocol, "--no-pty", "--log",
-       (setup / "sim-controller.jsonl").string(), "--busy-interval", "1", "--max-seconds", "3600"});
+  // A delta printer runs its firmware's own kinematics when native mode is asked for.
+  const bool native = protocol == "gcode" && o.gcode_mode != "raw" &&
+                      robotio::robot_file_delta(lc.cell.model).problem.empty();
+  std::vector<std::string> sim_args = {"--robot",
+                                       robot_file,
+                                       "--seed",
+                                       std::to_string(o.seed),
+                                       "--perturbation",
+                                       files.perturbation.string(),
+                                       "--protocol",
+                                       protocol,
+                                       "--no-pty",
+                                       "--log",
+                                       (setup / "sim-controller.jsonl").string(),
+                                       "--busy-interval",
+                                       "1",
+                                       "--max-seconds",
+                                       "3600"};
+  if (protocol == "gcode")
+    sim_args.insert(sim_args.end(),
+                    {"--firmware", o.firmware, "--kinematics", native ? "delta" : "axes"});
+  robotio::SimControllerProcess sim(robocal_binary(), sim_args);
   const std::string link_address = link_address_of(sim, protocol);
-  // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D" (the address after the
-  // protocol's prefix).
+  // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D", "marlin G-code, raw
+  // axes at 127.0.0.1:P" (the address after the protocol's prefix).
+  const std::string gcode_note =
+      o.firmware + (native ? " G-code, firmware-native delta" : " G-code, raw axes");
   const std::string link_note = fmt::format("{} at {}",
                                             protocol == "ur"     ? "Universal Robots link"
                                             : protocol == "open" ? "open link"
-                                                                 : "G-code",
+                                                                 : gcode_note,
                                             link_address.substr(link_address.find(':') + 1));
   say(log, "sim-controller (pid {}): {}, truth channel at {}\n", sim.pid(), link_note, sim.pose());
   report["controller"] = {{"link", link_address}, {"protocol", protocol}, {"pid", sim.pid()}};
@@ -296,8 +317,20 @@ int run_live_demo(const LiveDemoOptions& o) {
   const fs::path plan_file = setup / "plan.yaml";
   if (!(o.resume && fs::exists(plan_file))) {
     const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
+    // The simulated firmware's kinematics is the robot file's drawing (sim-controller
+    // --kinematics delta): a pose it cannot command is left out of the plan.
+    std::function<bool(const Eigen::VectorXd&)> commandable;
+    if (native) {
+      robotio::CarriageFrame frame;
+      const robotio::RobotFileDelta file = robotio::robot_file_delta(lc.cell.model);
+      frame.geometry = robotio::drawing_geometry(file, robotio::Firmware::kMarlin);
+      frame.endstop_reading = file.endstop_reading;
+      commandable = [frame](const Eigen::VectorXd& q) {
+        return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));
+      };
+    }
     const LivePlan plan = plan_live_poses(lc.cell, robot_file, files, o.poses, o.seed, o.quick,
-                                          plan_file, {speed, 10.0 * speed}, out);
+                                          plan_file, {speed, 10.0 * speed}, out, commandable);
     say(log, "plan: {}\n", plan.how);
     report["plan"] = {{"poses", plan.readings.size()},
                       {"planner", plan.planner},
@@ -326,6 +359,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   co.cell = files.cell.string();
   co.plan = plan_file.string();
   co.link = link_address;
+  co.gcode_mode = native ? robotio::GcodeMode::kNativeDelta : robotio::GcodeMode::kRawAxes;
   for (std::size_t c = 0; c < specs.size(); ++c)
     co.cameras.push_back({specs[c].name, cams.source(c)});
   co.speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);

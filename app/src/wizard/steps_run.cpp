@@ -56,6 +56,9 @@ CollectOptions collect_options(const WizardState& s) {
   o.link = s.get("controller.link");
   o.steps_per_mm = std::stod(s.get("controller.steps_per_mm", "80"));
   o.steps_per_degree = std::stod(s.get("controller.steps_per_degree", "100"));
+  o.firmware_geometry =
+      robotio::geometry_choice_from_string(s.get("controller.firmware_geometry", "ask"))
+          .value_or(robotio::GeometryChoice::kAsk);
   o.speed = std::stod(s.get("safety.speed", default_speed(s)));
   o.acceleration = std::stod(s.get("safety.acceleration", default_acceleration(s)));
   std::istringstream in(s.get("cameras.list"));

@@ -149,6 +149,31 @@ double ask_positive(const WizardContext& ctx, const std::string& key, const std:
   }
 }
 
+// The firmware's delta geometry differs from the robot file's: the operator says which to trust
+// (the moves use the firmware's own model either way; the choice is recorded with the session).
+void ask_geometry_choice(WizardContext& ctx, const std::string& link, const std::string& why) {
+  say_check(ctx, false, why,
+            "check the printer's rods and radius, or the robot file; then say which is right");
+  const std::string choice =
+      ctx.ask.choose("controller.firmware_geometry",
+                     "Which delta geometry do you trust, the firmware's or the robot file's?",
+                     {"firmware", "robot-file"}, "robot-file");
+  ctx.state.set("controller.firmware_geometry", choice);
+  ctx.state.set("controller.link", link);
+}
+
+// Where the controller says the axes are, in the robot file's units.
+void print_axes(const WizardContext& ctx, const Eigen::VectorXd& values, bool prismatic,
+                bool revolute) {
+  std::string q;
+  for (Eigen::Index i = 0; i < values.size(); ++i)
+    q += fmt::format("{}{:.4f}", i == 0 ? "" : ", ", values[i]);
+  fmt::print(ctx.out, "Axes now at: [{}] ({})\n", q,
+             prismatic && revolute ? "m or rad"
+             : prismatic           ? "m"
+                                   : "rad");
+}
+
 class ControllerStep final : public Step {
  public:
   std::string key() const override { return "controller"; }
@@ -196,19 +221,17 @@ class ControllerStep final : public Step {
       lo.axes = robotio::axes_for_robot(model, steps_mm, steps_deg);
       lo.reply_timeout = std::chrono::milliseconds(2000);
       lo.reconnect_attempts = 2;
+      // A delta printer in its own kinematics when its firmware reports delta geometry.
+      lo.mode = robotio::GcodeMode::kAuto;
+      lo.geometry =
+          robotio::geometry_choice_from_string(ctx.state.get("controller.firmware_geometry", "ask"))
+              .value_or(robotio::GeometryChoice::kAsk);
       try {
         const std::unique_ptr<robotio::RobotLink> robot_owner = robotio::make_robot_link(guard, lo);
         robotio::RobotLink& robot = *robot_owner;
         const auto fw = robot.connect();
         fmt::print(ctx.out, "Controller at {}: {}\n", link, fw.name);
-        const auto readings = robot.read_actuators();
-        std::string q;
-        for (Eigen::Index i = 0; i < readings.values.size(); ++i)
-          q += fmt::format("{}{:.4f}", i == 0 ? "" : ", ", readings.values[i]);
-        fmt::print(ctx.out, "Axes now at: [{}] ({})\n", q,
-                   prismatic && revolute ? "m or rad"
-                   : prismatic           ? "m"
-                                         : "rad");
+        print_axes(ctx, robot.read_actuators().values, prismatic, revolute);
         ctx.state.set("controller.link", link);
         ctx.state.set("controller.firmware", fw.name);
         say_check(ctx, true, "the controller answers and reports its axes");
@@ -234,6 +257,8 @@ class ControllerStep final : public Step {
         }
         robot.disconnect();
         return StepOutcome::done();
+      } catch (const robotio::GeometryDisagreement& e) {
+        ask_geometry_choice(ctx, link, e.what());
       } catch (const robotio::LinkError& e) {
         say_check(ctx, false, fmt::format("no controller at {}: {}", link, e.what()),
                   "is the controller switched on and its cable plugged in? Is the address right "

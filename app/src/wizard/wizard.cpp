@@ -31,6 +31,7 @@ std::vector<std::string> answer_keys() {
           "controller.link",
           "controller.home",
           "controller.problem",
+          "controller.firmware_geometry",
           "cameras.list",
           "cameras.target",
           "cameras.size",

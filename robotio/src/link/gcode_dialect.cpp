@@ -106,7 +106,9 @@ Reply classify_reply(const std::string& line) {
 }
 
 std::optional<PositionReport> parse_position_report(const std::string& line,
-                                                    const std::string& axis_letters) {
+                                                    const std::string& axis_letters,
+                                                    const std::string& count_letters) {
+  const std::string& counted = count_letters.empty() ? axis_letters : count_letters;
   std::string_view s = trim(line);
   if (starts_with(s, "C: ")) s.remove_prefix(3);  // RRF prefixes with "C: " in some versions
   const std::size_t count_at = s.find("Count");
@@ -122,7 +124,7 @@ std::optional<PositionReport> parse_position_report(const std::string& line,
   tail = trim(tail);
   const bool named = tail.size() > 1 && tail[1] == ':';  // Marlin "X:800", RRF "800"
   if (named) {
-    for (const char letter : axis_letters) {
+    for (const char letter : counted) {
       // Counts are integers: reject "X:12.5" rather than truncate it.
       std::size_t i = 0;
       bool found = false;
@@ -139,7 +141,7 @@ std::optional<PositionReport> parse_position_report(const std::string& line,
       report.counts.push_back(*n);
     }
   } else {
-    for (std::size_t k = 0; k < axis_letters.size(); ++k) {
+    for (std::size_t k = 0; k < counted.size(); ++k) {
       tail = trim(tail);
       std::size_t used = 0;
       const auto n = leading_long(tail, &used);

@@ -28,6 +28,20 @@ bool is_garbage(const std::string& line) {
 
 }  // namespace
 
+std::optional<GcodeMode> gcode_mode_from_string(const std::string& word) {
+  if (word == "auto") return GcodeMode::kAuto;
+  if (word == "native") return GcodeMode::kNativeDelta;
+  if (word == "raw") return GcodeMode::kRawAxes;
+  return std::nullopt;
+}
+
+std::optional<GeometryChoice> geometry_choice_from_string(const std::string& word) {
+  if (word == "ask") return GeometryChoice::kAsk;
+  if (word == "firmware") return GeometryChoice::kFirmware;
+  if (word == "robot-file") return GeometryChoice::kRobotFile;
+  return std::nullopt;
+}
+
 ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
                             double steps_per_degree) {
   static const std::string kLetters = "XYZUVWABC";
@@ -70,7 +84,79 @@ std::vector<long> axis_counts(const ActuatorAxes& axes, const Eigen::VectorXd& r
 }
 
 std::vector<long> GcodeLink::counts_for(const Eigen::VectorXd& readings) const {
+  if (native_) return delta_counts(*native_, readings);
+  if (options_.mode == GcodeMode::kNativeDelta)
+    throw LinkError(status_.device, "native delta mode: the firmware's geometry is not read yet");
   return axis_counts(options_.axes, readings);
+}
+
+// Marlin lists its delta settings in M503; RepRapFirmware answers M665 and M666 without
+// parameters. A firmware that is not a delta says no such thing.
+std::optional<DeltaGeometry> GcodeLink::query_delta_geometry(std::string& said) {
+  const milliseconds total = options_.reply_timeout * (options_.attempts + 1);
+  const Firmware fw = status_.firmware.firmware;
+  std::vector<std::string> lines;
+  std::optional<DeltaGeometry> g;
+  try {
+    if (fw == Firmware::kRepRapFirmware) {
+      lines = exchange("M665", options_.reply_timeout, total, false);
+      const std::vector<std::string> m666 = exchange("M666", options_.reply_timeout, total, false);
+      g = parse_rrf_delta_settings(lines, m666);
+    } else {
+      lines = exchange("M503", options_.reply_timeout, total, false);
+      g = parse_marlin_delta_settings(lines);
+    }
+  } catch (const LinkError& e) {
+    // A firmware without delta kinematics may refuse the query outright.
+    if (!transport_->is_open()) throw;
+    lines = {status_.last_error.empty() ? e.controller_said() : status_.last_error};
+  }
+  said = lines.empty() ? last_line_ : lines.back();
+  return g;
+}
+
+// The robot file must be a linear delta its firmware computes (raw axes otherwise, in kAuto);
+// the firmware's geometry is compared with the file's before anything moves.
+void GcodeLink::read_native_geometry() {
+  const calib::Mechanism& model = guard().model();
+  const RobotFileDelta file = robot_file_delta(model);
+  const bool wanted = options_.mode == GcodeMode::kNativeDelta;
+  if (!wanted && (!file.problem.empty() || model.controller.gcode_axes != calib::GcodeAxes::kTool))
+    return;
+  if (!file.problem.empty() || options_.axes.size() != 3) {
+    status_.state = LinkState::kFault;
+    throw LinkError(status_.device, file.problem);
+  }
+  std::string said;
+  const std::optional<DeltaGeometry> geometry = query_delta_geometry(said);
+  if (!geometry && !wanted) return;  // reconfigured to one axis per motor: raw-axis mode
+  if (!geometry) {
+    status_.state = LinkState::kFault;
+    const bool rrf = status_.firmware.firmware == Firmware::kRepRapFirmware;
+    throw LinkError(status_.device,
+                    fmt::format("{} reports no delta geometry ({} names no M665 delta settings): "
+                                "the printer is not a delta, so firmware-native delta mode cannot "
+                                "drive it (raw-axis mode drives one G-code axis per motor)",
+                                to_string(status_.firmware.firmware), rrf ? "M665" : "M503"),
+                    said);
+  }
+  CarriageFrame frame;
+  frame.geometry = *geometry;
+  frame.endstop_reading = file.endstop_reading;
+  frame.steps_per_mm = options_.axes.steps_per_unit[0];
+  disagreements_ = robotio::geometry_disagreements(frame.geometry, file);
+  if (!disagreements_.empty() && options_.geometry == GeometryChoice::kAsk) {
+    status_.state = LinkState::kFault;
+    std::string list;
+    for (const std::string& d : disagreements_) list += "\n  " + d;
+    throw GeometryDisagreement(
+        status_.device,
+        fmt::format("the firmware's delta geometry disagrees with the robot file '{}' "
+                    "(nothing moved):{}\nchoose which to trust: the firmware's or the "
+                    "robot file's (--firmware-geometry firmware|robot-file)",
+                    model.name, list));
+  }
+  native_ = frame;
 }
 
 FirmwareInfo GcodeLink::connect() {
@@ -80,6 +166,7 @@ FirmwareInfo GcodeLink::connect() {
       transport_->open();
       handshake();
       FirmwareInfo info = identify();
+      if (options_.mode != GcodeMode::kRawAxes) read_native_geometry();
       status_.state = LinkState::kIdle;
       set_last_known(do_read().values);
       return info;
@@ -321,8 +408,69 @@ std::string GcodeLink::move_gcode(const Eigen::VectorXd& target, const MoveSpeed
   return cmd;
 }
 
+std::optional<Eigen::Vector3d> GcodeLink::native_cartesian(const Eigen::VectorXd& readings) const {
+  return cartesian_for_counts(*native_, counts_for(readings));
+}
+
+std::vector<Eigen::VectorXd> GcodeLink::native_waypoints(const Eigen::VectorXd& from,
+                                                         const Eigen::VectorXd& to) const {
+  // The firmware moves straight in its Cartesian frame, the guard checked the straight line in
+  // actuator space: points of that line close together keep the two within the chord's sag
+  // (5 mm of carriage travel on 270 mm rods: about 10 um).
+  const double joint = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
+  const int n = from.size() == to.size()
+                    ? std::max(1, static_cast<int>(std::ceil(joint / options_.native_segment)))
+                    : 1;
+  std::vector<Eigen::VectorXd> points;
+  for (int k = 1; k <= n; ++k)
+    points.push_back(k == n || from.size() != to.size()
+                         ? to
+                         : Eigen::VectorXd(from + (to - from) * (static_cast<double>(k) / n)));
+  return points;
+}
+
+std::vector<std::string> GcodeLink::native_move_gcodes(const Eigen::VectorXd& from,
+                                                       const Eigen::VectorXd& to,
+                                                       const MoveSpeed& speed) const {
+  std::vector<std::string> out;
+  const bool known = from.size() == to.size();  // unknown start: one move at the plain feed
+  Eigen::VectorXd previous = known ? from : to;
+  std::optional<Eigen::Vector3d> at = known ? native_cartesian(from) : std::nullopt;
+  for (const Eigen::VectorXd& point : native_waypoints(from, to)) {
+    if (!firmware_can_command(*native_, counts_for(point)))
+      throw MotionRefused(fmt::format(
+          "move refused: the firmware's delta kinematics cannot command carriage readings "
+          "({:.6f}, {:.6f}, {:.6f}) m on the way (a carriage below the nozzle): nothing was sent",
+          point[0], point[1], point[2]));
+    const std::optional<Eigen::Vector3d> xyz = native_cartesian(point);
+    if (!xyz)
+      throw LinkError(
+          status_.device,
+          fmt::format("the firmware's delta model ({}) cannot reach carriage readings "
+                      "({:.6f}, {:.6f}, {:.6f}) m: its rods do not meet there",
+                      to_string(native_->geometry.firmware), point[0], point[1], point[2]));
+    // The firmware's feed is along its Cartesian path: scaled per segment so the segment takes
+    // as long as `speed` along the joints.
+    const double joint = (point - previous).cwiseProduct(guard().joint_per_reading()).norm();
+    const double cartesian = at ? (*xyz - *at).norm() : 1000.0 * joint;
+    const double feed = joint > 0.0 ? speed.speed * cartesian / joint * 60.0 : speed.speed * 6e4;
+    out.push_back(fmt::format("G1 X{:.5f} Y{:.5f} Z{:.5f} F{:.3f}", xyz->x(), xyz->y(), xyz->z(),
+                              std::max(feed, 1e-3)));
+    previous = point;
+    at = xyz;
+  }
+  return out;
+}
+
 double GcodeLink::gcode_per_joint_unit(const Eigen::VectorXd& from,
                                        const Eigen::VectorXd& to) const {
+  if (native_ && from.size() == to.size()) {
+    // The firmware's acceleration is Cartesian too: the whole move's ratio.
+    const auto a = native_cartesian(from), b = native_cartesian(to);
+    const double joint = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
+    if (a && b && joint > 0.0 && (*b - *a).norm() > 0.0) return (*b - *a).norm() / joint;
+    return 1000.0;
+  }
   const std::vector<double>& f = options_.axes.unit_factor;
   const Eigen::VectorXd& j = guard().joint_per_reading();
   if (from.size() != to.size() || static_cast<std::size_t>(to.size()) != f.size())
@@ -353,17 +501,26 @@ void GcodeLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
   const milliseconds total = options_.reply_timeout * (options_.attempts + 1);
   for (int round = 0;; ++round) {
     try {
+      Eigen::VectorXd from = last_known();
       if (round > 0) {
         // Connection lost mid-command: the move may or may not have reached the controller.
         // Look before re-issuing it, so it is neither lost nor executed twice.
         reconnect();
         acceleration_sent_ = -1.0;
         exchange("M400", settle_silence(), milliseconds(120000), true);
-        if (at_target(do_read(), target)) return;
+        const ActuatorReadings now = do_read();
+        if (at_target(now, target)) return;
+        // Native segments stop on the checked line: the rest of it starts where they stopped.
+        from = now.values;
       }
       if (std::abs(accel - acceleration_sent_) > 1e-9 * accel) {
         exchange(fmt::format("M204 S{:.3f}", accel), options_.reply_timeout, total, true);
         acceleration_sent_ = accel;
+      }
+      if (native_) {
+        for (const std::string& g : native_move_gcodes(from, target, speed))
+          exchange(g, options_.reply_timeout, total, true);
+        return;
       }
       exchange(move_gcode(target, speed, per_joint), options_.reply_timeout, total, true);
       return;
@@ -413,11 +570,19 @@ void GcodeLink::do_wait_settled(milliseconds timeout) {
 }
 
 ActuatorReadings GcodeLink::parse_readings(const std::vector<std::string>& lines) const {
+  const bool native = native_.has_value();
+  // Marlin names a delta's counts by tower (A B C); RRF lists them in motor order.
+  const std::string count_letters =
+      native && native_->geometry.firmware == Firmware::kMarlin ? "ABC" : "";
   for (auto it = lines.rbegin(); it != lines.rend(); ++it) {
-    const auto report = parse_position_report(*it, options_.axes.letters);
+    const auto report = parse_position_report(*it, options_.axes.letters, count_letters);
     if (!report) continue;
     ActuatorReadings r;
     r.counts = report->counts;
+    if (native) {
+      r.values = delta_readings(*native_, r.counts);
+      return r;
+    }
     r.values.resize(options_.axes.size());
     for (int i = 0; i < options_.axes.size(); ++i) {
       const auto k = static_cast<std::size_t>(i);
@@ -460,8 +625,19 @@ bool GcodeLink::at_target(const ActuatorReadings& readings, const Eigen::VectorX
 double GcodeLink::expected_seconds(const Eigen::VectorXd& from, const Eigen::VectorXd& to,
                                    const MoveSpeed& speed) const {
   // The firmware's trapezoid in G-code units is this one scaled by gcode_per_joint_unit.
-  const double length = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
-  const double s = trapezoid_seconds(length, speed.speed, speed.acceleration);
+  double s = 0.0;
+  if (native_) {
+    // Each native segment is its own move, standstill to standstill at worst.
+    Eigen::VectorXd previous = from;
+    for (const Eigen::VectorXd& point : native_waypoints(from, to)) {
+      const double length = (point - previous).cwiseProduct(guard().joint_per_reading()).norm();
+      s += trapezoid_seconds(length, speed.speed, speed.acceleration);
+      previous = point;
+    }
+  } else {
+    const double length = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
+    s = trapezoid_seconds(length, speed.speed, speed.acceleration);
+  }
   expected_move_seconds_ = s;
   return s;
 }

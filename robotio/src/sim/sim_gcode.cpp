@@ -43,7 +43,25 @@ void SimController::Impl::greet(Channel& c) {
   }
 }
 
+// A delta firmware reports the nozzle (its forward kinematics of the counts) and the tower
+// counts: Marlin names them A B C, RRF lists them after "Count" and repeats the machine position.
+std::string delta_position_report(Firmware dialect, const Eigen::Vector3d& p,
+                                  const std::vector<long>& c) {
+  if (dialect == Firmware::kRepRapFirmware) {
+    const std::string pos = fmt::format("X:{:.3f} Y:{:.3f} Z:{:.3f} ", p.x(), p.y(), p.z());
+    return fmt::format("{}E:0.000 Count {} {} {} Machine {}Bed comp 0.000", pos, c[0], c[1], c[2],
+                       pos);
+  }
+  return fmt::format("X:{:.2f} Y:{:.2f} Z:{:.2f} E:0.00 Count A:{} B:{} C:{}", p.x(), p.y(), p.z(),
+                     c[0], c[1], c[2]);
+}
+
 std::string SimController::Impl::position_report(bool partial) const {
+  if (options.delta) {
+    std::string line = delta_position_report(options.dialect, nozzle_of(counts), counts);
+    if (partial) line.resize(line.find("Count") / 2);
+    return line;
+  }
   std::string pos, cnt;
   for (int i = 0; i < robot.axes.size(); ++i) {
     const auto k = static_cast<std::size_t>(i);
@@ -71,7 +89,8 @@ std::string SimController::Impl::firmware_report() const {
            "ELECTRONICS: Duet 3 MB6HC v1.01 FIRMWARE_DATE: 2022-11-30 (robocal simulator)";
   return "FIRMWARE_NAME:Marlin 2.1.2.1 (robocal simulator) SOURCE_CODE_URL:"
          "github.com/MarlinFirmware/Marlin PROTOCOL_VERSION:1.0 MACHINE_TYPE:" +
-         robot.model.name + " KINEMATICS:Cartesian EXTRUDER_COUNT:0";
+         robot.model.name + (options.delta ? " KINEMATICS:Delta" : " KINEMATICS:Cartesian") +
+         " EXTRUDER_COUNT:0";
 }
 
 void SimController::Impl::reply_ok(Channel& c, bool lost) {
@@ -88,6 +107,46 @@ void SimController::Impl::block(Channel& c, bool lost_ok) {
   c.next_busy = now_seconds() + busy_interval;
 }
 
+std::optional<std::vector<long>> SimController::Impl::move_target(const std::string& cmd) const {
+  const std::vector<long>& start = queue.empty() ? counts : queue.back().to;
+  if (!options.delta) {
+    std::vector<long> to = start;
+    for (int i = 0; i < robot.axes.size(); ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      if (const auto v = word(cmd, robot.axes.letters[k]))
+        to[k] = std::lround(*v * robot.axes.steps_per_unit[k]);
+    }
+    return to;
+  }
+  // Delta kinematics: the Cartesian target (axes not given stay where they are), then the
+  // firmware's own inverse kinematics, rounded to steps as it rounds them.
+  Eigen::Vector3d xyz = nozzle_of(start);
+  for (int i = 0; i < 3; ++i)
+    if (const auto v = word(cmd, "XYZ"[i])) xyz[i] = *v;
+  return counts_for_cartesian(*options.delta, xyz);
+}
+
+bool SimController::Impl::report_settings(Channel& c, const std::string& code, bool lost) {
+  const bool rrf = options.dialect == Firmware::kRepRapFirmware;
+  if (code == "M503" && !rrf) {
+    const std::optional<DeltaGeometry> delta =
+        options.delta ? std::optional<DeltaGeometry>(options.delta->geometry) : std::nullopt;
+    for (const std::string& line : marlin_m503_lines(delta, robot.axes.steps_per_unit[0]))
+      send(c, line);
+  } else if ((code == "M665" || code == "M666") && rrf) {
+    if (!options.delta) {
+      send(c, fmt::format("Error: {} parameters do not apply to Cartesian kinematics", code));
+    } else {
+      send(c, code == "M665" ? rrf_m665_reply(options.delta->geometry)
+                             : rrf_m666_reply(options.delta->geometry));
+    }
+  } else {
+    return false;
+  }
+  reply_ok(c, lost);
+  return true;
+}
+
 // Executes one accepted command; `fault` may alter the reply.
 void SimController::Impl::execute(Channel& c, const std::string& cmd, long line,
                                   std::optional<FaultKind> fault) {
@@ -101,12 +160,14 @@ void SimController::Impl::execute(Channel& c, const std::string& cmd, long line,
     m.id = ++motion_ids;
     m.line = line;
     m.channel = c.name;
-    m.to = queue.empty() ? counts : queue.back().to;
-    for (int i = 0; i < robot.axes.size(); ++i) {
-      const auto k = static_cast<std::size_t>(i);
-      if (const auto v = word(cmd, robot.axes.letters[k]))
-        m.to[k] = std::lround(*v * robot.axes.steps_per_unit[k]);
+    const std::optional<std::vector<long>> to = move_target(cmd);
+    if (!to) {
+      // Out of the delta's reach: the firmware drops the move.
+      write_log({{"ev", "unreachable"}, {"ch", c.name}, {"line", line}, {"cmd", cmd}});
+      reply_ok(c, lost);
+      return;
     }
+    m.to = *to;
     m.feed = feed;
     m.acceleration = acceleration;
     m.stall = fault == FaultKind::kStall;
@@ -137,6 +198,8 @@ void SimController::Impl::execute(Channel& c, const std::string& cmd, long line,
       send(c, "Cap:HOST_ACTION_COMMANDS:0");
     }
     reply_ok(c, lost);
+  } else if (report_settings(c, code, lost)) {
+    // reported
   } else if (code == "M204") {
     if (const auto s = word(cmd, 'S')) acceleration = *s;
     if (const auto p = word(cmd, 'P')) acceleration = *p;

@@ -143,6 +143,8 @@ struct SimController::Impl {
   // ---- the true robot and its log (sim_motion.cpp) -------------------------------------------
   std::vector<long> counts_of(const Eigen::VectorXd& readings) const;
   double units_of(long count, int axis) const;
+  // Delta firmware: the nozzle (mm, the firmware's frame) at step counts.
+  Eigen::Vector3d nozzle_of(const std::vector<long>& c) const;
   void write_log(nlohmann::json j);
   void start_next_motion(double now);
   std::vector<double> readings_of(const std::vector<long>& c) const;
@@ -181,6 +183,11 @@ struct SimController::Impl {
   void reply_ok(Channel& c, bool lost);
   void block(Channel& c, bool lost_ok);
   void execute(Channel& c, const std::string& cmd, long line, std::optional<FaultKind> fault);
+  // G0/G1: the target counts (raw axes, or the delta firmware's inverse kinematics); nullopt
+  // when the delta cannot reach the target.
+  std::optional<std::vector<long>> move_target(const std::string& cmd) const;
+  // M503, M665, M666: the firmware's settings reports.
+  bool report_settings(Channel& c, const std::string& code, bool lost);
   void handle_line(Channel& c, Pending& item);
   void receive(Channel& c);
   void process(Channel& c, double now);

@@ -64,7 +64,12 @@ std::string pose_channel_reply(const SimRobot& robot, const Eigen::VectorXd& tru
 }
 
 std::vector<long> SimController::Impl::counts_of(const Eigen::VectorXd& readings) const {
+  if (options.delta) return delta_counts(*options.delta, readings);
   return axis_counts(robot.axes, readings);
+}
+
+Eigen::Vector3d SimController::Impl::nozzle_of(const std::vector<long>& c) const {
+  return cartesian_for_counts(*options.delta, c).value_or(Eigen::Vector3d::Zero());
 }
 
 double SimController::Impl::units_of(long count, int axis) const {
@@ -90,7 +95,8 @@ void SimController::Impl::start_next_motion(double now) {
         units_of(m.to[static_cast<std::size_t>(i)] - m.from[static_cast<std::size_t>(i)], i);
     len2 += d * d;
   }
-  m.length = std::sqrt(len2);
+  // A delta firmware plans feed and acceleration along its Cartesian path.
+  m.length = options.delta ? (nozzle_of(m.to) - nozzle_of(m.from)).norm() : std::sqrt(len2);
   m.duration = trapezoid_seconds(m.length, m.feed, m.acceleration);
   m.start = now;
   ++counters.motions;
@@ -113,6 +119,10 @@ void SimController::Impl::start_next_motion(double now) {
 }
 
 std::vector<double> SimController::Impl::readings_of(const std::vector<long>& c) const {
+  if (options.delta) {
+    const Eigen::VectorXd r = delta_readings(*options.delta, c);
+    return {r.data(), r.data() + r.size()};
+  }
   std::vector<double> r(c.size());
   for (int i = 0; i < robot.axes.size(); ++i)
     r[static_cast<std::size_t>(i)] = units_of(c[static_cast<std::size_t>(i)], i) /

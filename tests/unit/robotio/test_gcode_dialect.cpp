@@ -41,6 +41,17 @@ TEST(GcodeDialect, ParsesMarlinM114StepperCounts) {
   EXPECT_EQ(r->counts, (std::vector<long>{800, 1600, 400}));
 }
 
+TEST(GcodeDialect, ParsesMarlinsDeltaM114CountsNamedByTower) {
+  // Marlin on a delta names the tower steppers A, B, C (its " Count A:" report).
+  const std::string line = "X:0.00 Y:0.00 Z:250.00 E:0.00 Count A:28880 B:28880 C:28880";
+  EXPECT_EQ(classify_reply(line).kind, ReplyKind::kPosition);
+  const auto r = parse_position_report(line, "XYZ", "ABC");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->counts, (std::vector<long>{28880, 28880, 28880}));
+  EXPECT_DOUBLE_EQ(r->positions[2], 250.0);
+  EXPECT_FALSE(parse_position_report(line, "XYZ"));  // no X: Y: Z: counts on a delta
+}
+
 TEST(GcodeDialect, ParsesRrfM114StepperCounts) {
   // RepRapFirmware's documented example reply.
   const auto r = parse_position_report(

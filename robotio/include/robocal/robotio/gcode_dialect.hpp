@@ -52,10 +52,13 @@ struct PositionReport {
   std::vector<long> counts;
 };
 // Parses M114 for `axis_letters` (e.g. "XYZ"). Marlin names the counts per axis ("Count X:800
-// Y:..."), RRF lists them in axis order ("Count 800 1600 2000"). Returns nullopt when a position
-// or count of a requested axis is missing or not a number.
+// Y:..."), RRF lists them in axis order ("Count 800 1600 2000"). Marlin on a delta names the
+// counts by tower ("Count A:800 B:.. C:.."): `count_letters` ("ABC") then, empty = the axis
+// letters. Returns nullopt when a position or count of a requested axis is missing or not a
+// number.
 std::optional<PositionReport> parse_position_report(const std::string& line,
-                                                    const std::string& axis_letters);
+                                                    const std::string& axis_letters,
+                                                    const std::string& count_letters = "");
 
 struct FirmwareInfo {
   Firmware firmware = Firmware::kUnknown;

@@ -1,19 +1,24 @@
 #pragma once
 // G-code link to a printer-style controller (Marlin, RepRapFirmware) over a serial port or TCP.
 //
-// Actuator-space moves: the firmware runs in raw-axis mode, one G-code axis per motor
-// (RepRapFirmware `M669 K0` Cartesian with the motors mapped to X, Y, Z, U, V, W, A, B, C;
-// Marlin built for Cartesian kinematics), so `G1 X.. Y.. Z..` positions each motor directly and
-// robocal does the robot's kinematics. The alternative for a firmware configured with the
-// robot's own kinematics (e.g. a linear delta) is RepRapFirmware's `G1 H2`, which moves
-// individual motors without kinematics; it is not used because Marlin has no equivalent and
-// H2 moves are relative to an unhomed position in some versions. See robotio/README.md.
+// Actuator-space moves, in one of two modes (robotio/README.md):
+// - raw-axis mode: the firmware runs one G-code axis per motor (RepRapFirmware `M669 K0`
+//   Cartesian with the motors mapped to X, Y, Z, U, V, W, A, B, C; Marlin built for Cartesian
+//   kinematics), so `G1 X.. Y.. Z..` positions each motor directly;
+// - firmware-native delta mode: a delta printer as its owner runs it. The link reads the
+//   firmware's delta geometry (Marlin `M503`, RepRapFirmware `M665`/`M666`), and sends `G1` in
+//   the firmware's Cartesian frame: the firmware's forward kinematics of the requested step
+//   counts, so its own inverse kinematics rounds back to exactly those counts (delta_firmware.hpp).
+// Either way robocal does the robot's kinematics and confirms every move from the stepper counts
+// `M114` reports.
 //
 // Protocol: every command carries a line number and checksum; the link waits for `ok`, accepts
 // `busy:` keep-alives, resends on `Resend:`/`rs`, re-sends the same numbered line after a lost
 // `ok` (the firmware's line-number check answers a duplicate with a resend request for the next
 // line, so nothing executes twice), reconnects after a lost connection and checks the
 // controller's position before re-issuing a move (so no motion is duplicated or lost).
+#include "robocal/robotio/delta_firmware.hpp"
+#include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/robot_link.hpp"
 #include "robocal/robotio/transport.hpp"
 
@@ -41,6 +46,33 @@ ActuatorAxes axes_for_robot(const calib::Mechanism& model, double steps_per_mm,
 // Step counts of actuator readings (rounded to whole steps, as a firmware plans them).
 std::vector<long> axis_counts(const ActuatorAxes& axes, const Eigen::VectorXd& readings);
 
+// How the firmware is driven: one G-code axis per motor, or a delta printer in its own
+// kinematics (the firmware's Cartesian G1, its geometry read from it).
+// kAuto: native when the robot file says its firmware computes the robot's kinematics
+// (`controller: {gcode_axes: tool}`, a linear delta) and the firmware reports delta geometry, raw
+// axes otherwise (a firmware reconfigured to one axis per motor reports none).
+enum class GcodeMode : std::uint8_t { kRawAxes, kNativeDelta, kAuto };
+// Which geometry the operator trusts when the firmware's delta geometry disagrees with the robot
+// file's beyond the file's tolerance. kAsk: the link refuses to connect and names every
+// difference (nothing moves); kFirmware / kRobotFile: the operator's answer. Moves are computed
+// with the firmware's own model either way (only it lands the carriages on the requested steps);
+// the answer is the operator's record of which drawing is right (GcodeLink::geometry_disagreements
+// keeps what was accepted; collect writes both into the session).
+enum class GeometryChoice : std::uint8_t { kAsk, kFirmware, kRobotFile };
+
+// The firmware's delta geometry differs from the robot file's beyond its tolerance and the
+// operator has not chosen which to trust (GeometryChoice::kAsk): nothing moved. what() names
+// every difference.
+class GeometryDisagreement final : public LinkError {
+ public:
+  using LinkError::LinkError;
+};
+
+// The option words (`--gcode-mode auto|native|raw`, `--firmware-geometry
+// ask|firmware|robot-file`); nullopt for any other word.
+std::optional<GcodeMode> gcode_mode_from_string(const std::string& word);
+std::optional<GeometryChoice> geometry_choice_from_string(const std::string& word);
+
 struct GcodeLinkOptions {
   std::string address;  // serial device path, or tcp:HOST:PORT
   int baud = 115200;
@@ -56,6 +88,12 @@ struct GcodeLinkOptions {
   // The UR link only (make_robot_link): the operator confirmed that a protective stop may be
   // unlocked through the dashboard server.
   bool unlock_protective_stop = false;
+  GcodeMode mode = GcodeMode::kRawAxes;
+  GeometryChoice geometry = GeometryChoice::kAsk;
+  // Native mode: a move is sent as straight Cartesian segments between points of the straight
+  // actuator-space path the guard checked, at most this much joint travel apart (m), so the
+  // firmware's Cartesian path stays within a few micrometres of the checked one.
+  double native_segment = 5e-3;
 };
 
 class GcodeLink final : public RobotLink {
@@ -79,6 +117,11 @@ class GcodeLink final : public RobotLink {
 
   // Counts a reading vector converts to (what the firmware will count at that target).
   std::vector<long> counts_for(const Eigen::VectorXd& readings) const;
+  // Native mode, once connected: the firmware's delta geometry and how its carriage coordinates
+  // map to readings; the differences from the robot file the operator accepted (plain words).
+  // Empty in raw-axis mode (also when kAuto found no delta).
+  const std::optional<CarriageFrame>& native_frame() const { return native_; }
+  const std::vector<std::string>& geometry_disagreements() const { return disagreements_; }
 
  protected:
   void do_home() override;
@@ -105,6 +148,18 @@ class GcodeLink final : public RobotLink {
   // G-code path length per joint-space length of the straight move `from` -> `to`.
   double gcode_per_joint_unit(const Eigen::VectorXd& from, const Eigen::VectorXd& to) const;
   ActuatorReadings parse_readings(const std::vector<std::string>& lines) const;
+  // Native mode: the firmware's delta geometry, checked against the robot file (throws
+  // LinkError for a printer that is not a delta or a disagreement nobody chose on).
+  void read_native_geometry();
+  // nullopt when the firmware reports no delta geometry (`said`: its last words on it).
+  std::optional<DeltaGeometry> query_delta_geometry(std::string& said);
+  // Native mode: the points (readings) the straight path from `from` to `to` is sent through.
+  std::vector<Eigen::VectorXd> native_waypoints(const Eigen::VectorXd& from,
+                                                const Eigen::VectorXd& to) const;
+  std::vector<std::string> native_move_gcodes(const Eigen::VectorXd& from,
+                                              const Eigen::VectorXd& to,
+                                              const MoveSpeed& speed) const;
+  std::optional<Eigen::Vector3d> native_cartesian(const Eigen::VectorXd& readings) const;
 
   GcodeLinkOptions options_;
   std::unique_ptr<Transport> transport_;
@@ -114,6 +169,8 @@ class GcodeLink final : public RobotLink {
   double acceleration_sent_ = -1.0;
   mutable double expected_move_seconds_ = 0.0;  // of the move being waited for
   std::string last_line_;                       // last line received (for error messages)
+  std::optional<CarriageFrame> native_;         // native mode, after connect
+  std::vector<std::string> disagreements_;
 };
 
 }  // namespace robocal::robotio

@@ -7,6 +7,7 @@
 // fault injection, and the true end-effector pose on a separate TCP channel that only simulated
 // cameras read (protocol in robotio/README.md).
 #include "robocal/calib/mechanism.hpp"
+#include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/gcode_dialect.hpp"
 #include "robocal/robotio/gcode_link.hpp"
 
@@ -115,6 +116,10 @@ struct SimOptions {
   double flange_noise_rad = 0.0;
   FaultPlan faults;
   SimUrOptions ur;
+  // G-code only: the firmware runs delta kinematics with this geometry (its own M665/M666, which
+  // may differ from the true robot's) and maps its carriage coordinates to the true robot's
+  // readings as the frame says; unset = raw-axis mode (one axis per motor).
+  std::optional<CarriageFrame> delta;
 };
 
 // Counts of what happened (also in the log).
