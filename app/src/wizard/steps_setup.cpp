@@ -212,8 +212,9 @@ class ControllerStep final : public Step {
     for (;;) {
       const std::string link =
           ctx.ask.ask("controller.link",
-                      "Controller address (a serial device such as /dev/ttyACM0, tcp:HOST:PORT, or "
-                      "open:HOST:PORT for an open link adapter)",
+                      "Controller address (a serial device such as /dev/ttyACM0, tcp:HOST:PORT, "
+                      "ur:HOST for a Universal Robots controller, or open:HOST:PORT for an open "
+                      "link adapter)",
                       ctx.state.get("controller.link", "/dev/ttyACM0"));
       robotio::SafetyGuard guard(model, model.nominal_parameters(), robotio::SafetyLimits{});
       robotio::GcodeLinkOptions lo;
@@ -231,7 +232,8 @@ class ControllerStep final : public Step {
         robotio::RobotLink& robot = *robot_owner;
         const auto fw = robot.connect();
         fmt::print(ctx.out, "Controller at {}: {}\n", link, fw.name);
-        print_axes(ctx, robot.read_actuators().values, prismatic, revolute);
+        const robotio::ActuatorReadings readings = robot.read_actuators();
+        print_axes(ctx, readings.values, prismatic, revolute);
         ctx.state.set("controller.link", link);
         ctx.state.set("controller.firmware", fw.name);
         say_check(ctx, true, "the controller answers and reports its axes");

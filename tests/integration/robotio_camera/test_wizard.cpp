@@ -247,6 +247,7 @@ class Wizard : public ::testing::Test {
       const std::map<std::string, std::string>& changes = {}) const {
     std::map<std::string, std::string> a = {
         {"robot.model", robot_.string()},
+        {"robot.goal", "geometry"},
         {"controller.steps_per_mm", "80"},
         {"controller.steps_per_degree", "100"},
         {"controller.link", sim_->tcp()},
@@ -391,7 +392,8 @@ TEST_F(Wizard, AnswersFileDrivesTheFlowWithoutATerminal) {
 void answer_robot_to_cameras(test::PtyProcess& w, const fs::path& robot, const std::string& link,
                              const fs::path& board) {
   TYPE_AT(w, "Robot (library name or robot file)", robot.string());
-  TYPE_AT(w, "Steps per mm", "");  // a linear delta: no rotary axes, no steps per degree
+  TYPE_AT(w, "What to calibrate", "");  // the default: the robot's geometry
+  TYPE_AT(w, "Steps per mm", "");       // a linear delta: no rotary axes, no steps per degree
   TYPE_AT(w, "Controller address", link);
   TYPE_AT(w, "Home the robot now?", "");
   TYPE_AT(w, "Cameras as NAME=SOURCE", "cam0=aravis:SIM-CAM0 cam1=aravis:SIM-CAM1");
