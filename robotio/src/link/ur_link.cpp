@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 
@@ -93,10 +94,39 @@ const std::vector<std::string>& ur_output_names() {
   return names;
 }
 
+const std::string& ur_tcp_offset_output() {
+  static const std::string name = "tcp_offset";
+  return name;
+}
+
+Eigen::Isometry3d ur_pose_to_isometry(const Eigen::VectorXd& pose) {
+  if (pose.size() != 6)
+    throw std::invalid_argument(fmt::format("a UR pose has 6 values, not {}", pose.size()));
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d r = pose.tail<3>();
+  const double angle = r.norm();
+  if (angle > 0.0) t.linear() = Eigen::AngleAxisd(angle, r / angle).toRotationMatrix();
+  t.translation() = pose.head<3>();
+  return t;
+}
+
+Eigen::Matrix<double, 6, 1> ur_pose_from_isometry(const Eigen::Isometry3d& pose) {
+  const Eigen::AngleAxisd r(pose.linear());
+  Eigen::Matrix<double, 6, 1> out;
+  out << pose.translation(), r.angle() * r.axis();
+  return out;
+}
+
+Eigen::Isometry3d ur_flange_pose(const Eigen::VectorXd& tcp_pose,
+                                 const Eigen::VectorXd& tcp_offset) {
+  return ur_pose_to_isometry(tcp_pose) * ur_pose_to_isometry(tcp_offset).inverse();
+}
+
 UrState ur_state_from(const rtde::DataPackage& package, int joints) {
-  if (package.fields.size() != ur_output_names().size())
-    throw rtde::RtdeFormatError(fmt::format("a data package of {} fields, the recipe has {}",
-                                            package.fields.size(), ur_output_names().size()));
+  const std::size_t n = ur_output_names().size();
+  if (package.fields.size() != n && package.fields.size() != n + 1)
+    throw rtde::RtdeFormatError(
+        fmt::format("a data package of {} fields, the recipe has {}", package.fields.size(), n));
   const auto& f = package.fields;
   UrState s;
   s.timestamp = f[0][0];
@@ -109,6 +139,7 @@ UrState ur_state_from(const rtde::DataPackage& package, int joints) {
   s.speed_fraction = f[7][0];
   s.speed_scaling = f[8][0];
   s.tcp_pose = vector_of(f[9]);
+  if (f.size() > n) s.tcp_offset = vector_of(f[n]);
   return s;
 }
 
@@ -277,25 +308,40 @@ void UrLink::rtde_handshake() {
   } catch (const rtde::RtdeFormatError& e) {
     fail(fmt::format("RTDE's controller version reply: {}", e.what()));
   }
-  rtde_send(rtde::encode_setup_outputs(options_.frequency, ur_output_names()));
+  // tcp_offset first with the rest; a controller that predates it gets the recipe without it.
+  std::vector<std::string> names = ur_output_names();
+  names.push_back(ur_tcp_offset_output());
   std::vector<std::string> unknown;
-  try {
-    recipe_ = rtde::decode_output_recipe(rtde_reply(rtde::PackageType::kSetupOutputs));
-    unknown = rtde::unknown_outputs(ur_output_names(), recipe_);
-  } catch (const rtde::RtdeFormatError& e) {
-    fail(fmt::format("RTDE's output recipe reply: {}", e.what()));
+  for (int round = 0; round < 2; ++round) {
+    rtde_send(rtde::encode_setup_outputs(options_.frequency, names));
+    try {
+      recipe_ = rtde::decode_output_recipe(rtde_reply(rtde::PackageType::kSetupOutputs));
+      unknown = rtde::unknown_outputs(names, recipe_);
+    } catch (const rtde::RtdeFormatError& e) {
+      fail(fmt::format("RTDE's output recipe reply: {}", e.what()));
+    }
+    if (unknown.size() == 1 && unknown.front() == ur_tcp_offset_output() && round == 0) {
+      names.pop_back();
+      continue;
+    }
+    break;
   }
+  has_tcp_offset_ = names.back() == ur_tcp_offset_output();
+  std::erase(unknown, ur_tcp_offset_output());
   if (!unknown.empty()) {
-    std::string names;
-    for (const std::string& n : unknown) names += (names.empty() ? "'" : ", '") + n + "'";
+    std::string list;
+    for (const std::string& n : unknown) list += (list.empty() ? "'" : ", '") + n + "'";
     fail(
         fmt::format("RTDE on URControl {} does not know the output{} {} (NOT_FOUND): robocal "
                     "needs them to read the joints and the robot's state; update the "
                     "controller's software",
-                    version.text(), unknown.size() > 1 ? "s" : "", names));
+                    version.text(), unknown.size() > 1 ? "s" : "", list));
   }
   status_.firmware = {Firmware::kUnknown, "Universal Robots URControl " + version.text(),
-                      version.text(), "RTDE protocol version 2"};
+                      version.text(),
+                      has_tcp_offset_ ? "RTDE protocol version 2"
+                                      : "RTDE protocol version 2 (no tcp_offset output: the "
+                                        "readings carry no flange pose)"};
 }
 
 void UrLink::start_stream() {
@@ -608,7 +654,11 @@ void UrLink::do_wait_settled(milliseconds timeout) {
 // settle_packages packages, so waiting for one more would only add a period.
 ActuatorReadings UrLink::do_read() {
   ActuatorReadings r;
-  r.values = (settled_state_ ? state_ : fresh_state()).actual_q.cwiseQuotient(scale_);
+  const UrState& s = settled_state_ ? state_ : fresh_state();
+  r.values = s.actual_q.cwiseQuotient(scale_);
+  // The controller's own flange pose, from the same package as the joints.
+  if (has_tcp_offset_ && s.tcp_pose.size() == 6 && s.tcp_offset.size() == 6)
+    r.base_T_flange = ur_flange_pose(s.tcp_pose, s.tcp_offset);
   settled_state_ = false;
   pause_stream();
   return r;
