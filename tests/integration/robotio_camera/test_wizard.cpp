@@ -630,7 +630,16 @@ TEST_F(Wizard, BadInputAtAStepIsExplainedAndNothingMoves) {
        {{"controller.link", "tcp:127.0.0.1:9"}, {"controller.problem", "quit"}},
        1,
        "controller",
-       {"no controller at tcp:127.0.0.1:9", "what to do: is the controller switched on"}},
+       {"no controller at tcp:127.0.0.1:9", "what to do: is the controller switched on",
+        "What answers at 127.0.0.1:9: nothing answers on port 9 of 127.0.0.1"}},
+      // A bare network address is probed first: nothing there is said in plain words.
+      {"bare_address_probed",
+       {{"controller.link", "127.0.0.1:9"}, {"controller.problem", "quit"}},
+       1,
+       "controller",
+       {"Looking at 127.0.0.1:9",
+        "nothing answers on port 9 of 127.0.0.1: is the robot on the "
+        "network"}},
       {"target_not_in_view",
        {{"cameras.target", (dir_ / "other_board.yaml").string()}, {"cameras.problem", "quit"}},
        1,
