@@ -85,15 +85,12 @@ class Probe {
     if (greeting)
       if (const std::optional<FirmwareInfo> fw = parse_firmware_line(*greeting)) return gcode(*fw);
     if (std::optional<ProbeResult> r = open_link(t)) return *r;
-    t.close();
-    // A fresh connection for the G-code question: the hello line may have left a firmware
-    // mid-error.
-    TcpTransport g(host_, port_, timeout_);
+    // A G-code firmware answered the hello line as an unknown command (or not at all): M115 on
+    // the same connection, its report among whatever else the board prints.
     try {
-      g.open();
-      g.write_line("M115");
+      t.write_line("M115");
       const auto deadline = Clock::now() + timeout_;
-      while (const std::optional<std::string> l = g.read_line(deadline)) {
+      while (const std::optional<std::string> l = t.read_line(deadline)) {
         said(*l);
         if (const std::optional<FirmwareInfo> fw = parse_firmware_line(*l)) return gcode(*fw);
       }

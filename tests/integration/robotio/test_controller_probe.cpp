@@ -77,7 +77,7 @@ TEST_F(ControllerProbe, OpenLinkControllerIsNamedFromItsHello) {
 TEST_F(ControllerProbe, GcodeBoardIsNamedFromItsM115) {
   start("linear_delta", {});
   const ProbeResult r = robotio::probe_controller(host_port(sim_->tcp()));
-  EXPECT_EQ(r.kind, ProbedController::kGcode) << r.explanation;
+  EXPECT_EQ(r.kind, ProbedController::kGcode) << r.explanation << "\nsaid: " << r.said;
   EXPECT_EQ(r.link, sim_->tcp());
   EXPECT_NE(r.explanation.find("a G-code board, Marlin"), std::string::npos) << r.explanation;
   expect_nothing_moved();
