@@ -6,6 +6,7 @@
 
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/robotio/motion_profile.hpp"
+#include "robocal/robotio/ur_primary.hpp"
 
 #include <fmt/core.h>
 
@@ -222,6 +223,7 @@ Eigen::VectorXd UrLink::to_si(const Eigen::VectorXd& readings) const {
 }
 
 void UrLink::close_all() {
+  secondary_buffer_.clear();
   rtde_.close();
   secondary_.close();
   dashboard_.close();
@@ -494,9 +496,35 @@ void UrLink::disconnect() {
   status_.state = LinkState::kDisconnected;
 }
 
+void UrLink::poll_secondary() {
+  try {
+    while (std::optional<std::string> bytes = secondary_.read_some(Clock::now()))
+      secondary_buffer_ += *bytes;
+  } catch (const LinkError&) {
+    return;  // gone: the next script send reconnects
+  }
+  try {
+    while (std::optional<ur_primary::Package> p = ur_primary::take_package(secondary_buffer_)) {
+      // Robot states (10 Hz) and messages that do not matter are read past.
+      const std::optional<ur_primary::RobotMessage> m = ur_primary::decode_robot_message(*p);
+      if (!m || !ur_primary::matters(*m)) continue;
+      controller_said_ = ur_primary::describe(*m);
+      status_.last_error = "the controller says: " + controller_said_;
+    }
+  } catch (const std::runtime_error& e) {
+    // Out of step with the package framing: what is buffered cannot be read.
+    secondary_buffer_.clear();
+    status_.last_error = fmt::format("secondary interface: {}", e.what());
+  }
+}
+
+std::string UrLink::controller_said() const {
+  return controller_said_.empty() ? "" : "; the controller said: " + controller_said_;
+}
+
 void UrLink::send_script(const std::string& line) {
   try {
-    secondary_.drain();  // the controller's 10 Hz state messages on this port are not read
+    poll_secondary();
     secondary_.write_line(line);
     ++status_.commands;
   } catch (const LinkError& e) {
@@ -539,6 +567,9 @@ void UrLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
   status_.state = LinkState::kMoving;
   settled_state_ = false;
   target_si_ = to_si(target);
+  // What the controller says from here on is about this move.
+  poll_secondary();
+  controller_said_.clear();
   (void)fresh_state();
   require_motion_allowed();
   last_script_ = urscript_movej(target_si_, speed.acceleration, speed.speed);
@@ -570,6 +601,7 @@ UrLink::Wait UrLink::watch_move(Clock::time_point deadline, Clock::time_point st
       stop_for("stop requested");
       interrupted("movej");
     }
+    poll_secondary();
     bool got = false;
     try {
       got = next_state(std::min(deadline, Clock::now() + milliseconds(50)));
@@ -584,7 +616,8 @@ UrLink::Wait UrLink::watch_move(Clock::time_point deadline, Clock::time_point st
         return Wait::kProtectiveStop;
       if (const std::string blocker = ur_motion_blocker(state_); !blocker.empty()) {
         status_.state = LinkState::kFault;
-        fail("the move ended early: RTDE reports " + blocker);
+        poll_secondary();
+        fail("the move ended early: RTDE reports " + blocker + controller_said());
       }
       if (state_.runtime_state == kPlaying ||
           state_.actual_qd.cwiseAbs().maxCoeff() >= options_.speed_threshold)
@@ -601,8 +634,8 @@ UrLink::Wait UrLink::watch_move(Clock::time_point deadline, Clock::time_point st
       stop_for("stalled");
       fail(
           fmt::format("the move did not settle in time (stalled?): sent stopj; the joints stopped "
-                      "{:.4f} rad from the target",
-                      (state_.actual_q - target_si_).cwiseAbs().maxCoeff()));
+                      "{:.4f} rad from the target{}",
+                      (state_.actual_q - target_si_).cwiseAbs().maxCoeff(), controller_said()));
     }
   }
 }
@@ -636,9 +669,10 @@ void UrLink::do_wait_settled(milliseconds timeout) {
     }
     if (sends >= options_.attempts) {
       const std::string remote = dashboard("is in remote control");
+      poll_secondary();
       fail(fmt::format("the arm did not take the movej after {} sends (remote control: {}; "
-                       "runtime state {})",
-                       sends, remote, state_.runtime_state),
+                       "runtime state {}){}",
+                       sends, remote, state_.runtime_state, controller_said()),
            remote);
     }
     ++sends;

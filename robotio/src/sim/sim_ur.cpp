@@ -8,6 +8,7 @@
 #include "robocal/robotio/motion_profile.hpp"
 #include "robocal/robotio/rtde.hpp"
 #include "robocal/robotio/ur_link.hpp"
+#include "robocal/robotio/ur_primary.hpp"
 #include "sim_internal.hpp"
 
 #include <unistd.h>
@@ -348,12 +349,15 @@ void SimController::Impl::ur_script(Channel& c, const std::string& line) {
   if (fn != "movej" || args.empty()) {
     write_log(
         {{"ev", "script_error"}, {"line", line}, {"why", "this controller runs movej and stopj"}});
+    ur_script_exception(
+        c, fmt::format("this simulated controller runs movej and stopj, not: {}", line));
     return;
   }
   const std::optional<FaultKind> fault = ur_roll_fault("movej");
   const std::vector<double> q = number_list(args);
   if (static_cast<int>(q.size()) != kUrJoints || robot.axes.size() > kUrJoints) {
     write_log({{"ev", "script_error"}, {"line", line}, {"why", "movej needs a list of 6 joints"}});
+    ur_script_exception(c, "movej needs a list of 6 joints");
     return;
   }
   const char* rejected = !ur.remote                  ? "not in remote control"
@@ -376,6 +380,7 @@ void SimController::Impl::ur_movej(Channel& c, const std::vector<double>& q, dou
   }
   if (fault == FaultKind::kError) {
     write_log({{"ev", "refused"}, {"cmd", "movej"}});
+    ur_script_exception(c, "movej refused (injected fault)");
     return;
   }
   // A new script replaces the running one.
@@ -411,6 +416,15 @@ void SimController::Impl::ur_movej(Channel& c, const std::vector<double>& q, dou
     close_channel(ur.secondary, false);
     close_channel(ur.dashboard, false);
   }
+}
+
+// A script the controller does not run is reported to the client that sent it as a runtime
+// exception robot message (ur_primary.hpp), as a UR does on its client interfaces.
+void SimController::Impl::ur_script_exception(Channel& c, const std::string& text) {
+  if (!c.open()) return;
+  write_all(c.fd, ur_primary::encode_runtime_exception(static_cast<std::uint64_t>(t() * 1000.0), 1,
+                                                       1, text));
+  write_log({{"ev", "tx"}, {"ch", c.name}, {"robot_message", "runtime_exception"}, {"text", text}});
 }
 
 // The dashboard server's replies, worded as UR's dashboard server documentation gives them.

@@ -322,6 +322,28 @@ TEST_F(UrLinkTest, StalledMoveIsStoppedAndReportedWithWhereTheJointsStopped) {
   EXPECT_EQ(stops.back()["cmd"], "stopj");
 }
 
+// A script the controller refuses every time: the failure carries the controller's own words,
+// read off the secondary interface (a runtime exception robot message), not only robocal's
+// "did not take the movej".
+TEST_F(UrLinkTest, ScriptTheControllerRefusesFailsWithTheControllersMessage) {
+  write_script("1 error\n2 error\n3 error\n");
+  start({"--fault-script", file("faults.txt")});
+  auto l = link();
+  l->connect();
+  try {
+    l->move_actuators(targets(1, 5)[0], kSpeed);
+    FAIL() << "a refused movej must not be confirmed";
+  } catch (const LinkError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("did not take the movej after 3 sends"), std::string::npos) << what;
+    EXPECT_NE(what.find("the controller said: runtime exception at line 1, column 1: \"movej "
+                        "refused (injected fault)\""),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_EQ(events(log(), "motion_start").size(), 0U);
+}
+
 TEST_F(UrLinkTest, ProtectiveStopDuringAMoveFailsItWithTheSafetyStatus) {
   write_script("1 pstop\n");
   start({"--fault-script", file("faults.txt")});

@@ -136,6 +136,11 @@ class UrLink final : public RobotLink {
   void require_motion_allowed();
   void unlock_protective_stop();
   void send_script(const std::string& line);
+  // Reads what the secondary interface sent since (robot state, robot messages; never waits) and
+  // keeps the robot messages that matter (ur_primary.hpp) as the controller's word.
+  void poll_secondary();
+  // "; the controller said: …" when it said something since the last script, else "".
+  std::string controller_said() const;
   bool settled_at(const Eigen::VectorXd& target_si) const;
   void stop_for(const std::string& why);
   enum class Wait : std::uint8_t { kSettled, kNotStarted, kLost, kProtectiveStop };
@@ -147,6 +152,8 @@ class UrLink final : public RobotLink {
   std::string device_;
   TcpTransport rtde_, secondary_, dashboard_;
   std::string rtde_buffer_;
+  std::string secondary_buffer_;
+  std::string controller_said_;  // the last robot message that matters, since the last script
   rtde::OutputRecipe recipe_;
   bool streaming_ = false;
   bool has_tcp_offset_ = false;  // the recipe carries tcp_offset: readings carry the flange pose
