@@ -253,8 +253,8 @@ class ControllerStep final : public Step {
       std::string link =
           ctx.ask.ask("controller.link",
                       "Controller address (a serial device such as /dev/ttyACM0, tcp:HOST:PORT, "
-                      "ur:HOST for a Universal Robots controller, open:HOST:PORT for an open "
-                      "link adapter, or just HOST or HOST:PORT to find out what answers there)",
+                      "ur:HOST for a UR, open:HOST:PORT for an open link adapter, or "
+                      "HOST[:PORT] to probe it)",
                       ctx.state.get("controller.link", "/dev/ttyACM0"));
       if (robotio::is_probe_address(link)) {
         const std::optional<std::string> probed = probe_and_propose(ctx, link);
