@@ -185,7 +185,7 @@ std::string probe_address_of(const std::string& link) {
       return robotio::is_probe_address(rest) ? rest : "";
     }
   if (link.rfind("ur:", 0) == 0) {
-    const std::string rest = link.substr(3);
+    std::string rest = link.substr(3);
     const std::size_t colon = rest.find(':');
     if (colon == std::string::npos) return rest;
     const std::string there = rest.substr(0, colon) + rest.substr(rest.rfind(':'));

@@ -78,7 +78,8 @@ std::optional<RobotMessage> decode_robot_message(const Package& package) {
   std::size_t o = 0;
   RobotMessage m;
   m.timestamp = get_be(b, o, 8, "timestamp");
-  m.source = static_cast<std::int8_t>(static_cast<std::uint8_t>(get_be(b, o, 1, "source")));
+  const auto source = static_cast<int>(get_be(b, o, 1, "source"));  // int8 on the wire
+  m.source = source > 127 ? source - 256 : source;
   const auto type = static_cast<std::uint8_t>(get_be(b, o, 1, "message type"));
   switch (static_cast<MessageType>(type)) {
     case MessageType::kText:
