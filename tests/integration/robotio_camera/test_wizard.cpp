@@ -31,6 +31,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace robocal::robotio {
@@ -197,7 +198,7 @@ class HeldOrMounted final : public TruePoseSource {
   }
   void hold(std::optional<Eigen::Isometry3d> world_T_board) {
     const std::lock_guard<std::mutex> lock(mutex_);
-    held_ = world_T_board;
+    held_ = std::move(world_T_board);
   }
 
  private:
@@ -487,8 +488,8 @@ TEST_F(Wizard, LiveCalibrationViewsAreGuidedAndCalibrateTheCamera) {
   ASSERT_TRUE(w.expect("no board in this view", 30s)) << w.output();
   // Four views square to the line of sight: the focal length is weakly determined.
   for (int k = 0; k < 4; ++k) {
-    held(board_in_view(spec.model, 160.0 + 320.0 * (k % 2), 120.0 + 240.0 * (k / 2), 0.09, 0.0,
-                       0.0));
+    held(board_in_view(spec.model, 160.0 + 320.0 * (k % 2), 120.0 + 240.0 * (k >= 2 ? 1.0 : 0.0),
+                       0.09, 0.0, 0.0));
     TYPE_AT(w, fmt::format("cam0 view {}: Enter", k + 1), "");
     ASSERT_TRUE(w.expect(fmt::format("view {} kept", k + 1), 30s)) << w.output();
   }
