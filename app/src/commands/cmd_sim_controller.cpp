@@ -62,6 +62,7 @@ struct SimCliOptions {
   bool exit_with_parent = false;
   robotio::SimUrOptions ur;
   bool ur_remote_off = false;
+  std::vector<double> ur_tcp_offset;
   bool no_flange_pose = false;
   double flange_noise_mm = 0.0;
   double flange_noise_deg = 0.0;
@@ -153,6 +154,8 @@ int run_sim_controller(const SimCliOptions& o) {
     s.protocol = robotio::SimProtocol::kUr;
     s.ur = o.ur;
     s.ur.remote_control = !o.ur_remote_off;
+    if (!o.ur_tcp_offset.empty())
+      std::copy(o.ur_tcp_offset.begin(), o.ur_tcp_offset.end(), s.ur.tcp_offset.begin());
   } else if (o.protocol != "gcode") {
     throw InputError("--protocol must be gcode, open or ur, got '" + o.protocol + "'");
   }
@@ -290,6 +293,11 @@ CommandSpec sim_controller_command() {
             cmd.add_option("--ur-unknown-output", o->ur.unknown_outputs,
                            "ur: an RTDE output this controller's software predates (answered "
                            "NOT_FOUND); repeatable");
+            cmd.add_option("--ur-tcp-offset", o->ur_tcp_offset,
+                           "ur: the active TCP, flange -> TCP: x,y,z (m),rx,ry,rz (rotation "
+                           "vector, rad)")
+                ->expected(6)
+                ->delimiter(',');
             cmd.add_option("--ur-unlock-delay", o->ur.unlock_delay,
                            "ur: seconds after a protective stop before it may be unlocked")
                 ->check(CLI::Range(0.0, 60.0));

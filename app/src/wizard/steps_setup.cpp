@@ -7,6 +7,7 @@
 #include "robocal/robotio/camera_aravis.hpp"
 #include "robocal/robotio/camera_checks.hpp"
 #include "robocal/robotio/camera_open.hpp"
+#include "robocal/robotio/controller_probe.hpp"
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/link_factory.hpp"
@@ -24,6 +25,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <sstream>
 
@@ -174,14 +176,52 @@ void print_axes(const WizardContext& ctx, const Eigen::VectorXd& values, bool pr
                                    : "rad");
 }
 
+// The network address behind a link address, for the probe: "tcp:H:P" and "open:H:P" -> "H:P",
+// "ur:H" -> "H", "ur:H:R:S:D" -> "H:D" (its dashboard server); "" for a serial device or manual.
+std::string probe_address_of(const std::string& link) {
+  for (const char* scheme : {"tcp:", "open:"})
+    if (link.rfind(scheme, 0) == 0) {
+      const std::string rest = link.substr(std::string(scheme).size());
+      return robotio::is_probe_address(rest) ? rest : "";
+    }
+  if (link.rfind("ur:", 0) == 0) {
+    std::string rest = link.substr(3);
+    const std::size_t colon = rest.find(':');
+    if (colon == std::string::npos) return rest;
+    const std::string there = rest.substr(0, colon) + rest.substr(rest.rfind(':'));
+    return robotio::is_probe_address(there) ? there : "";
+  }
+  return "";
+}
+
+// Probes `address`, says what answers there and proposes the matching link; the link the
+// operator accepts, nullopt when nothing robocal speaks to answers (said why).
+std::optional<std::string> probe_and_propose(WizardContext& ctx, const std::string& address) {
+  fmt::print(ctx.out, "Looking at {}...\n", address);
+  const robotio::ProbeResult found = robotio::probe_controller(address);
+  if (found.link.empty()) {
+    say_check(ctx, false, found.explanation,
+              "a Universal Robots controller answers on port 29999 (its dashboard server); an "
+              "open link adapter or a G-code board on the port its configuration gives");
+    return std::nullopt;
+  }
+  say_check(ctx, true, "found " + found.explanation);
+  const std::string use =
+      ctx.ask.ask("controller.probed_link",
+                  "Link address to connect through (Enter to use the one proposed)", found.link);
+  return use;
+}
+
 class ControllerStep final : public Step {
  public:
   std::string key() const override { return "controller"; }
   std::string title() const override { return "Connect the controller"; }
   std::string what() const override {
-    return "The wizard talks G-code to the robot's controller (Marlin or RepRapFirmware) over a "
-           "serial port or TCP. It identifies the firmware and reads where the axes are; nothing "
-           "moves unless you ask for homing.";
+    return "The wizard connects to the robot's controller: a G-code board (Marlin or "
+           "RepRapFirmware) over a serial port or TCP, a Universal Robots controller, or an open "
+           "link adapter. Give just its network address to find out what answers there. It "
+           "identifies the controller and reads where the axes are; nothing moves unless you ask "
+           "for homing.";
   }
   StepOutcome run(WizardContext& ctx) override {
     const calib::Mechanism model = load_robot(ctx.state.get("robot.file"));
@@ -210,12 +250,23 @@ class ControllerStep final : public Step {
     ctx.state.set("controller.steps_per_mm", fmt::format("{}", steps_mm));
     ctx.state.set("controller.steps_per_degree", fmt::format("{}", steps_deg));
     for (;;) {
-      const std::string link =
+      std::string link =
           ctx.ask.ask("controller.link",
                       "Controller address (a serial device such as /dev/ttyACM0, tcp:HOST:PORT, "
-                      "ur:HOST for a Universal Robots controller, or open:HOST:PORT for an open "
-                      "link adapter)",
+                      "ur:HOST for a UR, open:HOST:PORT for an open link adapter, or "
+                      "HOST[:PORT] to probe it)",
                       ctx.state.get("controller.link", "/dev/ttyACM0"));
+      if (robotio::is_probe_address(link)) {
+        const std::optional<std::string> probed = probe_and_propose(ctx, link);
+        if (!probed) {
+          if (ctx.ask.choose("controller.problem", "Try another address, or stop here",
+                             {"retry", "quit"}, "retry") == "quit")
+            return StepOutcome::stopped(fmt::format(
+                "no controller robocal speaks to at {}; fix the address and resume", link));
+          continue;
+        }
+        link = *probed;
+      }
       robotio::SafetyGuard guard(model, model.nominal_parameters(), robotio::SafetyLimits{});
       robotio::GcodeLinkOptions lo;
       lo.address = link;
@@ -247,8 +298,8 @@ class ControllerStep final : public Step {
                     "the controller reports no flange pose: the hand-eye calibration will take "
                     "the flange from the robot file's nominal model for its readings",
                     "for a controller's own, calibrated pose, connect through a link that reports "
-                    "it (an open link adapter with the flange_pose capability, "
-                    "robotio/OPEN_LINK.md)");
+                    "it (a Universal Robots controller whose RTDE has tcp_offset, or an open link "
+                    "adapter with the flange_pose capability, robotio/OPEN_LINK.md)");
         if (ctx.ask.confirm("controller.home",
                             "Home the robot now? Every axis moves to its endstop (collection "
                             "homes anyway, after the safety confirmation)",
@@ -262,6 +313,10 @@ class ControllerStep final : public Step {
       } catch (const robotio::GeometryDisagreement& e) {
         ask_geometry_choice(ctx, link, e.what());
       } catch (const robotio::LinkError& e) {
+        // What does answer there, in plain words, when the address is a network one.
+        if (const std::string there = probe_address_of(link); !there.empty())
+          fmt::print(ctx.out, "What answers at {}: {}.\n", there,
+                     robotio::probe_controller(there).explanation);
         say_check(ctx, false, fmt::format("no controller at {}: {}", link, e.what()),
                   "is the controller switched on and its cable plugged in? Is the address right "
                   "(serial: ls /dev/ttyACM* /dev/ttyUSB*; network: its IP and port)? A controller "

@@ -29,6 +29,7 @@ std::vector<std::string> answer_keys() {
           "controller.steps_per_mm",
           "controller.steps_per_degree",
           "controller.link",
+          "controller.probed_link",
           "controller.home",
           "controller.problem",
           "controller.firmware_geometry",

@@ -6,11 +6,13 @@
 
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/robotio/motion_profile.hpp"
+#include "robocal/robotio/ur_primary.hpp"
 
 #include <fmt/core.h>
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 
@@ -93,10 +95,39 @@ const std::vector<std::string>& ur_output_names() {
   return names;
 }
 
+const std::string& ur_tcp_offset_output() {
+  static const std::string name = "tcp_offset";
+  return name;
+}
+
+Eigen::Isometry3d ur_pose_to_isometry(const Eigen::VectorXd& pose) {
+  if (pose.size() != 6)
+    throw std::invalid_argument(fmt::format("a UR pose has 6 values, not {}", pose.size()));
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d r = pose.tail<3>();
+  const double angle = r.norm();
+  if (angle > 0.0) t.linear() = Eigen::AngleAxisd(angle, r / angle).toRotationMatrix();
+  t.translation() = pose.head<3>();
+  return t;
+}
+
+Eigen::Matrix<double, 6, 1> ur_pose_from_isometry(const Eigen::Isometry3d& pose) {
+  const Eigen::AngleAxisd r(pose.linear());
+  Eigen::Matrix<double, 6, 1> out;
+  out << pose.translation(), r.angle() * r.axis();
+  return out;
+}
+
+Eigen::Isometry3d ur_flange_pose(const Eigen::VectorXd& tcp_pose,
+                                 const Eigen::VectorXd& tcp_offset) {
+  return ur_pose_to_isometry(tcp_pose) * ur_pose_to_isometry(tcp_offset).inverse();
+}
+
 UrState ur_state_from(const rtde::DataPackage& package, int joints) {
-  if (package.fields.size() != ur_output_names().size())
-    throw rtde::RtdeFormatError(fmt::format("a data package of {} fields, the recipe has {}",
-                                            package.fields.size(), ur_output_names().size()));
+  const std::size_t n = ur_output_names().size();
+  if (package.fields.size() != n && package.fields.size() != n + 1)
+    throw rtde::RtdeFormatError(
+        fmt::format("a data package of {} fields, the recipe has {}", package.fields.size(), n));
   const auto& f = package.fields;
   UrState s;
   s.timestamp = f[0][0];
@@ -109,6 +140,7 @@ UrState ur_state_from(const rtde::DataPackage& package, int joints) {
   s.speed_fraction = f[7][0];
   s.speed_scaling = f[8][0];
   s.tcp_pose = vector_of(f[9]);
+  if (f.size() > n) s.tcp_offset = vector_of(f[n]);
   return s;
 }
 
@@ -191,6 +223,7 @@ Eigen::VectorXd UrLink::to_si(const Eigen::VectorXd& readings) const {
 }
 
 void UrLink::close_all() {
+  secondary_buffer_.clear();
   rtde_.close();
   secondary_.close();
   dashboard_.close();
@@ -277,25 +310,40 @@ void UrLink::rtde_handshake() {
   } catch (const rtde::RtdeFormatError& e) {
     fail(fmt::format("RTDE's controller version reply: {}", e.what()));
   }
-  rtde_send(rtde::encode_setup_outputs(options_.frequency, ur_output_names()));
+  // tcp_offset first with the rest; a controller that predates it gets the recipe without it.
+  std::vector<std::string> names = ur_output_names();
+  names.push_back(ur_tcp_offset_output());
   std::vector<std::string> unknown;
-  try {
-    recipe_ = rtde::decode_output_recipe(rtde_reply(rtde::PackageType::kSetupOutputs));
-    unknown = rtde::unknown_outputs(ur_output_names(), recipe_);
-  } catch (const rtde::RtdeFormatError& e) {
-    fail(fmt::format("RTDE's output recipe reply: {}", e.what()));
+  for (int round = 0; round < 2; ++round) {
+    rtde_send(rtde::encode_setup_outputs(options_.frequency, names));
+    try {
+      recipe_ = rtde::decode_output_recipe(rtde_reply(rtde::PackageType::kSetupOutputs));
+      unknown = rtde::unknown_outputs(names, recipe_);
+    } catch (const rtde::RtdeFormatError& e) {
+      fail(fmt::format("RTDE's output recipe reply: {}", e.what()));
+    }
+    if (unknown.size() == 1 && unknown.front() == ur_tcp_offset_output() && round == 0) {
+      names.pop_back();
+      continue;
+    }
+    break;
   }
+  has_tcp_offset_ = names.back() == ur_tcp_offset_output();
+  std::erase(unknown, ur_tcp_offset_output());
   if (!unknown.empty()) {
-    std::string names;
-    for (const std::string& n : unknown) names += (names.empty() ? "'" : ", '") + n + "'";
+    std::string list;
+    for (const std::string& n : unknown) list += (list.empty() ? "'" : ", '") + n + "'";
     fail(
         fmt::format("RTDE on URControl {} does not know the output{} {} (NOT_FOUND): robocal "
                     "needs them to read the joints and the robot's state; update the "
                     "controller's software",
-                    version.text(), unknown.size() > 1 ? "s" : "", names));
+                    version.text(), unknown.size() > 1 ? "s" : "", list));
   }
   status_.firmware = {Firmware::kUnknown, "Universal Robots URControl " + version.text(),
-                      version.text(), "RTDE protocol version 2"};
+                      version.text(),
+                      has_tcp_offset_ ? "RTDE protocol version 2"
+                                      : "RTDE protocol version 2 (no tcp_offset output: the "
+                                        "readings carry no flange pose)"};
 }
 
 void UrLink::start_stream() {
@@ -448,9 +496,35 @@ void UrLink::disconnect() {
   status_.state = LinkState::kDisconnected;
 }
 
+void UrLink::poll_secondary() {
+  try {
+    while (std::optional<std::string> bytes = secondary_.read_some(Clock::now()))
+      secondary_buffer_ += *bytes;
+  } catch (const LinkError&) {
+    return;  // gone: the next script send reconnects
+  }
+  try {
+    while (std::optional<ur_primary::Package> p = ur_primary::take_package(secondary_buffer_)) {
+      // Robot states (10 Hz) and messages that do not matter are read past.
+      const std::optional<ur_primary::RobotMessage> m = ur_primary::decode_robot_message(*p);
+      if (!m || !ur_primary::matters(*m)) continue;
+      controller_said_ = ur_primary::describe(*m);
+      status_.last_error = "the controller says: " + controller_said_;
+    }
+  } catch (const std::runtime_error& e) {
+    // Out of step with the package framing: what is buffered cannot be read.
+    secondary_buffer_.clear();
+    status_.last_error = fmt::format("secondary interface: {}", e.what());
+  }
+}
+
+std::string UrLink::controller_said() const {
+  return controller_said_.empty() ? "" : "; the controller said: " + controller_said_;
+}
+
 void UrLink::send_script(const std::string& line) {
   try {
-    secondary_.drain();  // the controller's 10 Hz state messages on this port are not read
+    poll_secondary();
     secondary_.write_line(line);
     ++status_.commands;
   } catch (const LinkError& e) {
@@ -493,6 +567,9 @@ void UrLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
   status_.state = LinkState::kMoving;
   settled_state_ = false;
   target_si_ = to_si(target);
+  // What the controller says from here on is about this move.
+  poll_secondary();
+  controller_said_.clear();
   (void)fresh_state();
   require_motion_allowed();
   last_script_ = urscript_movej(target_si_, speed.acceleration, speed.speed);
@@ -524,6 +601,7 @@ UrLink::Wait UrLink::watch_move(Clock::time_point deadline, Clock::time_point st
       stop_for("stop requested");
       interrupted("movej");
     }
+    poll_secondary();
     bool got = false;
     try {
       got = next_state(std::min(deadline, Clock::now() + milliseconds(50)));
@@ -538,7 +616,8 @@ UrLink::Wait UrLink::watch_move(Clock::time_point deadline, Clock::time_point st
         return Wait::kProtectiveStop;
       if (const std::string blocker = ur_motion_blocker(state_); !blocker.empty()) {
         status_.state = LinkState::kFault;
-        fail("the move ended early: RTDE reports " + blocker);
+        poll_secondary();
+        fail("the move ended early: RTDE reports " + blocker + controller_said());
       }
       if (state_.runtime_state == kPlaying ||
           state_.actual_qd.cwiseAbs().maxCoeff() >= options_.speed_threshold)
@@ -555,8 +634,8 @@ UrLink::Wait UrLink::watch_move(Clock::time_point deadline, Clock::time_point st
       stop_for("stalled");
       fail(
           fmt::format("the move did not settle in time (stalled?): sent stopj; the joints stopped "
-                      "{:.4f} rad from the target",
-                      (state_.actual_q - target_si_).cwiseAbs().maxCoeff()));
+                      "{:.4f} rad from the target{}",
+                      (state_.actual_q - target_si_).cwiseAbs().maxCoeff(), controller_said()));
     }
   }
 }
@@ -590,9 +669,10 @@ void UrLink::do_wait_settled(milliseconds timeout) {
     }
     if (sends >= options_.attempts) {
       const std::string remote = dashboard("is in remote control");
+      poll_secondary();
       fail(fmt::format("the arm did not take the movej after {} sends (remote control: {}; "
-                       "runtime state {})",
-                       sends, remote, state_.runtime_state),
+                       "runtime state {}){}",
+                       sends, remote, state_.runtime_state, controller_said()),
            remote);
     }
     ++sends;
@@ -608,7 +688,11 @@ void UrLink::do_wait_settled(milliseconds timeout) {
 // settle_packages packages, so waiting for one more would only add a period.
 ActuatorReadings UrLink::do_read() {
   ActuatorReadings r;
-  r.values = (settled_state_ ? state_ : fresh_state()).actual_q.cwiseQuotient(scale_);
+  const UrState& s = settled_state_ ? state_ : fresh_state();
+  r.values = s.actual_q.cwiseQuotient(scale_);
+  // The controller's own flange pose, from the same package as the joints.
+  if (has_tcp_offset_ && s.tcp_pose.size() == 6 && s.tcp_offset.size() == 6)
+    r.base_T_flange = ur_flange_pose(s.tcp_pose, s.tcp_offset);
   settled_state_ = false;
   pause_stream();
   return r;

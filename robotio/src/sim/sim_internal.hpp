@@ -222,6 +222,7 @@ struct SimController::Impl {
   void ur_movej(Channel& c, const std::vector<double>& q, double a, double v,
                 std::optional<FaultKind> fault);
   std::string ur_dashboard_reply(Channel& c, const std::string& command);
+  void ur_script_exception(Channel& c, const std::string& text);
   void ur_protective_stop(const std::string& why);
   std::optional<FaultKind> ur_roll_fault(const std::string& cmd);
 };

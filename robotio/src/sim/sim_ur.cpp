@@ -7,6 +7,8 @@
 #include "robocal/calib/closure.hpp"
 #include "robocal/robotio/motion_profile.hpp"
 #include "robocal/robotio/rtde.hpp"
+#include "robocal/robotio/ur_link.hpp"
+#include "robocal/robotio/ur_primary.hpp"
 #include "sim_internal.hpp"
 
 #include <unistd.h>
@@ -44,12 +46,11 @@ double joint_si(const SimRobot& r, int i) {
 // outputs"); any other name is NOT_FOUND.
 const std::map<std::string, std::string>& output_types() {
   static const std::map<std::string, std::string> types = {
-      {"timestamp", "DOUBLE"},     {"target_q", "VECTOR6D"},
-      {"target_qd", "VECTOR6D"},   {"actual_q", "VECTOR6D"},
-      {"actual_qd", "VECTOR6D"},   {"actual_TCP_pose", "VECTOR6D"},
-      {"robot_mode", "INT32"},     {"safety_mode", "INT32"},
-      {"safety_status", "INT32"},  {"runtime_state", "UINT32"},
-      {"speed_scaling", "DOUBLE"}, {"target_speed_fraction", "DOUBLE"}};
+      {"timestamp", "DOUBLE"},     {"target_q", "VECTOR6D"},    {"target_qd", "VECTOR6D"},
+      {"actual_q", "VECTOR6D"},    {"actual_qd", "VECTOR6D"},   {"actual_TCP_pose", "VECTOR6D"},
+      {"robot_mode", "INT32"},     {"safety_mode", "INT32"},    {"safety_status", "INT32"},
+      {"runtime_state", "UINT32"}, {"speed_scaling", "DOUBLE"}, {"target_speed_fraction", "DOUBLE"},
+      {"tcp_offset", "VECTOR6D"}};
   return types;
 }
 
@@ -264,15 +265,25 @@ std::string SimController::Impl::ur_data_package(double now) const {
   constexpr double kDt = 0.008;
   if (moving) before = interpolate(queue.front(), std::max(queue.front().start, now - kDt));
   rtde::FieldValues q(kUrJoints, 0.0), qd(kUrJoints, 0.0);
-  Eigen::VectorXd readings(n);
   for (int i = 0; i < n && i < kUrJoints; ++i) {
     const auto k = static_cast<std::size_t>(i);
     q[k] = units_of(at[k], i) * joint_si(robot, i);
     qd[k] = units_of(at[k] - before[k], i) * joint_si(robot, i) / kDt;
   }
-  for (int i = 0; i < n; ++i)
-    readings[i] = units_of(at[static_cast<std::size_t>(i)], i) /
-                  robot.axes.unit_factor[static_cast<std::size_t>(i)];
+  // The controller's kinematics are the true robot's (a calibrated arm) applied to its joint
+  // encoders (it cannot see backlash or noise beyond them): actual_TCP_pose is that flange pose
+  // times the active TCP offset, as rotation vectors.
+  const auto& o = options.ur.tcp_offset;
+  const rtde::FieldValues offset(o.begin(), o.end());
+  rtde::FieldValues tcp_pose(6, 0.0);
+  const std::vector<double> r = readings_of(at);
+  const Eigen::VectorXd encoders =
+      Eigen::Map<const Eigen::VectorXd>(r.data(), static_cast<Eigen::Index>(r.size()));
+  if (const std::optional<Eigen::Isometry3d> flange = true_flange_pose(robot, encoders)) {
+    const Eigen::Matrix<double, 6, 1> p = ur_pose_from_isometry(
+        *flange * ur_pose_to_isometry(Eigen::Map<const Eigen::VectorXd>(offset.data(), 6)));
+    tcp_pose.assign(p.data(), p.data() + 6);
+  }
   std::vector<rtde::FieldValues> fields;
   for (const std::string& name : ur.names) {
     if (name == "timestamp") fields.push_back({t()});
@@ -284,14 +295,8 @@ std::string SimController::Impl::ur_data_package(double now) const {
     if (name == "runtime_state") fields.push_back({queue.empty() ? 1.0 : 2.0});
     if (name == "speed_scaling" || name == "target_speed_fraction")
       fields.push_back({ur.speed_fraction});
-    if (name == "actual_TCP_pose") {
-      // What the controller believes: its nominal model's tool pose.
-      const calib::ForwardResult fk = calib::forward_kinematics(
-          robot.model, robot.model.nominal_parameters(), readings, robot.model.tool);
-      const Eigen::AngleAxisd r(fk.pose.linear());
-      const Eigen::Vector3d p = fk.pose.translation(), v = r.angle() * r.axis();
-      fields.push_back({p.x(), p.y(), p.z(), v.x(), v.y(), v.z()});
-    }
+    if (name == "actual_TCP_pose") fields.push_back(tcp_pose);
+    if (name == "tcp_offset") fields.push_back(offset);
   }
   return rtde::encode_data_package(ur.recipe_id, ur.types, fields);
 }
@@ -344,12 +349,15 @@ void SimController::Impl::ur_script(Channel& c, const std::string& line) {
   if (fn != "movej" || args.empty()) {
     write_log(
         {{"ev", "script_error"}, {"line", line}, {"why", "this controller runs movej and stopj"}});
+    ur_script_exception(
+        c, fmt::format("this simulated controller runs movej and stopj, not: {}", line));
     return;
   }
   const std::optional<FaultKind> fault = ur_roll_fault("movej");
   const std::vector<double> q = number_list(args);
   if (static_cast<int>(q.size()) != kUrJoints || robot.axes.size() > kUrJoints) {
     write_log({{"ev", "script_error"}, {"line", line}, {"why", "movej needs a list of 6 joints"}});
+    ur_script_exception(c, "movej needs a list of 6 joints");
     return;
   }
   const char* rejected = !ur.remote                  ? "not in remote control"
@@ -372,6 +380,7 @@ void SimController::Impl::ur_movej(Channel& c, const std::vector<double>& q, dou
   }
   if (fault == FaultKind::kError) {
     write_log({{"ev", "refused"}, {"cmd", "movej"}});
+    ur_script_exception(c, "movej refused (injected fault)");
     return;
   }
   // A new script replaces the running one.
@@ -407,6 +416,15 @@ void SimController::Impl::ur_movej(Channel& c, const std::vector<double>& q, dou
     close_channel(ur.secondary, false);
     close_channel(ur.dashboard, false);
   }
+}
+
+// A script the controller does not run is reported to the client that sent it as a runtime
+// exception robot message (ur_primary.hpp), as a UR does on its client interfaces.
+void SimController::Impl::ur_script_exception(Channel& c, const std::string& text) {
+  if (!c.open()) return;
+  write_all(c.fd, ur_primary::encode_runtime_exception(static_cast<std::uint64_t>(t() * 1000.0), 1,
+                                                       1, text));
+  write_log({{"ev", "tx"}, {"ch", c.name}, {"robot_message", "runtime_exception"}, {"text", text}});
 }
 
 // The dashboard server's replies, worded as UR's dashboard server documentation gives them.

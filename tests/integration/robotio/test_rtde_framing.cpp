@@ -7,6 +7,7 @@
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/rtde.hpp"
 #include "robocal/robotio/ur_link.hpp"
+#include "robocal/robotio/ur_primary.hpp"
 
 #include <gtest/gtest.h>
 
@@ -158,6 +159,113 @@ TEST(UrScript, MovejAndStopjAsTheUrScriptManualWritesThem) {
             "movej([0.000000000,-1.500000000,1.250000000,0.500000000,-0.250000000,3.000000000], "
             "a=1.200000, v=0.500000)");
   EXPECT_EQ(robotio::urscript_stopj(2.0), "stopj(2.000000)");
+}
+
+}  // namespace
+}  // namespace robocal::test
+
+// ---- the client interface's robot messages (ur_primary.hpp), bytes written out by hand from the
+// published layout: int32 size (whole package), uint8 type 20, uint64 timestamp, int8 source,
+// uint8 message type, then the message's fields; all big-endian.
+
+namespace robocal::test {
+namespace {
+
+namespace up = robotio::ur_primary;
+
+// A runtime exception (type 10): line 3, column 7, the text "name 'movx' is not defined".
+std::string runtime_exception_bytes() {
+  const std::string text = "name 'movx' is not defined";
+  std::string b;
+  const std::size_t size = 4 + 1 + 8 + 1 + 1 + 4 + 4 + text.size();  // 23 + 26 = 49
+  b += std::string("\x00\x00\x00", 3) + static_cast<char>(size);
+  b += '\x14';                                              // 20: robot message
+  b += std::string("\x00\x00\x00\x00\x00\x01\xe2\x40", 8);  // timestamp 123456
+  b += '\xfe';                                              // source -2
+  b += '\x0a';                                              // 10: runtime exception
+  b += std::string("\x00\x00\x00\x03", 4);                  // line 3
+  b += std::string("\x00\x00\x00\x07", 4);                  // column 7
+  return b + text;
+}
+
+TEST(UrPrimaryMessages, RuntimeExceptionDecodesFromThePublishedLayout) {
+  std::string stream = runtime_exception_bytes();
+  ASSERT_EQ(stream.size(), 49U);
+  const std::optional<up::Package> p = up::take_package(stream);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_TRUE(stream.empty());
+  EXPECT_EQ(p->type, 20);
+  const std::optional<up::RobotMessage> m = up::decode_robot_message(*p);
+  ASSERT_TRUE(m.has_value());
+  EXPECT_EQ(m->timestamp, 123456U);
+  EXPECT_EQ(m->source, -2);
+  EXPECT_EQ(m->type, up::MessageType::kRuntimeException);
+  EXPECT_EQ(m->line, 3);
+  EXPECT_EQ(m->column, 7);
+  EXPECT_EQ(m->text, "name 'movx' is not defined");
+  EXPECT_TRUE(up::matters(*m));
+  EXPECT_EQ(up::describe(*m),
+            "runtime exception at line 3, column 7: \"name 'movx' is not defined\"");
+  // The simulator's encoder writes the same bytes (apart from the timestamp given).
+  EXPECT_EQ(up::encode_runtime_exception(123456, 3, 7, "name 'movx' is not defined"),
+            runtime_exception_bytes());
+}
+
+TEST(UrPrimaryMessages, ErrorCodeCarriesCodeArgumentLevelAndText) {
+  const std::string text = "Protective Stop: Collision detected by joint 3";
+  std::string b;
+  const std::size_t size = 4 + 1 + 8 + 1 + 1 + 4 + 4 + 4 + 1 + 4 + text.size();
+  b += std::string("\x00\x00\x00", 3) + static_cast<char>(size);
+  b += '\x14';
+  b += std::string(8, '\0');                // timestamp 0
+  b += '\x00';                              // source 0
+  b += '\x06';                              // 6: error code
+  b += std::string("\x00\x00\x00\xcc", 4);  // code 204
+  b += std::string("\x00\x00\x00\x03", 4);  // argument 3
+  b += std::string("\x00\x00\x00\x03", 4);  // report level 3: violation
+  b += '\x00';                              // data type
+  b += std::string("\x00\x00\x00\x00", 4);  // data
+  b += text;
+  std::string stream = b;
+  const std::optional<up::RobotMessage> m =
+      up::decode_robot_message(up::take_package(stream).value());
+  ASSERT_TRUE(m.has_value());
+  EXPECT_EQ(m->type, up::MessageType::kErrorCode);
+  EXPECT_EQ(m->code, 204);
+  EXPECT_EQ(m->argument, 3);
+  EXPECT_EQ(m->report_level, 3);
+  EXPECT_EQ(m->text, text);
+  EXPECT_EQ(up::describe(*m), "error C204A3 (violation): \"" + text + "\"");
+  EXPECT_TRUE(up::matters(*m));
+}
+
+TEST(UrPrimaryMessages, RobotStatesAreFramedAndSkippedAndPartialPackagesWait) {
+  // A robot state (type 16) of 9 bytes: header and 4 bytes of sub-package, then the exception
+  // split in two reads.
+  std::string stream = std::string("\x00\x00\x00\x09\x10\x00\x00\x00\x00", 9);
+  const std::string message = runtime_exception_bytes();
+  stream += message.substr(0, 20);
+  const std::optional<up::Package> state = up::take_package(stream);
+  ASSERT_TRUE(state.has_value());
+  EXPECT_EQ(state->type, 16);
+  EXPECT_FALSE(up::decode_robot_message(*state).has_value());
+  EXPECT_FALSE(up::take_package(stream).has_value()) << "only 20 of 49 bytes are there";
+  stream += message.substr(20);
+  const std::optional<up::Package> p = up::take_package(stream);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_EQ(up::decode_robot_message(*p)->line, 3);
+}
+
+TEST(UrPrimaryMessages, ASizeBelowTheHeaderOrAShortBodyIsRefused) {
+  std::string bad = std::string("\x00\x00\x00\x04\x14", 5);
+  EXPECT_THROW((void)up::take_package(bad), std::runtime_error);
+  // A runtime exception cut before its column number.
+  std::string cut = std::string("\x00\x00\x00\x15\x14", 5) + std::string(8, '\0') + '\x00' +
+                    '\x0a' + std::string("\x00\x00\x00\x03", 4) + std::string("\x00\x00", 2);
+  ASSERT_EQ(cut.size(), 21U);  // 5 + 8 + 1 + 1 + 4 + 2
+  const std::optional<up::Package> p = up::take_package(cut);
+  ASSERT_TRUE(p.has_value());
+  EXPECT_THROW((void)up::decode_robot_message(*p), std::runtime_error);
 }
 
 }  // namespace

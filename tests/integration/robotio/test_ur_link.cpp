@@ -3,7 +3,10 @@
 // loopback sockets. The simulator's JSONL log is the independent record of what the controller
 // received and executed; expected joint counts are worked out here from the robot file's encoder
 // scale and the simulator's --steps-per-degree, not taken from the link.
+#include "robocal/calib/closure.hpp"
+#include "robocal/calib/kinematics.hpp"
 #include "robocal/calib/mechanism.hpp"
+#include "robocal/calib/robot_file.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/motion_profile.hpp"
 #include "robocal/robotio/ur_link.hpp"
@@ -164,6 +167,66 @@ TEST_F(UrLinkTest, ConnectsMovesSettlesAndReadsBackEveryTargetOnTheTruthLog) {
   EXPECT_EQ(order, "VvOS");
 }
 
+int body_index(const calib::Mechanism& m, const std::string& name) {
+  for (std::size_t i = 0; i < m.bodies.size(); ++i)
+    if (m.bodies[i].name == name) return static_cast<int>(i);
+  ADD_FAILURE() << "no body " << name;
+  return -1;
+}
+
+// The flange pose the link reads (actual_TCP_pose times the inverse of tcp_offset) is the true
+// robot's: worked out here from the perturbation file given to the simulator and the UR5's
+// forward kinematics to wrist3 (the flange; `tool` is fixed on it) in the base frame. The
+// simulator's TCP is off the flange in all six values, so a link that took the TCP for the
+// flange, or turned a rotation vector the wrong way, would miss by centimetres.
+TEST_F(UrLinkTest, FlangePoseIsTheTrueRobotsFromTheTcpPoseAndTheTcpOffset) {
+  const std::vector<std::string> perturbation = {"wrist1.d=0.11215", "wrist2.d=0.09165",
+                                                 "wrist3.d=0.0853"};
+  {
+    std::ofstream out(file("truth.txt"));
+    for (const std::string& line : perturbation) out << line << "\n";
+  }
+  start(
+      {"--perturbation", file("truth.txt"), "--ur-tcp-offset", "0.012,-0.034,0.156,0.3,-0.2,0.5"});
+  Eigen::VectorXd truth = model_.nominal_parameters();
+  for (const std::string& line : perturbation) calib::apply_parameter_override(model_, truth, line);
+  const int flange = body_index(model_, "wrist3"), base = body_index(model_, "base");
+  auto l = link();
+  (void)l->connect();
+  constexpr double kTolerance = 1e-9;  // m and rad: doubles over RTDE, one rotation-vector trip
+  for (const Eigen::VectorXd& target : targets(3, 11)) {
+    const robotio::MoveResult r = l->move_actuators(target, kSpeed);
+    ASSERT_TRUE(r.confirmed) << r.reason;
+    ASSERT_TRUE(r.readings.base_T_flange.has_value());
+    const calib::ForwardResult fk =
+        calib::forward_kinematics(model_, truth, r.readings.values, flange);
+    ASSERT_TRUE(fk.closure.ok());
+    const Eigen::Isometry3d expect =
+        calib::frame_pose(model_, truth, fk.state, base).inverse() * fk.pose;
+    const Eigen::Isometry3d& got = *r.readings.base_T_flange;
+    EXPECT_LT((got.translation() - expect.translation()).norm(), kTolerance);
+    EXPECT_LT(Eigen::AngleAxisd(got.linear().transpose() * expect.linear()).angle(), kTolerance);
+    // The nominal model misses the perturbed flange: the pose is the controller's, not robocal's.
+    const calib::ForwardResult nominal =
+        calib::forward_kinematics(model_, model_.nominal_parameters(), r.readings.values, flange);
+    EXPECT_GT((nominal.pose.translation() - fk.pose.translation()).norm(), 1e-3);
+  }
+}
+
+TEST_F(UrLinkTest, ControllerWithoutTcpOffsetConnectsAndReportsNoFlangePose) {
+  start({"--ur-unknown-output", "tcp_offset"});
+  auto l = link();
+  const robotio::FirmwareInfo fw = l->connect();
+  EXPECT_NE(fw.raw.find("no tcp_offset"), std::string::npos) << fw.raw;
+  const robotio::MoveResult r = l->move_actuators(targets(1, 5).front(), kSpeed);
+  ASSERT_TRUE(r.confirmed) << r.reason;
+  EXPECT_FALSE(r.readings.base_T_flange.has_value());
+  std::string order;
+  for (const auto& rx : events(log(), "rx"))
+    if (rx.value("ch", "") == "rtde" && order.size() < 5) order += rx.value("type", "?");
+  EXPECT_EQ(order, "VvOOS") << "the recipe set up again without tcp_offset";
+}
+
 TEST_F(UrLinkTest, MovejTakesTheLeadingJointsTrapezoid) {
   start();
   auto l = link();
@@ -257,6 +320,28 @@ TEST_F(UrLinkTest, StalledMoveIsStoppedAndReportedWithWhereTheJointsStopped) {
   const auto stops = awaited("stop");
   ASSERT_FALSE(stops.empty());
   EXPECT_EQ(stops.back()["cmd"], "stopj");
+}
+
+// A script the controller refuses every time: the failure carries the controller's own words,
+// read off the secondary interface (a runtime exception robot message), not only robocal's
+// "did not take the movej".
+TEST_F(UrLinkTest, ScriptTheControllerRefusesFailsWithTheControllersMessage) {
+  write_script("1 error\n2 error\n3 error\n");
+  start({"--fault-script", file("faults.txt")});
+  auto l = link();
+  l->connect();
+  try {
+    l->move_actuators(targets(1, 5)[0], kSpeed);
+    FAIL() << "a refused movej must not be confirmed";
+  } catch (const LinkError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("did not take the movej after 3 sends"), std::string::npos) << what;
+    EXPECT_NE(what.find("the controller said: runtime exception at line 1, column 1: \"movej "
+                        "refused (injected fault)\""),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_EQ(events(log(), "motion_start").size(), 0U);
 }
 
 TEST_F(UrLinkTest, ProtectiveStopDuringAMoveFailsItWithTheSafetyStatus) {

@@ -31,6 +31,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace robocal::robotio {
@@ -197,7 +198,7 @@ class HeldOrMounted final : public TruePoseSource {
   }
   void hold(std::optional<Eigen::Isometry3d> world_T_board) {
     const std::lock_guard<std::mutex> lock(mutex_);
-    held_ = world_T_board;
+    held_ = std::move(world_T_board);
   }
 
  private:
@@ -487,8 +488,8 @@ TEST_F(Wizard, LiveCalibrationViewsAreGuidedAndCalibrateTheCamera) {
   ASSERT_TRUE(w.expect("no board in this view", 30s)) << w.output();
   // Four views square to the line of sight: the focal length is weakly determined.
   for (int k = 0; k < 4; ++k) {
-    held(board_in_view(spec.model, 160.0 + 320.0 * (k % 2), 120.0 + 240.0 * (k / 2), 0.09, 0.0,
-                       0.0));
+    held(board_in_view(spec.model, 160.0 + 320.0 * (k % 2), 120.0 + 240.0 * (k >= 2 ? 1.0 : 0.0),
+                       0.09, 0.0, 0.0));
     TYPE_AT(w, fmt::format("cam0 view {}: Enter", k + 1), "");
     ASSERT_TRUE(w.expect(fmt::format("view {} kept", k + 1), 30s)) << w.output();
   }
@@ -630,7 +631,16 @@ TEST_F(Wizard, BadInputAtAStepIsExplainedAndNothingMoves) {
        {{"controller.link", "tcp:127.0.0.1:9"}, {"controller.problem", "quit"}},
        1,
        "controller",
-       {"no controller at tcp:127.0.0.1:9", "what to do: is the controller switched on"}},
+       {"no controller at tcp:127.0.0.1:9", "what to do: is the controller switched on",
+        "What answers at 127.0.0.1:9: nothing answers on port 9 of 127.0.0.1"}},
+      // A bare network address is probed first: nothing there is said in plain words.
+      {"bare_address_probed",
+       {{"controller.link", "127.0.0.1:9"}, {"controller.problem", "quit"}},
+       1,
+       "controller",
+       {"Looking at 127.0.0.1:9",
+        "nothing answers on port 9 of 127.0.0.1: is the robot on the "
+        "network"}},
       {"target_not_in_view",
        {{"cameras.target", (dir_ / "other_board.yaml").string()}, {"cameras.problem", "quit"}},
        1,

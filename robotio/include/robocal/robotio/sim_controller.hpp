@@ -84,6 +84,9 @@ struct SimUrOptions {
   double max_frequency = 500.0;  // RTDE output frequency limit (e-Series)
   // Outputs this controller's software predates: answered NOT_FOUND like any unknown name.
   std::vector<std::string> unknown_outputs;
+  // The active TCP, flange -> TCP, as the pendant sets it: x y z (m), rx ry rz (rotation vector,
+  // rad). RTDE's actual_TCP_pose is the true flange pose times this; tcp_offset reports it.
+  std::array<double, 6> tcp_offset{};
 };
 
 struct SimOptions {

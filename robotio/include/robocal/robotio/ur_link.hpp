@@ -14,6 +14,7 @@
 #include "robocal/robotio/transport.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <chrono>
 #include <memory>
@@ -34,8 +35,22 @@ struct UrAddress {
 bool is_ur_link_address(const std::string& address);
 UrAddress parse_ur_address(const std::string& address);
 
-// The outputs robocal asks RTDE for, in this order.
+// The outputs robocal needs from RTDE, in this order.
 const std::vector<std::string>& ur_output_names();
+// Asked for after them when the controller knows it: `tcp_offset` (the active TCP, flange -> TCP,
+// x y z rx ry rz), which turns actual_TCP_pose into the flange pose. A controller whose software
+// predates it answers NOT_FOUND; the link then sets the recipe up without it and reports no
+// flange pose.
+const std::string& ur_tcp_offset_output();
+
+// A UR pose [x, y, z, rx, ry, rz] (metres; rotation vector in radians: axis times angle) as a
+// transform, and back.
+Eigen::Isometry3d ur_pose_to_isometry(const Eigen::VectorXd& pose);
+Eigen::Matrix<double, 6, 1> ur_pose_from_isometry(const Eigen::Isometry3d& pose);
+// base -> flange from actual_TCP_pose (base -> TCP) and tcp_offset (flange -> TCP):
+// base_T_tcp * inverse(flange_T_tcp).
+Eigen::Isometry3d ur_flange_pose(const Eigen::VectorXd& tcp_pose,
+                                 const Eigen::VectorXd& tcp_offset);
 
 // One RTDE data package of that recipe, in SI units (rad, rad/s, m).
 struct UrState {
@@ -45,9 +60,11 @@ struct UrState {
   int runtime_state = -1;       // 1 = STOPPED, 2 = PLAYING
   double speed_fraction = 0.0;  // target_speed_fraction: the speed slider, 0..1
   double speed_scaling = 0.0;
-  Eigen::VectorXd tcp_pose;  // actual_TCP_pose: x y z rx ry rz
+  Eigen::VectorXd tcp_pose;    // actual_TCP_pose: x y z rx ry rz
+  Eigen::VectorXd tcp_offset;  // tcp_offset (empty when the recipe lacks it)
   double timestamp = 0.0;
 };
+// A data package of ur_output_names(), optionally followed by ur_tcp_offset_output().
 UrState ur_state_from(const rtde::DataPackage& package, int joints);
 // The UR's names for robot modes and safety statuses (RTDE guide, dashboard wording).
 std::string ur_robot_mode_name(int mode);
@@ -119,6 +136,11 @@ class UrLink final : public RobotLink {
   void require_motion_allowed();
   void unlock_protective_stop();
   void send_script(const std::string& line);
+  // Reads what the secondary interface sent since (robot state, robot messages; never waits) and
+  // keeps the robot messages that matter (ur_primary.hpp) as the controller's word.
+  void poll_secondary();
+  // "; the controller said: …" when it said something since the last script, else "".
+  std::string controller_said() const;
   bool settled_at(const Eigen::VectorXd& target_si) const;
   void stop_for(const std::string& why);
   enum class Wait : std::uint8_t { kSettled, kNotStarted, kLost, kProtectiveStop };
@@ -130,8 +152,11 @@ class UrLink final : public RobotLink {
   std::string device_;
   TcpTransport rtde_, secondary_, dashboard_;
   std::string rtde_buffer_;
+  std::string secondary_buffer_;
+  std::string controller_said_;  // the last robot message that matters, since the last script
   rtde::OutputRecipe recipe_;
   bool streaming_ = false;
+  bool has_tcp_offset_ = false;  // the recipe carries tcp_offset: readings carry the flange pose
   UrState state_;
   int settled_run_ = 0;
   bool move_started_ = false;
