@@ -124,7 +124,7 @@ std::string plan_status(const CollectOptions& o, const std::string& plan_text) {
   const YAML::Node status = core::load_yaml_text(plan_text, o.plan)["status"];
   if (!status) return {};
   const std::string where = fmt::format("{}:{}", o.plan, status.Mark().line + 1);
-  const std::string word = status.IsScalar() ? status.Scalar() : std::string();
+  std::string word = status.IsScalar() ? status.Scalar() : std::string();
   if (word != "ok" && word != "not_accepted" && word != "infeasible")
     throw InputError(fmt::format(
         "{}: status '{}' is not a plan status (ok, not_accepted or infeasible)", where, word));
