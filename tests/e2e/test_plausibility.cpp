@@ -11,11 +11,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
 #include <string>
 
+#include <fcntl.h>
+#include <grp.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 namespace {
@@ -210,6 +214,141 @@ TEST_F(Gates, AResultsFolderThatCannotBeWrittenIsNamedWithExit3) {
   EXPECT_NE(err.find("results"), std::string::npos) << err;
   EXPECT_EQ(err.find("internal error"), std::string::npos) << err;
   EXPECT_EQ(robocal::test::recorded_fingerprint(s), before);
+}
+
+// Runs `robocal args` in a child process whose output goes to `out`, as the unprivileged user
+// nobody (uid and gid 65534) when the test runs as root: permission bits do not stop root, so a
+// folder without read permission is only a folder without read permission for another user.
+// Returns the exit code (-1 if the child did not exit, 99 if it could not drop root).
+int run_cli_unprivileged(const std::vector<std::string>& args, const fs::path& out) {
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0 || ::dup2(fd, STDOUT_FILENO) < 0 || ::dup2(fd, STDERR_FILENO) < 0) ::_exit(98);
+    if (::geteuid() == 0 &&
+        (::setgroups(0, nullptr) != 0 || ::setgid(65534) != 0 || ::setuid(65534) != 0))
+      ::_exit(99);
+    const int code = run_cli(args);
+    std::fflush(stdout);
+    std::fflush(stderr);
+    ::_exit(code);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Every folder and file under `dir` readable and writable by everyone (the unprivileged child
+// writes results/ there).
+void open_to_everyone(const fs::path& dir) {
+  fs::permissions(dir, fs::perms::all, fs::perm_options::add);
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    fs::permissions(e.path(),
+                    e.is_directory() ? fs::perms::all
+                                     : fs::perms::owner_read | fs::perms::owner_write |
+                                           fs::perms::group_read | fs::perms::group_write |
+                                           fs::perms::others_read | fs::perms::others_write,
+                    fs::perm_options::add);
+}
+
+// A pose folder this user may not read (issue 49): the pose is left out with that cause named,
+// not as "pose.yaml: missing", which sends the operator looking for a lost file.
+TEST_F(Gates, APoseFolderWithoutReadPermissionIsNamedWithTheCause) {
+  const fs::path s = scratch("unreadable");
+  copy_recorded(recorded_, s);
+  open_to_everyone(s);
+  for (fs::path p = s.parent_path(); p != p.root_path(); p = p.parent_path())
+    ASSERT_TRUE((fs::status(p).permissions() & fs::perms::others_exec) != fs::perms::none)
+        << p << " cannot be entered by another user: the test cannot run here";
+  const fs::path pose = s / "poses" / "pose_003";
+  fs::permissions(pose, fs::perms::none);
+  const fs::path out = s.parent_path() / "robocal_e2e_gates_unreadable.out";
+  const int code = run_cli_unprivileged({"measure", s.string()}, out);
+  fs::permissions(pose, fs::perms::owner_all, fs::perm_options::add);
+  const std::string text = read_file(out);
+  EXPECT_EQ(code, 0) << text;  // the other poses are measured
+  EXPECT_NE(
+      text.find("pose_003 not used: " + (pose / "pose.yaml").string() + ": permission denied"),
+      std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("pose.yaml: missing"), std::string::npos) << text;
+  fs::remove(out);
+}
+
+// A symbolic link loop inside a session folder is the session's problem, named with the link and
+// the cause: exit 3 from measure, the session's error in batch's summary, never an internal error.
+TEST_F(Gates, ASymbolicLinkLoopInASessionIsNamedNotAnInternalError) {
+  const fs::path s = scratch("link_loop");
+  copy_recorded(recorded_, s);
+  fs::create_symlink("loop_b", s / "poses" / "loop_a");
+  fs::create_symlink("loop_a", s / "poses" / "loop_b");
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_cli({"measure", s.string()}), 3);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("loop_"), std::string::npos) << err;
+  EXPECT_NE(err.find("a symbolic link loop"), std::string::npos) << err;
+  const fs::path summary = scratch("link_loop_batch.json");
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run_cli({"batch", s.string(), "--json", summary.string()}), 1);
+  const std::string out = testing::internal::GetCapturedStdout();
+  const std::string json = read_file(summary);
+  EXPECT_NE(json.find("a symbolic link loop"), std::string::npos) << json << out;
+  EXPECT_EQ(json.find("internal error"), std::string::npos) << json;
+  EXPECT_EQ(out.find("internal error"), std::string::npos) << out;
+  fs::remove(summary);
+}
+
+// Camera files of another resolution than the rig views' images: the rig's refusal names the
+// images' size and the camera file's, not only "sees the board in none of the views".
+TEST_F(Gates, ARigCameraFileOfAnotherResolutionIsNamed) {
+  const fs::path views = recorded_ / "calibration" / "rig";
+  std::vector<std::string> args = {"rig",
+                                   "--target",
+                                   (recorded_ / "targets" / "calibration.yaml").string(),
+                                   "--views",
+                                   views.string(),
+                                   "--out",
+                                   scratch("rig_resolution.json").string()};
+  const std::string small = std::string(ROBOCAL_TESTDATA_DIR) + "/vision/camera_640x480.yaml";
+  fs::path first_view;
+  for (const auto& e : fs::directory_iterator(views))
+    if (e.is_directory() && (first_view.empty() || e.path() < first_view)) first_view = e.path();
+  for (const auto& e : fs::directory_iterator(first_view))
+    if (e.path().extension() == ".png") {
+      args.emplace_back("--camera");
+      args.push_back(e.path().stem().string() + "=" + small);
+    }
+  ASSERT_GE(args.size(), 10U);
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_cli(args), 1);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("sees the board"), std::string::npos) << err;
+  EXPECT_NE(err.find("but camera '"), std::string::npos) << err;
+  EXPECT_NE(err.find("for 640x480"), std::string::npos) << err;
+}
+
+// A board file with a column too many: every pose's fit is bad (and most ambiguous); the refusal
+// blames the board's file, not each pose's images as swapped.
+TEST_F(Gates, ABoardFileWithTheWrongColumnCountBlamesTheBoardFile) {
+  const fs::path s = scratch("columns");
+  copy_recorded(recorded_, s);
+  const fs::path board = s / "targets" / "end_effector.yaml";
+  std::string text = read_file(board);
+  const auto at = text.find("cols: ");
+  ASSERT_NE(at, std::string::npos);
+  const auto end = text.find('\n', at);
+  const int cols = std::stoi(text.substr(at + 6, end - at - 6));
+  text.replace(at, end - at, "cols: " + std::to_string(cols + 1));
+  std::ofstream(board, std::ios::trunc) << text;
+  testing::internal::CaptureStdout();
+  EXPECT_EQ(run_cli({"measure", s.string()}), 1);
+  const std::string out = testing::internal::GetCapturedStdout();
+  EXPECT_NE(out.find("NOT PLAUSIBLE"), std::string::npos) << out;
+  EXPECT_NE(out.find("board's file does not match the printed board (its cols or rows"),
+            std::string::npos)
+      << out;
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -32,6 +33,14 @@ class UsageError : public std::runtime_error {
 // silence would hide a mistake: a user who gave it expects it to change the result.
 void refuse_options(const CLI::App& cmd, const std::vector<std::string>& options,
                     const std::string& how);
+
+// A folder or file the operating system refused (a symbolic link loop, no permission, a file
+// where a folder should be, a full disk) in the operator's words: the path, the cause, and what
+// to look at. The library's own text ("filesystem error: status: Too many levels of symbolic
+// links [p]") names neither the likely mistake nor what to do.
+std::string filesystem_problem(const std::filesystem::filesystem_error& e);
+// The same for a check that reported `ec` on `path` (an std::error_code overload's failure).
+std::string filesystem_problem(const std::filesystem::path& path, const std::error_code& ec);
 
 // Writes `doc` as indented JSON to `path`, or to stdout when path is "-" or empty. Files are
 // written to a temporary name and renamed, so a reader never sees half a file.

@@ -177,7 +177,7 @@ int run_cli(int argc, const char* const* argv) {
     } catch (const std::filesystem::filesystem_error& e) {
       // A folder that cannot be created or read (permissions, a full disk, a file where a folder
       // should be): the operator's environment, not a robocal bug.
-      fmt::print(stderr, "error: {}\n", e.what());
+      fmt::print(stderr, "error: {}\n", filesystem_problem(e));
       return kExitBadInput;
     } catch (const std::exception& e) {
       fmt::print(stderr, "internal error: {}\n(please report this with the command you ran)\n",

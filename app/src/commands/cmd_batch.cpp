@@ -75,6 +75,10 @@ nlohmann::json process(const std::string& dir, const BatchOptions& o, const Pipe
     }
   } catch (const InputError& e) {
     row["error"] = e.what();
+  } catch (const fs::filesystem_error& e) {
+    // A folder the system refuses (a symbolic link loop, no permission): the session's input, as
+    // `robocal measure` says it (exit 3 there), not a robocal bug.
+    row["error"] = filesystem_problem(e);
   } catch (const std::exception& e) {
     // Anything else stays with its session too: the other sessions of the batch go on.
     row["error"] = std::string("internal error (please report it): ") + e.what();

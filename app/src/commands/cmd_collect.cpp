@@ -158,6 +158,9 @@ CommandSpec collect_command() {
                      "Check every motion through the safety guard; move nothing, record nothing");
         cmd.add_flag("--resume", o.resume, "Continue an interrupted collection in SESSION");
         cmd.add_flag("--yes", o.yes, "Confirm the motion without a prompt (scripts)");
+        cmd.add_flag("--accept-infeasible-plan", o.accept_infeasible_plan,
+                     "Collect a plan whose status is infeasible (refused otherwise: the planner "
+                     "found too few feasible poses)");
         cmd.add_option("--json", a->json, "Write the JSON summary here ('-' = stdout)");
         return [a]() { return run_collect(*a); };
       }};

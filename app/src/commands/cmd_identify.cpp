@@ -346,6 +346,9 @@ int run_identify(const IdentifyOptions& o) {
     log.out = o.quiet ? nullptr : human_stream(o.json);
     apply_fit_gate(res, fit_gate_options(model.unmodelled_error, 0.0), {o.accept_implausible},
                    "measurements file", doc, log);
+    // The session route's second gate: never a calibrated model worse than the nominal one.
+    if (doc.value("status", "") != "implausible")
+      (void)apply_nominal_gate(pred, nominal, res, fit.poses, "measurements file", doc, log);
   }
   const bool implausible = doc.value("status", "") == "implausible";
   const bool usable = !implausible && (res.status == IdentificationStatus::kConverged ||

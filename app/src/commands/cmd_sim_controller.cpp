@@ -5,6 +5,7 @@
 // SimController.
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
+#include "robocal/calib/closure.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
@@ -13,6 +14,7 @@
 #include "session/session_robot.hpp"
 
 #include <fmt/core.h>
+#include <fmt/format.h>
 
 #include <atomic>
 #include <csignal>
@@ -70,8 +72,9 @@ struct SimCliOptions {
 
 robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
   robotio::SimRobot r;
+  const std::string robot_file = resolve_robot(o.robot);
   try {
-    r.model = calib::load_robot_file(resolve_robot(o.robot));
+    r.model = calib::load_robot_file(robot_file);
   } catch (const calib::RobotFileError& e) {
     throw InputError(e.what());
   }
@@ -99,6 +102,22 @@ robotio::SimRobot make_sim_robot(const SimCliOptions& o) {
   }
   // The firmware's home position is where it believes the endstops are: nominal geometry.
   r.home_readings = calib::readings_from_joint_values(r.model, nominal, r.model.home_actuated());
+  // A controller homes before anything else: a robot that cannot stand at its home (loops that do
+  // not close: rods too short for the frame, lengths in millimetres) has no pose to report. Said
+  // with the file and the cause before the controller announces itself ready, not found by the
+  // first client.
+  for (const auto& [which, params] :
+       {std::pair{"nominal", nominal}, {"true (perturbed)", r.truth}}) {
+    const calib::ForwardResult fk =
+        calib::forward_kinematics(r.model, params, r.home_readings, r.model.tool);
+    if (!fk.closure.ok())
+      throw InputError(fmt::format(
+          "{}: the {} robot cannot assemble at its home position (actuator readings {}): its "
+          "loops do not close there ({}); check its lengths (metres), joint limits and home "
+          "values (`robocal kin check {}`)",
+          robot_file, which, fmt::join(r.home_readings, ", "), calib::to_string(fk.closure.status),
+          robot_file));
+  }
   r.noise_sigma = o.noise;
   r.backlash = o.backlash;
   return r;

@@ -9,6 +9,7 @@
 #include "robocal/calib/frame_placement.hpp"
 #include "robocal/calib/robot_file.hpp"
 #include "robocal/core/files.hpp"
+#include "robocal/core/yaml.hpp"
 #include "robocal/planner/cell.hpp"
 #include "robocal/planner/collision_scene.hpp"
 #include "robocal/planner/plan_output.hpp"
@@ -91,6 +92,9 @@ struct CollectInputs {
   planner::Cell cell;
   std::vector<Eigen::VectorXd> targets;
   std::string plan_text;
+  // The plan's own verdict (`status:` of `robocal plan`'s file): ok, not_accepted or infeasible;
+  // empty for a plan written by hand (no status line).
+  std::string plan_status;
   std::vector<int> camera_of;  // per cell camera: index into options.cameras
   // The board's offset on the measured frame (the cell's target pose) as that frame's parameter
   // values for session.yaml (app/SESSION.md, target_mount); empty when the board sits on the frame.
@@ -114,6 +118,26 @@ std::vector<std::pair<std::string, double>> target_mount(const CollectInputs& in
   }
 }
 
+// The plan's status line, checked: an infeasible plan is refused unless the operator accepts it
+// (--accept-infeasible-plan), an unknown word is a bad plan file.
+std::string plan_status(const CollectOptions& o, const std::string& plan_text) {
+  const YAML::Node status = core::load_yaml_text(plan_text, o.plan)["status"];
+  if (!status) return {};
+  const std::string where = fmt::format("{}:{}", o.plan, status.Mark().line + 1);
+  std::string word = status.IsScalar() ? status.Scalar() : std::string();
+  if (word != "ok" && word != "not_accepted" && word != "infeasible")
+    throw InputError(fmt::format(
+        "{}: status '{}' is not a plan status (ok, not_accepted or infeasible)", where, word));
+  if (word == "infeasible" && !o.accept_infeasible_plan)
+    throw InputError(fmt::format(
+        "{}: the plan's status is 'infeasible': the planner found too few feasible poses for a "
+        "calibration of this robot in this cell, so nothing is moved; plan again (more "
+        "candidates, a larger workspace, other camera places) or give --accept-infeasible-plan "
+        "to collect it anyway",
+        where));
+  return word;
+}
+
 CollectInputs read_inputs(const CollectOptions& o) {
   CollectInputs in;
   if (o.cell.empty()) throw InputError("no cell file: give --cell FILE (planner/README.md)");
@@ -133,6 +157,7 @@ CollectInputs read_inputs(const CollectOptions& o) {
   in.plan_text = core::read_text_file(o.plan);
   in.targets = planner::read_plan_actuators(o.plan);
   if (in.targets.empty()) throw InputError(o.plan + ": the plan has no poses");
+  in.plan_status = plan_status(o, in.plan_text);
   const auto n = static_cast<Eigen::Index>(in.model.actuated.size());
   for (std::size_t i = 0; i < in.targets.size(); ++i) {
     const Eigen::VectorXd& t = in.targets[i];
@@ -272,6 +297,21 @@ bool operator_confirms(const CollectOptions& o, std::FILE* out) {
   return answer == "yes";
 }
 
+std::string plan_status_words(const std::string& status) {
+  if (status.empty()) return "not recorded (a plan written by hand)";
+  if (status == "ok") return "ok (accepted by the planner)";
+  if (status == "not_accepted")
+    return "not_accepted (the planner's acceptance test is not met: some parameters may be "
+           "poorly identified)";
+  return "infeasible (accepted with --accept-infeasible-plan)";
+}
+
+std::string duration_words(double seconds) {
+  if (seconds < 90.0) return fmt::format("{:.0f} s", seconds);
+  return fmt::format("{:.0f} min {:02.0f} s", std::floor(seconds / 60.0),
+                     std::floor(std::fmod(seconds, 60.0)));
+}
+
 std::string describe(const CollectOptions& o, const CollectInputs& in, std::size_t remaining,
                      double motion_seconds) {
   std::string cams;
@@ -279,14 +319,17 @@ std::string describe(const CollectOptions& o, const CollectInputs& in, std::size
     cams += fmt::format("{}{} ({})", cams.empty() ? "" : ", ", c.name, c.source);
   return fmt::format(
       "  robot:     {} ({} actuators), controller at {}\n"
-      "  plan:      {} ({} poses, {} still to record)\n"
+      "  plan:      {} ({} poses, {} still to record), status {}\n"
       "  cameras:   {}\n"
-      "  speed:     {} {}/s, acceleration {} {}/s² (the plan's motions: about {:.0f} s)\n"
+      "  speed:     {} {}/s, acceleration {} {}/s²\n"
+      "  duration:  about {} of motion between the poses at this speed (--speed), plus the "
+      "shots at each pose\n"
       "  workspace: {}\n"
       "  obstacles: {} in the cell, clearance {} mm; every motion is checked before it is sent\n",
       in.model.name, static_cast<int>(in.model.actuated.size()), o.link, o.plan, in.targets.size(),
-      remaining, cams.empty() ? "(none)" : cams, o.speed, actuator_unit(in.model), o.acceleration,
-      actuator_unit(in.model), motion_seconds,
+      remaining, plan_status_words(in.plan_status), cams.empty() ? "(none)" : cams, o.speed,
+      actuator_unit(in.model), o.acceleration, actuator_unit(in.model),
+      duration_words(motion_seconds),
       in.cell.workspace.declared
           ? fmt::format("x {:.3f}..{:.3f}, y {:.3f}..{:.3f}, z {:.3f}..{:.3f} m",
                         in.cell.workspace.min.x(), in.cell.workspace.max.x(),

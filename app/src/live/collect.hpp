@@ -60,6 +60,10 @@ struct CollectOptions {
   bool dry_run = false;       // check every motion through the guard; move nothing
   bool resume = false;        // continue an interrupted session at the next unrecorded pose
   bool yes = false;           // the operator's confirmation given on the command line
+  // A plan whose status is `infeasible` (the planner found too few feasible poses) is refused
+  // unless this is set: collecting it takes the robot's time for a calibration that may not
+  // identify it.
+  bool accept_infeasible_plan = false;
   bool say_next_step = true;  // print what to run next (not inside the wizard, which goes on)
   // Opens a camera's source instead of robotio::open_camera_source (the live demo's cameras
   // rendered in-process where no GigE address is left for them); empty: open_camera_source.

@@ -179,6 +179,9 @@ std::vector<PoseRecord> load_pose_records(const Session& session) {
   std::vector<fs::path> subs;
   for (const auto& e : fs::directory_iterator(folder, ec))
     if (e.is_directory()) subs.push_back(e.path());
+  // A pose folder the system will not list (no read permission, a link loop) is said so, not
+  // taken for a session without poses.
+  if (ec) throw InputError(filesystem_problem(folder, ec));
   std::sort(subs.begin(), subs.end());
   std::vector<PoseRecord> out;
   for (const auto& sub : subs) {
@@ -187,7 +190,12 @@ std::vector<PoseRecord> load_pose_records(const Session& session) {
     r.dir = sub;
     const fs::path file = sub / "pose.yaml";
     try {
-      if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": missing");
+      // is_regular_file reports a folder it may not enter (no permission, a link loop) in `ec`:
+      // that cause, not "missing", which would send the operator looking for a lost file.
+      if (!fs::is_regular_file(file, ec))
+        throw InputError(ec && ec != std::errc::no_such_file_or_directory
+                             ? filesystem_problem(file, ec)
+                             : file.string() + ": missing");
       const std::string source = file.string();
       const YAML::Node root = core::load_yaml_text(core::read_text_file(file), source);
       const core::YamlContext ctx{source};

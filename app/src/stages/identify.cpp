@@ -136,6 +136,47 @@ void apply_fit_gate(const calib::IdentificationResult& result, const calib::FitG
   report["message"] = verdict.reason;
 }
 
+bool apply_nominal_gate(const calib::FramePredictor& predictor, const Eigen::VectorXd& nominal,
+                        const calib::IdentificationResult& result,
+                        const std::vector<calib::PoseMeasurement>& poses, const std::string& route,
+                        nlohmann::json& report, const PipelineLog& log) {
+  // The poses the fit used: an excluded outlier is explained by neither model.
+  std::set<std::string> excluded;
+  for (const calib::ExcludedPose& e : result.excluded) excluded.insert(e.id);
+  std::vector<calib::PoseMeasurement> used;
+  for (const calib::PoseMeasurement& p : poses)
+    if (excluded.count(p.id) == 0) used.push_back(p);
+  const calib::ErrorStatistics before = calib::prediction_errors(predictor, nominal, used);
+  const calib::ErrorStatistics after = calib::prediction_errors(predictor, result.estimate, used);
+  const bool position = before.position_rms > 0.0 || after.position_rms > 0.0;
+  const double b = position ? before.position_rms : before.orientation_rms;
+  const double a = position ? after.position_rms : after.orientation_rms;
+  if (before.poses == 0 || (b == 0.0 && a == 0.0)) return true;  // nothing 6-D to compare on
+  const bool worse = a > 1.01 * b + 1e-7;
+  const std::string what = position ? "position" : "orientation";
+  auto shown = [&](double v) {
+    return position ? fmt::format("{:.1f} µm", v * 1e6)
+                    : fmt::format("{:.4f} deg", core::degrees(v));
+  };
+  report["nominal_gate"] = {{"passed", !worse},
+                            {"compared_on", what + "_rms"},
+                            {"poses", used.size()},
+                            {"nominal_rms", b},
+                            {"calibrated_rms", a}};
+  if (!worse) return true;
+  const std::string reason = fmt::format(
+      "the calibrated model predicts the measurements worse than the nominal one ({} RMS {} "
+      "against {} over the {} poses of the fit): the fit was led astray by the measurements "
+      "(angles in degrees where radians are stated? images of one pose swapped?), so no "
+      "calibrated robot file is written and the nominal model stays the better one",
+      what, shown(a), shown(b), used.size());
+  report["nominal_gate"]["reason"] = reason;
+  say(log, "  {} RESULT WORSE THAN THE NOMINAL MODEL: {}\n", route, reason);
+  report["status"] = "implausible";
+  report["message"] = reason;
+  return false;
+}
+
 nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
                                 const PipelineLog& log, const std::string& route, bool priors,
                                 const GateOptions& gates) {
@@ -241,7 +282,9 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
   if (usable) {
     apply_fit_gate(result, calib::fit_gate_options(model.unmodelled_error, 0.0), gates,
                    "pose route", report, log);
-    usable = report["status"] == "ok";
+    usable =
+        report["status"] == "ok" &&
+        apply_nominal_gate(predictor, start, result, measurements.poses, "pose route", report, log);
   }
   if (usable) {
     std::set<std::size_t> changed(result.estimated.begin(), result.estimated.end());

@@ -137,6 +137,29 @@ RigStep calibrate_rig_from_views(const std::vector<vision::RigCamera>& cameras,
   }
   bar.finish(fmt::format("{} views", views.size()));
   out.result = vision::calibrate_rig(cameras, board_points(board), out.views, options.calibration);
+  if (!out.result.ok) {
+    // "camera 'left' sees the board in none of the views" is what the calibration sees; why is
+    // in each image's problem (an image of another size than the camera file's, unreadable
+    // files): a camera none of whose images gave a detection gets its first problem said here.
+    for (std::size_t c = 0; c < n_cams; ++c) {
+      std::string first;
+      std::size_t failed = 0;
+      bool detected_any = false;
+      for (std::size_t v = 0; v < views.size(); ++v) {
+        if (out.problems[v][c].empty()) {
+          detected_any = true;
+          continue;
+        }
+        if (first.empty()) first = out.problems[v][c];
+        ++failed;
+      }
+      if (!detected_any && failed > 0)
+        out.result.message += fmt::format(
+            "\n  camera '{}': {}{}", cameras[c].name, first,
+            failed > 1 ? fmt::format(" (and {} more of its {} images)", failed - 1, views.size())
+                       : std::string());
+    }
+  }
   return out;
 }
 
@@ -234,7 +257,11 @@ BoardFitGate judge_pose_fits(const std::vector<PoseImages>& measured) {
   std::vector<double> chi2_dof;
   for (const PoseImages& images : measured) {
     const vision::PoseMeasurement& m = images.measurement;
-    if (m.usable() && m.dof > 0) chi2_dof.push_back(m.chi2 / m.dof);
+    // Ambiguous fits count too: a board file whose layout is not the printed board's (a column
+    // too many) makes nearly every pose's fit bad and ambiguous, and a median over the few
+    // unambiguous ones then passes, so each pose was blamed on swapped images instead.
+    if (m.dof > 0 && (m.usable() || (m.status == vision::PoseStatus::kOk && m.ambiguous)))
+      chi2_dof.push_back(m.chi2 / m.dof);
   }
   BoardFitGate gate{vision::judge_board_fits(chi2_dof), std::vector<std::string>(measured.size())};
   if (!gate.verdict.plausible) return gate;

@@ -179,6 +179,15 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   }
   if (static_cast<int>(true_readings.size()) < o.poses)
     say(log, "  note: only {} poses with the board in view of {}\n", true_readings.size(), seen_by);
+  // Fewer poses than identify needs is no session to calibrate from: a robot file whose range is
+  // a sliver (joint limits in the wrong unit, a typo) is said so here, not written as a session
+  // of no poses with exit code 0 for measure to refuse later.
+  if (true_readings.size() < 3)
+    throw InputError(fmt::format(
+        "{}: only {} of the {} poses asked have the board in view of {} on the robot: too few "
+        "reachable configurations to calibrate from (at least 3); the robot reaches too small a "
+        "part of its cell: check its joint limits and lengths (`robocal kin check {}`)",
+        robot_file, true_readings.size(), o.poses, seen_by, robot_file));
   shots.clear();
   TruthFile truth;
   truth.elastic_sag = cell.elastic_sag;

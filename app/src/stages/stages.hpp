@@ -129,6 +129,17 @@ nlohmann::json identify_session(const std::filesystem::path& dir, const std::str
 void apply_fit_gate(const calib::IdentificationResult& result, const calib::FitGateOptions& options,
                     const GateOptions& gates, const std::string& route, nlohmann::json& report,
                     const PipelineLog& log);
+// The nominal gate: a calibrated model that predicts the measurements its fit used worse than the
+// nominal model it started from (`nominal`) is no calibration: the fit was led astray (angles
+// in degrees, swapped images). Compared on the measured frame's position RMS (orientation RMS
+// when the measurements hold no position), with 1 % (and 0.1 µm or µrad) of slack; recorded in
+// report["nominal_gate"]. When worse, report["status"] becomes "implausible" with the reason as
+// its "message", whatever gates.accept_implausible says: the nominal model is the better one, so
+// nothing calibrated is written. Returns whether it passed.
+bool apply_nominal_gate(const calib::FramePredictor& predictor, const Eigen::VectorXd& nominal,
+                        const calib::IdentificationResult& result,
+                        const std::vector<calib::PoseMeasurement>& poses, const std::string& route,
+                        nlohmann::json& report, const PipelineLog& log);
 // stages/validate.cpp
 nlohmann::json validate_session(const std::filesystem::path& dir, int held_out,
                                 const PipelineLog& log);

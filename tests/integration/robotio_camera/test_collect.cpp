@@ -219,6 +219,53 @@ TEST_F(Collect, DryRunNamesTheRefusedPoseAndMovesNothing) {
   EXPECT_FALSE(fs::exists(dir_ / "s3"));
 }
 
+// The whole plan passes the guard before the first motion (issue 49): a LAST pose outside the
+// declared box stops `collect` (not --dry-run) before it connects, homes or moves, naming that
+// pose; the simulator's own record shows no homing and no move.
+TEST_F(Collect, ALastPoseTheGuardRefusesStopsItBeforeHomingOrAnyMove) {
+  const calib::Mechanism model = test::linear_delta();
+  auto goals = testing::sim_cell_targets(model, 5);
+  goals[4] = goals[3] - Eigen::Vector3d::Constant(0.09);  // 9 cm below the box (see above)
+  write(dir_ / "plan.yaml", plan_yaml(goals));
+  const fs::path session = dir_ / "s_last";
+  test::ChildProcess run(ROBOCAL_BINARY, args(session, dir_ / "plan.yaml", {"--yes"}),
+                         (dir_ / "s_last.out").string());
+  EXPECT_EQ(run.wait(std::chrono::seconds(60)), 1) << run.output();
+  EXPECT_NE(run.output().find("to pose 4:"), std::string::npos) << run.output();
+  EXPECT_NE(run.output().find("before anything moved"), std::string::npos) << run.output();
+  EXPECT_EQ(run.output().find("homing"), std::string::npos) << run.output();
+  const auto log = test::read_sim_log(log_);
+  EXPECT_EQ(test::received(log, "G28"), 0) << "homed before the plan was checked";
+  EXPECT_EQ(moves_received(log_), 0);
+  EXPECT_TRUE(test::events(log, "motion_start").empty());
+  EXPECT_FALSE(fs::exists(session));
+}
+
+// A plan whose own status is `infeasible` is refused with that word before anything connects;
+// accepted on request, its status and the expected duration of its motions are shown before the
+// confirmation (here: none, no terminal, so nothing moves).
+TEST_F(Collect, AnInfeasiblePlanIsRefusedAndThePlansStatusAndDurationAreShown) {
+  const calib::Mechanism model = test::linear_delta();
+  write(dir_ / "plan.yaml",
+        "status: infeasible\n" + plan_yaml(testing::sim_cell_targets(model, 3)));
+  const fs::path session = dir_ / "s_infeasible";
+  test::ChildProcess refused(ROBOCAL_BINARY, args(session, dir_ / "plan.yaml", {"--yes"}),
+                             (dir_ / "s_infeasible.out").string());
+  EXPECT_EQ(refused.wait(std::chrono::seconds(60)), 3) << refused.output();
+  for (const char* word : {"plan.yaml:1", "status is 'infeasible'", "--accept-infeasible-plan"})
+    EXPECT_NE(refused.output().find(word), std::string::npos) << word << "\n" << refused.output();
+  EXPECT_FALSE(fs::exists(session));
+
+  test::ChildProcess shown(ROBOCAL_BINARY,
+                           args(session, dir_ / "plan.yaml", {"--accept-infeasible-plan"}),
+                           (dir_ / "s_infeasible2.out").string());
+  EXPECT_EQ(shown.wait(std::chrono::seconds(60)), 1) << shown.output();
+  for (const char* word : {"status infeasible", "duration:  about ", "did not confirm"})
+    EXPECT_NE(shown.output().find(word), std::string::npos) << word << "\n" << shown.output();
+  EXPECT_EQ(test::received(test::read_sim_log(log_), "G28"), 0);
+  EXPECT_EQ(moves_received(log_), 0);
+}
+
 TEST_F(Collect, BadInputIsRefusedBeforeAnythingMoves) {
   const calib::Mechanism model = test::linear_delta();
   write(dir_ / "plan.yaml", plan_yaml(testing::sim_cell_targets(model, 2)));

@@ -5,8 +5,11 @@
 // or values in the wrong units is a bad input file (exit 3) named with the line and the likely
 // cause; a fit or an answer that cannot be relied on is no success (exit 1).
 #include "cli/command_registry.hpp"
+#include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
 #include "run_robocal.hpp"
 #include "scratch_dir.hpp"
+#include "stages/stages.hpp"
 
 #include <gtest/gtest.h>
 
@@ -272,13 +275,100 @@ TEST_F(CliRefusals, AnImplausibleFitFromAMeasurementsFileIsRefused) {
                    {"identification failed: the fit residuals of the pose rotation measurements",
                     "their stated noise", "the model cannot explain the measurements"}}});
   EXPECT_FALSE(fs::exists(file("calibrated.yaml")));
-  // Accepted by the user: written, and the report says it was overridden.
+  // Accepted by the user: written (the linear delta's positions hardly depend on the rotation
+  // vectors, so the calibrated model still predicts them better than the nominal one), and the
+  // report says it was overridden.
   std::vector<std::string> accepted = identify;
   accepted.insert(accepted.end(), {"--accept-implausible", "--json", file("r.json")});
   const CliRun r = robocal::test::run_robocal_captured(accepted);
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(fs::exists(file("calibrated.yaml")));
   EXPECT_NE(read_text(file("r.json")).find("\"overridden\": true"), std::string::npos);
+}
+
+// The UR5's rotation vectors in degrees lead its fit astray: the calibrated model predicts the
+// measured positions worse than the nominal one (6.9 mm RMS -> 34 mm). Such a model is never
+// written as a calibrated robot, even when the user overrides the fit gate; the report says why.
+TEST_F(CliRefusals, AFitWorseThanTheNominalModelIsNeverWritten) {
+  const std::string ur5 = testdata + "/robots/ur5.yaml";
+  const CliRun sim = robocal::test::run_robocal_captured(
+      {"identify", "--robot", ur5, "--simulate", file("m.yaml"), "--kind", "pose", "--poses", "30",
+       "--json", file("sim.json")});
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  std::ofstream(file("degrees.yaml")) << rotation_vectors_in_degrees(read_text(file("m.yaml")));
+  const CliRun r = robocal::test::run_robocal_captured(
+      {"identify", "--robot", ur5, "--measurements", file("degrees.yaml"), "--out-robot",
+       file("calibrated.yaml"), "--accept-implausible", "--json", file("r.json")});
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("worse than the nominal one"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(file("calibrated.yaml")));
+  const std::string report = read_text(file("r.json"));
+  EXPECT_NE(report.find("\"overridden\": true"), std::string::npos) << report;
+  EXPECT_NE(report.find("\"nominal_gate\""), std::string::npos);
+  EXPECT_NE(report.find("\"status\": \"implausible\""), std::string::npos);
+}
+
+// The session route's nominal gate (stages/identify.cpp, also called by the file route): an
+// estimate that predicts the measured positions worse than the nominal model it started from is
+// refused, whatever the fit gate said; one that predicts them better passes.
+TEST(NominalGate, AnEstimateWorseThanTheNominalModelIsRefused) {
+  const robocal::calib::Mechanism model = robocal::calib::load_robot_file(
+      std::string(ROBOCAL_TESTDATA_DIR) + "/robots/linear_delta.yaml");
+  const robocal::calib::MechanismPredictor predictor(model);
+  const Eigen::VectorXd nominal = model.nominal_parameters();
+  Eigen::VectorXd truth = nominal;
+  std::size_t rod = model.parameters.size();
+  for (std::size_t i = 0; i < model.parameters.size(); ++i)
+    if (model.parameters[i].name == "rod_a.length") rod = i;
+  ASSERT_LT(rod, model.parameters.size());
+  truth[static_cast<Eigen::Index>(rod)] += 0.001;  // the real rod is 1 mm longer
+  std::vector<robocal::calib::PoseMeasurement> poses;
+  for (const double h : {0.25, 0.28, 0.31, 0.34}) {
+    robocal::calib::PoseMeasurement p;
+    p.id = "pose_" + std::to_string(poses.size());
+    p.actuators = Eigen::Vector3d(h, h + 0.02, h - 0.015);
+    robocal::calib::FramePrediction f;
+    std::string why;
+    ASSERT_TRUE(predictor.predict(truth, p.actuators, -1, false, f, why)) << why;
+    p.observations.emplace_back(
+        robocal::calib::PointObservation::with_sigma(f.pose.translation(), 1e-5));
+    poses.push_back(p);
+  }
+  robocal::app::PipelineLog quiet;
+  quiet.out = nullptr;
+  robocal::calib::IdentificationResult fit;
+  // Led astray: the rod 10 mm the wrong way.
+  fit.estimate = nominal;
+  fit.estimate[static_cast<Eigen::Index>(rod)] -= 0.01;
+  nlohmann::json report = {{"status", "ok"}};
+  EXPECT_FALSE(robocal::app::apply_nominal_gate(predictor, nominal, fit, poses, "pose route",
+                                                report, quiet));
+  EXPECT_EQ(report["status"], "implausible");
+  EXPECT_NE(report.value("message", "").find("worse than the nominal one"), std::string::npos)
+      << report.dump(2);
+  EXPECT_FALSE(report["nominal_gate"]["passed"].get<bool>());
+  // The truth itself: better than the nominal model.
+  fit.estimate = truth;
+  report = {{"status", "ok"}};
+  EXPECT_TRUE(robocal::app::apply_nominal_gate(predictor, nominal, fit, poses, "pose route", report,
+                                               quiet));
+  EXPECT_EQ(report["status"], "ok");
+  EXPECT_TRUE(report["nominal_gate"]["passed"].get<bool>());
+}
+
+// A good fit passes the nominal gate: the calibrated model predicts the measurements better than
+// the nominal one, and is written.
+TEST_F(CliRefusals, AFitBetterThanTheNominalModelIsWritten) {
+  const CliRun sim = robocal::test::run_robocal_captured(
+      {"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "pose", "--poses",
+       "30", "--json", file("sim.json")});
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  const CliRun r = robocal::test::run_robocal_captured(
+      {"identify", "--robot", robot, "--measurements", file("m.yaml"), "--out-robot",
+       file("calibrated.yaml"), "--json", file("r.json")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(file("calibrated.yaml")));
+  EXPECT_NE(read_text(file("r.json")).find("\"passed\": true"), std::string::npos);
 }
 
 // Readings near a singularity of the rotary Delta, where the loops close on more than one
@@ -304,6 +394,10 @@ TEST_F(CliRefusals, ARobotThatCannotAssembleIsNamedNotAnInternalError) {
   for (std::size_t at = 0; (at = linear.find("length: 0.27}", at)) != std::string::npos;)
     linear.replace(at, 13, "length: 0.05}");
   std::ofstream(dir / "short_linear.yaml") << linear;
+  std::string sliver = read_text(robot);
+  for (std::size_t at = 0; (at = sliver.find("limits: [0.0, 0.45]", at)) != std::string::npos;)
+    sliver.replace(at, 19, "limits: [0.3, 0.3005]");
+  std::ofstream(dir / "sliver.yaml") << sliver;
   expect_refused({
       {{"simulate", "--robot", file("short_linear.yaml"), "--quick", "--out", file("s")},
        3,
@@ -312,6 +406,15 @@ TEST_F(CliRefusals, ARobotThatCannotAssembleIsNamedNotAnInternalError) {
         file("short_rods.yaml"), "--count", "10", "--out", file("p.yaml")},
        3,
        {"short_rods.yaml", "cannot assemble"}},
+      // Carriages that move half a millimetre (limits a typo away from the drawing's): a
+      // session of no poses was written with exit code 0.
+      {{"simulate", "--robot", file("sliver.yaml"), "--quick", "--out", file("s2")},
+       3,
+       {"sliver.yaml", "too few reachable configurations", "joint limits"}},
+      // A simulated controller of it would announce itself ready and have no pose to report.
+      {{"sim-controller", "--robot", file("short_linear.yaml"), "--no-pty", "--max-seconds", "1"},
+       3,
+       {"short_linear.yaml", "cannot assemble at its home position", "kin check"}},
   });
 }
 

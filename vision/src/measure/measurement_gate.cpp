@@ -22,8 +22,9 @@ BoardFitVerdict judge_board_fits(const std::vector<double>& chi2_per_dof,
     v.reason = fmt::format(
         "the board poses do not fit their detected corners: median chi2/dof {:.0f} over {} poses "
         "(corner residuals {:.0f}x the detector's noise; plausible up to {:.0f}). Likely: the "
-        "end-effector board's file does not match the printed board (tag size or spacing, a "
-        "print scaled by the printer), wrong camera intrinsics or rig, or images out of focus",
+        "end-effector board's file does not match the printed board (its cols or rows, tag "
+        "size or spacing, a print scaled by the printer), wrong camera intrinsics or rig, or "
+        "images out of focus",
         v.median_chi2_dof, n, std::sqrt(v.median_chi2_dof), options.max_median_chi2_dof);
     return v;
   }
