@@ -3,6 +3,7 @@
 // mixing σ over six orders of magnitude.
 #include "printer_scenario.hpp"
 #include "robocal/calib/bed_plane.hpp"
+#include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/measurement_advice.hpp"
 
@@ -119,7 +120,25 @@ TEST_F(Printer, SevenHeightsAutomaticChoiceIsNotWorseThanTheFirmwareClassSet) {
               automatic.estimator.next_best.predicted_rms);
     EXPECT_GT(automatic.estimator.chosen.predicted_height_rms, 0.0);
     EXPECT_NE(automatic.gauge.find(automatic.estimator.chosen.name), std::string::npos);
-    if (seed == 0) std::cout << summary_text(automatic);
+    if (seed == 0) {
+      std::cout << summary_text(automatic);
+      EXPECT_NE(summary_text(automatic).find("Estimated set (chosen by predicted error)"),
+                std::string::npos);
+      // identification.json: the chosen set, why, the next best, the bed's predicted flatness.
+      const nlohmann::json j = to_json(automatic);
+      ASSERT_TRUE(j.contains("estimator_choice")) << j.dump(2);
+      const auto& c = j["estimator_choice"];
+      EXPECT_EQ(c["chosen"]["name"], automatic.estimator.chosen.name);
+      EXPECT_FALSE(c["reason"].get<std::string>().empty());
+      ASSERT_TRUE(c.contains("next_best"));
+      EXPECT_LE(c["chosen"]["predicted_rms_um"].get<double>(),
+                c["next_best"]["predicted_rms_um"].get<double>());
+      EXPECT_GT(j["predicted_bed_height_rms_um"].get<double>(), 0.0);
+      EXPECT_GT(j["predicted_3d_rms_um"].get<double>(), 0.0);
+      std::size_t estimated = 0;
+      for (const auto& p : j["parameters"]) estimated += p["estimated"].get<bool>() ? 1 : 0;
+      EXPECT_EQ(estimated, c["chosen"]["parameters"].size());
+    }
     auto_h += std::pow(heldout_height_rms(truth, automatic.estimate), 2);
     fw_h += std::pow(heldout_height_rms(truth, firmware.estimate), 2);
     auto_3d += std::pow(heldout_3d_rms(truth, automatic.estimate, 0.0), 2);
