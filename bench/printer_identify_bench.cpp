@@ -248,6 +248,7 @@ void firmware_draw(const calib::Mechanism& model, unsigned seed, bool distances,
       res.status != calib::IdentificationStatus::kNotConverged)
     throw std::runtime_error("draw " + std::to_string(seed) + ": " + res.message);
   std::vector<Eigen::Vector3d> p;
+  p.reserve(readings.size());
   for (const auto& r : readings) p.push_back(nozzle(pred, res.estimate, r));
   record("robocal_identify", bed_error(targets, p, true_pos));
   ++chosen[res.estimator.made ? res.estimator.chosen.name
@@ -256,10 +257,10 @@ void firmware_draw(const calib::Mechanism& model, unsigned seed, bool distances,
   bench::FirmwareProbeData fd;
   for (const auto& pose : data.measurements.poses) {
     if (pose.observations.empty()) {
-      fd.printed_readings.push_back(pose.actuators.head<3>());
+      fd.printed_readings.emplace_back(pose.actuators.head<3>());
       continue;
     }
-    fd.probe_readings.push_back(pose.actuators.head<3>());
+    fd.probe_readings.emplace_back(pose.actuators.head<3>());
     fd.heights.push_back(
         std::get<calib::ProbeHeightObservation>(pose.observations[0]).measured_height);
   }
@@ -271,6 +272,7 @@ void firmware_draw(const calib::Mechanism& model, unsigned seed, bool distances,
   for (const auto& routine : bench::firmware_routines(distances)) {
     const calib::FirmwareDeltaModel fw = bench::run_firmware_routine(shipped, routine, fd);
     std::vector<Eigen::Vector3d> q;
+    q.reserve(readings.size());
     for (const auto& r : readings) {
       Eigen::Vector3d x;
       if (!calib::firmware_delta_position(fw, r.head<3>(), x))
