@@ -265,8 +265,9 @@ void decide_gauge(const FramePredictor& model, const Eigen::VectorXd& linearisat
   std::string gauge_why;
   if (static_cast<std::size_t>(as.rows) < with_effect && !map_everything && keep.empty() &&
       !options.gauge_sigma.empty() && !result.identifiability.redundancies.empty())
-    gauge_why = choose_little_data_gauge(model, linearisation, as.poses, cc.Jc, candidates,
-                                         cc.names, options, result.identifiability);
+    gauge_why =
+        choose_little_data_gauge(model, linearisation, as.poses, cc.Jc, candidates, cc.names,
+                                 options, result.identifiability, result.estimator);
   if (static_cast<std::size_t>(as.rows) < with_effect) {
     result.limited_data = true;
     std::string held;
@@ -288,9 +289,10 @@ void decide_gauge(const FramePredictor& model, const Eigen::VectorXd& linearisat
                   "nominal values (the gauge, chosen for this robot and this data: each "
                   "held parameter moves the measurements like a combination of estimated "
                   "ones, see the redundancies){}{}{}",
-                  as.rows, with_effect, result.identifiability.rank, result.identifiability.rank,
-                  with_effect - result.identifiability.rank, held.empty() ? "" : ": ", held,
-                  gauge_why);
+                  as.rows, with_effect,
+                  result.estimator.made ? result.estimator.data_rank : result.identifiability.rank,
+                  result.identifiability.rank, with_effect - result.identifiability.rank,
+                  held.empty() ? "" : ": ", held, gauge_why);
   }
 }
 
@@ -726,6 +728,11 @@ IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd
                               const Measurements& measurements, const SolveOptions& options) {
   IdentificationResult result = identify_at(model, nominal, nominal, measurements, options, {});
   if (!options.relinearise || options.estimate_redundant || !usable(result)) return result;
+  // A set smaller than the data's rank was chosen for what it predicts (issue 53): the
+  // relinearised analysis would add back what was held on purpose.
+  if (result.estimator.made &&
+      result.estimator.chosen.estimated.size() < result.estimator.data_rank)
+    return result;
   // One round: a second round at the relinearised estimate changed the Delta's bench figures by
   // a few per cent at most (identify_bench, three truths), not worth another solve.
   return relinearise_once(model, nominal, measurements, options, std::move(result));

@@ -144,6 +144,7 @@ std::string choose_little_data_gauge(const FramePredictor& model, const Eigen::V
                                      const Eigen::MatrixXd& Jc,
                                      const std::vector<std::size_t>& candidates,
                                      const std::vector<std::string>& cand_names,
-                                     const SolveOptions& options, IdentifiabilityReport& report);
+                                     const SolveOptions& options, IdentifiabilityReport& report,
+                                     EstimatorChoice& estimator);
 
 }  // namespace robocal::calib::detail

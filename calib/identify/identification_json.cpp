@@ -151,6 +151,31 @@ nlohmann::json to_json(const IdentificationResult& r) {
   j["residuals"] = res;
   j["limited_data"] = r.limited_data;
   if (r.limited_data) j["gauge"] = r.gauge;
+  // With little data, the estimated set chosen by what it predicts (issue 53), µm.
+  if (r.estimator.made) {
+    auto candidate = [&](const EstimatorCandidate& c) {
+      nlohmann::json names = nlohmann::json::array();
+      for (std::size_t i : c.estimated) names.push_back(r.names[i]);
+      return nlohmann::json{{"name", c.name},
+                            {"parameters", names},
+                            {"predicted_rms_um", num(1e6 * c.predicted_rms)},
+                            {"predicted_bias_rms_um", num(1e6 * c.predicted_bias_rms)},
+                            {"predicted_bed_height_rms_um", num(1e6 * c.predicted_height_rms)}};
+    };
+    nlohmann::json all = nlohmann::json::array();
+    for (const auto& c : r.estimator.candidates) all.push_back(candidate(c));
+    j["estimator_choice"] = {{"target", r.estimator.target},
+                             {"data_rank", r.estimator.data_rank},
+                             {"chosen", candidate(r.estimator.chosen)},
+                             {"reason", r.estimator.reason},
+                             {"candidates", all}};
+    if (!r.estimator.next_best.name.empty())
+      j["estimator_choice"]["next_best"] = candidate(r.estimator.next_best);
+    // The bed's flatness after calibration: the first-layer height error predicted over the
+    // measured area beside the 3-D figure.
+    j["predicted_bed_height_rms_um"] = num(1e6 * r.estimator.chosen.predicted_height_rms);
+    j["predicted_3d_rms_um"] = num(1e6 * r.estimator.chosen.predicted_rms);
+  }
   // A posteriori noise per observation type beside the stated noise (noise_estimate.hpp).
   nlohmann::json noise = nlohmann::json::array();
   for (std::size_t k = 0; k < r.noise.groups.size(); ++k) {

@@ -95,6 +95,17 @@ std::string summary_text(const IdentificationResult& r) {
   if (r.status == IdentificationStatus::kInvalidInput) return s;
   for (const auto& e : r.excluded) s += fmt::format("  excluded pose {}: {}\n", e.id, e.reason);
   if (r.limited_data) s += fmt::format("Little data: {}.\n", r.gauge);
+  if (r.estimator.made) {
+    s += fmt::format(
+        "Estimated set (chosen by predicted error): {}\n  predicted error over the measured "
+        "area: {:.1f} um RMS {}, bed height (first layer) {:.1f} um RMS\n",
+        r.estimator.chosen.name, 1e6 * r.estimator.chosen.predicted_rms, r.estimator.target,
+        1e6 * r.estimator.chosen.predicted_height_rms);
+    if (!r.estimator.next_best.name.empty())
+      s += fmt::format("  next best: {}: {:.1f} um 3-D, bed height {:.1f} um\n",
+                       r.estimator.next_best.name, 1e6 * r.estimator.next_best.predicted_rms,
+                       1e6 * r.estimator.next_best.predicted_height_rms);
+  }
   if (r.status == IdentificationStatus::kNotIdentifiable ||
       r.status == IdentificationStatus::kDiverged) {
     for (const auto& w : r.warnings) s += "  warning: " + w + "\n";

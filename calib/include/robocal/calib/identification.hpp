@@ -53,6 +53,9 @@ struct SolveOptions {
   // (gauge_choice.hpp: those that move the predictions over the measured area least). Empty = the
   // rank analysis' own choice.
   std::vector<double> gauge_sigma;
+  // With gauge_sigma and little data, the estimated set is then chosen by what it predicts
+  // (EstimatorChoice, issue 53); false keeps the gauge choice's set of the data's rank.
+  bool choose_estimator = true;
   // Estimate the redundant candidates too (all with an effect), regularised by the priors, instead
   // of holding them at nominal. Redundancies found at the nominal model are often only local
   // (first order): a truth perturbed in "redundant" parameters is then not exactly representable
@@ -136,6 +139,31 @@ struct RelinearisationReport {
   std::string message;
 };
 
+// With little data (issue 53): which estimated set identify chose by what it predicts. Every
+// candidate set is weighed by the expected squared position error over the measured area (the
+// bed height for height-only data, the 3-D position otherwise): the noise through the estimated
+// parameters plus the bias of those held at nominal, off nominal by the robot file's tolerances
+// (gauge_choice.hpp's criterion). Candidates: the rank analysis' set as the gauge choice leaves
+// it, smaller sets from it by backward elimination (an exactly determined fit is avoided when a
+// smaller set predicts less), and the printer firmwares' calibration sets in this model's
+// parameter names when the robot has them. Errors are RMS, m.
+struct EstimatorCandidate {
+  std::string name;
+  std::vector<std::size_t> estimated;  // parameter indices
+  double predicted_rms = 0.0;          // over the measured area (height or 3-D, see `target`)
+  double predicted_bias_rms = 0.0;     // the held parameters' part
+  double predicted_height_rms = 0.0;   // the bed height (first layer) alone
+};
+struct EstimatorChoice {
+  bool made = false;          // little data and every candidate has a tolerance
+  std::string target;         // "bed height" or "3-D position"
+  std::size_t data_rank = 0;  // combinations the data determine
+  EstimatorCandidate chosen;
+  EstimatorCandidate next_best;  // name empty when there was no other admissible candidate
+  std::vector<EstimatorCandidate> candidates;  // every admissible one weighed, best first
+  std::string reason;
+};
+
 struct IdentificationResult {
   IdentificationStatus status = IdentificationStatus::kInvalidInput;
   std::string message;
@@ -160,6 +188,7 @@ struct IdentificationResult {
   // says so in words (which were held, and why: the redundancy explanations).
   bool limited_data = false;
   std::string gauge;
+  EstimatorChoice estimator;
   // A posteriori noise per observation type (noise_estimate.hpp), beside the stated noise;
   // `noise_applied` when the covariance was scaled by it (SolveOptions::keep_stated_noise).
   NoiseEstimate noise;
