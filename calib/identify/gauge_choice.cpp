@@ -43,6 +43,15 @@ bool separates_like_the_analysis(const Eigen::MatrixXd& R, const std::vector<std
 
 }  // namespace
 
+bool gauge_criterion_less(double a, const std::vector<std::size_t>& set_a, double b,
+                          const std::vector<std::size_t>& set_b, double relative_tolerance) {
+  if (!std::isfinite(a)) return false;
+  if (!std::isfinite(b)) return true;
+  const double scale = std::max(std::abs(a), std::abs(b));
+  if (std::abs(a - b) > relative_tolerance * scale) return a < b;
+  return set_a < set_b;  // equal up to rounding: the lexicographically first set
+}
+
 double gauge_expected_error(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets,
                             const Eigen::VectorXd& sigma, const std::vector<std::size_t>& estimated,
                             bool bias_only) {
@@ -101,11 +110,14 @@ GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& target
   choice.initial_bias =
       gauge_expected_error(J, targets, sigma, choice.estimated, /*bias_only=*/true);
   double best = choice.initial_expected_error;
+  // Criteria equal up to rounding (a Delta's three arms are symmetric: mirror-image sets differ
+  // in the last bits, differently on different machines) are a tie, broken by the fixed rule of
+  // gauge_criterion_less, so the choice does not follow the rounding.
   auto consider = [&](const std::vector<std::size_t>& est) {
     if (!admissible(est)) return;
     ++choice.evaluated;
     const double v = value(est);
-    if (std::isfinite(v) && v < best * (1.0 - 1e-9)) {
+    if (gauge_criterion_less(v, est, best, choice.estimated, options.tie_tolerance)) {
       best = v;
       choice.estimated = est;
     }
@@ -116,12 +128,18 @@ GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& target
   for (std::size_t k = 0; k < r && r <= eligible.size(); ++k)
     subsets = subsets * static_cast<double>(eligible.size() - k) / static_cast<double>(k + 1);
   if (subsets > 0.0 && subsets <= static_cast<double>(options.max_subsets)) {
+    // Every set weighed, then the least criterion; ties (within the tolerance of the least) go
+    // to the lexicographically first set, whatever order they were computed in.
+    std::vector<std::pair<double, std::vector<std::size_t>>> weighed = {{best, choice.estimated}};
     std::vector<std::size_t> pick(r);
     for (std::size_t k = 0; k < r; ++k) pick[k] = k;
     while (true) {
       std::vector<std::size_t> est(r);
       for (std::size_t k = 0; k < r; ++k) est[k] = eligible[pick[k]];
-      consider(est);
+      if (admissible(est)) {
+        ++choice.evaluated;
+        weighed.emplace_back(value(est), est);
+      }
       // Next combination in lexicographic order.
       std::size_t k = r;
       while (k > 0 && pick[k - 1] == eligible.size() - r + k - 1) --k;
@@ -129,10 +147,22 @@ GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& target
       ++pick[k - 1];
       for (std::size_t m = k; m < r; ++m) pick[m] = pick[m - 1] + 1;
     }
+    double least = std::numeric_limits<double>::infinity();
+    for (const auto& w : weighed)
+      if (std::isfinite(w.first)) least = std::min(least, w.first);
+    const std::vector<std::size_t>* winner = nullptr;
+    for (const auto& w : weighed)
+      if (std::isfinite(w.first) && w.first - least <= options.tie_tolerance * std::abs(least) &&
+          (winner == nullptr || w.second < *winner)) {
+        winner = &w.second;
+        best = w.first;
+      }
+    if (winner != nullptr) choice.estimated = *winner;
   } else {
-    // Exchanges from the given set: the best single swap while it lowers the criterion.
+    // Exchanges from the given set: the best single swap while it lowers the criterion (capped:
+    // a tie rule on rounded values could otherwise cycle).
     bool improved = true;
-    while (improved) {
+    for (int round = 0; improved && round < 1000; ++round) {
       improved = false;
       const std::vector<std::size_t> current = choice.estimated;
       for (std::size_t k = 0; k < current.size(); ++k)

@@ -162,4 +162,41 @@ TEST(GaugeChoice, ExchangeSearchImprovesOnTheGivenSet) {
   EXPECT_EQ(choice.estimated.size(), 4u);
 }
 
+// Issue 48: criteria equal up to rounding are a tie, decided by the fixed rule (the
+// lexicographically first set of column indices) whichever of the two is computed larger.
+TEST(GaugeChoice, CriteriaEqualUpToRoundingAreDecidedByTheFixedRule) {
+  using robocal::calib::gauge_criterion_less;
+  const std::vector<std::size_t> first = {0, 1};
+  const std::vector<std::size_t> second = {0, 2};
+  for (const double noise : {1e-13, -1e-13, 1e-9, -1e-9}) {
+    EXPECT_TRUE(gauge_criterion_less(1.0 + noise, first, 1.0, second)) << noise;
+    EXPECT_FALSE(gauge_criterion_less(1.0, second, 1.0 + noise, first)) << noise;
+  }
+  // A real difference still decides by value.
+  EXPECT_TRUE(gauge_criterion_less(1.0, second, 1.01, first));
+  EXPECT_FALSE(gauge_criterion_less(1.01, first, 1.0, second));
+  // Non-finite criteria are never less.
+  EXPECT_FALSE(gauge_criterion_less(std::numeric_limits<double>::infinity(), first, 1.0, second));
+
+  // A mirror-symmetric model (columns 1 and 2 the same up to a last-bits factor, as a Delta's
+  // arms): the sets {0, 1} and {0, 2} fit equally; whichever is computed larger and whichever
+  // the analysis gives, the choice is {0, 1}, by full enumeration and by exchanges.
+  for (const double eps : {1e-14, -1e-14, 3e-12, -3e-12}) {
+    Eigen::MatrixXd J(3, 3);
+    J << 1.0, 0.3, 0.3 * (1.0 + eps), 0.2, 1.0, 1.0 + eps, 0.0, 0.5, 0.5 * (1.0 + eps);
+    Eigen::MatrixXd G(4, 3);
+    G << 1.0, 0.5, 0.5 * (1.0 + eps), 0.0, 1.0, 1.0 + eps, 0.3, 0.2, 0.2 * (1.0 + eps), 1.0, 1.0,
+        1.0 + eps;
+    const Eigen::VectorXd sigma = Eigen::VectorXd::Ones(3);
+    for (const std::size_t max_subsets : {std::size_t{20000}, std::size_t{1}}) {
+      GaugeOptions o;
+      o.max_subsets = max_subsets;
+      for (const auto& initial : {first, second}) {
+        const auto choice = choose_gauge(J, G, sigma, initial, {}, {}, o);
+        EXPECT_EQ(choice.estimated, first) << "eps " << eps << ", max_subsets " << max_subsets;
+      }
+    }
+  }
+}
+
 }  // namespace

@@ -17,7 +17,10 @@
 // outside the span of the others kept) and leave every other column within the tolerance of
 // their span (so the analysis would hold exactly the rest). Search: every subset when there are
 // at most `max_subsets`, else exchanges (one held for one estimated) from the given set while
-// the error falls. The given set is kept unless another is lower by more than a relative 1e-9.
+// the error falls. Criteria within a relative `tie_tolerance` of each other are equal (issue 48:
+// the symmetric arms of a Delta give mirror-image sets whose criteria differ only in the last
+// bits, differently on different machines); among equal ones the lexicographically first set of
+// column indices wins, so the choice does not depend on rounding.
 #include <Eigen/Core>
 
 #include <cstddef>
@@ -30,6 +33,8 @@ struct GaugeOptions {
   std::size_t max_subsets = 20000;
   // The criterion: the held set's bias alone instead of noise plus bias.
   bool bias_only = false;
+  // Relative difference below which two criteria count as equal (then the fixed rule decides).
+  double tie_tolerance = 1e-6;
 };
 
 struct GaugeChoice {
@@ -52,6 +57,12 @@ GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& target
                          const std::vector<std::size_t>& must_estimate,
                          const std::vector<std::size_t>& no_effect,
                          const GaugeOptions& options = {});
+
+// The ordering the choice uses: `a` (the criterion of `set_a`) is less than `b` (of `set_b`) when
+// it is lower by more than `relative_tolerance` of the larger, or, within that tolerance, when
+// `set_a` is lexicographically before `set_b`. Non-finite criteria are never less.
+bool gauge_criterion_less(double a, const std::vector<std::size_t>& set_a, double b,
+                          const std::vector<std::size_t>& set_b, double relative_tolerance = 1e-6);
 
 // The criterion above for one estimated set (every other column held).
 double gauge_expected_error(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets,
