@@ -17,6 +17,7 @@ CommandSpec simulate_command() {
             auto json = std::make_shared<std::string>();
             auto threads = std::make_shared<int>(2);
             auto out = std::make_shared<std::string>();
+            auto read_noise = std::make_shared<double>(0.0);
             cmd.footer(
                 "A library robot gets a hidden \"true\" geometry (its drawing plus random "
                 "tolerances: lengths sigma 0.5 mm, angles 0.2 deg, from --seed). Two cameras "
@@ -57,15 +58,20 @@ CommandSpec simulate_command() {
                          "The true robot differs from its drawing only where the model can follow "
                          "(default: also where it cannot, as a real robot does)");
             cmd.add_flag("--quick", o->quick, "Smaller images and fewer views (for CI)");
+            cmd.add_option("--read-noise", *read_noise,
+                           "Sensor read noise, grey levels (default 2; low values give small "
+                           "PNG files, e.g. for test data)")
+                ->check(CLI::Range(0.0, 50.0));
             cmd.add_option("--threads", *threads, "Rendering threads")
                 ->check(CLI::Range(1, 64))
                 ->capture_default_str();
             cmd.add_option("--json", *json, "Write the JSON report here ('-' = stdout)");
-            return [o, json, threads, out, &cmd]() {
+            return [o, json, threads, out, read_noise, &cmd]() {
               if (o->quick) {
                 if (cmd.count("--intrinsic-views") == 0) o->intrinsic_views = 12;
                 if (cmd.count("--rig-views") == 0) o->rig_views = 6;
               }
+              if (cmd.count("--read-noise") > 0) o->read_noise = *read_noise;
               o->out = *out;
               PipelineLog log;
               log.out = human_stream(*json);

@@ -70,7 +70,8 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   // The random stream is consumed in a fixed order (cell, intrinsic views, rig views, poses):
   // the same seed gives the same images.
   std::mt19937 rng(o.seed);
-  const CellOptions cell_options = demo_cell_options(o.seed, o.quick, o.idealised_truth);
+  CellOptions cell_options = demo_cell_options(o.seed, o.quick, o.idealised_truth);
+  if (o.read_noise) cell_options.render.read_noise = *o.read_noise;
   stage(log, "simulate: cell");
   const SimulatedCell cell = make_simulated_cell(robot_file, cell_options, rng);
   say(log, "true robot: {}\n",
