@@ -90,56 +90,21 @@ std::vector<bool> select_base_set(const Eigen::MatrixXd& R, const std::vector<bo
   return kept;
 }
 
-// The pivot order of a column-pivoted Householder QR of R (the column with the largest part outside
-// the span of the columns pivoted before it comes next, as LAPACK's and Eigen's), with parts equal
-// within kTieTolerance broken by the lower index. Columns whose part is at most rank_tolerance are
-// dependent on the pivoted ones (structural redundancies leave 1e-12..1e-9 of closure-solver
-// noise, whose size says nothing): they follow in index order, not in the order of their noise. Eigen's
-// own order follows last-bit differences of the input among exactly confounded columns, which
-// glibc's libm produces between CPUs (FMA or not): this order is the same on every machine.
-std::vector<std::size_t> pivot_order(const Eigen::MatrixXd& R, double rank_tolerance) {
-  const auto p = static_cast<std::size_t>(R.cols());
-  const Eigen::Index rows = R.rows();
-  Eigen::MatrixXd W = R;  // rows [0, step) hold the pivoted columns' coordinates
-  Eigen::VectorXd workspace(R.cols());
-  std::vector<std::size_t> order;
-  std::vector<bool> placed(p, false);
-  std::vector<double> remaining(p, 0.0);
-  for (Eigen::Index step = 0; step < rows && order.size() < p; ++step) {
-    double largest = 0.0;
-    for (std::size_t j = 0; j < p; ++j) {
-      if (placed[j]) continue;
-      remaining[j] = W.col(static_cast<Eigen::Index>(j)).tail(rows - step).norm();
-      largest = std::max(largest, remaining[j]);
-    }
-    if (largest <= rank_tolerance) break;
-    std::size_t pick = 0;
-    while (placed[pick] || remaining[pick] < (1.0 - kTieTolerance) * largest) ++pick;
-    placed[pick] = true;
-    order.push_back(pick);
-    const Eigen::Index n = rows - step;
-    Eigen::VectorXd essential(n - 1);
-    double tau = 0.0;
-    double beta = 0.0;
-    W.col(static_cast<Eigen::Index>(pick)).tail(n).makeHouseholder(essential, tau, beta);
-    W.bottomRows(n).applyHouseholderOnTheLeft(essential, tau, workspace.data());
-  }
-  for (std::size_t j = 0; j < p; ++j)
-    if (!placed[j]) order.push_back(j);
-  return order;
-}
-
-// The default rule: visiting order = preference, then the pivot order above; a column is kept when
-// its part outside the span of the columns kept before it exceeds rank_tolerance (modified
-// Gram-Schmidt, applied twice for orthogonality).
+// The original rule (default): visiting order = preference, then the pivot order of Eigen's
+// column-pivoted QR of R; a column is kept when its part outside the span of the columns kept
+// before it exceeds rank_tolerance (modified Gram-Schmidt, applied twice for orthogonality).
+// Among exactly confounded columns of equal preference the pivot order follows the rounding of
+// the input, see IdentifiabilityOptions::stable_tie_break.
 std::vector<bool> select_base_set_qr_order(const Eigen::MatrixXd& R,
                                            const std::vector<bool>& has_effect,
                                            const std::vector<int>& preference,
                                            double rank_tolerance) {
   const auto p = static_cast<std::size_t>(R.cols());
-  const std::vector<std::size_t> pivots = pivot_order(R, rank_tolerance);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> pivoted(R);
   std::vector<std::size_t> pivot_rank(p);
-  for (std::size_t k = 0; k < p; ++k) pivot_rank[pivots[k]] = k;
+  for (Eigen::Index k = 0; k < pivoted.colsPermutation().indices().size(); ++k)
+    pivot_rank[static_cast<std::size_t>(pivoted.colsPermutation().indices()(k))] =
+        static_cast<std::size_t>(k);
   std::vector<std::size_t> order(p);
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {

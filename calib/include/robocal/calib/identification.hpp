@@ -53,8 +53,9 @@ struct SolveOptions {
   // (gauge_choice.hpp: those that move the predictions over the measured area least). Empty = the
   // rank analysis' own choice.
   std::vector<double> gauge_sigma;
-  // With gauge_sigma and little data, the estimated set is then chosen by what it predicts
-  // (EstimatorChoice, issue 53); false keeps the gauge choice's set of the data's rank.
+  // With gauge_sigma, little data and printer observations (probe heights, with or without
+  // distances), the estimated set is then chosen by what it predicts (EstimatorChoice, issue 53);
+  // false keeps the gauge choice's set of the data's rank.
   bool choose_estimator = true;
   // Estimate the redundant candidates too (all with an effect), regularised by the priors, instead
   // of holding them at nominal. Redundancies found at the nominal model are often only local
