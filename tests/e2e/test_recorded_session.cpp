@@ -5,9 +5,9 @@
 //
 // The session is what `robocal simulate` writes with kSimulateArgs below (rotary Delta, quick
 // 1280x960 images, few views, 14 poses, no sensor noise and a truth the model can follow, so that
-// the PNG files stay small — 5 MB in all — and the pose route's fit is clean). Its stored values are regenerated only deliberately, after a change
-// that is meant to move them (a new renderer, detector or solver), and the change reviewed in
-// the diff of the JSON:
+// the PNG files stay small — 5 MB in all — and the pose route's fit is clean). Its stored values
+// are regenerated only deliberately, after a change that is meant to move them (a new renderer,
+// detector or solver), and the change reviewed in the diff of the JSON:
 //
 //     nice -n 19 bash scripts/build.sh release test_e2e_recorded_session
 //     ROBOCAL_REGENERATE_RECORDED_SESSION=1 build/release/tests/e2e/test_e2e_recorded_session
@@ -19,14 +19,15 @@
 // Tolerances (kTolerance*): the pipeline gives bitwise the same results for any thread count and
 // from run to run; what remains between machines is glibc's libm, which picks FMA or non-FMA code
 // for the CPU at run time and so differs in the last bit of ~0.07 % of sin/cos/exp/pow results.
-// Run with those variants switched off (GLIBC_TUNABLES=glibc.cpu.hwcaps=-AVX2,-FMA,-AVX512F),
-// this session's board positions moved by < 1e-10 m, its intrinsics by < 1e-7 px and its
-// identified parameters by < 1e-8 m or rad. The bounds sit about ten times above that and
-// far below what a real change does: a corner-refinement or noise-model change moves board
-// positions by 0.1-10 um and intrinsics by 1e-3 px or more. Which parameters are estimated is
-// compared exactly: a different base set is a discrete flip that moves held-out figures by tens
-// of percent (with Eigen's pivot order the default demo's camera-in-the-loop figure followed the
-// CPU's libm; identifiability.cpp breaks those ties by index).
+// Run with those variants switched off (GLIBC_TUNABLES=glibc.cpu.hwcaps=-AVX2,-FMA,-AVX512F), the
+// measure results stay within the bounds below (board positions moved by < 1e-10 m, intrinsics
+// by < 1e-7 px), which sit about ten times above that and far below what a real change does (a
+// corner-refinement or noise-model change moves board positions by 0.1-10 um and intrinsics by
+// 1e-3 px or more). Which parameters are estimated is compared exactly: a different set is a
+// discrete flip that moves held-out figures by tens of percent. On this 14-pose session the pose
+// route's first fit (48 parameters from 84 equations) does flip under the non-FMA libm (another
+// iteration path, one pose flagged as an outlier, 27.7 against 1.9 um): this test fails there,
+// which is what it is for — the pipeline does not yet give the same answer on every machine.
 #include "session_test_support.hpp"
 #include "sha256.hpp"
 
