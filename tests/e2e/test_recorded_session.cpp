@@ -1,4 +1,4 @@
-// The same answer on every machine (issue 48): a small recorded session committed under
+// The same answer on every machine: a small recorded session committed under
 // testdata/sessions/delta_quick/ is measured and identified, and the results are compared with
 // the values stored beside it (testdata/sessions/delta_quick.expected.json); the session's images
 // are rendered again from its seed and compared by the SHA-256 of their pixels.
@@ -27,7 +27,7 @@
 // discrete flip that moves held-out figures by tens of percent. On this 14-pose session the pose
 // route's first fit (48 parameters from 84 equations) does flip under the non-FMA libm (another
 // iteration path, one pose flagged as an outlier, 27.7 against 1.9 um): this test fails there,
-// which is what it is for — the pipeline does not yet give the same answer on every machine.
+// which is what it is for: it names a machine whose answer differs from the stored one.
 #include "session_test_support.hpp"
 #include "sha256.hpp"
 

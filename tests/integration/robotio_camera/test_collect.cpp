@@ -219,7 +219,7 @@ TEST_F(Collect, DryRunNamesTheRefusedPoseAndMovesNothing) {
   EXPECT_FALSE(fs::exists(dir_ / "s3"));
 }
 
-// The whole plan passes the guard before the first motion (issue 49): a LAST pose outside the
+// The whole plan passes the guard before the first motion: a LAST pose outside the
 // declared box stops `collect` (not --dry-run) before it connects, homes or moves, naming that
 // pose; the simulator's own record shows no homing and no move.
 TEST_F(Collect, ALastPoseTheGuardRefusesStopsItBeforeHomingOrAnyMove) {
