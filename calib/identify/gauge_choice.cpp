@@ -52,16 +52,34 @@ bool gauge_criterion_less(double a, const std::vector<std::size_t>& set_a, doubl
   return set_a < set_b;  // equal up to rounding: the lexicographically first set
 }
 
+GaugeProblem gauge_problem(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets) {
+  GaugeProblem problem;
+  problem.information = J.transpose() * J;
+  if (targets.rows() > 0) problem.target_moment = target_second_moment(targets);
+  return problem;
+}
+
+double gauge_expected_error(const GaugeProblem& problem, const Eigen::VectorXd& sigma,
+                            const std::vector<std::size_t>& estimated, bool bias_only) {
+  if (problem.target_moment.size() == 0) return 0.0;
+  const auto p = static_cast<std::size_t>(problem.information.cols());
+  const std::vector<std::size_t> held = complement(p, estimated);
+  const HeldPredictionError parts =
+      prediction_error_parts_with_held(problem.information, problem.target_moment, held, sigma);
+  const auto finite_or_inf = [](double t) {
+    return std::isfinite(t) ? t : std::numeric_limits<double>::infinity();
+  };
+  const double total = finite_or_inf(parts.variance + parts.bias);
+  if (!bias_only) return total;
+  // The noise's share alone is what the criterion is with every held sigma zero; subtracted
+  // from the total as that, so the bias carries the total's rounding.
+  return total - finite_or_inf(parts.variance + 0.0);
+}
+
 double gauge_expected_error(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets,
                             const Eigen::VectorXd& sigma, const std::vector<std::size_t>& estimated,
                             bool bias_only) {
-  const auto p = static_cast<std::size_t>(J.cols());
-  const Eigen::MatrixXd M = J.transpose() * J;
-  const std::vector<std::size_t> held = complement(p, estimated);
-  const double total = average_prediction_error_with_held(M, targets, held, sigma);
-  if (!bias_only) return total;
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(sigma.size());
-  return total - average_prediction_error_with_held(M, targets, held, zero);
+  return gauge_expected_error(gauge_problem(J, targets), sigma, estimated, bias_only);
 }
 
 GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets,
@@ -91,8 +109,9 @@ GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& target
     if (std::find(no_effect.begin(), no_effect.end(), j) == no_effect.end()) eligible.push_back(j);
   const std::size_t r = initial.size();
 
+  const GaugeProblem problem = gauge_problem(J, targets);
   auto value = [&](const std::vector<std::size_t>& est) {
-    return gauge_expected_error(J, targets, sigma, est, options.bias_only);
+    return gauge_expected_error(problem, sigma, est, options.bias_only);
   };
   auto admissible = [&](const std::vector<std::size_t>& est) {
     for (std::size_t m : must_estimate)
@@ -107,8 +126,7 @@ GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& target
   choice.estimated = initial;
   std::sort(choice.estimated.begin(), choice.estimated.end());
   choice.initial_expected_error = value(choice.estimated);
-  choice.initial_bias =
-      gauge_expected_error(J, targets, sigma, choice.estimated, /*bias_only=*/true);
+  choice.initial_bias = gauge_expected_error(problem, sigma, choice.estimated, /*bias_only=*/true);
   double best = choice.initial_expected_error;
   // Criteria equal up to rounding (a Delta's three arms are symmetric: mirror-image sets differ
   // in the last bits, differently on different machines) are a tie, broken by the fixed rule of
@@ -178,7 +196,7 @@ GaugeChoice choose_gauge(const Eigen::MatrixXd& J, const Eigen::MatrixXd& target
     }
   }
   choice.expected_error = best;
-  choice.bias = gauge_expected_error(J, targets, sigma, choice.estimated, /*bias_only=*/true);
+  choice.bias = gauge_expected_error(problem, sigma, choice.estimated, /*bias_only=*/true);
   std::vector<std::size_t> sorted_initial = initial;
   std::sort(sorted_initial.begin(), sorted_initial.end());
   choice.changed = choice.estimated != sorted_initial;

@@ -45,7 +45,10 @@ Eigen::MatrixXd measured_area_rows(const FramePredictor& model, const Eigen::Vec
         area.poses.push_back(
             {"area", (1.0 - t) * used[i]->actuators + t * used[j]->actuators, obs});
   }
-  Eigen::MatrixXd rows(0, static_cast<Eigen::Index>(candidates.size()));
+  // Each pose's rows kept, then copied once into the result (hundreds of poses: growing the
+  // result pose by pose would copy it again for every one).
+  std::vector<Eigen::MatrixXd> blocks;
+  Eigen::Index total = 0;
   for (const auto& pose : area.poses) {
     Measurements one;
     one.poses.push_back(pose);
@@ -57,11 +60,16 @@ Eigen::MatrixXd measured_area_rows(const FramePredictor& model, const Eigen::Vec
       if (!model.predict(params, pose.actuators, -1, false, fp, why)) continue;
       positions->push_back(fp.pose.translation());
     }
-    const Eigen::Index n = rows.rows();
-    rows.conservativeResize(n + J.rows(), Eigen::NoChange);
+    total += J.rows();
+    blocks.push_back(std::move(J));
+  }
+  Eigen::MatrixXd rows(total, static_cast<Eigen::Index>(candidates.size()));
+  Eigen::Index n = 0;
+  for (const Eigen::MatrixXd& J : blocks) {
     for (std::size_t k = 0; k < candidates.size(); ++k)
       rows.col(static_cast<Eigen::Index>(k)).segment(n, J.rows()) =
           J.col(static_cast<Eigen::Index>(candidates[k]));
+    n += J.rows();
   }
   return rows;
 }
@@ -139,8 +147,10 @@ void weigh_estimators(const Eigen::MatrixXd& Jc, const Eigen::MatrixXd& area,
                       const std::vector<std::string>& cand_names,
                       const IdentifiabilityReport& report, double tolerance, EstimatorChoice& out) {
   std::vector<std::pair<std::string, std::vector<std::size_t>>> sets = {{gauge_name, gauge_set}};
+  const GaugeProblem over_area = gauge_problem(Jc, area);
+  const GaugeProblem over_heights = gauge_problem(Jc, heights);
   auto value = [&](const std::vector<std::size_t>& cols) {
-    return gauge_expected_error(Jc, area, sigma, cols);
+    return gauge_expected_error(over_area, sigma, cols);
   };
   auto admissible = [&](const std::vector<std::size_t>& cols) {
     for (std::size_t k : cols)
@@ -200,8 +210,8 @@ void weigh_estimators(const Eigen::MatrixXd& Jc, const Eigen::MatrixXd& area,
     for (std::size_t k : cols) c.estimated.push_back(candidates[k]);
     c.predicted_rms = std::sqrt(v);
     c.predicted_bias_rms =
-        std::sqrt(std::max(0.0, gauge_expected_error(Jc, area, sigma, cols, true)));
-    c.predicted_height_rms = std::sqrt(gauge_expected_error(Jc, heights, sigma, cols));
+        std::sqrt(std::max(0.0, gauge_expected_error(over_area, sigma, cols, true)));
+    c.predicted_height_rms = std::sqrt(gauge_expected_error(over_heights, sigma, cols));
     weighed.push_back(c);
     cols_of.push_back(cols);
   }
@@ -246,24 +256,27 @@ std::string choose_little_data_gauge(const FramePredictor& model, const Eigen::V
   // x/y error each set leaves, which heights cannot check and prints' dimensions show (on the
   // library linear delta the exactly determined rank set predicts 16% less height error than
   // the firmware-class set but 16% more 3-D error).
-  ProbeHeightObservation unit_height;
-  unit_height.sigma = 1.0;
-  const Eigen::MatrixXd heights =
-      measured_area_rows(model, params, poses, candidates, Observation{unit_height});
   bool bed_data = true;
   for (const auto* pose : poses)
     for (const auto& o : pose->observations)
       bed_data = bed_data && std::holds_alternative<ProbeHeightObservation>(o);
-  std::vector<Eigen::Vector3d> at;
-  const Eigen::MatrixXd positions = measured_area_rows(
-      model, params, poses, candidates,
-      Observation{PointObservation::with_sigma(Eigen::Vector3d::Zero(), 1.0)}, &at);
-  const Eigen::MatrixXd area = bed_data ? aligned_rows(positions, at) : positions;
   std::vector<std::size_t> chosen = choice.estimated;
   // Printer data only (probe heights, with or without distances between poses): that is where
   // the choice is measured against the firmwares' own routines (bench/printer_identify_bench.cpp).
   // On a camera session of a few poses (the wizard's 5-pose test session) it chose smaller sets
   // whose fits the held-out validation then refused; there the gauge choice stands.
+  Eigen::MatrixXd heights;
+  Eigen::MatrixXd area;
+  if (options.choose_estimator && bed_data) {
+    ProbeHeightObservation unit_height;
+    unit_height.sigma = 1.0;
+    heights = measured_area_rows(model, params, poses, candidates, Observation{unit_height});
+    std::vector<Eigen::Vector3d> at;
+    const Eigen::MatrixXd positions = measured_area_rows(
+        model, params, poses, candidates,
+        Observation{PointObservation::with_sigma(Eigen::Vector3d::Zero(), 1.0)}, &at);
+    area = aligned_rows(positions, at);
+  }
   if (options.choose_estimator && bed_data && heights.rows() > 0 && area.rows() > 0) {
     estimator.target = bed_data ? "3-D position (aligned on the bed)" : "3-D position";
     estimator.data_rank = report.rank;

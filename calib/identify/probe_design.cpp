@@ -29,18 +29,21 @@ double average_prediction_variance(const Eigen::MatrixXd& information,
   return trace_of_inverse_times(information + ridge * Eigen::MatrixXd::Identity(p, p), A);
 }
 
-double average_prediction_error_with_held(const Eigen::MatrixXd& information,
-                                          const Eigen::MatrixXd& targets,
-                                          const std::vector<std::size_t>& held,
-                                          const Eigen::VectorXd& held_sigma) {
-  if (targets.rows() == 0) return 0.0;
+Eigen::MatrixXd target_second_moment(const Eigen::MatrixXd& targets) {
+  return targets.transpose() * targets / static_cast<double>(targets.rows());
+}
+
+HeldPredictionError prediction_error_parts_with_held(const Eigen::MatrixXd& information,
+                                                     const Eigen::MatrixXd& target_moment,
+                                                     const std::vector<std::size_t>& held,
+                                                     const Eigen::VectorXd& held_sigma) {
+  const Eigen::MatrixXd& A = target_moment;
   const Eigen::Index p = information.rows();
   std::vector<bool> is_held(static_cast<std::size_t>(p), false);
   for (std::size_t i : held) is_held.at(i) = true;
   std::vector<Eigen::Index> S;
   std::vector<Eigen::Index> H;
   for (Eigen::Index i = 0; i < p; ++i) (is_held[static_cast<std::size_t>(i)] ? H : S).push_back(i);
-  const Eigen::MatrixXd A = targets.transpose() * targets / static_cast<double>(targets.rows());
   const auto ns = static_cast<Eigen::Index>(S.size());
   const auto nh = static_cast<Eigen::Index>(H.size());
   auto block = [](const Eigen::MatrixXd& X, const std::vector<Eigen::Index>& r,
@@ -51,12 +54,12 @@ double average_prediction_error_with_held(const Eigen::MatrixXd& information,
         out(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = X(r[i], c[j]);
     return out;
   };
-  double variance = 0.0;
+  HeldPredictionError parts;
   Eigen::MatrixXd K(ns, nh);
   if (ns > 0) {
     const Eigen::LLT<Eigen::MatrixXd> llt(block(information, S, S));
-    if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
-    variance = llt.solve(block(A, S, S)).trace();
+    if (llt.info() != Eigen::Success) return {std::numeric_limits<double>::infinity(), 0.0};
+    parts.variance = llt.solve(block(A, S, S)).trace();
     // With no held column the right-hand side is empty: solved as one zero column and dropped
     // (Eigen's triangular solve of an empty matrix binds a reference to its first element,
     // undefined behaviour the sanitizers stop on).
@@ -64,7 +67,6 @@ double average_prediction_error_with_held(const Eigen::MatrixXd& information,
     if (nh > 0) rhs = block(information, S, H);
     K = llt.solve(rhs).leftCols(nh);
   }
-  double bias = 0.0;
   if (nh > 0) {
     // Error per unit held deviation: g_S K − g_H, i.e. E = [K; −I] over (S, H).
     Eigen::MatrixXd E(p, nh);
@@ -75,9 +77,19 @@ double average_prediction_error_with_held(const Eigen::MatrixXd& information,
     Eigen::VectorXd d(nh);
     for (Eigen::Index k = 0; k < nh; ++k) d(k) = held_sigma(H[static_cast<std::size_t>(k)]);
     const Eigen::MatrixXd ED = E * d.asDiagonal();
-    bias = (ED.transpose() * block(A, order, order) * ED).trace();
+    parts.bias = (ED.transpose() * block(A, order, order) * ED).trace();
   }
-  const double total = variance + bias;
+  return parts;
+}
+
+double average_prediction_error_with_held(const Eigen::MatrixXd& information,
+                                          const Eigen::MatrixXd& targets,
+                                          const std::vector<std::size_t>& held,
+                                          const Eigen::VectorXd& held_sigma) {
+  if (targets.rows() == 0) return 0.0;
+  const HeldPredictionError parts = prediction_error_parts_with_held(
+      information, target_second_moment(targets), held, held_sigma);
+  const double total = parts.variance + parts.bias;
   return std::isfinite(total) ? total : std::numeric_limits<double>::infinity();
 }
 

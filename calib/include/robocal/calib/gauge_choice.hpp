@@ -69,4 +69,16 @@ double gauge_expected_error(const Eigen::MatrixXd& J, const Eigen::MatrixXd& tar
                             const Eigen::VectorXd& sigma, const std::vector<std::size_t>& estimated,
                             bool bias_only = false);
 
+// What the criterion needs of J and the targets, formed once for a search over many sets: JᵀJ
+// and the targets' second moment are each a product over every row, far costlier than the
+// criterion of one set.
+struct GaugeProblem {
+  Eigen::MatrixXd information;    // JᵀJ
+  Eigen::MatrixXd target_moment;  // GᵀG / m (empty without targets)
+};
+GaugeProblem gauge_problem(const Eigen::MatrixXd& J, const Eigen::MatrixXd& targets);
+// The same criterion as gauge_expected_error(J, targets, ...), to the last bit.
+double gauge_expected_error(const GaugeProblem& problem, const Eigen::VectorXd& sigma,
+                            const std::vector<std::size_t>& estimated, bool bias_only = false);
+
 }  // namespace robocal::calib

@@ -64,6 +64,19 @@ double average_prediction_error_with_held(const Eigen::MatrixXd& information,
                                           const std::vector<std::size_t>& held,
                                           const Eigen::VectorXd& held_sigma);
 
+// The two parts of that error, from the targets' second moment GᵀG/m (target_second_moment), so
+// that a search over many held sets forms the moment once: the noise's share and the held
+// parameters' bias. variance is +inf when the estimated block is not positive definite.
+struct HeldPredictionError {
+  double variance = 0.0;
+  double bias = 0.0;
+};
+Eigen::MatrixXd target_second_moment(const Eigen::MatrixXd& targets);
+HeldPredictionError prediction_error_parts_with_held(const Eigen::MatrixXd& information,
+                                                     const Eigen::MatrixXd& target_moment,
+                                                     const std::vector<std::size_t>& held,
+                                                     const Eigen::VectorXd& held_sigma);
+
 // `candidate_rows[c]`: the whitened rows candidate c adds (each p columns); `targets`: the
 // working-area rows (m × p); `information0`: p × p (empty = zeros).
 ExactDesign i_optimal_design(const std::vector<Eigen::MatrixXd>& candidate_rows,
