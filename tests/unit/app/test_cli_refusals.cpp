@@ -123,7 +123,7 @@ TEST_F(CliRefusals, BadValuesAreABadCommandLine) {
       {{"kin", "fk", robot, "--actuators", "0.1,0.2"}, 2, {"--actuators needs 3"}},
       {{"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "foo"},
        2,
-       {"--kind", "point, pose, probe or pixel"}},
+       {"--kind", "point, pose, probe or pixel", "got 'foo'"}},
       {{"intrinsics", "--images", dir.string(), "--target", target, "--model", "foo"},
        2,
        {"--model", "foo", "pinhole_radtan"}},
