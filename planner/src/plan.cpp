@@ -7,8 +7,10 @@
 #include "robocal/calib/mechanism_predictor.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <iterator>
 #include <random>
 #include <sstream>
 
@@ -34,16 +36,41 @@ std::string check_cell(const calib::Mechanism& model, const Eigen::VectorXd& par
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<Eigen::Vector3d> reached;
+  // How the samples failed, by verdict, with the first failing readings of each: what a robot
+  // that assembles nowhere is told (rods too short fail on closure, degrees on the limits).
+  std::array<int, 7> failed{};
+  std::array<Eigen::VectorXd, 7> failed_at;
+  std::array<std::string, 7> failed_detail;
   for (int k = 0; k < 400 && reached.size() < 60; ++k) {
     Eigen::VectorXd x(lo.size());
     for (Eigen::Index i = 0; i < lo.size(); ++i) x(i) = lo(i) + u(rng) * (hi(i) - lo(i));
     const ReachResult r = reach.reach_check(x);
-    if (r.ok()) reached.emplace_back(r.body_poses[static_cast<std::size_t>(frame)].translation());
+    if (r.ok()) {
+      reached.emplace_back(r.body_poses[static_cast<std::size_t>(frame)].translation());
+    } else {
+      const auto v = static_cast<std::size_t>(r.verdict);
+      if (failed[v]++ == 0) {
+        failed_at[v] = x;
+        failed_detail[v] = r.detail;
+      }
+    }
   }
-  if (reached.empty())
-    return "robot '" + model.name +
-           "' assembles at none of 400 sampled actuator positions within its limits and the cell's "
-           "joint margin";
+  if (reached.empty()) {
+    const auto most = static_cast<std::size_t>(
+        std::distance(failed.begin(), std::max_element(failed.begin(), failed.end())));
+    std::ostringstream readings;
+    for (Eigen::Index i = 0; i < failed_at[most].size(); ++i)
+      readings << (i > 0 ? ", " : "") << failed_at[most](i);
+    const std::string file = model.source.empty() ? std::string("the robot file") : model.source;
+    return (model.source.empty() ? std::string() : model.source + ": ") + "robot '" + model.name +
+           "' cannot assemble: it assembles at none of 400 sampled actuator positions within its "
+           "limits and the cell's joint margin (" +
+           std::to_string(failed[most]) + " failed with '" +
+           to_string(static_cast<ReachVerdict>(most)) + "', e.g. at actuator readings [" +
+           readings.str() + "]" +
+           (failed_detail[most].empty() ? std::string() : ": " + failed_detail[most]) +
+           "); check its lengths (metres) and joint limits (`robocal kin check " + file + "`)";
+  }
   double reach_radius = 0.0;
   for (const Eigen::Vector3d& p : reached) reach_radius = std::max(reach_radius, p.norm());
   const double plausible = 100.0 * std::max(reach_radius, 0.1);

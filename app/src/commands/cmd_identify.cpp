@@ -109,7 +109,7 @@ int run_simulate(const IdentifyOptions& o) {
   else if (o.kind == "probe")
     sim.kind = SimulatedObservation::kProbeHeight;
   else if (o.kind != "point" && o.kind != "pixel")
-    throw UsageError("--kind must be point, pose, probe or pixel");
+    throw UsageError("--kind must be point, pose, probe or pixel (got '" + o.kind + "')");
   MeasurementsFile file;
   file.robot = model.name;
   nlohmann::json cameras_json;

@@ -12,6 +12,7 @@
 #include <fmt/core.h>
 
 #include <memory>
+#include <utility>
 
 namespace robocal::app {
 
@@ -52,6 +53,35 @@ std::string silent_camera(const std::vector<std::string>& names,
   return "";
 }
 
+// The board fits fail as a whole: are two of the rig file's camera names exchanged (each
+// camera's images measured with the other's intrinsics and place)? Measures again with each
+// pair's names exchanged (rigs of up to four cameras) and returns the sentence that says so when
+// that makes the fits plausible, or "".
+std::string swapped_camera_names(const std::vector<vision::RigCamera>& rig,
+                                 const vision::TargetBoard& board, const std::string& poses,
+                                 const PoseStepOptions& options, const BoardFitGate& gate,
+                                 int threads) {
+  if (rig.size() < 2 || rig.size() > 4) return "";
+  for (std::size_t i = 0; i < rig.size(); ++i)
+    for (std::size_t j = i + 1; j < rig.size(); ++j) {
+      std::vector<vision::RigCamera> exchanged = rig;
+      std::swap(exchanged[i].name, exchanged[j].name);
+      std::vector<std::string> names;
+      for (const auto& c : exchanged) names.push_back(c.name);
+      const auto measured = measure_board_poses(exchanged, board, scan_image_folder(poses, names),
+                                                options, {nullptr, threads});
+      const BoardFitGate other = judge_pose_fits(measured);
+      if (other.verdict.plausible)
+        return fmt::format(
+            "the rig file's camera names '{}' and '{}' look exchanged: with them swapped the board "
+            "poses fit their corners (median chi2/dof {:.3g}; as the file names them {:.3g}); "
+            "check which camera each name in the rig file is, or which camera's images the "
+            "pose folders hold under each name",
+            rig[i].name, rig[j].name, other.verdict.median_chi2_dof, gate.verdict.median_chi2_dof);
+    }
+  return "";
+}
+
 int run_measure(const MeasureArgs& a) {
   const RigFile rig_file = read_rig_file(a.rig);
   const auto& rig = rig_file.cameras;
@@ -68,11 +98,16 @@ int run_measure(const MeasureArgs& a) {
   if (const std::string silent = silent_camera(names, measured); !silent.empty())
     throw InputError(a.poses + ": " + silent + "; nothing written");
   // The same gate as a session's measure, with the same words.
-  const BoardFitGate gate = judge_pose_fits(measured);
+  BoardFitGate gate = judge_pose_fits(measured);
   const bool refuse_all = !gate.verdict.plausible && !a.accept_implausible;
-  if (!gate.verdict.plausible)
+  if (!gate.verdict.plausible) {
+    if (const std::string swapped =
+            swapped_camera_names(rig, board, a.poses, options, gate, a.threads);
+        !swapped.empty())
+      gate.verdict.reason = a.rig + ": " + swapped + ". (" + gate.verdict.reason + ")";
     fmt::print(stderr, "MEASUREMENTS NOT PLAUSIBLE: {}{}\n", gate.verdict.reason,
                a.accept_implausible ? " (accepted: --accept-implausible)" : "");
+  }
 
   nlohmann::json poses = nlohmann::json::array();
   int usable = 0;

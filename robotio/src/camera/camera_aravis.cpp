@@ -13,6 +13,10 @@
 namespace robocal::robotio {
 namespace {
 
+// GigE Vision bootstrap register: the time (ms) the camera keeps its controller's privilege
+// without a heartbeat from it.
+constexpr guint64 kHeartbeatTimeoutRegister = 0x0938;
+
 // Aravis (GLib) reports errors through GError; each becomes a CameraError naming the camera.
 class GErrorGuard {
  public:
@@ -247,6 +251,34 @@ AravisCamera::AravisCamera(const std::string& id_or_serial, std::string name, Ar
   if (impl_->camera == nullptr) {
     throw CameraError(CameraError::Kind::kIo, impl_->name,
                       "cannot open " + device_id + ": " + error.message());
+  }
+  // A GigE Vision camera takes commands from one application at a time (its control channel
+  // privilege). Aravis opens a camera another application controls read-only, and the first
+  // setting or stream then fails with a protocol error; said here, with what to do.
+  if (arv_camera_is_gv_device(impl_->camera) != FALSE &&
+      arv_gv_device_is_controller(ARV_GV_DEVICE(arv_camera_get_device(impl_->camera))) == FALSE) {
+    GErrorGuard read_error;
+    guint32 timeout_ms = 0;
+    arv_device_read_register(arv_camera_get_device(impl_->camera), kHeartbeatTimeoutRegister,
+                             &timeout_ms, read_error.out());
+    const std::string when =
+        read_error.failed() || timeout_ms == 0
+            ? std::string(
+                  "when that application's heartbeat times out (GigE Vision's default: "
+                  "3000 ms after its last heartbeat; this camera's value could not be "
+                  "read)")
+            : "when that application's heartbeat times out, " + std::to_string(timeout_ms) +
+                  " ms after its last heartbeat (the camera's heartbeat timeout)";
+    g_object_unref(impl_->camera);
+    impl_->camera = nullptr;
+    throw CameraError(
+        CameraError::Kind::kIo, impl_->name,
+        "camera " + device_id + " (serial " + impl_->info.serial + " at " + impl_->info.address +
+            ") is controlled by another application: the camera takes commands from one "
+            "application at a time and refused control to this one. The camera releases it " +
+            when + ". If that application is an earlier `robocal collect` that was killed, wait " +
+            "that long and run the command again; if it is still running (another robocal, a "
+            "camera viewer), close it first");
   }
   impl_->control_lost_handler =
       g_signal_connect(arv_camera_get_device(impl_->camera), "control-lost",

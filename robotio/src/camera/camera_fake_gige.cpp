@@ -80,6 +80,12 @@ void FakeGigECamera::set_sensor_size(int width, int height) {
   arv_fake_camera_write_register(fake, ARV_FAKE_CAMERA_REGISTER_HEIGHT, h);
 }
 
+void FakeGigECamera::set_heartbeat_timeout_ms(std::uint32_t timeout_ms) {
+  constexpr std::uint32_t kHeartbeatTimeoutRegister = 0x0938;  // GigE Vision bootstrap register
+  arv_fake_camera_write_register(static_cast<ArvFakeCamera*>(fake_), kHeartbeatTimeoutRegister,
+                                 timeout_ms);
+}
+
 FakeGigECamera::~FakeGigECamera() {
   disconnect();
 }

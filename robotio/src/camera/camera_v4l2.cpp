@@ -16,6 +16,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <utility>
 
 namespace robocal::robotio {
@@ -227,6 +228,57 @@ CameraInfo describe(int fd, const std::string& path, const v4l2_capability& caps
 
 }  // namespace
 
+std::vector<DeviceHolder> processes_holding(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::vector<DeviceHolder> holders;
+  std::error_code error;
+  const fs::path target = fs::weakly_canonical(path, error);
+  if (error) return holders;
+  for (const auto& process : fs::directory_iterator("/proc", error)) {
+    const std::string pid_text = process.path().filename().string();
+    if (pid_text.empty() ||
+        !std::all_of(pid_text.begin(), pid_text.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      continue;
+    std::error_code fd_error;
+    bool holds = false;
+    // Another user's process (not root) or one that exits meanwhile: its fd folder is skipped.
+    for (const auto& fd : fs::directory_iterator(process.path() / "fd", fd_error)) {
+      std::error_code link_error;
+      const fs::path link = fs::read_symlink(fd.path(), link_error);
+      if (!link_error && link == target) {
+        holds = true;
+        break;
+      }
+    }
+    if (!holds) continue;
+    DeviceHolder holder;
+    holder.pid = std::stoi(pid_text);
+    std::ifstream comm(process.path() / "comm");
+    std::getline(comm, holder.command);
+    holders.push_back(std::move(holder));
+  }
+  std::sort(holders.begin(), holders.end(),
+            [](const DeviceHolder& a, const DeviceHolder& b) { return a.pid < b.pid; });
+  return holders;
+}
+
+std::string busy_device_explanation(const std::string& path) {
+  std::string others;
+  for (const DeviceHolder& h : processes_holding(path)) {
+    if (h.pid == static_cast<int>(::getpid())) continue;
+    others += (others.empty() ? "" : ", ") + std::string("PID ") + std::to_string(h.pid) + " (" +
+              h.command + ")";
+  }
+  if (others.empty())
+    return path +
+           " is in use by another process (none found among the processes this user may "
+           "inspect in /proc: run `fuser -v " +
+           path + "` as root to see it); close that program and run the command again";
+  return path + " is in use by another process: " + others +
+         " holds it open (an earlier `robocal collect` that has not exited yet, or another camera "
+         "program); close that program, or end it with `kill PID`, and run the command again";
+}
+
 std::vector<CameraInfo> discover_v4l2_cameras() {
   std::vector<CameraInfo> cameras;
   std::error_code error;
@@ -275,6 +327,9 @@ struct V4l2Camera::Impl {
     const CameraError::Kind kind = (code == ENODEV || code == EIO || code == ENXIO)
                                        ? CameraError::Kind::kDisconnected
                                        : CameraError::Kind::kIo;
+    // EBUSY: another process streams from the device (or holds its buffers): say which.
+    if (code == EBUSY)
+      return {kind, name, what + ": " + std::strerror(code) + ": " + busy_device_explanation(path)};
     return {kind, name, what + ": " + std::strerror(code)};
   }
   void require() const {
@@ -340,7 +395,9 @@ V4l2Camera::V4l2Camera(const std::string& device, std::string name, V4l2Output o
   if (impl_->fd < 0) {
     const int code = errno;
     throw CameraError(code == ENOENT ? CameraError::Kind::kNotFound : CameraError::Kind::kIo,
-                      impl_->name, "cannot open " + device + ": " + std::strerror(code));
+                      impl_->name,
+                      "cannot open " + device + ": " + std::strerror(code) +
+                          (code == EBUSY ? ": " + busy_device_explanation(device) : ""));
   }
   v4l2_capability caps{};
   if (xioctl(impl_->fd, VIDIOC_QUERYCAP, &caps) != 0 || !is_capture_device(caps)) {

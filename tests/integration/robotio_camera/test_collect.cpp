@@ -5,6 +5,7 @@
 // it is. The simulator's own log is the independent record of what moved.
 #include "child_process.hpp"
 #include "netns_skip.hpp"
+#include "robocal/robotio/camera_aravis.hpp"
 #include "robotio_sim.hpp"
 #include "sim_camera_cell.hpp"
 
@@ -300,6 +301,56 @@ TEST_F(Collect, BadInputIsRefusedBeforeAnythingMoves) {
     EXPECT_FALSE(fs::exists(session / "poses")) << c.says;
   }
   EXPECT_EQ(moves_received(log_), 0);
+}
+
+// A camera another application still controls (here this test holds SIM-CAM0, as a killed
+// `robocal collect` does until the camera's heartbeat timeout runs out): collect refuses before
+// anything moves, naming the camera, that another application controls it, the camera's own
+// heartbeat timeout (set to 7000 ms here, not the fake camera's default) and what to do.
+TEST_F(Collect, ACameraAnotherApplicationControlsIsNamedWithItsHeartbeatTimeout) {
+  const calib::Mechanism model = test::linear_delta();
+  write(dir_ / "plan.yaml", plan_yaml(testing::sim_cell_targets(model, 2)));
+  cameras_[0]->server().set_heartbeat_timeout_ms(7000);
+  const AravisCamera holder("SIM-CAM0", "holder");
+  const fs::path session = dir_ / "held";
+  test::ChildProcess run(ROBOCAL_BINARY, args(session, dir_ / "plan.yaml", {"--yes"}),
+                         (dir_ / "held.out").string());
+  EXPECT_EQ(run.wait(std::chrono::seconds(60)), 1) << run.output();
+  for (const std::string& says :
+       {std::string("cam0"), std::string("SIM-CAM0"),
+        std::string("is controlled by another application"),
+        std::string("7000 ms after its last heartbeat"), std::string("close it first")})
+    EXPECT_NE(run.output().find(says), std::string::npos) << says << " not in:\n" << run.output();
+  EXPECT_FALSE(fs::exists(session / "poses"));
+  EXPECT_EQ(moves_received(log_), 0);
+}
+
+// The operator's case: `robocal collect` killed with SIGKILL while it records (no handler runs,
+// nothing releases the camera), and collect run again at once: the camera still counts the killed
+// program as its controller until its heartbeat timeout, and the second run says so.
+TEST_F(Collect, ACollectRunAfterAKilledOneNamesTheCameraStillHeldByIt) {
+  const calib::Mechanism model = test::linear_delta();
+  write(dir_ / "plan.yaml", plan_yaml(testing::sim_cell_targets(model, 8)));
+  for (const auto& camera : cameras_) camera->server().set_heartbeat_timeout_ms(7000);
+  const fs::path session = dir_ / "killed";
+  test::ChildProcess first(ROBOCAL_BINARY, args(session, dir_ / "plan.yaml", {"--yes"}),
+                           (dir_ / "killed.out").string());
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (first.running() && std::chrono::steady_clock::now() < until &&
+         pose_folders(session).empty())
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_FALSE(pose_folders(session).empty()) << first.output();
+  ASSERT_TRUE(first.running()) << "collect finished before it could be killed";
+  first.signal(SIGKILL);
+  first.wait(std::chrono::seconds(10));
+  test::ChildProcess again(ROBOCAL_BINARY, args(dir_ / "again", dir_ / "plan.yaml", {"--yes"}),
+                           (dir_ / "again.out").string());
+  EXPECT_EQ(again.wait(std::chrono::seconds(60)), 1) << again.output();
+  for (const std::string says : {"SIM-CAM", "is controlled by another application",
+                                 "7000 ms after its last heartbeat", "was killed, wait"})
+    EXPECT_NE(again.output().find(says), std::string::npos) << says << " not in:\n"
+                                                            << again.output();
+  EXPECT_FALSE(fs::exists(dir_ / "again" / "poses"));
 }
 
 // The same collection through the open link (robotio/OPEN_LINK.md): `--link open:HOST:PORT`

@@ -123,7 +123,7 @@ TEST_F(CliRefusals, BadValuesAreABadCommandLine) {
       {{"kin", "fk", robot, "--actuators", "0.1,0.2"}, 2, {"--actuators needs 3"}},
       {{"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "foo"},
        2,
-       {"--kind", "point, pose, probe or pixel"}},
+       {"--kind", "point, pose, probe or pixel", "got 'foo'"}},
       {{"intrinsics", "--images", dir.string(), "--target", target, "--model", "foo"},
        2,
        {"--model", "foo", "pinhole_radtan"}},
@@ -406,6 +406,13 @@ TEST_F(CliRefusals, ARobotThatCannotAssembleIsNamedNotAnInternalError) {
         file("short_rods.yaml"), "--count", "10", "--out", file("p.yaml")},
        3,
        {"short_rods.yaml", "cannot assemble"}},
+      // The linear delta's loops close nowhere in the cell: refused with the file it read, the
+      // cause and readings where it failed, not only the robot's name.
+      {{"plan", "--cell", testdata + "/cells/linear_delta/cell.yaml", "--robot",
+        file("short_linear.yaml"), "--count", "10", "--out", file("p.yaml")},
+       3,
+       {file("short_linear.yaml"), "robot 'linear_delta' cannot assemble",
+        "e.g. at actuator readings [", "kin check " + file("short_linear.yaml")}},
       // Carriages that move half a millimetre (limits a typo away from the drawing's): a
       // session of no poses was written with exit code 0.
       {{"simulate", "--robot", file("sliver.yaml"), "--quick", "--out", file("s2")},

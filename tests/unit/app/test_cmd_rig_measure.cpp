@@ -241,10 +241,24 @@ TEST(RigMeasureCli, FileModeHasTheSessionsPlausibilityGate) {
   auto rig = read_json(root / "rig.json");
   std::swap(rig["cameras"][0]["name"], rig["cameras"][1]["name"]);
   std::ofstream(root / "rig_swapped.json") << rig.dump(2);
+  testing::internal::CaptureStderr();
   EXPECT_EQ(measure(root / "rig_swapped.json", root / "poses", root / "names.json"), 1);
+  const std::string refused = testing::internal::GetCapturedStderr();
   const auto names_swapped = read_json(root / "names.json");
   EXPECT_FALSE(names_swapped["board_fit_gate"]["plausible"].get<bool>());
   EXPECT_EQ(names_swapped["summary"]["usable"].get<int>(), 0);
+  // The refusal names the rig file and the exchanged names, found by measuring them swapped back.
+  const std::string said = (root / "rig_swapped.json").string() +
+                           ": the rig file's camera names '" +
+                           rig["cameras"][0]["name"].get<std::string>() + "' and '" +
+                           rig["cameras"][1]["name"].get<std::string>() + "' look exchanged";
+  EXPECT_NE(refused.find(said), std::string::npos) << refused;
+  EXPECT_NE(names_swapped["board_fit_gate"]["reason"].get<std::string>().find("look exchanged"),
+            std::string::npos);
+  // A rig whose fits fail for another reason is not blamed on its names.
+  testing::internal::CaptureStderr();
+  measure(root / "rig.json", root / "swapped", root / "swapped_again.json");
+  EXPECT_EQ(testing::internal::GetCapturedStderr().find("look exchanged"), std::string::npos);
 
   // Every image of one camera at another resolution: refused, nothing written.
   fs::copy(root / "poses", root / "resized", fs::copy_options::recursive);

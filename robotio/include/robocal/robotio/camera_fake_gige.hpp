@@ -57,6 +57,10 @@ class FakeGigECamera {
   // fewer pixels than the fake sensor says so to the clients that ask for the full frame.
   void set_sensor_size(int width, int height);
 
+  // How long the camera keeps a client's control privilege without a heartbeat from it (the
+  // GigE Vision heartbeat timeout register; Aravis' fake camera starts with 3000 ms).
+  void set_heartbeat_timeout_ms(std::uint32_t timeout_ms);
+
   // Aravis' fill callback (ArvBuffer*, this, exposure, gain, ArvPixelFormat); not for callers.
   static void fill(void* buffer, void* self, std::uint32_t exposure_us, std::uint32_t gain,
                    std::uint32_t pixel_format);

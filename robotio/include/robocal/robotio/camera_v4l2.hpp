@@ -38,6 +38,18 @@ cv::Mat convert_v4l2_frame(const V4l2RawFrame& raw, V4l2Output output, const std
 // The fourccs convert_v4l2_frame accepts.
 bool v4l2_format_supported(const std::string& fourcc);
 
+// A process that has a device open: its PID and command name (/proc/PID/comm).
+struct DeviceHolder {
+  int pid = 0;
+  std::string command;
+};
+// The processes this user may inspect (all of them for root) that have `path` open: every
+// /proc/PID/fd link that resolves to the same file as `path`. This process included.
+std::vector<DeviceHolder> processes_holding(const std::string& path);
+// What a device that answered EBUSY is told with: which other process holds it (PID and
+// command, from processes_holding, leaving out this process) and what the operator can do.
+std::string busy_device_explanation(const std::string& path);
+
 // Video capture devices under /dev (video0, video1, ...) with their card name, bus and formats.
 // Devices that are not capture devices (metadata nodes of UVC cameras) are left out.
 std::vector<CameraInfo> discover_v4l2_cameras();
