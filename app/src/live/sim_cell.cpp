@@ -169,6 +169,9 @@ int run_sim_cell(const SimCellOptions& o) {
   if (!fs::exists(ResultsLayout{at.simulator()}.truth())) write_simulator_truth(lc, at);
   const auto specs = camera_specs(lc.cell, o.seed, 2);
   if (!fs::exists(at.views() / "done")) {
+    // Views without the done mark are what an interrupted run left: the simulator's own
+    // renderings (the same seed renders the same pixels), taken again whole.
+    fs::remove_all(at.views());
     fmt::print(out, "calibration images: the board held in front of the cameras ({} views)\n",
                lc.intrinsic_views.empty() ? 0 : lc.intrinsic_views.front().size());
     nlohmann::json ignored;
