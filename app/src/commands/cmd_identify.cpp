@@ -4,7 +4,6 @@
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
 #include "robocal/calib/bed_plane.hpp"
-#include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/measurement_advice.hpp"
@@ -17,10 +16,10 @@
 #include "robocal_version.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
+#include "stages/identify_setup.hpp"
 #include "stages/stages.hpp"
 
 #include <fmt/core.h>
-#include <fnmatch.h>
 
 #include <algorithm>
 #include <memory>
@@ -76,12 +75,6 @@ struct IdentifyOptions {
   bool bed_tilt = false;            // estimate the bed's slopes with the geometry (probe heights)
   bool accept_implausible = false;  // session mode: keep a result that fails the fit gate
 };
-
-bool matches(const std::string& name, const std::vector<std::string>& patterns) {
-  for (const auto& p : patterns)
-    if (fnmatch(p.c_str(), name.c_str(), 0) == 0) return true;
-  return false;
-}
 
 // Simulation target: a 3x3 grid of 4 cm pitch in the measured frame plus one corner 2 cm off
 // its plane (a non-coplanar target constrains the frame's orientation from every view).
@@ -217,6 +210,20 @@ int run_identify(const IdentifyOptions& o) {
       throw InputError(fmt::format("{}: frame '{}' is not a body of {}", o.measurements, file.frame,
                                    model.name));
   }
+  // The problem as the session route builds it (stages/identify_setup.hpp): the base frame
+  // placed where the measured 6-D poses put it, the priors and parameters chosen.
+  IdentifyChoices choices;
+  choices.priors = o.priors;
+  choices.free_patterns = o.free_patterns;
+  choices.fix_patterns = o.fix_patterns;
+  choices.robust = o.robust;
+  choices.robust_scale = o.robust_scale;
+  choices.stated_noise = o.stated_noise;
+  choices.multi_start = o.multi_start;
+  choices.seed = o.seed;
+  const IdentifyProblem problem =
+      identify_problem(model, frame, model.nominal_parameters(), file.measurements, choices);
+  SolveOptions opt = problem.options;
   const MechanismPredictor robot_pred(model, frame);
   // Pixel observations: the cameras join the model (camera parameters after the robot's; the
   // first camera is the gauge). Otherwise the robot alone.
@@ -232,44 +239,13 @@ int run_identify(const IdentifyOptions& o) {
   }
   const FramePredictor& observed = rig ? static_cast<const FramePredictor&>(*rig) : robot_pred;
   const Eigen::VectorXd observed_nominal =
-      rig ? rig->initial_parameters(model.nominal_parameters()) : model.nominal_parameters();
+      rig ? rig->initial_parameters(problem.start) : problem.start;
   // --bed-tilt: the bed's two slopes join the unknowns, after everything else (bed_plane.hpp).
   const BedPlanePredictor bed(observed);
   const FramePredictor& pred = o.bed_tilt ? static_cast<const FramePredictor&>(bed) : observed;
   const Eigen::VectorXd nominal =
       o.bed_tilt ? bed.initial_parameters(observed_nominal) : observed_nominal;
 
-  SolveOptions opt = solve_options_from_model(model, o.priors);
-  if (!o.free_patterns.empty() || !o.fix_patterns.empty()) {
-    std::vector<std::size_t> candidates;
-    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
-      const std::string& n = model.parameters[i].name;
-      const bool free =
-          o.free_patterns.empty() ? model.parameters[i].free : matches(n, o.free_patterns);
-      if (free && !matches(n, o.fix_patterns)) candidates.push_back(i);
-    }
-    if (candidates.empty()) throw UsageError("--free/--fix leave no parameter to estimate");
-    opt.candidates = candidates;
-    if (o.priors) {
-      opt.prior_sigma.assign(model.parameters.size(), 0.0);
-      for (std::size_t i : candidates) opt.prior_sigma[i] = model.parameters[i].sigma;
-    }
-  }
-  if (o.robust == "huber")
-    opt.robust_loss = RobustLoss::kHuber;
-  else if (o.robust == "cauchy")
-    opt.robust_loss = RobustLoss::kCauchy;
-  else if (o.robust != "none")
-    throw UsageError("--robust must be none, huber or cauchy");
-  opt.robust_scale = o.robust_scale;
-  opt.keep_stated_noise = o.stated_noise;
-  opt.multi_start = o.multi_start;
-  opt.seed = o.seed;
-  if (o.multi_start > 0 && opt.prior_sigma.empty()) {
-    opt.start_sigma.assign(model.parameters.size(), 0.0);
-    for (std::size_t i = 0; i < model.parameters.size(); ++i)
-      opt.start_sigma[i] = model.parameters[i].sigma;
-  }
   if (rig) opt = rig->solve_options(opt);
   if (o.bed_tilt) opt = bed.solve_options(opt);
 
@@ -367,13 +343,8 @@ int run_identify(const IdentifyOptions& o) {
                     res.predicted.position_rms_overall),
         fmt::format("Nominal model: {}.", robot_file)};
     // Camera parameters (after the robot's) are reported in the JSON, not in the robot file.
-    std::vector<std::size_t> robot_estimated;
-    for (std::size_t i : res.estimated)
-      if (i < model.parameters.size()) robot_estimated.push_back(i);
-    const Eigen::VectorXd robot_values =
-        res.estimate.head(static_cast<Eigen::Index>(model.parameters.size()));
-    const std::string text = calibrated_robot_yaml(core::read_text_file(robot_file), model,
-                                                   robot_values, robot_estimated, provenance);
+    const std::string text =
+        calibrated_robot_text(robot_file, model, res.estimate, res.estimated, provenance);
     files.add(o.out_robot, text);
     doc["calibrated_robot"] = o.out_robot;
   }

@@ -7,13 +7,12 @@
 #include "session/results_transaction.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
+#include "stages/identify_setup.hpp"
 #include "stages/measure_steps.hpp"
 #include "stages/pixel_bridge.hpp"
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
 
-#include "robocal/calib/base_frame.hpp"
-#include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/fit_gate.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/identification_json.hpp"
@@ -91,15 +90,6 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
     apply_fit_gate(r, calib::fit_gate_options(model.unmodelled_error, pixels_per_metre), gates,
                    "pixels", report, log);
   return report;
-}
-
-// Indices of the parameters whose value differs from the robot file's.
-std::vector<std::size_t> changed_from(const Eigen::VectorXd& values,
-                                      const Eigen::VectorXd& file_values) {
-  std::vector<std::size_t> changed;
-  for (Eigen::Index i = 0; i < values.size(); ++i)
-    if (values[i] != file_values[i]) changed.push_back(static_cast<std::size_t>(i));
-  return changed;
 }
 
 // The calibrated file is the measurement model: which frame stands in for what.
@@ -217,29 +207,20 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     return report;
   }
   // The robot's base frame in the camera world: first found by aligning the nominal model's
-  // predictions with the measurements (what hand-eye calibration alone gives).
-  const Eigen::VectorXd file_values = model.nominal_parameters();
-  Eigen::VectorXd start = robot.nominal;
-  calib::fit_base_frame(model, start, robot.frame, measurements.poses);
+  // predictions with the measurements (what hand-eye calibration alone gives); the priors and
+  // the base frame's freedom as for a measurements file (identify_setup.hpp).
+  IdentifyChoices choices;
+  choices.priors = priors;
+  choices.threads = log.threads;
+  const IdentifyProblem problem =
+      identify_problem(model, robot.frame, robot.nominal, measurements, choices);
+  const Eigen::VectorXd& start = problem.start;
+  const calib::SolveOptions& solve_options = problem.options;
   calib::MechanismPredictor predictor(model, robot.frame);
   const auto start_errors = calib::prediction_errors(predictor, start, measurements.poses);
   say(log, "  nominal model with the fitted base frame: {:.1f} µm RMS, {:.4f} deg RMS\n",
       start_errors.position_rms * 1e6, core::degrees(start_errors.orientation_rms));
   report["nominal_fit"] = calib::to_json(start_errors);
-  // The robot file's tolerances as priors (MAP). A cell's design (poses where the cameras see the
-  // board) leaves weak directions; along them a maximum-likelihood estimate can trade, e.g., a
-  // shoulder axis tilt of 1° against elbow offsets of 7 mm that fit the measured poses and are
-  // millimetres off elsewhere (demo seed 1: 234 µm RMS, 5.1 mm max on held-out poses; with the
-  // priors 46 µm, 0.26 mm). The base frame has no prior: world <-> robot is genuinely unknown
-  // in the cameras' world.
-  calib::SolveOptions solve_options = calib::solve_options_from_model(model, priors);
-  solve_options.threads = log.threads;
-  if (priors)
-    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
-      const int body = model.parameters[i].body;
-      if (body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0)
-        solve_options.prior_sigma[i] = 0.0;
-    }
   say(log, "  priors: {}\n",
       priors ? "the robot file's tolerances (MAP), base frame free"
              : "none (maximum likelihood from the measurements alone)");
@@ -287,11 +268,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
         apply_nominal_gate(predictor, start, result, measurements.poses, "pose route", report, log);
   }
   if (usable) {
-    std::set<std::size_t> changed(result.estimated.begin(), result.estimated.end());
-    for (std::size_t i : changed_from(start, file_values)) changed.insert(i);
-    const std::string text = calib::calibrated_robot_yaml(
-        core::read_text_file(robot.file), model, result.estimate,
-        std::vector<std::size_t>(changed.begin(), changed.end()),
+    const std::string text = calibrated_robot_text(
+        robot.file, model, result.estimate, result.estimated,
         {fmt::format("Calibrated by robocal {} identify from session {} ({}).", kVersion,
                      dir.filename().string(), calib::to_string(result.status)),
          fmt::format("{} poses used, {} excluded; {} parameters estimated; fit residual RMS "
@@ -343,9 +321,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     if (pr.value("status", "") == "ok") {
       const Eigen::VectorXd pixel_estimate =
           params_from_json(model, pr.at("estimate"), results.identification().string());
-      const std::string text = calib::calibrated_robot_yaml(
-          core::read_text_file(robot.file), model, pixel_estimate,
-          changed_from(pixel_estimate, file_values),
+      const std::string text = calibrated_robot_text(
+          robot.file, model, pixel_estimate, {},
           {fmt::format("Calibrated by robocal {} identify (camera-in-the-loop, from corner "
                        "pixels) from session {}.",
                        kVersion, dir.filename().string()),
