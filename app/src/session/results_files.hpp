@@ -94,10 +94,12 @@ struct PixelObservationsHeader {
 void write_pixel_observations(const ResultsLayout& results, const PixelObservationsHeader& header,
                               const std::vector<PixelPoseRecord>& poses);
 
+// One robot pose: its actuator readings and, per rig camera, the corners detected in its image
+// (the camera-in-the-loop identification's input, stages/pixel_bridge.hpp).
 struct PixelPose {
   std::string pose;
   Eigen::VectorXd actuators;
-  std::vector<vision::CameraFrame> cameras;  // [rig camera]: frame 0's corners
+  std::vector<vision::CameraFrame> cameras;  // [rig camera]: frame 0's corners (empty: none)
 };
 // The used poses, frame 0 of each camera, in the order of `camera_names`.
 std::vector<PixelPose> read_used_pixel_poses(const ResultsLayout& results,

@@ -53,9 +53,8 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
   std::vector<std::string> camera_names;
   camera_names.reserve(rig.size());
   for (const auto& c : rig) camera_names.push_back(c.name);
-  std::vector<PosePixels> poses;
-  for (auto& p : read_used_pixel_poses(results, camera_names, measure_first(s.dir)))
-    poses.push_back({p.pose, p.actuators, std::move(p.cameras)});
+  const std::vector<PixelPose> poses =
+      read_used_pixel_poses(results, camera_names, measure_first(s.dir));
   nlohmann::json report;
   // Every camera's corners count, partial views of the board included. (Until the detector
   // dropped the AprilTags cut by the image border, a camera needed half the board: on the
