@@ -228,11 +228,21 @@ struct TruthPose {
   Eigen::VectorXd true_actuators;
   Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
 };
+// How the simulation drew its truth (informative: nothing computes with it).
+struct TruthPerturbation {
+  double length_sigma_m = 0.0;  // 1-σ tolerances the true robot was drawn with
+  double angle_sigma_rad = 0.0;
+  // The actuator readings' Gaussian noise and quantisation step (joint units) where the
+  // simulation made the readings itself; absent where a simulated controller reports them.
+  std::optional<double> actuator_noise;
+  std::optional<double> actuator_step;
+  std::string source;  // which simulator holds the truth
+};
 struct TruthFile {
   std::vector<TruthCamera> cameras;
   std::vector<TruthPose> poses;
   Eigen::VectorXd nominal, truth;  // robot parameters
-  nlohmann::json perturbation;     // the simulation's tolerances (informative)
+  TruthPerturbation perturbation;
   // Elastic deflection of the true robot (simcell's elastic_deflection), m per m^2; 0 in files
   // written before it existed (a rigid truth).
   double elastic_sag = 0.0;

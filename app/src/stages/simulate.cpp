@@ -6,6 +6,7 @@
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
 #include "simcell/simulated_cell.hpp"
+#include "stages/cell_truth.hpp"
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
 
@@ -190,8 +191,10 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
         "part of its cell: check its joint limits and lengths (`robocal kin check {}`)",
         robot_file, true_readings.size(), o.poses, seen_by, robot_file));
   shots.clear();
-  TruthFile truth;
-  truth.elastic_sag = cell.elastic_sag;
+  TruthFile truth = cell_truth(cell, "robocal simulate");
+  // The readings are made here (read_actuators), with the cell's noise and step.
+  truth.perturbation.actuator_noise = cell_options.actuator_noise;
+  truth.perturbation.actuator_step = cell_options.actuator_step;
   for (std::size_t i = 0; i < true_readings.size(); ++i) {
     PoseRecord record;
     record.name = fmt::format("pose_{:03d}", i);
@@ -208,15 +211,6 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   render_shots(cell, shots, "render pose images", log);
 
   // The hidden truth: read by validate only.
-  truth.nominal = cell.nominal;
-  truth.truth = cell.truth;
-  for (std::size_t c = 0; c < cell.cameras.size(); ++c)
-    truth.cameras.push_back(
-        {s.cameras[c].name, cell.cameras[c].model, cell.cameras[c].camera_T_world});
-  truth.perturbation = {{"length_sigma_m", cell_options.length_sigma},
-                        {"angle_sigma_rad", cell_options.angle_sigma},
-                        {"actuator_noise", cell_options.actuator_noise},
-                        {"actuator_step", cell_options.actuator_step}};
   write_truth(ResultsLayout{s.dir}, cell.model, truth);
   core::write_file_atomic(s.dir / "session.yaml", session_to_yaml(s), core::Overwrite::kRefuse);
   staging.commit();
