@@ -194,6 +194,57 @@ nlohmann::json advice_json(const MeasurementAdvice& a) {
           {"text", a.text}};
 }
 
+// The cameras of pixel observations in the JSON report: reprojection errors before and after on
+// the fitted and held-out poses, and each camera's estimated pose (intrinsics where estimated).
+void add_cameras_json(const CameraRigPredictor& rig, const IdentificationResult& res,
+                      const Eigen::VectorXd& observed_nominal,
+                      const std::vector<PoseMeasurement>& fit,
+                      const std::vector<PoseMeasurement>& held, bool free_intrinsics,
+                      nlohmann::json& doc) {
+  auto pixels = [&](const std::vector<PoseMeasurement>& poses) {
+    nlohmann::json j;
+    const auto n = static_cast<Eigen::Index>(rig.parameter_count());
+    for (const auto& [key, params] :
+         {std::pair{"before", observed_nominal}, {"after", res.estimate.head(n).eval()}}) {
+      const auto e = pixel_errors(rig, params, poses);
+      j[key] = {{"observations", e.observations}, {"rms_px", e.rms_px}, {"max_px", e.max_px}};
+    }
+    return j;
+  };
+  doc["fit_pixels"] = pixels(fit);
+  if (!held.empty()) doc["heldout_pixels"] = pixels(held);
+  nlohmann::json cams = nlohmann::json::array();
+  for (int c = 0; c < rig.camera_count(); ++c) {
+    const Eigen::Isometry3d T = rig.world_T_camera(res.estimate, c);
+    const Eigen::AngleAxisd aa(T.linear());
+    const Eigen::Vector3d rv = aa.axis() * aa.angle();
+    nlohmann::json j = {
+        {"name", rig.cameras()[static_cast<std::size_t>(c)].name},
+        {"gauge", c == rig.options().gauge_camera},
+        {"position_m", {T.translation().x(), T.translation().y(), T.translation().z()}},
+        {"rotation_vector_rad", {rv.x(), rv.y(), rv.z()}}};
+    if (free_intrinsics) j["params"] = rig.camera_model(res.estimate, c).params;
+    cams.push_back(j);
+  }
+  doc["cameras"] = cams;
+}
+
+// The terminal summary: the result in words, the validation on the fitted and held-out poses,
+// the calibrated robot file written (if any) and what to measure next.
+std::string summary_words(const FramePredictor& pred, const Eigen::VectorXd& nominal,
+                          const IdentificationResult& res, const std::vector<PoseMeasurement>& fit,
+                          const std::vector<PoseMeasurement>& held,
+                          const std::string& calibrated_robot, const MeasurementAdvice& advice) {
+  std::string text = summary_text(res);
+  text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit), errors_of(fit));
+  if (!held.empty())
+    text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held),
+                            errors_of(held));
+  if (!calibrated_robot.empty())
+    text += fmt::format("calibrated robot file: {}\n", calibrated_robot);
+  return text + advice.text;
+}
+
 int run_identify(const IdentifyOptions& o) {
   if (o.robot.empty()) throw UsageError("--robot is required (or give a SESSION folder)");
   if (o.measurements.empty()) throw UsageError("--measurements is required (or --simulate)");
@@ -268,34 +319,7 @@ int run_identify(const IdentifyOptions& o) {
     doc["heldout_validation"] = to_json(validate(pred, nominal, res.estimate, held));
   if (o.kfold > 1)
     doc["kfold"] = to_json(k_fold_validation(pred, nominal, file.measurements, o.kfold, opt));
-  if (rig) {
-    auto pixels = [&](const std::vector<PoseMeasurement>& poses) {
-      nlohmann::json j;
-      const auto n = static_cast<Eigen::Index>(rig->parameter_count());
-      for (const auto& [key, params] :
-           {std::pair{"before", observed_nominal}, {"after", res.estimate.head(n).eval()}}) {
-        const auto e = pixel_errors(*rig, params, poses);
-        j[key] = {{"observations", e.observations}, {"rms_px", e.rms_px}, {"max_px", e.max_px}};
-      }
-      return j;
-    };
-    doc["fit_pixels"] = pixels(fit.poses);
-    if (!held.empty()) doc["heldout_pixels"] = pixels(held);
-    nlohmann::json cams = nlohmann::json::array();
-    for (int c = 0; c < rig->camera_count(); ++c) {
-      const Eigen::Isometry3d T = rig->world_T_camera(res.estimate, c);
-      const Eigen::AngleAxisd aa(T.linear());
-      const Eigen::Vector3d rv = aa.axis() * aa.angle();
-      nlohmann::json j = {
-          {"name", rig->cameras()[static_cast<std::size_t>(c)].name},
-          {"gauge", c == rig->options().gauge_camera},
-          {"position_m", {T.translation().x(), T.translation().y(), T.translation().z()}},
-          {"rotation_vector_rad", {rv.x(), rv.y(), rv.z()}}};
-      if (o.free_intrinsics) j["params"] = rig->camera_model(res.estimate, c).params;
-      cams.push_back(j);
-    }
-    doc["cameras"] = cams;
-  }
+  if (rig) add_cameras_json(*rig, res, observed_nominal, fit.poses, held, o.free_intrinsics, doc);
   if (o.bed_tilt) doc["bed"] = bed_json(res, bed);
   // Little data or nothing identifiable: what to measure next, and where.
   MeasurementAdvice advice;
@@ -353,20 +377,11 @@ int run_identify(const IdentifyOptions& o) {
   if (o.json == "-") write_json(doc, "-");
   if (res.status == IdentificationStatus::kInvalidInput)
     throw InputError(fmt::format("{}: {}", o.measurements, res.message));
-  if (!o.quiet) {
-    // The plain-words summary always (JSON only where asked); stderr when JSON takes stdout.
-    std::FILE* out = human_stream(o.json);
-    std::string text = summary_text(res);
-    text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit.poses),
-                            errors_of(fit.poses));
-    if (!held.empty())
-      text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held),
-                              errors_of(held));
-    if (doc.contains("calibrated_robot"))
-      text += fmt::format("calibrated robot file: {}\n", o.out_robot);
-    text += advice.text;
-    fmt::print(out, "{}", text);
-  }
+  // The plain-words summary always (JSON only where asked); stderr when JSON takes stdout.
+  if (!o.quiet)
+    fmt::print(human_stream(o.json), "{}",
+               summary_words(pred, nominal, res, fit.poses, held,
+                             doc.contains("calibrated_robot") ? o.out_robot : "", advice));
   if (res.status == IdentificationStatus::kNotIdentifiable) {
     fmt::print(stderr, "identification refused: {}\n{}", res.message, advice.text);
     return kExitFailure;
