@@ -166,6 +166,72 @@ bool apply_nominal_gate(const calib::FramePredictor& predictor, const Eigen::Vec
   return false;
 }
 
+namespace {
+
+// The camera-in-the-loop route after the pose route's success (`route` pixel or both): its
+// report in report["pixel_route"] and, when it stands, its calibrated robot file.
+void add_pixel_route(const Session& s, const SessionRobot& robot,
+                     const calib::FramePredictor& predictor, const Eigen::VectorXd& start,
+                     const calib::SolveOptions& solve_options,
+                     const Eigen::VectorXd& pose_route_estimate,
+                     const std::map<std::string, Eigen::Isometry3d>& rig_T_target,
+                     const std::string& route, const ResultsLayout& results, const PipelineLog& log,
+                     const GateOptions& gates, nlohmann::json& report) {
+  const calib::Mechanism& model = robot.model;
+  report["pixel_route"] =
+      identify_pixel_route(s, model, predictor, start, solve_options, rig_T_target, log, gates);
+  // Not converged from the robot file: again from the pose route's estimate (priors still
+  // centred on the robot file). On the Gantry-Tau's camera array (demo --seed 2) the first
+  // wandered for 200 iterations to 7.8 px, the second converged in 14 to 0.045 px. Not the
+  // first start for every route: on the Delta (seed 1) it stops in a flat valley at a higher
+  // cost (18056 against 17904; 44.5 against 35.6 µm held-out).
+  if (report["pixel_route"]["result"].value("status", "") != "converged") {
+    say(log,
+        "  the camera-in-the-loop route did not converge from the robot file; again from the "
+        "pose route's estimate\n");
+    calib::SolveOptions again = solve_options;
+    again.start = pose_route_estimate;
+    nlohmann::json second =
+        identify_pixel_route(s, model, predictor, start, again, rig_T_target, log, gates);
+    if (second["result"].value("status", "") == "converged") {
+      second["restarted_from_pose_route"] = true;
+      report["pixel_route"] = std::move(second);
+    }
+  }
+  const auto& pr = report["pixel_route"];
+  // Asked for alone, the route's verdict is the identification's. Beside the pose route (the
+  // default, whose model is the export), it is a second opinion: when it cannot explain its
+  // pixels or fails, its model is not written and the pose route's stands, said so.
+  if (pr.value("status", "") != "ok" && route == "both") {
+    report["warnings"].push_back(
+        "camera-in-the-loop route " + pr.value("status", std::string("failed")) + ": " +
+        pr.value("message", std::string()) + "; its model is not written, the pose route's is");
+    say(log,
+        "  the camera-in-the-loop route's model is not written; the pose route's "
+        "({}) stands\n",
+        ResultsLayout::kCalibratedRobot);
+  } else if (pr.value("status", "") == "implausible") {
+    report["status"] = "implausible";
+    report["message"] = "camera-in-the-loop route: " + pr.value("message", "");
+  }
+  if (pr.value("status", "") == "ok") {
+    const Eigen::VectorXd pixel_estimate =
+        params_from_json(model, pr.at("estimate"), results.identification().string());
+    const std::string text = calibrated_robot_text(
+        robot.file, model, pixel_estimate, {},
+        {fmt::format("Calibrated by robocal {} identify (camera-in-the-loop, from corner "
+                     "pixels) from session {}.",
+                     kVersion, s.dir.filename().string()),
+         fmt::format("Reprojection RMS {:.3f} px.", pr.value("reprojection_rms_px", 0.0)),
+         "World frame: the session's rig frame (camera " + s.cameras[0].name + ").",
+         frames_note(s, model, robot.frame)});
+    core::write_file_atomic(results.calibrated_robot_pixels(), text);
+    report["pixel_route"]["calibrated_robot"] = ResultsLayout::kCalibratedRobotPixels;
+  }
+}
+
+}  // namespace
+
 nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
                                 const PipelineLog& log, const std::string& route, bool priors,
                                 const GateOptions& gates) {
@@ -280,58 +346,9 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     core::write_file_atomic(results.calibrated_robot(), text);
     report["calibrated_robot"] = ResultsLayout::kCalibratedRobot;
   }
-  if (usable && route != "pose") {
-    report["pixel_route"] =
-        identify_pixel_route(s, model, predictor, start, solve_options, rig_T_target, log, gates);
-    // Not converged from the robot file: again from the pose route's estimate (priors still
-    // centred on the robot file). On the Gantry-Tau's camera array (demo --seed 2) the first
-    // wandered for 200 iterations to 7.8 px, the second converged in 14 to 0.045 px. Not the
-    // first start for every route: on the Delta (seed 1) it stops in a flat valley at a higher
-    // cost (18056 against 17904; 44.5 against 35.6 µm held-out).
-    if (report["pixel_route"]["result"].value("status", "") != "converged") {
-      say(log,
-          "  the camera-in-the-loop route did not converge from the robot file; again from the "
-          "pose route's estimate\n");
-      calib::SolveOptions again = solve_options;
-      again.start = result.estimate;
-      nlohmann::json second =
-          identify_pixel_route(s, model, predictor, start, again, rig_T_target, log, gates);
-      if (second["result"].value("status", "") == "converged") {
-        second["restarted_from_pose_route"] = true;
-        report["pixel_route"] = std::move(second);
-      }
-    }
-    const auto& pr = report["pixel_route"];
-    // Asked for alone, the route's verdict is the identification's. Beside the pose route (the
-    // default, whose model is the export), it is a second opinion: when it cannot explain its
-    // pixels or fails, its model is not written and the pose route's stands, said so.
-    if (pr.value("status", "") != "ok" && route == "both") {
-      report["warnings"].push_back(
-          "camera-in-the-loop route " + pr.value("status", std::string("failed")) + ": " +
-          pr.value("message", std::string()) + "; its model is not written, the pose route's is");
-      say(log,
-          "  the camera-in-the-loop route's model is not written; the pose route's "
-          "({}) stands\n",
-          ResultsLayout::kCalibratedRobot);
-    } else if (pr.value("status", "") == "implausible") {
-      report["status"] = "implausible";
-      report["message"] = "camera-in-the-loop route: " + pr.value("message", "");
-    }
-    if (pr.value("status", "") == "ok") {
-      const Eigen::VectorXd pixel_estimate =
-          params_from_json(model, pr.at("estimate"), results.identification().string());
-      const std::string text = calibrated_robot_text(
-          robot.file, model, pixel_estimate, {},
-          {fmt::format("Calibrated by robocal {} identify (camera-in-the-loop, from corner "
-                       "pixels) from session {}.",
-                       kVersion, dir.filename().string()),
-           fmt::format("Reprojection RMS {:.3f} px.", pr.value("reprojection_rms_px", 0.0)),
-           "World frame: the session's rig frame (camera " + s.cameras[0].name + ").",
-           frames_note(s, model, robot.frame)});
-      core::write_file_atomic(results.calibrated_robot_pixels(), text);
-      report["pixel_route"]["calibrated_robot"] = ResultsLayout::kCalibratedRobotPixels;
-    }
-  }
+  if (usable && route != "pose")
+    add_pixel_route(s, robot, predictor, start, solve_options, result.estimate, rig_T_target, route,
+                    results, log, gates, report);
   // A solve that failed is no verdict on the data: the previous results stay.
   if (report["status"] == "failed") return report;
   write_identification(results, report);
