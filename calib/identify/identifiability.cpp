@@ -142,6 +142,91 @@ std::string join_combination(const std::vector<std::string>& names,
   return text;
 }
 
+// The redundant parameters with an effect, each expressed through the base set (report.redundant
+// and report.identifiable filled; report.rank > 0).
+void add_redundancies(const Eigen::MatrixXd& R, const Eigen::MatrixXd& R_base,
+                      const std::vector<bool>& has_effect, const std::vector<std::string>& names,
+                      const IdentifiabilityOptions& options, IdentifiabilityReport& report) {
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> base_solver(R_base);
+  for (std::size_t f : report.redundant) {
+    if (!has_effect[f]) continue;
+    const Eigen::VectorXd target = R.col(static_cast<Eigen::Index>(f));
+    const Eigen::VectorXd c = base_solver.solve(target);
+    Redundancy red;
+    red.parameter = f;
+    red.residual = (R_base * c - target).norm();
+    std::vector<std::size_t> idx(report.rank);
+    std::iota(idx.begin(), idx.end(), std::size_t{0});
+    std::sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) {
+      return std::abs(c(static_cast<Eigen::Index>(a))) > std::abs(c(static_cast<Eigen::Index>(b)));
+    });
+    for (std::size_t k : idx) {
+      const double ck = c(static_cast<Eigen::Index>(k));
+      if (std::abs(ck) < options.involvement_threshold) break;
+      const std::size_t s = report.identifiable[k];
+      red.partners.push_back(s);
+      red.coefficients.push_back(ck * report.column_norms(static_cast<Eigen::Index>(f)) /
+                                 report.column_norms(static_cast<Eigen::Index>(s)));
+    }
+    if (red.partners.empty()) {
+      red.explanation = fmt::format(
+          "{} is a combination of many small contributions of other parameters with this "
+          "data; it is held at its nominal value",
+          names[f]);
+    } else {
+      red.explanation = fmt::format(
+          "{} moves the measurements the same way as {} with this data; they cannot be told "
+          "apart, so {} is held at its nominal value and only their combination is identified",
+          names[f], join_combination(names, red.partners, red.coefficients), names[f]);
+    }
+    report.redundancies.push_back(std::move(red));
+  }
+}
+
+// The weak directions among the identifiable parameters and the condition number (report.rank
+// > 0).
+void add_weak_directions(const Eigen::MatrixXd& R_base, const std::vector<std::string>& names,
+                         const IdentifiabilityOptions& options, IdentifiabilityReport& report) {
+  const std::size_t p = names.size();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(R_base, Eigen::ComputeFullV);
+  const Eigen::VectorXd& s = svd.singularValues();
+  const Eigen::Index last = std::min<Eigen::Index>(s.size(), R_base.cols()) - 1;
+  report.condition_number = s(last) > 0.0 ? s(0) / s(last) : INFINITY;
+  for (Eigen::Index i = 0; i <= last; ++i) {
+    const double rel = s(i) / s(0);
+    if (rel >= options.ill_conditioning_ratio) continue;
+    IllConditionedDirection dir;
+    dir.relative_singular_value = rel;
+    const Eigen::VectorXd v = svd.matrixV().col(i);
+    dir.direction.assign(p, 0.0);
+    for (std::size_t k = 0; k < report.rank; ++k)
+      dir.direction[report.identifiable[k]] = v(static_cast<Eigen::Index>(k));
+    std::vector<std::size_t> idx(report.rank);
+    std::iota(idx.begin(), idx.end(), std::size_t{0});
+    std::sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) {
+      return std::abs(v(static_cast<Eigen::Index>(a))) > std::abs(v(static_cast<Eigen::Index>(b)));
+    });
+    if (idx.empty()) continue;  // cannot happen (rank > 0); tells GCC's -Wnull-dereference
+    dir.first = report.identifiable[idx[0]];
+    dir.second = report.identifiable[idx.size() > 1 ? idx[1] : idx[0]];
+    std::string others;
+    for (std::size_t k = 2; k < idx.size(); ++k) {
+      const double vk = v(static_cast<Eigen::Index>(idx[k]));
+      if (std::abs(vk) < 0.2) break;
+      others += fmt::format(", {} ({:+.2f})", names[report.identifiable[idx[k]]], vk);
+    }
+    dir.explanation = fmt::format(
+        "{} and {} are barely separated by this data (relative singular value {:.2g}, "
+        "condition {:.3g}): they move the measurements almost the same way, so their estimates "
+        "are strongly correlated and sensitive to noise; add poses that separate them or fix "
+        "one (weak direction: {} ({:+.2f}), {} ({:+.2f}){})",
+        names[dir.first], names[dir.second], rel, 1.0 / rel, names[dir.first],
+        v(static_cast<Eigen::Index>(idx[0])), names[dir.second],
+        v(static_cast<Eigen::Index>(idx.size() > 1 ? idx[1] : idx[0])), others);
+    report.ill_conditioned.push_back(std::move(dir));
+  }
+}
+
 }  // namespace
 
 IdentifiabilityReport analyze_identifiability(const Eigen::MatrixXd& J,
@@ -196,85 +281,9 @@ IdentifiabilityReport analyze_identifiability(const Eigen::MatrixXd& J,
     R_base.col(static_cast<Eigen::Index>(k)) =
         R.col(static_cast<Eigen::Index>(report.identifiable[k]));
 
-  // Redundant parameters expressed through the base set.
   if (report.rank > 0) {
-    const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> base_solver(R_base);
-    for (std::size_t f : report.redundant) {
-      if (!has_effect[f]) continue;
-      const Eigen::VectorXd target = R.col(static_cast<Eigen::Index>(f));
-      const Eigen::VectorXd c = base_solver.solve(target);
-      Redundancy red;
-      red.parameter = f;
-      red.residual = (R_base * c - target).norm();
-      std::vector<std::size_t> idx(report.rank);
-      std::iota(idx.begin(), idx.end(), std::size_t{0});
-      std::sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) {
-        return std::abs(c(static_cast<Eigen::Index>(a))) >
-               std::abs(c(static_cast<Eigen::Index>(b)));
-      });
-      for (std::size_t k : idx) {
-        const double ck = c(static_cast<Eigen::Index>(k));
-        if (std::abs(ck) < options.involvement_threshold) break;
-        const std::size_t s = report.identifiable[k];
-        red.partners.push_back(s);
-        red.coefficients.push_back(ck * report.column_norms(static_cast<Eigen::Index>(f)) /
-                                   report.column_norms(static_cast<Eigen::Index>(s)));
-      }
-      if (red.partners.empty()) {
-        red.explanation = fmt::format(
-            "{} is a combination of many small contributions of other parameters with this "
-            "data; it is held at its nominal value",
-            names[f]);
-      } else {
-        red.explanation = fmt::format(
-            "{} moves the measurements the same way as {} with this data; they cannot be told "
-            "apart, so {} is held at its nominal value and only their combination is identified",
-            names[f], join_combination(names, red.partners, red.coefficients), names[f]);
-      }
-      report.redundancies.push_back(std::move(red));
-    }
-  }
-
-  // Weak directions among the identifiable parameters.
-  if (report.rank > 0) {
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(R_base, Eigen::ComputeFullV);
-    const Eigen::VectorXd& s = svd.singularValues();
-    const Eigen::Index last = std::min<Eigen::Index>(s.size(), R_base.cols()) - 1;
-    report.condition_number = s(last) > 0.0 ? s(0) / s(last) : INFINITY;
-    for (Eigen::Index i = 0; i <= last; ++i) {
-      const double rel = s(i) / s(0);
-      if (rel >= options.ill_conditioning_ratio) continue;
-      IllConditionedDirection dir;
-      dir.relative_singular_value = rel;
-      const Eigen::VectorXd v = svd.matrixV().col(i);
-      dir.direction.assign(p, 0.0);
-      for (std::size_t k = 0; k < report.rank; ++k)
-        dir.direction[report.identifiable[k]] = v(static_cast<Eigen::Index>(k));
-      std::vector<std::size_t> idx(report.rank);
-      std::iota(idx.begin(), idx.end(), std::size_t{0});
-      std::sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) {
-        return std::abs(v(static_cast<Eigen::Index>(a))) >
-               std::abs(v(static_cast<Eigen::Index>(b)));
-      });
-      if (idx.empty()) continue;  // cannot happen (rank > 0); tells GCC's -Wnull-dereference
-      dir.first = report.identifiable[idx[0]];
-      dir.second = report.identifiable[idx.size() > 1 ? idx[1] : idx[0]];
-      std::string others;
-      for (std::size_t k = 2; k < idx.size(); ++k) {
-        const double vk = v(static_cast<Eigen::Index>(idx[k]));
-        if (std::abs(vk) < 0.2) break;
-        others += fmt::format(", {} ({:+.2f})", names[report.identifiable[idx[k]]], vk);
-      }
-      dir.explanation = fmt::format(
-          "{} and {} are barely separated by this data (relative singular value {:.2g}, "
-          "condition {:.3g}): they move the measurements almost the same way, so their estimates "
-          "are strongly correlated and sensitive to noise; add poses that separate them or fix "
-          "one (weak direction: {} ({:+.2f}), {} ({:+.2f}){})",
-          names[dir.first], names[dir.second], rel, 1.0 / rel, names[dir.first],
-          v(static_cast<Eigen::Index>(idx[0])), names[dir.second],
-          v(static_cast<Eigen::Index>(idx.size() > 1 ? idx[1] : idx[0])), others);
-      report.ill_conditioned.push_back(std::move(dir));
-    }
+    add_redundancies(R, R_base, has_effect, names, options, report);
+    add_weak_directions(R_base, names, options, report);
   }
 
   report.messages.push_back(fmt::format(

@@ -123,6 +123,9 @@ IkResult solve_ik(const Mechanism& model, const Eigen::VectorXd& params, const T
   return IkSolver(model, params, options).solve(target, seed);
 }
 
+// Long on purpose: the start, the re-seeds and the design-branch check share one run (the
+// solver's workspace, the evaluator's poses and the last converged step's Jacobian, which the
+// conditioning reuses); apart, each would have to hand that state to the next.
 IkResult IkSolver::Impl::solve(const TaskTarget& target, const IkSeed& seed) {
   IkResult out;
   const auto na = static_cast<Eigen::Index>(model.actuated.size());

@@ -100,44 +100,105 @@ struct CollisionScene::Impl {
   }
 };
 
+namespace {
+
+// An obstacle of the cell as an FCL geometry at its pose, with its world bounding box.
+ObstacleGeometry obstacle_geometry(const Obstacle& ob) {
+  ObstacleGeometry g;
+  g.name = ob.name;
+  switch (ob.kind) {
+    case ObstacleKind::kBox:
+      g.geometry = std::make_shared<fcl::Boxd>(ob.size.x(), ob.size.y(), ob.size.z());
+      break;
+    case ObstacleKind::kCylinder:
+      g.geometry = std::make_shared<fcl::Cylinderd>(ob.radius, ob.length);
+      break;
+    case ObstacleKind::kSphere:
+      g.geometry = std::make_shared<fcl::Sphered>(ob.radius);
+      break;
+    case ObstacleKind::kMesh: {
+      auto mesh = std::make_shared<fcl::BVHModel<fcl::OBBRSSd>>();
+      std::vector<fcl::Triangle> tris;
+      tris.reserve(ob.triangles.size());
+      for (const Eigen::Vector3i& t : ob.triangles)
+        tris.emplace_back(static_cast<std::size_t>(t.x()), static_cast<std::size_t>(t.y()),
+                          static_cast<std::size_t>(t.z()));
+      mesh->beginModel();
+      mesh->addSubModel(ob.vertices, tris);
+      mesh->endModel();
+      g.geometry = mesh;
+      break;
+    }
+  }
+  g.geometry->computeLocalAABB();
+  g.pose = ob.world_T_obstacle;
+  world_aabb(*g.geometry, g.pose, g.aabb_min, g.aabb_max);
+  return g;
+}
+
+// The pairs of link shapes checked against each other: all but those joined through bodies
+// without a shape of their own.
+std::vector<std::pair<int, int>> self_collision_pairs(const calib::Mechanism& model,
+                                                      const std::vector<LinkShape>& links) {
+  std::vector<std::pair<int, int>> pairs;
+  const std::size_t nb = model.bodies.size();
+  std::vector<std::vector<int>> graph(nb);
+  for (std::size_t bi = 0; bi < nb; ++bi) {
+    const int p = model.bodies[bi].parent;
+    // A coordinate slide joins no parts: the linear Delta's effector is not held by its bed
+    // through eff_x/eff_y/eff_z, and must not pass through it.
+    if (p >= 0 && !is_coordinate_slide(model, bi)) {
+      graph[bi].push_back(p);
+      graph[static_cast<std::size_t>(p)].push_back(static_cast<int>(bi));
+    }
+  }
+  for (const calib::Closure& c : model.closures) {
+    graph[static_cast<std::size_t>(c.body_a)].push_back(c.body_b);
+    graph[static_cast<std::size_t>(c.body_b)].push_back(c.body_a);
+  }
+  std::vector<bool> carries(nb, false);
+  for (const LinkShape& s : links)
+    for (const int a : s.anchors) carries[static_cast<std::size_t>(a)] = true;
+  // reach[b] = bodies with geometry reachable from b through bodies without geometry.
+  std::vector<std::set<int>> reach(nb);
+  for (std::size_t start = 0; start < nb; ++start) {
+    if (!carries[start]) continue;
+    std::vector<bool> seen(nb, false);
+    std::queue<int> q;
+    q.push(static_cast<int>(start));
+    seen[start] = true;
+    while (!q.empty()) {
+      const int u = q.front();
+      q.pop();
+      reach[start].insert(u);
+      if (u != static_cast<int>(start) && carries[static_cast<std::size_t>(u)]) continue;
+      for (const int v : graph[static_cast<std::size_t>(u)])
+        if (!seen[static_cast<std::size_t>(v)]) {
+          seen[static_cast<std::size_t>(v)] = true;
+          q.push(v);
+        }
+    }
+  }
+  for (std::size_t i = 0; i < links.size(); ++i)
+    for (std::size_t j = i + 1; j < links.size(); ++j) {
+      bool joined = false;
+      for (const int a : links[i].anchors)
+        for (const int b : links[j].anchors)
+          joined = joined || reach[static_cast<std::size_t>(a)].count(b) > 0;
+      if (!joined) pairs.emplace_back(static_cast<int>(i), static_cast<int>(j));
+    }
+  return pairs;
+}
+
+}  // namespace
+
 CollisionScene::CollisionScene(const calib::Mechanism& model, const Cell& cell,
                                const CollisionOptions& options)
     : impl_(std::make_unique<Impl>()) {
   Impl& I = *impl_;
   I.options = options;
   // Obstacles.
-  for (const Obstacle& ob : cell.obstacles) {
-    ObstacleGeometry g;
-    g.name = ob.name;
-    switch (ob.kind) {
-      case ObstacleKind::kBox:
-        g.geometry = std::make_shared<fcl::Boxd>(ob.size.x(), ob.size.y(), ob.size.z());
-        break;
-      case ObstacleKind::kCylinder:
-        g.geometry = std::make_shared<fcl::Cylinderd>(ob.radius, ob.length);
-        break;
-      case ObstacleKind::kSphere:
-        g.geometry = std::make_shared<fcl::Sphered>(ob.radius);
-        break;
-      case ObstacleKind::kMesh: {
-        auto mesh = std::make_shared<fcl::BVHModel<fcl::OBBRSSd>>();
-        std::vector<fcl::Triangle> tris;
-        tris.reserve(ob.triangles.size());
-        for (const Eigen::Vector3i& t : ob.triangles)
-          tris.emplace_back(static_cast<std::size_t>(t.x()), static_cast<std::size_t>(t.y()),
-                            static_cast<std::size_t>(t.z()));
-        mesh->beginModel();
-        mesh->addSubModel(ob.vertices, tris);
-        mesh->endModel();
-        g.geometry = mesh;
-        break;
-      }
-    }
-    g.geometry->computeLocalAABB();
-    g.pose = ob.world_T_obstacle;
-    world_aabb(*g.geometry, g.pose, g.aabb_min, g.aabb_max);
-    I.obstacles.push_back(std::move(g));
-  }
+  for (const Obstacle& ob : cell.obstacles) I.obstacles.push_back(obstacle_geometry(ob));
 
   // Robot link shapes.
   std::vector<bool> has_file_shape(model.bodies.size(), false);
@@ -215,52 +276,7 @@ CollisionScene::CollisionScene(const calib::Mechanism& model, const Cell& cell,
   }
 
   // Self-collision pairs: exempt shapes joined through shapeless bodies.
-  const std::size_t nb = model.bodies.size();
-  std::vector<std::vector<int>> graph(nb);
-  for (std::size_t bi = 0; bi < nb; ++bi) {
-    const int p = model.bodies[bi].parent;
-    // A coordinate slide joins no parts: the linear Delta's effector is not held by its bed
-    // through eff_x/eff_y/eff_z, and must not pass through it.
-    if (p >= 0 && !is_coordinate_slide(model, bi)) {
-      graph[bi].push_back(p);
-      graph[static_cast<std::size_t>(p)].push_back(static_cast<int>(bi));
-    }
-  }
-  for (const calib::Closure& c : model.closures) {
-    graph[static_cast<std::size_t>(c.body_a)].push_back(c.body_b);
-    graph[static_cast<std::size_t>(c.body_b)].push_back(c.body_a);
-  }
-  std::vector<bool> carries(nb, false);
-  for (const LinkShape& s : I.links)
-    for (const int a : s.anchors) carries[static_cast<std::size_t>(a)] = true;
-  // reach[b] = bodies with geometry reachable from b through bodies without geometry.
-  std::vector<std::set<int>> reach(nb);
-  for (std::size_t start = 0; start < nb; ++start) {
-    if (!carries[start]) continue;
-    std::vector<bool> seen(nb, false);
-    std::queue<int> q;
-    q.push(static_cast<int>(start));
-    seen[start] = true;
-    while (!q.empty()) {
-      const int u = q.front();
-      q.pop();
-      reach[start].insert(u);
-      if (u != static_cast<int>(start) && carries[static_cast<std::size_t>(u)]) continue;
-      for (const int v : graph[static_cast<std::size_t>(u)])
-        if (!seen[static_cast<std::size_t>(v)]) {
-          seen[static_cast<std::size_t>(v)] = true;
-          q.push(v);
-        }
-    }
-  }
-  for (std::size_t i = 0; i < I.links.size(); ++i)
-    for (std::size_t j = i + 1; j < I.links.size(); ++j) {
-      bool joined = false;
-      for (const int a : I.links[i].anchors)
-        for (const int b : I.links[j].anchors)
-          joined = joined || reach[static_cast<std::size_t>(a)].count(b) > 0;
-      if (!joined) I.self_pairs.emplace_back(static_cast<int>(i), static_cast<int>(j));
-    }
+  I.self_pairs = self_collision_pairs(model, I.links);
 }
 
 CollisionScene::~CollisionScene() = default;

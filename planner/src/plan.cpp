@@ -137,6 +137,56 @@ std::string check_cell(const calib::Mechanism& model, const Eigen::VectorXd& par
   return err.str();
 }
 
+namespace {
+
+// Drops from `tour` the poses no free straight motion reaches at the safety guard's step (a
+// near-touch between two of the planner's coarser samples), saying why in its problems.
+void recheck_at_guard_step(const FeasibilityChecker& checker,
+                           const std::vector<Eigen::VectorXd>& chosen, const PlanOptions& options,
+                           Tour& tour) {
+  Eigen::VectorXd from = options.start;
+  std::vector<std::size_t> order;
+  for (const std::size_t k : tour.order) {
+    std::string why;
+    if (from.size() == 0 || checker.segment_free(from, chosen[k], options.guard_step, &why)) {
+      order.push_back(k);
+      from = chosen[k];
+    } else {
+      tour.complete = false;
+      tour.problems.push_back("pose " + std::to_string(k) +
+                              " cannot be reached by a free straight motion from the "
+                              "tour at the safety guard's step (" +
+                              why + ")");
+    }
+  }
+  tour.order = std::move(order);
+}
+
+// The poses already measured (options.measured) into res.measured; those that assemble on the
+// intended mode also into `readings`, their indices in `measured_idx`.
+void add_measured_poses(const FeasibilityChecker& checker, const PlanOptions& options,
+                        PlanResult& res, std::vector<Eigen::VectorXd>& readings,
+                        std::vector<std::size_t>& measured_idx) {
+  for (std::size_t k = 0; k < options.measured.size(); ++k) {
+    Candidate c = checker.evaluate(options.measured[k]);
+    PlannedPose p;
+    p.id = "measured" + std::to_string(k + 1);
+    p.readings = options.measured[k];
+    p.candidate = c;
+    res.measured.push_back(p);
+    const ReachResult r = checker.reach().reach_check(options.measured[k]);
+    if (!r.ok()) {
+      res.warnings.push_back(p.id + " cannot be assembled on the intended mode (" +
+                             std::string(to_string(r.verdict)) + "); ignored for the selection");
+      continue;
+    }
+    measured_idx.push_back(readings.size());
+    readings.push_back(options.measured[k]);
+  }
+}
+
+}  // namespace
+
 PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorXd& params,
                              const Cell& cell, const PlanOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -167,22 +217,7 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
   // Sequential mode: the measured poses join the pool (first) so the selection knows them.
   std::vector<Eigen::VectorXd> readings;
   std::vector<std::size_t> measured_idx;
-  for (std::size_t k = 0; k < options.measured.size(); ++k) {
-    Candidate c = checker.evaluate(options.measured[k]);
-    PlannedPose p;
-    p.id = "measured" + std::to_string(k + 1);
-    p.readings = options.measured[k];
-    p.candidate = c;
-    res.measured.push_back(p);
-    const ReachResult r = checker.reach().reach_check(options.measured[k]);
-    if (!r.ok()) {
-      res.warnings.push_back(p.id + " cannot be assembled on the intended mode (" +
-                             std::string(to_string(r.verdict)) + "); ignored for the selection");
-      continue;
-    }
-    measured_idx.push_back(readings.size());
-    readings.push_back(options.measured[k]);
-  }
+  add_measured_poses(checker, options, res, readings, measured_idx);
   const std::size_t offset = readings.size();
   const auto L_guess = static_cast<std::size_t>(6);
   std::vector<Eigen::VectorXd> chosen;
@@ -238,24 +273,8 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
         options.start);
     // The tour's own motions at the guard's step: a near-touch between two coarse samples
     // (a carriage 20 mm apart) is not joined either.
-    if (res.tour.complete && options.guard_step > 0.0 && options.guard_step < step) {
-      Eigen::VectorXd from = options.start;
-      std::vector<std::size_t> order;
-      for (const std::size_t k : res.tour.order) {
-        std::string why;
-        if (from.size() == 0 || checker.segment_free(from, chosen[k], options.guard_step, &why)) {
-          order.push_back(k);
-          from = chosen[k];
-        } else {
-          res.tour.complete = false;
-          res.tour.problems.push_back("pose " + std::to_string(k) +
-                                      " cannot be reached by a free straight motion from the "
-                                      "tour at the safety guard's step (" +
-                                      why + ")");
-        }
-      }
-      res.tour.order = std::move(order);
-    }
+    if (res.tour.complete && options.guard_step > 0.0 && options.guard_step < step)
+      recheck_at_guard_step(checker, chosen, options, res.tour);
     if (res.tour.complete || round == 2) {
       for (const std::string& p : res.tour.problems) res.warnings.push_back(p);
       break;

@@ -235,6 +235,75 @@ std::vector<double> task_changes(const ObservabilityModel& model, const DesignSt
   return out;
 }
 
+// An exchange of the selection's poses (DETMAX) for the task index: the outsider that lowers
+// the predicted position variance most in, the member whose removal costs least out, until the
+// newcomer is the least useful. Never removes the already-measured poses.
+void exchange_for_task(const ObservabilityModel& model, DesignState& st, const Eigen::MatrixXd& W,
+                       int limit, const std::vector<std::size_t>& measured, Selection& sel) {
+  const std::size_t n = model.poses();
+  auto removable = [&](std::size_t i) {
+    return std::find(measured.begin(), measured.end(), i) == measured.end();
+  };
+  for (int it = 0; it < limit; ++it) {
+    const std::vector<double> gain = task_changes(model, st, W, +1.0);
+    std::size_t add = n;
+    double best = -std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < n; ++i)
+      if (!st.in(i) && gain[i] > best) {
+        best = gain[i];
+        add = i;
+      }
+    if (add >= n) break;
+    st.add(add);
+    const std::vector<double> cost = task_changes(model, st, W, -1.0);
+    std::size_t drop = add;
+    double least = cost[add];
+    for (const std::size_t i : sel.chosen)
+      if (removable(i) && cost[i] < least - 1e-12 * std::abs(least)) {
+        least = cost[i];
+        drop = i;
+      }
+    st.remove(drop);
+    if (drop == add) break;  // the newcomer is the least useful: converged
+    std::replace(sel.chosen.begin(), sel.chosen.end(), drop, add);
+    ++sel.exchanges;
+    if (sel.exchanges % 20 == 0) st.refresh();
+  }
+}
+
+// The same exchange for D-optimality: the outsider of largest gain in, the member of least loss
+// out.
+void exchange_d_optimal(DesignState& st, int limit, const std::vector<std::size_t>& measured,
+                        Selection& sel) {
+  auto removable = [&](std::size_t i) {
+    return std::find(measured.begin(), measured.end(), i) == measured.end();
+  };
+  for (int it = 0; it < limit; ++it) {
+    const std::vector<std::size_t> top = best_outsiders(st, 1);
+    if (top.empty()) break;
+    const std::size_t add = top[0];
+    st.add(add);
+    std::size_t drop = add;
+    double least = std::numeric_limits<double>::infinity();
+    for (const std::size_t i : sel.chosen) {
+      if (!removable(i)) continue;
+      const double l = st.loss(i);
+      if (l < least) {
+        least = l;
+        drop = i;
+      }
+    }
+    if (st.loss(add) <= least + 1e-12) {  // the newcomer is the least useful: converged
+      st.remove(add);
+      break;
+    }
+    st.remove(drop);
+    std::replace(sel.chosen.begin(), sel.chosen.end(), drop, add);
+    ++sel.exchanges;
+    if (sel.exchanges % 20 == 0) st.refresh();
+  }
+}
+
 }  // namespace
 
 ObservabilityModel build_observability_model(const calib::MechanismPredictor& predictor,
@@ -406,56 +475,9 @@ Selection select_poses(const ObservabilityModel& model, const SelectionOptions& 
       return std::find(measured.begin(), measured.end(), i) == measured.end();
     };
     if (task) {
-      for (int it = 0; it < limit; ++it) {
-        const std::vector<double> gain = task_changes(model, st, W, +1.0);
-        std::size_t add = n;
-        double best = -std::numeric_limits<double>::infinity();
-        for (std::size_t i = 0; i < n; ++i)
-          if (!st.in(i) && gain[i] > best) {
-            best = gain[i];
-            add = i;
-          }
-        if (add >= n) break;
-        st.add(add);
-        const std::vector<double> cost = task_changes(model, st, W, -1.0);
-        std::size_t drop = add;
-        double least = cost[add];
-        for (const std::size_t i : sel.chosen)
-          if (removable(i) && cost[i] < least - 1e-12 * std::abs(least)) {
-            least = cost[i];
-            drop = i;
-          }
-        st.remove(drop);
-        if (drop == add) break;  // the newcomer is the least useful: converged
-        std::replace(sel.chosen.begin(), sel.chosen.end(), drop, add);
-        ++sel.exchanges;
-        if (sel.exchanges % 20 == 0) st.refresh();
-      }
+      exchange_for_task(model, st, W, limit, measured, sel);
     } else if (d_opt) {
-      for (int it = 0; it < limit; ++it) {
-        const std::vector<std::size_t> top = best_outsiders(st, 1);
-        if (top.empty()) break;
-        const std::size_t add = top[0];
-        st.add(add);
-        std::size_t drop = add;
-        double least = std::numeric_limits<double>::infinity();
-        for (const std::size_t i : sel.chosen) {
-          if (!removable(i)) continue;
-          const double l = st.loss(i);
-          if (l < least) {
-            least = l;
-            drop = i;
-          }
-        }
-        if (st.loss(add) <= least + 1e-12) {  // the newcomer is the least useful: converged
-          st.remove(add);
-          break;
-        }
-        st.remove(drop);
-        std::replace(sel.chosen.begin(), sel.chosen.end(), drop, add);
-        ++sel.exchanges;
-        if (sel.exchanges % 20 == 0) st.refresh();
-      }
+      exchange_d_optimal(st, limit, measured, sel);
     } else {
       const std::vector<std::size_t>& all = members;
       double current = index_value(st.normal(), all.size(), options.index);

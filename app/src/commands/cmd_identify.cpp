@@ -4,7 +4,6 @@
 #include "cli/cli_common.hpp"
 #include "cli/command_registry.hpp"
 #include "robocal/calib/bed_plane.hpp"
-#include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/measurement_advice.hpp"
@@ -17,10 +16,10 @@
 #include "robocal_version.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
+#include "stages/identify_setup.hpp"
 #include "stages/stages.hpp"
 
 #include <fmt/core.h>
-#include <fnmatch.h>
 
 #include <algorithm>
 #include <memory>
@@ -76,12 +75,6 @@ struct IdentifyOptions {
   bool bed_tilt = false;            // estimate the bed's slopes with the geometry (probe heights)
   bool accept_implausible = false;  // session mode: keep a result that fails the fit gate
 };
-
-bool matches(const std::string& name, const std::vector<std::string>& patterns) {
-  for (const auto& p : patterns)
-    if (fnmatch(p.c_str(), name.c_str(), 0) == 0) return true;
-  return false;
-}
 
 // Simulation target: a 3x3 grid of 4 cm pitch in the measured frame plus one corner 2 cm off
 // its plane (a non-coplanar target constrains the frame's orientation from every view).
@@ -201,6 +194,57 @@ nlohmann::json advice_json(const MeasurementAdvice& a) {
           {"text", a.text}};
 }
 
+// The cameras of pixel observations in the JSON report: reprojection errors before and after on
+// the fitted and held-out poses, and each camera's estimated pose (intrinsics where estimated).
+void add_cameras_json(const CameraRigPredictor& rig, const IdentificationResult& res,
+                      const Eigen::VectorXd& observed_nominal,
+                      const std::vector<PoseMeasurement>& fit,
+                      const std::vector<PoseMeasurement>& held, bool free_intrinsics,
+                      nlohmann::json& doc) {
+  auto pixels = [&](const std::vector<PoseMeasurement>& poses) {
+    nlohmann::json j;
+    const auto n = static_cast<Eigen::Index>(rig.parameter_count());
+    for (const auto& [key, params] :
+         {std::pair{"before", observed_nominal}, {"after", res.estimate.head(n).eval()}}) {
+      const auto e = pixel_errors(rig, params, poses);
+      j[key] = {{"observations", e.observations}, {"rms_px", e.rms_px}, {"max_px", e.max_px}};
+    }
+    return j;
+  };
+  doc["fit_pixels"] = pixels(fit);
+  if (!held.empty()) doc["heldout_pixels"] = pixels(held);
+  nlohmann::json cams = nlohmann::json::array();
+  for (int c = 0; c < rig.camera_count(); ++c) {
+    const Eigen::Isometry3d T = rig.world_T_camera(res.estimate, c);
+    const Eigen::AngleAxisd aa(T.linear());
+    const Eigen::Vector3d rv = aa.axis() * aa.angle();
+    nlohmann::json j = {
+        {"name", rig.cameras()[static_cast<std::size_t>(c)].name},
+        {"gauge", c == rig.options().gauge_camera},
+        {"position_m", {T.translation().x(), T.translation().y(), T.translation().z()}},
+        {"rotation_vector_rad", {rv.x(), rv.y(), rv.z()}}};
+    if (free_intrinsics) j["params"] = rig.camera_model(res.estimate, c).params;
+    cams.push_back(j);
+  }
+  doc["cameras"] = cams;
+}
+
+// The terminal summary: the result in words, the validation on the fitted and held-out poses,
+// the calibrated robot file written (if any) and what to measure next.
+std::string summary_words(const FramePredictor& pred, const Eigen::VectorXd& nominal,
+                          const IdentificationResult& res, const std::vector<PoseMeasurement>& fit,
+                          const std::vector<PoseMeasurement>& held,
+                          const std::string& calibrated_robot, const MeasurementAdvice& advice) {
+  std::string text = summary_text(res);
+  text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit), errors_of(fit));
+  if (!held.empty())
+    text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held),
+                            errors_of(held));
+  if (!calibrated_robot.empty())
+    text += fmt::format("calibrated robot file: {}\n", calibrated_robot);
+  return text + advice.text;
+}
+
 int run_identify(const IdentifyOptions& o) {
   if (o.robot.empty()) throw UsageError("--robot is required (or give a SESSION folder)");
   if (o.measurements.empty()) throw UsageError("--measurements is required (or --simulate)");
@@ -217,6 +261,20 @@ int run_identify(const IdentifyOptions& o) {
       throw InputError(fmt::format("{}: frame '{}' is not a body of {}", o.measurements, file.frame,
                                    model.name));
   }
+  // The problem as the session route builds it (stages/identify_setup.hpp): the base frame
+  // placed where the measured 6-D poses put it, the priors and parameters chosen.
+  IdentifyChoices choices;
+  choices.priors = o.priors;
+  choices.free_patterns = o.free_patterns;
+  choices.fix_patterns = o.fix_patterns;
+  choices.robust = o.robust;
+  choices.robust_scale = o.robust_scale;
+  choices.stated_noise = o.stated_noise;
+  choices.multi_start = o.multi_start;
+  choices.seed = o.seed;
+  const IdentifyProblem problem =
+      identify_problem(model, frame, model.nominal_parameters(), file.measurements, choices);
+  SolveOptions opt = problem.options;
   const MechanismPredictor robot_pred(model, frame);
   // Pixel observations: the cameras join the model (camera parameters after the robot's; the
   // first camera is the gauge). Otherwise the robot alone.
@@ -232,44 +290,13 @@ int run_identify(const IdentifyOptions& o) {
   }
   const FramePredictor& observed = rig ? static_cast<const FramePredictor&>(*rig) : robot_pred;
   const Eigen::VectorXd observed_nominal =
-      rig ? rig->initial_parameters(model.nominal_parameters()) : model.nominal_parameters();
+      rig ? rig->initial_parameters(problem.start) : problem.start;
   // --bed-tilt: the bed's two slopes join the unknowns, after everything else (bed_plane.hpp).
   const BedPlanePredictor bed(observed);
   const FramePredictor& pred = o.bed_tilt ? static_cast<const FramePredictor&>(bed) : observed;
   const Eigen::VectorXd nominal =
       o.bed_tilt ? bed.initial_parameters(observed_nominal) : observed_nominal;
 
-  SolveOptions opt = solve_options_from_model(model, o.priors);
-  if (!o.free_patterns.empty() || !o.fix_patterns.empty()) {
-    std::vector<std::size_t> candidates;
-    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
-      const std::string& n = model.parameters[i].name;
-      const bool free =
-          o.free_patterns.empty() ? model.parameters[i].free : matches(n, o.free_patterns);
-      if (free && !matches(n, o.fix_patterns)) candidates.push_back(i);
-    }
-    if (candidates.empty()) throw UsageError("--free/--fix leave no parameter to estimate");
-    opt.candidates = candidates;
-    if (o.priors) {
-      opt.prior_sigma.assign(model.parameters.size(), 0.0);
-      for (std::size_t i : candidates) opt.prior_sigma[i] = model.parameters[i].sigma;
-    }
-  }
-  if (o.robust == "huber")
-    opt.robust_loss = RobustLoss::kHuber;
-  else if (o.robust == "cauchy")
-    opt.robust_loss = RobustLoss::kCauchy;
-  else if (o.robust != "none")
-    throw UsageError("--robust must be none, huber or cauchy");
-  opt.robust_scale = o.robust_scale;
-  opt.keep_stated_noise = o.stated_noise;
-  opt.multi_start = o.multi_start;
-  opt.seed = o.seed;
-  if (o.multi_start > 0 && opt.prior_sigma.empty()) {
-    opt.start_sigma.assign(model.parameters.size(), 0.0);
-    for (std::size_t i = 0; i < model.parameters.size(); ++i)
-      opt.start_sigma[i] = model.parameters[i].sigma;
-  }
   if (rig) opt = rig->solve_options(opt);
   if (o.bed_tilt) opt = bed.solve_options(opt);
 
@@ -292,34 +319,7 @@ int run_identify(const IdentifyOptions& o) {
     doc["heldout_validation"] = to_json(validate(pred, nominal, res.estimate, held));
   if (o.kfold > 1)
     doc["kfold"] = to_json(k_fold_validation(pred, nominal, file.measurements, o.kfold, opt));
-  if (rig) {
-    auto pixels = [&](const std::vector<PoseMeasurement>& poses) {
-      nlohmann::json j;
-      const auto n = static_cast<Eigen::Index>(rig->parameter_count());
-      for (const auto& [key, params] :
-           {std::pair{"before", observed_nominal}, {"after", res.estimate.head(n).eval()}}) {
-        const auto e = pixel_errors(*rig, params, poses);
-        j[key] = {{"observations", e.observations}, {"rms_px", e.rms_px}, {"max_px", e.max_px}};
-      }
-      return j;
-    };
-    doc["fit_pixels"] = pixels(fit.poses);
-    if (!held.empty()) doc["heldout_pixels"] = pixels(held);
-    nlohmann::json cams = nlohmann::json::array();
-    for (int c = 0; c < rig->camera_count(); ++c) {
-      const Eigen::Isometry3d T = rig->world_T_camera(res.estimate, c);
-      const Eigen::AngleAxisd aa(T.linear());
-      const Eigen::Vector3d rv = aa.axis() * aa.angle();
-      nlohmann::json j = {
-          {"name", rig->cameras()[static_cast<std::size_t>(c)].name},
-          {"gauge", c == rig->options().gauge_camera},
-          {"position_m", {T.translation().x(), T.translation().y(), T.translation().z()}},
-          {"rotation_vector_rad", {rv.x(), rv.y(), rv.z()}}};
-      if (o.free_intrinsics) j["params"] = rig->camera_model(res.estimate, c).params;
-      cams.push_back(j);
-    }
-    doc["cameras"] = cams;
-  }
+  if (rig) add_cameras_json(*rig, res, observed_nominal, fit.poses, held, o.free_intrinsics, doc);
   if (o.bed_tilt) doc["bed"] = bed_json(res, bed);
   // Little data or nothing identifiable: what to measure next, and where.
   MeasurementAdvice advice;
@@ -367,13 +367,8 @@ int run_identify(const IdentifyOptions& o) {
                     res.predicted.position_rms_overall),
         fmt::format("Nominal model: {}.", robot_file)};
     // Camera parameters (after the robot's) are reported in the JSON, not in the robot file.
-    std::vector<std::size_t> robot_estimated;
-    for (std::size_t i : res.estimated)
-      if (i < model.parameters.size()) robot_estimated.push_back(i);
-    const Eigen::VectorXd robot_values =
-        res.estimate.head(static_cast<Eigen::Index>(model.parameters.size()));
-    const std::string text = calibrated_robot_yaml(core::read_text_file(robot_file), model,
-                                                   robot_values, robot_estimated, provenance);
+    const std::string text =
+        calibrated_robot_text(robot_file, model, res.estimate, res.estimated, provenance);
     files.add(o.out_robot, text);
     doc["calibrated_robot"] = o.out_robot;
   }
@@ -382,20 +377,11 @@ int run_identify(const IdentifyOptions& o) {
   if (o.json == "-") write_json(doc, "-");
   if (res.status == IdentificationStatus::kInvalidInput)
     throw InputError(fmt::format("{}: {}", o.measurements, res.message));
-  if (!o.quiet) {
-    // The plain-words summary always (JSON only where asked); stderr when JSON takes stdout.
-    std::FILE* out = human_stream(o.json);
-    std::string text = summary_text(res);
-    text += validation_line("fit poses", validate(pred, nominal, res.estimate, fit.poses),
-                            errors_of(fit.poses));
-    if (!held.empty())
-      text += validation_line("held-out poses", validate(pred, nominal, res.estimate, held),
-                              errors_of(held));
-    if (doc.contains("calibrated_robot"))
-      text += fmt::format("calibrated robot file: {}\n", o.out_robot);
-    text += advice.text;
-    fmt::print(out, "{}", text);
-  }
+  // The plain-words summary always (JSON only where asked); stderr when JSON takes stdout.
+  if (!o.quiet)
+    fmt::print(human_stream(o.json), "{}",
+               summary_words(pred, nominal, res, fit.poses, held,
+                             doc.contains("calibrated_robot") ? o.out_robot : "", advice));
   if (res.status == IdentificationStatus::kNotIdentifiable) {
     fmt::print(stderr, "identification refused: {}\n{}", res.message, advice.text);
     return kExitFailure;

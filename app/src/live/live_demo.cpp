@@ -18,6 +18,7 @@
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
 #include "simcell/simulated_cell.hpp"
+#include "stages/cell_truth.hpp"
 #include "stages/stage_log.hpp"
 #include "summary/validation_summary.hpp"
 
@@ -103,7 +104,7 @@ void complete_session(const LiveCell& lc, const LiveDemoOptions& o, const fs::pa
                                   lc.cell.nominal[static_cast<Eigen::Index>(i)]);
   core::write_file_atomic(session / "session.yaml", session_to_yaml(s));
 
-  TruthFile truth = simulator_truth(lc, "robocal sim-controller (live demo), truth channel");
+  TruthFile truth = cell_truth(lc.cell, "robocal sim-controller (live demo), truth channel");
   truth.poses = truth_log.match(session);
   write_truth(ResultsLayout{session}, lc.cell.model, truth);
 }

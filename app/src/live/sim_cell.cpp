@@ -17,6 +17,7 @@
 #include "session/results_files.hpp"
 #include "session/results_layout.hpp"
 #include "session/session_robot.hpp"
+#include "stages/cell_truth.hpp"
 
 #include <fmt/core.h>
 #include <unistd.h>
@@ -64,7 +65,7 @@ void prepare_folder(const SimCellOptions& o, const std::string& robot_file,
 // recorded session's truth/ folder, `robocal validate` compares the calibration with them.
 void write_simulator_truth(const LiveCell& lc, const SimCellLayout& at) {
   const TruthFile truth =
-      simulator_truth(lc, "robocal sim-cell: the simulated controller's true robot");
+      cell_truth(lc.cell, "robocal sim-cell: the simulated controller's true robot");
   write_truth(ResultsLayout{at.simulator()}, lc.cell.model, truth);
 }
 

@@ -144,20 +144,6 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
   report["calibration_views"] = total;
 }
 
-TruthFile simulator_truth(const LiveCell& lc, const std::string& source) {
-  TruthFile truth;
-  truth.elastic_sag = lc.cell.elastic_sag;
-  truth.nominal = lc.cell.nominal;
-  truth.truth = lc.cell.truth;
-  for (std::size_t c = 0; c < lc.cell.cameras.size(); ++c)
-    truth.cameras.push_back(
-        {fmt::format("cam{}", c), lc.cell.cameras[c].model, lc.cell.cameras[c].camera_T_world});
-  truth.perturbation = {{"length_sigma_m", lc.cell.options.length_sigma},
-                        {"angle_sigma_rad", lc.cell.options.angle_sigma},
-                        {"source", source}};
-  return truth;
-}
-
 // The simulated robot's speed. 2 rad/s moves the library Delta's 0.6 m upper arms at 1.2 m/s;
 // carriages on rails (linear delta, Gantry-Tau) move at 0.5 m/s, the travel speed of a printer
 // firmware's delta configuration and well below the Delta's. (`robocal collect` on a real robot

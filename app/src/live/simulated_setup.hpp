@@ -40,10 +40,6 @@ void take_calibration_views(const LiveCell& lc, const std::vector<LiveCameraSpec
                             const std::filesystem::path& dir, const PipelineLog& log,
                             nlohmann::json& report);
 
-// The simulated cell's hidden truth as validate reads it (true robot, true cameras; no poses):
-// `source` says which simulator holds it.
-TruthFile simulator_truth(const LiveCell& lc, const std::string& source);
-
 // The simulated robot's speed (actuator units/s).
 double default_speed(const calib::Mechanism& model);
 

@@ -513,6 +513,18 @@ void write_report_page(const ResultsLayout& results, const std::string& html) {
 
 // ---- truth/truth.json -------------------------------------------------------------------------
 
+namespace {
+
+nlohmann::json perturbation_json(const TruthPerturbation& t) {
+  nlohmann::json j = {{"length_sigma_m", t.length_sigma_m}, {"angle_sigma_rad", t.angle_sigma_rad}};
+  if (t.actuator_noise) j["actuator_noise"] = *t.actuator_noise;
+  if (t.actuator_step) j["actuator_step"] = *t.actuator_step;
+  if (!t.source.empty()) j["source"] = t.source;
+  return j;
+}
+
+}  // namespace
+
 void write_truth(const ResultsLayout& results, const calib::Mechanism& model,
                  const TruthFile& truth) {
   nlohmann::json cams = nlohmann::json::array();
@@ -534,7 +546,7 @@ void write_truth(const ResultsLayout& results, const calib::Mechanism& model,
       {"poses", poses},
       {"nominal", params_json(model, truth.nominal)},
       {"truth", params_json(model, truth.truth)},
-      {"perturbation", truth.perturbation},
+      {"perturbation", perturbation_json(truth.perturbation)},
       {"elastic_sag",
        {{"per_m", truth.elastic_sag},
         {"model", "the frame sinks along -z of the world by per_m * (x^2 + y^2)"}}}};
@@ -555,7 +567,15 @@ TruthFile read_truth(const ResultsLayout& results, const calib::Mechanism& model
       out.poses.push_back({p.at("pose").get<std::string>(),
                            to_vector(p.at("true_actuators").get<std::vector<double>>()),
                            pose_from_json(p.at("world_T_board"), file)});
-    out.perturbation = doc.value("perturbation", nlohmann::json::object());
+    if (doc.contains("perturbation")) {
+      const nlohmann::json& j = doc.at("perturbation");
+      TruthPerturbation& t = out.perturbation;
+      t.length_sigma_m = j.value("length_sigma_m", 0.0);
+      t.angle_sigma_rad = j.value("angle_sigma_rad", 0.0);
+      if (j.contains("actuator_noise")) t.actuator_noise = j.at("actuator_noise").get<double>();
+      if (j.contains("actuator_step")) t.actuator_step = j.at("actuator_step").get<double>();
+      t.source = j.value("source", "");
+    }
     if (doc.contains("elastic_sag"))
       out.elastic_sag = doc.at("elastic_sag").at("per_m").get<double>();
   } catch (const nlohmann::json::exception& e) {

@@ -94,10 +94,12 @@ struct PixelObservationsHeader {
 void write_pixel_observations(const ResultsLayout& results, const PixelObservationsHeader& header,
                               const std::vector<PixelPoseRecord>& poses);
 
+// One robot pose: its actuator readings and, per rig camera, the corners detected in its image
+// (the camera-in-the-loop identification's input, stages/pixel_bridge.hpp).
 struct PixelPose {
   std::string pose;
   Eigen::VectorXd actuators;
-  std::vector<vision::CameraFrame> cameras;  // [rig camera]: frame 0's corners
+  std::vector<vision::CameraFrame> cameras;  // [rig camera]: frame 0's corners (empty: none)
 };
 // The used poses, frame 0 of each camera, in the order of `camera_names`.
 std::vector<PixelPose> read_used_pixel_poses(const ResultsLayout& results,
@@ -226,11 +228,21 @@ struct TruthPose {
   Eigen::VectorXd true_actuators;
   Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
 };
+// How the simulation drew its truth (informative: nothing computes with it).
+struct TruthPerturbation {
+  double length_sigma_m = 0.0;  // 1-σ tolerances the true robot was drawn with
+  double angle_sigma_rad = 0.0;
+  // The actuator readings' Gaussian noise and quantisation step (joint units) where the
+  // simulation made the readings itself; absent where a simulated controller reports them.
+  std::optional<double> actuator_noise;
+  std::optional<double> actuator_step;
+  std::string source;  // which simulator holds the truth
+};
 struct TruthFile {
   std::vector<TruthCamera> cameras;
   std::vector<TruthPose> poses;
   Eigen::VectorXd nominal, truth;  // robot parameters
-  nlohmann::json perturbation;     // the simulation's tolerances (informative)
+  TruthPerturbation perturbation;
   // Elastic deflection of the true robot (simcell's elastic_deflection), m per m^2; 0 in files
   // written before it existed (a rigid truth).
   double elastic_sag = 0.0;

@@ -7,13 +7,12 @@
 #include "session/results_transaction.hpp"
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
+#include "stages/identify_setup.hpp"
 #include "stages/measure_steps.hpp"
 #include "stages/pixel_bridge.hpp"
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
 
-#include "robocal/calib/base_frame.hpp"
-#include "robocal/calib/calibrated_robot_file.hpp"
 #include "robocal/calib/fit_gate.hpp"
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/identification_json.hpp"
@@ -54,9 +53,8 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
   std::vector<std::string> camera_names;
   camera_names.reserve(rig.size());
   for (const auto& c : rig) camera_names.push_back(c.name);
-  std::vector<PosePixels> poses;
-  for (auto& p : read_used_pixel_poses(results, camera_names, measure_first(s.dir)))
-    poses.push_back({p.pose, p.actuators, std::move(p.cameras)});
+  const std::vector<PixelPose> poses =
+      read_used_pixel_poses(results, camera_names, measure_first(s.dir));
   nlohmann::json report;
   // Every camera's corners count, partial views of the board included. (Until the detector
   // dropped the AprilTags cut by the image border, a camera needed half the board: on the
@@ -91,15 +89,6 @@ nlohmann::json identify_pixel_route(const Session& s, const calib::Mechanism& mo
     apply_fit_gate(r, calib::fit_gate_options(model.unmodelled_error, pixels_per_metre), gates,
                    "pixels", report, log);
   return report;
-}
-
-// Indices of the parameters whose value differs from the robot file's.
-std::vector<std::size_t> changed_from(const Eigen::VectorXd& values,
-                                      const Eigen::VectorXd& file_values) {
-  std::vector<std::size_t> changed;
-  for (Eigen::Index i = 0; i < values.size(); ++i)
-    if (values[i] != file_values[i]) changed.push_back(static_cast<std::size_t>(i));
-  return changed;
 }
 
 // The calibrated file is the measurement model: which frame stands in for what.
@@ -177,6 +166,72 @@ bool apply_nominal_gate(const calib::FramePredictor& predictor, const Eigen::Vec
   return false;
 }
 
+namespace {
+
+// The camera-in-the-loop route after the pose route's success (`route` pixel or both): its
+// report in report["pixel_route"] and, when it stands, its calibrated robot file.
+void add_pixel_route(const Session& s, const SessionRobot& robot,
+                     const calib::FramePredictor& predictor, const Eigen::VectorXd& start,
+                     const calib::SolveOptions& solve_options,
+                     const Eigen::VectorXd& pose_route_estimate,
+                     const std::map<std::string, Eigen::Isometry3d>& rig_T_target,
+                     const std::string& route, const ResultsLayout& results, const PipelineLog& log,
+                     const GateOptions& gates, nlohmann::json& report) {
+  const calib::Mechanism& model = robot.model;
+  report["pixel_route"] =
+      identify_pixel_route(s, model, predictor, start, solve_options, rig_T_target, log, gates);
+  // Not converged from the robot file: again from the pose route's estimate (priors still
+  // centred on the robot file). On the Gantry-Tau's camera array (demo --seed 2) the first
+  // wandered for 200 iterations to 7.8 px, the second converged in 14 to 0.045 px. Not the
+  // first start for every route: on the Delta (seed 1) it stops in a flat valley at a higher
+  // cost (18056 against 17904; 44.5 against 35.6 µm held-out).
+  if (report["pixel_route"]["result"].value("status", "") != "converged") {
+    say(log,
+        "  the camera-in-the-loop route did not converge from the robot file; again from the "
+        "pose route's estimate\n");
+    calib::SolveOptions again = solve_options;
+    again.start = pose_route_estimate;
+    nlohmann::json second =
+        identify_pixel_route(s, model, predictor, start, again, rig_T_target, log, gates);
+    if (second["result"].value("status", "") == "converged") {
+      second["restarted_from_pose_route"] = true;
+      report["pixel_route"] = std::move(second);
+    }
+  }
+  const auto& pr = report["pixel_route"];
+  // Asked for alone, the route's verdict is the identification's. Beside the pose route (the
+  // default, whose model is the export), it is a second opinion: when it cannot explain its
+  // pixels or fails, its model is not written and the pose route's stands, said so.
+  if (pr.value("status", "") != "ok" && route == "both") {
+    report["warnings"].push_back(
+        "camera-in-the-loop route " + pr.value("status", std::string("failed")) + ": " +
+        pr.value("message", std::string()) + "; its model is not written, the pose route's is");
+    say(log,
+        "  the camera-in-the-loop route's model is not written; the pose route's "
+        "({}) stands\n",
+        ResultsLayout::kCalibratedRobot);
+  } else if (pr.value("status", "") == "implausible") {
+    report["status"] = "implausible";
+    report["message"] = "camera-in-the-loop route: " + pr.value("message", "");
+  }
+  if (pr.value("status", "") == "ok") {
+    const Eigen::VectorXd pixel_estimate =
+        params_from_json(model, pr.at("estimate"), results.identification().string());
+    const std::string text = calibrated_robot_text(
+        robot.file, model, pixel_estimate, {},
+        {fmt::format("Calibrated by robocal {} identify (camera-in-the-loop, from corner "
+                     "pixels) from session {}.",
+                     kVersion, s.dir.filename().string()),
+         fmt::format("Reprojection RMS {:.3f} px.", pr.value("reprojection_rms_px", 0.0)),
+         "World frame: the session's rig frame (camera " + s.cameras[0].name + ").",
+         frames_note(s, model, robot.frame)});
+    core::write_file_atomic(results.calibrated_robot_pixels(), text);
+    report["pixel_route"]["calibrated_robot"] = ResultsLayout::kCalibratedRobotPixels;
+  }
+}
+
+}  // namespace
+
 nlohmann::json identify_session(const fs::path& dir, const std::string& robot_override,
                                 const PipelineLog& log, const std::string& route, bool priors,
                                 const GateOptions& gates) {
@@ -217,29 +272,20 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     return report;
   }
   // The robot's base frame in the camera world: first found by aligning the nominal model's
-  // predictions with the measurements (what hand-eye calibration alone gives).
-  const Eigen::VectorXd file_values = model.nominal_parameters();
-  Eigen::VectorXd start = robot.nominal;
-  calib::fit_base_frame(model, start, robot.frame, measurements.poses);
+  // predictions with the measurements (what hand-eye calibration alone gives); the priors and
+  // the base frame's freedom as for a measurements file (identify_setup.hpp).
+  IdentifyChoices choices;
+  choices.priors = priors;
+  choices.threads = log.threads;
+  const IdentifyProblem problem =
+      identify_problem(model, robot.frame, robot.nominal, measurements, choices);
+  const Eigen::VectorXd& start = problem.start;
+  const calib::SolveOptions& solve_options = problem.options;
   calib::MechanismPredictor predictor(model, robot.frame);
   const auto start_errors = calib::prediction_errors(predictor, start, measurements.poses);
   say(log, "  nominal model with the fitted base frame: {:.1f} µm RMS, {:.4f} deg RMS\n",
       start_errors.position_rms * 1e6, core::degrees(start_errors.orientation_rms));
   report["nominal_fit"] = calib::to_json(start_errors);
-  // The robot file's tolerances as priors (MAP). A cell's design (poses where the cameras see the
-  // board) leaves weak directions; along them a maximum-likelihood estimate can trade, e.g., a
-  // shoulder axis tilt of 1° against elbow offsets of 7 mm that fit the measured poses and are
-  // millimetres off elsewhere (demo seed 1: 234 µm RMS, 5.1 mm max on held-out poses; with the
-  // priors 46 µm, 0.26 mm). The base frame has no prior: world <-> robot is genuinely unknown
-  // in the cameras' world.
-  calib::SolveOptions solve_options = calib::solve_options_from_model(model, priors);
-  solve_options.threads = log.threads;
-  if (priors)
-    for (std::size_t i = 0; i < model.parameters.size(); ++i) {
-      const int body = model.parameters[i].body;
-      if (body >= 0 && model.bodies[static_cast<std::size_t>(body)].parent < 0)
-        solve_options.prior_sigma[i] = 0.0;
-    }
   say(log, "  priors: {}\n",
       priors ? "the robot file's tolerances (MAP), base frame free"
              : "none (maximum likelihood from the measurements alone)");
@@ -287,11 +333,8 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
         apply_nominal_gate(predictor, start, result, measurements.poses, "pose route", report, log);
   }
   if (usable) {
-    std::set<std::size_t> changed(result.estimated.begin(), result.estimated.end());
-    for (std::size_t i : changed_from(start, file_values)) changed.insert(i);
-    const std::string text = calib::calibrated_robot_yaml(
-        core::read_text_file(robot.file), model, result.estimate,
-        std::vector<std::size_t>(changed.begin(), changed.end()),
+    const std::string text = calibrated_robot_text(
+        robot.file, model, result.estimate, result.estimated,
         {fmt::format("Calibrated by robocal {} identify from session {} ({}).", kVersion,
                      dir.filename().string(), calib::to_string(result.status)),
          fmt::format("{} poses used, {} excluded; {} parameters estimated; fit residual RMS "
@@ -303,59 +346,9 @@ nlohmann::json identify_session(const fs::path& dir, const std::string& robot_ov
     core::write_file_atomic(results.calibrated_robot(), text);
     report["calibrated_robot"] = ResultsLayout::kCalibratedRobot;
   }
-  if (usable && route != "pose") {
-    report["pixel_route"] =
-        identify_pixel_route(s, model, predictor, start, solve_options, rig_T_target, log, gates);
-    // Not converged from the robot file: again from the pose route's estimate (priors still
-    // centred on the robot file). On the Gantry-Tau's camera array (demo --seed 2) the first
-    // wandered for 200 iterations to 7.8 px, the second converged in 14 to 0.045 px. Not the
-    // first start for every route: on the Delta (seed 1) it stops in a flat valley at a higher
-    // cost (18056 against 17904; 44.5 against 35.6 µm held-out).
-    if (report["pixel_route"]["result"].value("status", "") != "converged") {
-      say(log,
-          "  the camera-in-the-loop route did not converge from the robot file; again from the "
-          "pose route's estimate\n");
-      calib::SolveOptions again = solve_options;
-      again.start = result.estimate;
-      nlohmann::json second =
-          identify_pixel_route(s, model, predictor, start, again, rig_T_target, log, gates);
-      if (second["result"].value("status", "") == "converged") {
-        second["restarted_from_pose_route"] = true;
-        report["pixel_route"] = std::move(second);
-      }
-    }
-    const auto& pr = report["pixel_route"];
-    // Asked for alone, the route's verdict is the identification's. Beside the pose route (the
-    // default, whose model is the export), it is a second opinion: when it cannot explain its
-    // pixels or fails, its model is not written and the pose route's stands, said so.
-    if (pr.value("status", "") != "ok" && route == "both") {
-      report["warnings"].push_back(
-          "camera-in-the-loop route " + pr.value("status", std::string("failed")) + ": " +
-          pr.value("message", std::string()) + "; its model is not written, the pose route's is");
-      say(log,
-          "  the camera-in-the-loop route's model is not written; the pose route's "
-          "({}) stands\n",
-          ResultsLayout::kCalibratedRobot);
-    } else if (pr.value("status", "") == "implausible") {
-      report["status"] = "implausible";
-      report["message"] = "camera-in-the-loop route: " + pr.value("message", "");
-    }
-    if (pr.value("status", "") == "ok") {
-      const Eigen::VectorXd pixel_estimate =
-          params_from_json(model, pr.at("estimate"), results.identification().string());
-      const std::string text = calib::calibrated_robot_yaml(
-          core::read_text_file(robot.file), model, pixel_estimate,
-          changed_from(pixel_estimate, file_values),
-          {fmt::format("Calibrated by robocal {} identify (camera-in-the-loop, from corner "
-                       "pixels) from session {}.",
-                       kVersion, dir.filename().string()),
-           fmt::format("Reprojection RMS {:.3f} px.", pr.value("reprojection_rms_px", 0.0)),
-           "World frame: the session's rig frame (camera " + s.cameras[0].name + ").",
-           frames_note(s, model, robot.frame)});
-      core::write_file_atomic(results.calibrated_robot_pixels(), text);
-      report["pixel_route"]["calibrated_robot"] = ResultsLayout::kCalibratedRobotPixels;
-    }
-  }
+  if (usable && route != "pose")
+    add_pixel_route(s, robot, predictor, start, solve_options, result.estimate, rig_T_target, route,
+                    results, log, gates, report);
   // A solve that failed is no verdict on the data: the previous results stay.
   if (report["status"] == "failed") return report;
   write_identification(results, report);

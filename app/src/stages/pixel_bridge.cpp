@@ -78,7 +78,7 @@ CameraPixels camera_pixels(int camera, const vision::CameraFrame& frame,
 
 PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>& rig,
                                            const vision::BoardPoints& target,
-                                           const std::vector<PosePixels>& poses,
+                                           const std::vector<PixelPose>& poses,
                                            const PixelBridgeOptions& options) {
   if (rig.empty()) throw std::invalid_argument("pixel measurements need at least one camera");
   if (!(options.default_sigma_px > 0.0))
@@ -96,9 +96,9 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
   for (const auto& pose : poses) {
     if (pose.cameras.size() != rig.size())
       throw std::invalid_argument(fmt::format("pose {}: {} camera frames for a rig of {} cameras",
-                                              pose.id, pose.cameras.size(), rig.size()));
+                                              pose.pose, pose.cameras.size(), rig.size()));
     calib::PoseMeasurement m;
-    m.id = pose.id;
+    m.id = pose.pose;
     m.actuators = pose.actuators;
     for (std::size_t c = 0; c < rig.size(); ++c) {
       CameraPixels seen =
@@ -114,7 +114,7 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
                             seen.observations.end());
     }
     if (m.observations.empty()) {
-      out.skipped.push_back(fmt::format("{}: no camera saw at least {} target corners", pose.id,
+      out.skipped.push_back(fmt::format("{}: no camera saw at least {} target corners", pose.pose,
                                         options.min_corners_per_camera));
       continue;
     }
@@ -128,7 +128,7 @@ PixelRouteResult identify_from_pixels(const calib::FramePredictor& robot,
                                       const calib::SolveOptions& robot_options,
                                       const std::vector<vision::RigCamera>& rig,
                                       const vision::BoardPoints& target,
-                                      const std::vector<PosePixels>& poses,
+                                      const std::vector<PixelPose>& poses,
                                       const PixelBridgeOptions& options) {
   PixelRouteResult out;
   out.input = build_pixel_measurements(rig, target, poses, options);
@@ -144,11 +144,11 @@ PixelRouteResult identify_from_pixels(const calib::FramePredictor& robot,
 }
 
 double median_pixels_per_metre(const std::vector<vision::RigCamera>& rig,
-                               const std::vector<PosePixels>& poses,
+                               const std::vector<PixelPose>& poses,
                                const std::map<std::string, Eigen::Isometry3d>& rig_T_target) {
   std::vector<double> scales;
-  for (const PosePixels& pose : poses) {
-    const auto target = rig_T_target.find(pose.id);
+  for (const PixelPose& pose : poses) {
+    const auto target = rig_T_target.find(pose.pose);
     if (target == rig_T_target.end()) continue;
     for (std::size_t c = 0; c < pose.cameras.size() && c < rig.size(); ++c) {
       if (pose.cameras[c].corners.empty() || rig[c].model.params.size() < 2) continue;

@@ -3,6 +3,8 @@
 // pose, the corners each calibrated camera detected become calib pixel observations of the target
 // corners (given in the measured/tool frame), and the calibrated rig becomes the identification's
 // cameras (start poses; camera 0 = the gauge, so the world is the rig's frame).
+#include "session/results_files.hpp"
+
 #include "robocal/calib/identification.hpp"
 #include "robocal/calib/pixel_observations.hpp"
 #include "robocal/vision/observations.hpp"
@@ -16,12 +18,8 @@
 
 namespace robocal::app {
 
-// One robot pose: its actuator readings and, per rig camera, the corners detected in its image.
-struct PosePixels {
-  std::string id;
-  Eigen::VectorXd actuators;
-  std::vector<vision::CameraFrame> cameras;  // cameras[c] = what rig camera c saw (empty: none)
-};
+// One robot pose is a PixelPose (session/results_files.hpp): its actuator readings and, per rig
+// camera, the corners detected in its image (cameras[c] empty: camera c saw none).
 
 struct PixelBridgeOptions {
   double default_sigma_px = 0.1;   // corners whose detection carries no sigma
@@ -40,7 +38,7 @@ struct PixelMeasurements {
 // a pose does not have one frame per rig camera or the rig is empty/invalid.
 PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>& rig,
                                            const vision::BoardPoints& target,
-                                           const std::vector<PosePixels>& poses,
+                                           const std::vector<PixelPose>& poses,
                                            const PixelBridgeOptions& options = {});
 
 // How many pixels a metre at the board spans, as the cameras saw it: the median, over the poses
@@ -48,7 +46,7 @@ PixelMeasurements build_pixel_measurements(const std::vector<vision::RigCamera>&
 // (`rig_T_target` per pose id; poses without one are skipped). 0 when there is none. It turns
 // the robot's unmodelled error into pixels for the fit gate.
 double median_pixels_per_metre(const std::vector<vision::RigCamera>& rig,
-                               const std::vector<PosePixels>& poses,
+                               const std::vector<PixelPose>& poses,
                                const std::map<std::string, Eigen::Isometry3d>& rig_T_target);
 
 // The camera-in-the-loop route end to end: builds the pixel measurements, adds the rig's cameras
@@ -67,7 +65,7 @@ PixelRouteResult identify_from_pixels(const calib::FramePredictor& robot,
                                       const calib::SolveOptions& robot_options,
                                       const std::vector<vision::RigCamera>& rig,
                                       const vision::BoardPoints& target,
-                                      const std::vector<PosePixels>& poses,
+                                      const std::vector<PixelPose>& poses,
                                       const PixelBridgeOptions& options = {});
 
 }  // namespace robocal::app

@@ -6,6 +6,7 @@
 #include "session/session.hpp"
 #include "session/session_robot.hpp"
 #include "simcell/simulated_cell.hpp"
+#include "stages/cell_truth.hpp"
 #include "stages/stage_log.hpp"
 #include "stages/stages.hpp"
 
@@ -56,6 +57,38 @@ void render_shots(const SimulatedCell& cell, const std::vector<Shot>& shots,
   bar.finish(fmt::format("{} images", shots.size()));
 }
 
+// The session record of a simulated cell in `dir`, with its files written: the robot file as it
+// is (the manufacturer's; the designed board mount goes to session.yaml) and the two boards.
+Session start_session(const SimulatedCell& cell, const std::string& robot_file, const fs::path& dir,
+                      unsigned seed) {
+  Session s;
+  s.dir = dir;
+  s.software = std::string("robocal ") + kVersion;
+  s.created = utc_now();
+  s.source = "simulated";
+  s.seed = seed;
+  s.robot_name = cell.model.name;
+  s.measured_frame = cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame)).name;
+  s.actuators = static_cast<int>(cell.model.actuated.size());
+  for (std::size_t c = 0; c < cell.cameras.size(); ++c)
+    s.cameras.push_back(
+        {fmt::format("cam{}", c), cell.cameras[c].model.width, cell.cameras[c].model.height});
+
+  // The robot file as it is (the manufacturer's); the designed board mount goes to session.yaml.
+  const std::string original = core::read_text_file(robot_file);
+  for (std::size_t i = 0; i < cell.model.parameters.size(); ++i)
+    if (cell.model.parameters[i].body == cell.target_frame)
+      s.target_mount.emplace_back(cell.model.parameters[i].name,
+                                  cell.nominal[static_cast<Eigen::Index>(i)]);
+  core::write_file_atomic(s.path(s.robot_file), original, core::Overwrite::kRefuse);
+  core::write_file_atomic(s.path(s.ee_target), vision::target_to_yaml(cell.ee_board.spec),
+                          core::Overwrite::kRefuse);
+  core::write_file_atomic(s.path(s.calibration_target),
+                          vision::target_to_yaml(cell.calibration_board.spec),
+                          core::Overwrite::kRefuse);
+  return s;
+}
+
 }  // namespace
 
 nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log) {
@@ -85,31 +118,7 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   // The session is written into a staging folder beside --out that becomes --out in one step once
   // everything is written (core/staging.hpp): an unfinished simulation leaves nothing behind.
   core::StagedDirectory staging(o.out, core::StagedDirectory::Start::kEmpty);
-  Session s;
-  s.dir = staging.path();
-  s.software = std::string("robocal ") + kVersion;
-  s.created = utc_now();
-  s.source = "simulated";
-  s.seed = o.seed;
-  s.robot_name = cell.model.name;
-  s.measured_frame = cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame)).name;
-  s.actuators = static_cast<int>(cell.model.actuated.size());
-  for (std::size_t c = 0; c < cell.cameras.size(); ++c)
-    s.cameras.push_back(
-        {fmt::format("cam{}", c), cell.cameras[c].model.width, cell.cameras[c].model.height});
-
-  // The robot file as it is (the manufacturer's); the designed board mount goes to session.yaml.
-  const std::string original = core::read_text_file(robot_file);
-  for (std::size_t i = 0; i < cell.model.parameters.size(); ++i)
-    if (cell.model.parameters[i].body == cell.target_frame)
-      s.target_mount.emplace_back(cell.model.parameters[i].name,
-                                  cell.nominal[static_cast<Eigen::Index>(i)]);
-  core::write_file_atomic(s.path(s.robot_file), original, core::Overwrite::kRefuse);
-  core::write_file_atomic(s.path(s.ee_target), vision::target_to_yaml(cell.ee_board.spec),
-                          core::Overwrite::kRefuse);
-  core::write_file_atomic(s.path(s.calibration_target),
-                          vision::target_to_yaml(cell.calibration_board.spec),
-                          core::Overwrite::kRefuse);
+  const Session s = start_session(cell, robot_file, staging.path(), o.seed);
 
   // Intrinsic views per camera, rig views, robot poses.
   stage(log, "simulate: render calibration views");
@@ -190,8 +199,10 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
         "part of its cell: check its joint limits and lengths (`robocal kin check {}`)",
         robot_file, true_readings.size(), o.poses, seen_by, robot_file));
   shots.clear();
-  TruthFile truth;
-  truth.elastic_sag = cell.elastic_sag;
+  TruthFile truth = cell_truth(cell, "robocal simulate");
+  // The readings are made here (read_actuators), with the cell's noise and step.
+  truth.perturbation.actuator_noise = cell_options.actuator_noise;
+  truth.perturbation.actuator_step = cell_options.actuator_step;
   for (std::size_t i = 0; i < true_readings.size(); ++i) {
     PoseRecord record;
     record.name = fmt::format("pose_{:03d}", i);
@@ -208,15 +219,6 @@ nlohmann::json simulate_session(const SimulateOptions& o, const PipelineLog& log
   render_shots(cell, shots, "render pose images", log);
 
   // The hidden truth: read by validate only.
-  truth.nominal = cell.nominal;
-  truth.truth = cell.truth;
-  for (std::size_t c = 0; c < cell.cameras.size(); ++c)
-    truth.cameras.push_back(
-        {s.cameras[c].name, cell.cameras[c].model, cell.cameras[c].camera_T_world});
-  truth.perturbation = {{"length_sigma_m", cell_options.length_sigma},
-                        {"angle_sigma_rad", cell_options.angle_sigma},
-                        {"actuator_noise", cell_options.actuator_noise},
-                        {"actuator_step", cell_options.actuator_step}};
   write_truth(ResultsLayout{s.dir}, cell.model, truth);
   core::write_file_atomic(s.dir / "session.yaml", session_to_yaml(s), core::Overwrite::kRefuse);
   staging.commit();

@@ -72,10 +72,10 @@ Eigen::VectorXd pose_readings(double x, double y) {
 
 TEST(PixelBridge, ObservationsReproduceTheDetectionsAtTheTrueFramePose) {
   const RigAndTarget s;
-  std::vector<app::PosePixels> poses;
+  std::vector<app::PixelPose> poses;
   for (int k = 0; k < 3; ++k) {
     const auto q = pose_readings(0.05 * k - 0.1, 0.02 * k);
-    app::PosePixels p{"pose" + std::to_string(k), q, {s.seen(0, q, 9, 0.0), s.seen(1, q, 9, 0.3)}};
+    app::PixelPose p{"pose" + std::to_string(k), q, {s.seen(0, q, 9, 0.0), s.seen(1, q, 9, 0.3)}};
     p.cameras[0].corners.push_back({99, Eigen::Vector2d(10, 10), 0.1});  // not a target corner
     poses.push_back(p);
   }
@@ -115,7 +115,7 @@ TEST(PixelBridge, ObservationsReproduceTheDetectionsAtTheTrueFramePose) {
 TEST(PixelBridge, CamerasWithTooFewCornersAndEmptyPosesAreLeftOut) {
   const RigAndTarget s;
   const auto q = pose_readings(0.0, 0.0);
-  std::vector<app::PosePixels> poses = {
+  std::vector<app::PixelPose> poses = {
       {"few", q, {s.seen(0, q, 9, 0.1), s.seen(1, q, 3, 0.1)}},  // camera 1: 3 corners
       {"none", q, {vision::CameraFrame{}, s.seen(1, q, 2, 0.1)}}};
   const auto pm = app::build_pixel_measurements(s.rig, s.target, poses);

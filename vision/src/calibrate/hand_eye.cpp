@@ -398,6 +398,154 @@ double hand_eye_reprojection_rms(const CameraModel& camera, const BoardPoints& b
   return n > 0 ? std::sqrt(sq / n) : std::numeric_limits<double>::quiet_NaN();
 }
 
+namespace {
+
+// The closed form over the views of `start`; a view whose reported rotation disagrees with every
+// other view's (a pose file of another image) is set aside first, worst first, before it can bend
+// the closed form (marked in `reports`, removed from `start`).
+std::optional<ClosedForm> closed_form_without_outliers(Start& start, const HandEyeOptions& options,
+                                                       std::vector<HandEyeViewReport>& reports) {
+  auto fit = closed_form(start.M, start.C, options);
+  for (int round = 0;
+       fit &&
+       round<options.max_outlier_rounds&& static_cast<int>(start.views.size())> options.min_views;
+       ++round) {
+    const auto& score = fit->view_residual_deg;
+    const auto worst = static_cast<std::size_t>(
+        std::max_element(
+            score.begin(), score.end(),
+            [](double a, double b) { return std::isnan(b) ? false : std::isnan(a) || a < b; }) -
+        score.begin());
+    const double limit = std::max(3.0 * median_of(score), options.max_rotation_mismatch_deg);
+    if (!(score[worst] > limit)) break;
+    HandEyeViewReport& rep = reports[start.views[worst]];
+    rep.used = false;
+    rep.rejection = fmt::format(
+        "an outlier: its reported flange rotation disagrees with the board rotation the camera "
+        "sees by {:.2f} deg (median over its motions; the others {:.2f} deg): a pose file of "
+        "another image, or a board that moved",
+        score[worst], median_of(score));
+    const auto at = static_cast<std::ptrdiff_t>(worst);
+    start.views.erase(start.views.begin() + at);
+    start.M.erase(start.M.begin() + at);
+    start.C.erase(start.C.begin() + at);
+    fit = closed_form(start.M, start.C, options);
+  }
+  return fit;
+}
+
+// Why rotations that disagree by `mismatch_deg` are refused, naming the reading of the same
+// data that fits where one does.
+std::string mismatch_refusal(const CameraModel& camera, const BoardPoints& board,
+                             const std::vector<HandEyeView>& views, const Start& start,
+                             double mismatch_deg, const HandEyeOptions& options) {
+  // Which reading of the same data fits: the other mounting, or quaternions written w first.
+  // Rotations alone cannot tell these two apart (a quaternion read in another order, taken as
+  // the other mounting's inverse, differs from the truth by one constant rotation, which X
+  // absorbs); the closed form's reprojection can, since the positions were not reordered.
+  struct Reading {
+    double rotation_deg = std::numeric_limits<double>::infinity();
+    double rms_px = std::numeric_limits<double>::infinity();
+  };
+  auto reading = [&](HandEyeMount mount, bool w_first) {
+    std::vector<HandEyeView> reread;
+    std::vector<Eigen::Isometry3d> M;
+    for (std::size_t i : start.views) {
+      reread.push_back(views[i]);
+      if (w_first) reread.back().base_T_flange = read_w_first(views[i].base_T_flange);
+      M.push_back(reported(reread.back(), mount));
+    }
+    Reading r;
+    const auto other = closed_form(M, start.C, options);
+    if (!other) return r;
+    r.rotation_deg = other->rotation_residual_deg;
+    r.rms_px = hand_eye_reprojection_rms(camera, board, reread, mount,
+                                         mean_y(M, start.C, other->X).inverse(), other->X);
+    if (std::isnan(r.rms_px)) r.rms_px = std::numeric_limits<double>::infinity();
+    return r;
+  };
+  const HandEyeMount flipped = options.mount == HandEyeMount::kFixedCamera
+                                   ? HandEyeMount::kCameraOnTool
+                                   : HandEyeMount::kFixedCamera;
+  const Reading other_mount = reading(flipped, false);
+  const Reading w_first = reading(options.mount, true);
+  const bool other_fits = other_mount.rotation_deg <= options.max_rotation_mismatch_deg;
+  const bool w_first_fits = w_first.rotation_deg <= options.max_rotation_mismatch_deg;
+  const double other_deg = other_fits && (!w_first_fits || other_mount.rms_px <= w_first.rms_px)
+                               ? other_mount.rotation_deg
+                               : std::numeric_limits<double>::infinity();
+  const double w_first_deg = w_first_fits && !std::isfinite(other_deg)
+                                 ? w_first.rotation_deg
+                                 : std::numeric_limits<double>::infinity();
+  return mismatch_reason(mismatch_deg, other_deg, w_first_deg, options.mount, options);
+}
+
+// The bundle adjustment with outlier views excluded one per round, worst first (robust loss;
+// marked in `use` and `reports`).
+void adjust_without_outliers(const CameraModel& camera, const BoardPoints& board,
+                             const std::vector<HandEyeView>& views, const HandEyeOptions& options,
+                             Solve& s, std::vector<bool>& use,
+                             std::vector<HandEyeViewReport>& reports) {
+  for (int round = 0; round <= options.max_outlier_rounds; ++round) {
+    ceres::Problem problem;
+    adjust(camera, board, views, use, options, true, s, problem);
+    CameraModel now = camera;
+    now.params = s.intrinsics;
+    std::vector<double> rms;
+    std::size_t worst = views.size();
+    double worst_rms = 0.0;
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      if (!use[i]) continue;
+      const double r =
+          view_rms(now, board, views[i], options.mount, pose_of(s.y.data()), pose_of(s.x.data()));
+      rms.push_back(std::isnan(r) ? std::numeric_limits<double>::infinity() : r);
+      if (!(r <= worst_rms)) {
+        worst_rms = std::isnan(r) ? std::numeric_limits<double>::infinity() : r;
+        worst = i;
+      }
+    }
+    const double limit =
+        std::max(options.outlier_view_factor * median_of(rms), options.min_outlier_view_px);
+    if (worst == views.size() || worst_rms <= limit || round == options.max_outlier_rounds) break;
+    use[worst] = false;
+    reports[worst].used = false;
+    reports[worst].rejection = fmt::format(
+        "an outlier: {:.2f} px reprojection RMS, over {:.1f} times the median view's (the flange "
+        "pose or the detection of this image is wrong)",
+        worst_rms, worst_rms / median_of(rms));
+  }
+}
+
+// The covariances of the estimate: (JᵀJ)⁻¹ of the least-squares problem scaled by the residual
+// variance. False when they cannot be computed (degenerate views).
+bool add_covariance(ceres::Problem& problem, Solve& s, const HandEyeOptions& options,
+                    HandEyeResult& out) {
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;
+  ceres::Covariance covariance(co);
+  std::vector<std::pair<const double*, const double*>> blocks = {{s.y.data(), s.y.data()},
+                                                                 {s.x.data(), s.x.data()}};
+  if (options.estimate_intrinsics) blocks.emplace_back(s.intrinsics.data(), s.intrinsics.data());
+  if (!covariance.Compute(blocks, &problem)) return false;
+  const double variance = out.residual_sigma_px * out.residual_sigma_px;
+  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> cy;
+  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> cx;
+  covariance.GetCovarianceBlock(s.y.data(), s.y.data(), cy.data());
+  covariance.GetCovarianceBlock(s.x.data(), s.x.data(), cx.data());
+  out.camera_pose_covariance = pose_covariance(s.y, variance * cy, true);
+  out.target_pose_covariance = pose_covariance(s.x, variance * cx, false);
+  if (options.estimate_intrinsics) {
+    const auto k = static_cast<Eigen::Index>(s.intrinsics.size());
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> ci(k, k);
+    covariance.GetCovarianceBlock(s.intrinsics.data(), s.intrinsics.data(), ci.data());
+    for (Eigen::Index i = 0; i < k; ++i)
+      out.intrinsics_stddev.push_back(std::sqrt(std::max(0.0, variance * ci(i, i))));
+  }
+  return true;
+}
+
+}  // namespace
+
 HandEyeResult calibrate_hand_eye(const CameraModel& camera, const BoardPoints& board,
                                  const std::vector<HandEyeView>& views,
                                  const HandEyeOptions& options) {
@@ -431,34 +579,7 @@ HandEyeResult calibrate_hand_eye(const CameraModel& camera, const BoardPoints& b
         "sees the whole board, turned about two different axes by 15 degrees or more",
         start.views.size(), options.min_views));
 
-  auto fit = closed_form(start.M, start.C, options);
-  // A view whose reported rotation disagrees with every other view's (a pose file of another
-  // image) is set aside, worst first, before it can bend the closed form.
-  for (int round = 0;
-       fit &&
-       round<options.max_outlier_rounds&& static_cast<int>(start.views.size())> options.min_views;
-       ++round) {
-    const auto& score = fit->view_residual_deg;
-    const auto worst = static_cast<std::size_t>(
-        std::max_element(
-            score.begin(), score.end(),
-            [](double a, double b) { return std::isnan(b) ? false : std::isnan(a) || a < b; }) -
-        score.begin());
-    const double limit = std::max(3.0 * median_of(score), options.max_rotation_mismatch_deg);
-    if (!(score[worst] > limit)) break;
-    HandEyeViewReport& rep = out.views[start.views[worst]];
-    rep.used = false;
-    rep.rejection = fmt::format(
-        "an outlier: its reported flange rotation disagrees with the board rotation the camera "
-        "sees by {:.2f} deg (median over its motions; the others {:.2f} deg): a pose file of "
-        "another image, or a board that moved",
-        score[worst], median_of(score));
-    const auto at = static_cast<std::ptrdiff_t>(worst);
-    start.views.erase(start.views.begin() + at);
-    start.M.erase(start.M.begin() + at);
-    start.C.erase(start.C.begin() + at);
-    fit = closed_form(start.M, start.C, options);
-  }
+  const auto fit = closed_form_without_outliers(start, options, out.views);
   if (!fit)
     return refuse(fmt::format(
         "the views turn about one axis only or hardly at all (a turn about that axis stays "
@@ -467,46 +588,8 @@ HandEyeResult calibrate_hand_eye(const CameraModel& camera, const BoardPoints& b
         options.min_axis_separation_deg));
   out.rotation_mismatch_deg = fit->rotation_residual_deg;
   if (!(out.rotation_mismatch_deg <= options.max_rotation_mismatch_deg)) {
-    // Which reading of the same data fits: the other mounting, or quaternions written w first.
-    // Rotations alone cannot tell these two apart (a quaternion read in another order, taken as
-    // the other mounting's inverse, differs from the truth by one constant rotation, which X
-    // absorbs); the closed form's reprojection can, since the positions were not reordered.
-    struct Reading {
-      double rotation_deg = std::numeric_limits<double>::infinity();
-      double rms_px = std::numeric_limits<double>::infinity();
-    };
-    auto reading = [&](HandEyeMount mount, bool w_first) {
-      std::vector<HandEyeView> reread;
-      std::vector<Eigen::Isometry3d> M;
-      for (std::size_t i : start.views) {
-        reread.push_back(views[i]);
-        if (w_first) reread.back().base_T_flange = read_w_first(views[i].base_T_flange);
-        M.push_back(reported(reread.back(), mount));
-      }
-      Reading r;
-      const auto other = closed_form(M, start.C, options);
-      if (!other) return r;
-      r.rotation_deg = other->rotation_residual_deg;
-      r.rms_px = hand_eye_reprojection_rms(camera, board, reread, mount,
-                                           mean_y(M, start.C, other->X).inverse(), other->X);
-      if (std::isnan(r.rms_px)) r.rms_px = std::numeric_limits<double>::infinity();
-      return r;
-    };
-    const HandEyeMount flipped = options.mount == HandEyeMount::kFixedCamera
-                                     ? HandEyeMount::kCameraOnTool
-                                     : HandEyeMount::kFixedCamera;
-    const Reading other_mount = reading(flipped, false);
-    const Reading w_first = reading(options.mount, true);
-    const bool other_fits = other_mount.rotation_deg <= options.max_rotation_mismatch_deg;
-    const bool w_first_fits = w_first.rotation_deg <= options.max_rotation_mismatch_deg;
-    const double other_deg = other_fits && (!w_first_fits || other_mount.rms_px <= w_first.rms_px)
-                                 ? other_mount.rotation_deg
-                                 : std::numeric_limits<double>::infinity();
-    const double w_first_deg = w_first_fits && !std::isfinite(other_deg)
-                                   ? w_first.rotation_deg
-                                   : std::numeric_limits<double>::infinity();
     return refuse(
-        mismatch_reason(out.rotation_mismatch_deg, other_deg, w_first_deg, options.mount, options));
+        mismatch_refusal(camera, board, views, start, out.rotation_mismatch_deg, options));
   }
   const Eigen::Isometry3d* X0 = &fit->X;
   const Eigen::Isometry3d Y0 = mean_y(start.M, start.C, *X0);
@@ -520,34 +603,7 @@ HandEyeResult calibrate_hand_eye(const CameraModel& camera, const BoardPoints& b
   s.y = params_of(Y0);
   s.x = params_of(*X0);
   s.intrinsics = camera.params;
-  for (int round = 0; round <= options.max_outlier_rounds; ++round) {
-    ceres::Problem problem;
-    adjust(camera, board, views, use, options, true, s, problem);
-    CameraModel now = camera;
-    now.params = s.intrinsics;
-    std::vector<double> rms;
-    std::size_t worst = views.size();
-    double worst_rms = 0.0;
-    for (std::size_t i = 0; i < views.size(); ++i) {
-      if (!use[i]) continue;
-      const double r =
-          view_rms(now, board, views[i], options.mount, pose_of(s.y.data()), pose_of(s.x.data()));
-      rms.push_back(std::isnan(r) ? std::numeric_limits<double>::infinity() : r);
-      if (!(r <= worst_rms)) {
-        worst_rms = std::isnan(r) ? std::numeric_limits<double>::infinity() : r;
-        worst = i;
-      }
-    }
-    const double limit =
-        std::max(options.outlier_view_factor * median_of(rms), options.min_outlier_view_px);
-    if (worst == views.size() || worst_rms <= limit || round == options.max_outlier_rounds) break;
-    use[worst] = false;
-    out.views[worst].used = false;
-    out.views[worst].rejection = fmt::format(
-        "an outlier: {:.2f} px reprojection RMS, over {:.1f} times the median view's (the flange "
-        "pose or the detection of this image is wrong)",
-        worst_rms, worst_rms / median_of(rms));
-  }
+  adjust_without_outliers(camera, board, views, options, s, use, out.views);
   const auto used_views = static_cast<int>(std::count(use.begin(), use.end(), true));
   if (used_views < options.min_views)
     return refuse(fmt::format("only {} views agree with each other (at least {} needed)",
@@ -577,31 +633,10 @@ HandEyeResult calibrate_hand_eye(const CameraModel& camera, const BoardPoints& b
   if (dof <= 0) return refuse("fewer pixel equations than unknowns: add views");
   out.residual_sigma_px = std::sqrt(sq / dof);
 
-  // Covariance: (JᵀJ)⁻¹ of the least-squares problem scaled by the residual variance.
-  ceres::Covariance::Options co;
-  co.algorithm_type = ceres::DENSE_SVD;
-  ceres::Covariance covariance(co);
-  std::vector<std::pair<const double*, const double*>> blocks = {{s.y.data(), s.y.data()},
-                                                                 {s.x.data(), s.x.data()}};
-  if (options.estimate_intrinsics) blocks.emplace_back(s.intrinsics.data(), s.intrinsics.data());
-  if (!covariance.Compute(blocks, &problem)) {
+  if (!add_covariance(problem, s, options, out)) {
     out.status = HandEyeStatus::kFailed;
     out.reason = "the covariance of the estimate could not be computed (degenerate views)";
     return out;
-  }
-  const double variance = out.residual_sigma_px * out.residual_sigma_px;
-  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> cy;
-  Eigen::Matrix<double, 6, 6, Eigen::RowMajor> cx;
-  covariance.GetCovarianceBlock(s.y.data(), s.y.data(), cy.data());
-  covariance.GetCovarianceBlock(s.x.data(), s.x.data(), cx.data());
-  out.camera_pose_covariance = pose_covariance(s.y, variance * cy, true);
-  out.target_pose_covariance = pose_covariance(s.x, variance * cx, false);
-  if (options.estimate_intrinsics) {
-    const auto k = static_cast<Eigen::Index>(s.intrinsics.size());
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> ci(k, k);
-    covariance.GetCovarianceBlock(s.intrinsics.data(), s.intrinsics.data(), ci.data());
-    for (Eigen::Index i = 0; i < k; ++i)
-      out.intrinsics_stddev.push_back(std::sqrt(std::max(0.0, variance * ci(i, i))));
   }
   if (!s.converged) out.warnings.emplace_back("the bundle adjustment stopped before converging");
   out.status = HandEyeStatus::kOk;
