@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -135,57 +136,78 @@ Cell with_cameras(const Cell& cell, const CameraPlacement& placement) {
   return out;
 }
 
-CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::VectorXd& params,
-                                const Cell& cell, const PlacementOptions& options) {
-  if (cell.cameras.empty())
-    throw std::invalid_argument("camera placement needs one camera model (intrinsics)");
-  const int frame = target_frame(model, cell);
-  if (frame < 0) throw std::invalid_argument("the target's frame is not a body of the robot");
-  // Reachable, collision-free poses inside the workspace (visibility not yet asked).
+namespace {
+
+// The target board's outline (its four corners in the board frame) and the figures placement
+// derives from it.
+struct BoardShape {
+  std::vector<Eigen::Vector3d> outline;
+  Eigen::Vector3d mid = Eigen::Vector3d::Zero();
+  double half_diag = 0.0;
+  double short_side = 0.0;
+};
+
+BoardShape board_shape(const vision::TargetBoard& board) {
+  BoardShape b;
+  b.outline = board_outline(board);
+  for (const Eigen::Vector3d& p : b.outline) b.mid += p / 4.0;
+  b.half_diag = 0.5 * (b.outline[2] - b.outline[0]).norm();
+  b.short_side =
+      std::min((b.outline[1] - b.outline[0]).norm(), (b.outline[3] - b.outline[0]).norm());
+  return b;
+}
+
+// Reachable, collision-free poses inside the workspace (visibility not asked), at most
+// options.samples of them: the readings, the board centre, the board's face direction and pose.
+struct SampledPoses {
+  std::vector<Eigen::VectorXd> configs;
+  std::vector<Eigen::Vector3d> centres, normals;
+  std::vector<Eigen::Isometry3d> boards;  // for the quick coverage score
+};
+
+SampledPoses sample_reachable_poses(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                                    const Cell& cell, int frame, const PlacementOptions& options,
+                                    const Eigen::Vector3d& board_mid) {
   FeasibilityOptions no_sight = placement_feasibility(cell);
   no_sight.check_visibility = false;
   const FeasibilityChecker reach(model, params, cell, frame, no_sight);
   std::mt19937 rng(options.seed);
-  const std::vector<Eigen::Vector3d> outline = board_outline(cell.target.board);
-  Eigen::Vector3d board_mid = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& p : outline) board_mid += p / 4.0;
-  const double half_diag = 0.5 * (outline[2] - outline[0]).norm();
-  const double short_side =
-      std::min((outline[1] - outline[0]).norm(), (outline[3] - outline[0]).norm());
-  std::vector<Eigen::VectorXd> configs;
-  std::vector<Eigen::Vector3d> centres, normals;
-  std::vector<Eigen::Isometry3d> boards;  // for the quick coverage score below
+  SampledPoses poses;
   for (const Candidate& cand :
        reach.sample(static_cast<std::size_t>(10 * options.samples), rng, nullptr)) {
     if (!cand.feasible()) continue;
-    if (static_cast<int>(configs.size()) >= options.samples) break;
-    configs.push_back(cand.readings);
-    centres.emplace_back(cand.world_T_board * board_mid);
-    normals.emplace_back(-cand.world_T_board.linear().col(2));
-    boards.push_back(cand.world_T_board);
+    if (static_cast<int>(poses.configs.size()) >= options.samples) break;
+    poses.configs.push_back(cand.readings);
+    poses.centres.emplace_back(cand.world_T_board * board_mid);
+    poses.normals.emplace_back(-cand.world_T_board.linear().col(2));
+    poses.boards.push_back(cand.world_T_board);
   }
-  if (configs.empty())
-    throw std::invalid_argument("robot '" + model.name +
-                                "' reaches no configuration inside the workspace");
-  const vision::CameraModel& cam = cell.cameras.front().model;
-  const double fx = cam.params[0], fy = cam.params[1];
-  const double half_fov =
-      std::min(std::atan(0.5 * cam.width / fx), std::atan(0.5 * cam.height / fy));
-  const int ncam = std::max(1, options.cameras);
-  const double tilt = ncam > 1 ? 0.5 * options.triangulation_angle : 0.0;
-  // Quick visibility of the sampled boards from one camera: the outline inside the image
-  // (border), within the maximum incidence and at least min_image_size (occlusion is left to
-  // the full test of the chosen placement).
-  // A robot whose joints turn its target (fewer than six actuators, task_sampling.hpp: the wire
-  // robot's platform) has its board turned towards the camera before the test, as its planned
-  // poses will be; the full test below aims it the same way.
-  const bool turned = target_turned_by_joints(model, frame);
-  auto camera_sees = [&](const Eigen::Isometry3d& wc) {
-    std::vector<char> sees(boards.size(), 0);
+  return poses;
+}
+
+// Quick visibility of the sampled boards from one camera: the outline inside the image
+// (border), within the maximum incidence and at least min_image_size (occlusion is left to the
+// full test of the chosen placement). A robot whose joints turn its target (fewer than six
+// actuators, task_sampling.hpp: the wire robot's platform) has its board turned towards the
+// camera before the test, as its planned poses will be; the full test aims it the same way.
+class QuickVisibility {
+ public:
+  QuickVisibility(const Cell& cell, const std::vector<Eigen::Isometry3d>& boards,
+                  const BoardShape& board, bool turned)
+      : cell_(cell),
+        cam_(cell.cameras.front().model),
+        boards_(boards),
+        board_(board),
+        turned_(turned) {}
+
+  // Per sampled board: whether the camera at `wc` (world_T_camera) sees it.
+  [[nodiscard]] std::vector<char> sees(const Eigen::Isometry3d& wc) const {
+    const Eigen::Vector3d& board_mid = board_.mid;
+    std::vector<char> sees(boards_.size(), 0);
     const Eigen::Isometry3d cw = wc.inverse();
-    for (std::size_t b = 0; b < boards.size(); ++b) {
-      Eigen::Isometry3d board = boards[b];
-      if (turned) {
+    for (std::size_t b = 0; b < boards_.size(); ++b) {
+      Eigen::Isometry3d board = boards_[b];
+      if (turned_) {
         const Eigen::Vector3d centre = board * board_mid;
         const Eigen::Vector3d face = -board.linear().col(2);
         const Eigen::Matrix3d turn =
@@ -197,64 +219,98 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       const Eigen::Vector3d centre = cb * board_mid;
       const Eigen::Vector3d face = -cb.linear().col(2);
       if (std::acos(std::clamp(face.dot(-centre.normalized()), -1.0, 1.0)) >
-          cell.visibility.max_incidence)
+          cell_.visibility.max_incidence)
         continue;
       std::vector<Eigen::Vector2d> px;
-      for (const Eigen::Vector3d& p : outline) {
-        const auto q = vision::project(cam, cb * p);
-        if (!q || !vision::in_image(cam, *q, cell.margins.image_border)) break;
+      for (const Eigen::Vector3d& p : board_.outline) {
+        const auto q = vision::project(cam_, cb * p);
+        if (!q || !vision::in_image(cam_, *q, cell_.margins.image_border)) break;
         px.push_back(*q);
       }
       sees[b] = px.size() == 4 && std::min((px[1] - px[0]).norm(), (px[3] - px[0]).norm()) >=
-                                      cell.visibility.min_image_size;
+                                      cell_.visibility.min_image_size;
     }
     return sees;
-  };
+  }
+
   // Per sampled board: how many of the cameras see it.
-  auto seen_counts = [&](const std::vector<Eigen::Isometry3d>& world_T_camera) {
-    std::vector<int> count(boards.size(), 0);
+  [[nodiscard]] std::vector<int> counts(
+      const std::vector<Eigen::Isometry3d>& world_T_camera) const {
+    std::vector<int> count(boards_.size(), 0);
     for (const Eigen::Isometry3d& wc : world_T_camera) {
-      const std::vector<char> sees = camera_sees(wc);
-      for (std::size_t b = 0; b < boards.size(); ++b) count[b] += sees[b];
+      const std::vector<char> seen = sees(wc);
+      for (std::size_t b = 0; b < boards_.size(); ++b) count[b] += seen[b];
     }
     return count;
-  };
-  auto quick_coverage = [&](const std::vector<Eigen::Isometry3d>& world_T_camera) {
-    const std::vector<int> count = seen_counts(world_T_camera);
+  }
+
+  // The fraction of sampled boards every camera sees.
+  [[nodiscard]] double coverage(const std::vector<Eigen::Isometry3d>& world_T_camera) const {
+    const std::vector<int> count = counts(world_T_camera);
     const auto all =
         std::count(count.begin(), count.end(), static_cast<int>(world_T_camera.size()));
-    return static_cast<double>(all) / static_cast<double>(boards.size());
-  };
-  // A station of ncam cameras at `distance` from `c` on a circle around the direction `n`, each
-  // tilted by half the triangulation angle.
-  auto station = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& n, const Eigen::Vector3d& e1,
-                     const Eigen::Vector3d& e2, const Eigen::Vector3d& up, double distance) {
-    CameraPlacement pl;
-    pl.look_at = c;
-    pl.view_direction = n;
-    for (int i = 0; i < ncam; ++i) {
-      const double phi = 2 * M_PI * i / ncam;
-      const Eigen::Vector3d dir =
-          (std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * e1 + std::sin(phi) * e2))
-              .normalized();
-      pl.world_T_camera.push_back(look_at(c + distance * dir, c, up));
-    }
-    pl.distance = distance;
-    pl.baseline =
-        ncam > 1 ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
-                 : 0.0;
-    return pl;
-  };
-  // The distance keeping the target's image at min_image_size (10 % margin).
-  auto size_at_point = [&] {
-    return cell.visibility.min_image_size > 0
-               ? std::min(fx, fy) * short_side / (1.1 * cell.visibility.min_image_size)
-               : 1e300;
-  };
-  // Candidate viewing directions: the mean face direction (one side for a level board, as on a
-  // Delta), then the face directions of a spread of sampled poses (a serial arm's board faces
-  // every way; a camera pair sees one side of its range). For each, the look-at point and
-  // radius come from the poses whose board faces that way (within 40 deg).
+    return static_cast<double>(all) / static_cast<double>(boards_.size());
+  }
+
+ private:
+  const Cell& cell_;
+  const vision::CameraModel& cam_;
+  const std::vector<Eigen::Isometry3d>& boards_;
+  const BoardShape& board_;
+  bool turned_;
+};
+
+// What every station shares: its number of cameras and their tilt (half the triangulation
+// angle when there are several), the narrower half field of view, and the distance keeping the
+// target's image at min_image_size (10 % margin).
+struct StationShape {
+  int ncam = 1;
+  double tilt = 0.0;
+  double half_fov = 0.0;
+  double size_distance = 0.0;
+};
+
+StationShape station_shape(const Cell& cell, const PlacementOptions& options, double short_side) {
+  const vision::CameraModel& cam = cell.cameras.front().model;
+  const double fx = cam.params[0], fy = cam.params[1];
+  StationShape s;
+  s.half_fov = std::min(std::atan(0.5 * cam.width / fx), std::atan(0.5 * cam.height / fy));
+  s.ncam = std::max(1, options.cameras);
+  s.tilt = s.ncam > 1 ? 0.5 * options.triangulation_angle : 0.0;
+  s.size_distance = cell.visibility.min_image_size > 0
+                        ? std::min(fx, fy) * short_side / (1.1 * cell.visibility.min_image_size)
+                        : 1e300;
+  return s;
+}
+
+// A station of ncam cameras at `distance` from `c` on a circle around the direction `n`, each
+// tilted by half the triangulation angle.
+CameraPlacement station(const StationShape& shape, const Eigen::Vector3d& c,
+                        const Eigen::Vector3d& n, const Eigen::Vector3d& e1,
+                        const Eigen::Vector3d& e2, const Eigen::Vector3d& up, double distance) {
+  const int ncam = shape.ncam;
+  const double tilt = shape.tilt;
+  CameraPlacement pl;
+  pl.look_at = c;
+  pl.view_direction = n;
+  for (int i = 0; i < ncam; ++i) {
+    const double phi = 2 * M_PI * i / ncam;
+    const Eigen::Vector3d dir =
+        (std::cos(tilt) * n + std::sin(tilt) * (std::cos(phi) * e1 + std::sin(phi) * e2))
+            .normalized();
+    pl.world_T_camera.push_back(look_at(c + distance * dir, c, up));
+  }
+  pl.distance = distance;
+  pl.baseline =
+      ncam > 1 ? (pl.world_T_camera[0].translation() - pl.world_T_camera[1].translation()).norm()
+               : 0.0;
+  return pl;
+}
+
+// Candidate viewing directions: the mean face direction (one side for a level board, as on a
+// Delta), then the face directions of a spread of sampled poses (a serial arm's board faces
+// every way; a camera pair sees one side of its range).
+std::vector<Eigen::Vector3d> viewing_directions(const std::vector<Eigen::Vector3d>& normals) {
   Eigen::Vector3d mean_n = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& v : normals) mean_n += v;
   std::vector<Eigen::Vector3d> directions(17, Eigen::Vector3d::UnitZ());
@@ -262,22 +318,32 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     directions[0] = mean_n.normalized();
   for (std::size_t k = 1; k < directions.size(); ++k)
     directions[k] = normals[(k - 1) * normals.size() / 16].normalized();
-  // The target centres of the sampled poses whose board faces within 40 deg of `n`.
-  // (A target the joints turn can face any of them.)
-  auto facing_centres = [&](const Eigen::Vector3d& n) {
-    std::vector<Eigen::Vector3d> facing;
-    facing.reserve(centres.size());
-    for (std::size_t i = 0; i < centres.size(); ++i)
-      if (turned || normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
-        facing.push_back(centres[i]);
-    return facing;
-  };
-  // Every placement tried, with its quick coverage; the best few are measured in full below.
+  return directions;
+}
+
+// The target centres of the sampled poses whose board faces within 40 deg of `n`.
+// (A target the joints turn can face any of them.)
+std::vector<Eigen::Vector3d> facing_centres(const SampledPoses& poses, const Eigen::Vector3d& n,
+                                            bool turned) {
+  std::vector<Eigen::Vector3d> facing;
+  facing.reserve(poses.centres.size());
+  for (std::size_t i = 0; i < poses.centres.size(); ++i)
+    if (turned || poses.normals[i].normalized().dot(n) >= std::cos(40.0 * M_PI / 180.0))
+      facing.push_back(poses.centres[i]);
+  return facing;
+}
+
+// Every placement tried, with its quick coverage. For each viewing direction, the look-at point
+// and radius come from the poses whose board faces that way (within 40 deg); stops early once a
+// placement sees nearly every sampled board.
+std::vector<CameraPlacement> try_placements(const SampledPoses& poses, bool turned,
+                                            const StationShape& shape, double half_diag,
+                                            const QuickVisibility& quick) {
   std::vector<CameraPlacement> tried;
   double best_quick = -1.0;
-  for (const Eigen::Vector3d& n : directions) {
-    const std::vector<Eigen::Vector3d> facing = facing_centres(n);
-    if (facing.size() < std::max<std::size_t>(5, centres.size() / 20)) continue;
+  for (const Eigen::Vector3d& n : viewing_directions(poses.normals)) {
+    const std::vector<Eigen::Vector3d> facing = facing_centres(poses, n, turned);
+    if (facing.size() < std::max<std::size_t>(5, poses.centres.size() / 20)) continue;
     Eigen::Vector3d mean_c = Eigen::Vector3d::Zero();
     for (const Eigen::Vector3d& p : facing) mean_c += p;
     mean_c /= static_cast<double>(facing.size());
@@ -296,20 +362,20 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
       // no farther than keeps the target's image at min_image_size (10 % margin) on the far
       // side; from a look-at point inside a larger volume, up to where the target at that point
       // keeps min_image_size.
-      const double fov_distance = radius / std::sin(0.85 * half_fov);
-      const double size_distance = size_at_point() - radius;
+      const double fov_distance = radius / std::sin(0.85 * shape.half_fov);
+      const double size_distance = shape.size_distance - radius;
       const double top =
           li == 0 ? std::min(1.6 * fov_distance, std::max(size_distance, 0.3 * fov_distance))
-                  : std::min(1.6 * fov_distance, size_at_point());
+                  : std::min(1.6 * fov_distance, shape.size_distance);
       // From 60 % of the field-of-view distance (the mean) or 40 % of the top (a point) up to
       // the top; keep the best coverage, the nearer on ties (bigger images).
       const double first = li == 0 ? 0.6 * fov_distance : 0.4 * top;
       for (int k = 0; k <= 6; ++k) {
         const double distance = li == 0 ? std::min(top, fov_distance * (0.6 + 0.1 * 1.67 * k))
                                         : std::min(top, first + (top - first) * k / 6.0);
-        CameraPlacement pl = station(c, n, e1, e2, up, distance);
+        CameraPlacement pl = station(shape, c, n, e1, e2, up, distance);
         pl.volume_radius = radius;
-        pl.coverage = quick_coverage(pl.world_T_camera);
+        pl.coverage = quick.coverage(pl.world_T_camera);
         best_quick = std::max(best_quick, pl.coverage);
         tried.push_back(pl);
         if (distance >= top) break;
@@ -317,8 +383,16 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     }
     if (best_quick >= 0.999) break;
   }
-  // The 6 best by quick coverage (the nearer first on ties: bigger images) under the full test
-  // (all corners, occlusion by links and obstacles): the best of them wins.
+  return tried;
+}
+
+// The 6 best tried placements by quick coverage (the nearer first on ties: bigger images) under
+// the full test (all corners, occlusion by links and obstacles): the best of them wins. Sorts
+// `tried` in that order.
+CameraPlacement best_under_full_test(std::vector<CameraPlacement>& tried,
+                                     const calib::Mechanism& model, const Eigen::VectorXd& params,
+                                     const Cell& cell, int frame,
+                                     const std::vector<Eigen::VectorXd>& configs, bool turned) {
   std::stable_sort(tried.begin(), tried.end(),
                    [](const CameraPlacement& a, const CameraPlacement& b) {
                      return a.coverage > b.coverage + 1e-9 ||
@@ -339,12 +413,13 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
     pl.coverage = static_cast<double>(seen) / static_cast<double>(configs.size());
     if (pl.coverage > best.coverage + 1e-9) best = pl;
   }
-  if (tried.empty())
-    throw std::invalid_argument("no viewing direction sees enough of robot '" + model.name +
-                                "'s reachable poses");
-  const Eigen::Vector3d c = best.look_at, n = best.view_direction;
-  CameraPlacement out = best;
-  // Millimetre-rounded figures: a direction read off a drawing, not the solver's last bits.
+  return best;
+}
+
+// The placement in words, with millimetre-rounded figures: a direction read off a drawing, not
+// the solver's last bits.
+std::string placement_summary(const CameraPlacement& out, int ncam, std::size_t poses) {
+  const Eigen::Vector3d c = out.look_at, n = out.view_direction;
   const auto xyz = [](const Eigen::Vector3d& v) {
     const auto at = [&](int i) { return std::abs(v[i]) < 5e-4 ? 0.0 : v[i]; };  // no "-0.000"
     std::array<char, 96> text{};
@@ -355,54 +430,104 @@ CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::Vect
   s << ncam << " camera(s) " << std::fixed << std::setprecision(3) << out.distance
     << " m from the point they look at (" << xyz(c) << " m), looking along " << xyz(-n) << ", "
     << out.baseline << " m apart; they see the target at " << std::lround(100 * out.coverage)
-    << " % of " << configs.size() << " reachable sampled poses";
-  out.summary = s.str();
-  if (options.max_cameras >= 2 * ncam && ncam >= 2 && out.coverage < options.min_coverage) {
-    // Candidate stations: the tried placements, and pairs looking along the first station's
-    // direction at 32 points spread over the poses facing that way, from the distance keeping
-    // the target's image at min_image_size and from two nearer ones.
-    std::vector<CameraPlacement> stations = tried;
-    {
-      const Eigen::Vector3d e1 = n.unitOrthogonal();
-      const Eigen::Vector3d e2 = n.cross(e1);
-      const Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? e2 : Eigen::Vector3d::UnitZ();
-      const std::vector<Eigen::Vector3d> facing = facing_centres(n);
-      const double far = std::min(out.distance, size_at_point());
-      for (std::size_t k = 0; k < 32 && !facing.empty(); ++k)
-        for (const double f : {1.0, 0.8, 0.6})
-          stations.push_back(station(facing[k * facing.size() / 32], n, e1, e2, up, f * far));
-    }
-    // Per sampled pose, how many of `cameras` see the target under the full test.
-    auto full_counts = [&](const std::vector<Eigen::Isometry3d>& cameras) {
-      CameraPlacement p;
-      p.world_T_camera = cameras;
-      const Cell placed = with_cameras(cell, p);
-      FeasibilityOptions opts = placement_feasibility(placed);
-      opts.check_visibility = false;  // per-camera verdicts only
-      const FeasibilityChecker checker(model, params, placed, frame, opts);
-      std::vector<int> count(configs.size(), 0);
-      for (std::size_t i = 0; i < configs.size(); ++i) {
-        const Candidate cand = turned ? evaluate_turned_towards_cameras(checker, configs[i])
-                                      : checker.evaluate(configs[i]);
-        if (!cand.feasible()) continue;
-        for (const CameraView& v : cand.views) count[i] += v.visible ? 1 : 0;
-      }
-      return count;
-    };
-    CameraPlacement array = grow_array(out, stations, seen_counts, full_counts, options, ncam);
-    if (array.station_look_at.size() > 1 && array.coverage > out.coverage) {
-      std::ostringstream a;
-      a << array.world_T_camera.size() << " cameras in " << array.station_look_at.size()
-        << " stations of " << ncam << " (one pair sees the target at only "
-        << std::lround(100 * out.coverage) << " % of " << configs.size()
-        << " reachable sampled poses; two cameras of the array see it at "
-        << std::lround(100 * array.coverage) << " %); stations look at";
-      for (std::size_t k = 0; k < array.station_look_at.size(); ++k)
-        a << (k == 0 ? " (" : ", (") << array.station_look_at[k].transpose() << ")";
-      a << ", first station " << out.distance << " m away, baseline " << out.baseline << " m";
-      array.summary = a.str();
-      return array;
-    }
+    << " % of " << poses << " reachable sampled poses";
+  return s.str();
+}
+
+// Per sampled pose, how many of `cameras` see the target under the full test.
+std::vector<int> full_counts(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                             const Cell& cell, int frame,
+                             const std::vector<Eigen::VectorXd>& configs, bool turned,
+                             const std::vector<Eigen::Isometry3d>& cameras) {
+  CameraPlacement p;
+  p.world_T_camera = cameras;
+  const Cell placed = with_cameras(cell, p);
+  FeasibilityOptions opts = placement_feasibility(placed);
+  opts.check_visibility = false;  // per-camera verdicts only
+  const FeasibilityChecker checker(model, params, placed, frame, opts);
+  std::vector<int> count(configs.size(), 0);
+  for (std::size_t i = 0; i < configs.size(); ++i) {
+    const Candidate cand = turned ? evaluate_turned_towards_cameras(checker, configs[i])
+                                  : checker.evaluate(configs[i]);
+    if (!cand.feasible()) continue;
+    for (const CameraView& v : cand.views) count[i] += v.visible ? 1 : 0;
+  }
+  return count;
+}
+
+// An array of stations grown from the first one `out` (grow_array), when it sees more than the
+// one station does; none otherwise. Candidate stations: the tried placements, and pairs looking
+// along the first station's direction at 32 points spread over the poses facing that way, from
+// the distance keeping the target's image at min_image_size and from two nearer ones.
+std::optional<CameraPlacement> propose_array(
+    const CameraPlacement& out, const std::vector<CameraPlacement>& tried,
+    const calib::Mechanism& model, const Eigen::VectorXd& params, const Cell& cell, int frame,
+    const PlacementOptions& options, const SampledPoses& poses, bool turned,
+    const StationShape& shape, const QuickVisibility& quick) {
+  const int ncam = shape.ncam;
+  const Eigen::Vector3d n = out.view_direction;
+  std::vector<CameraPlacement> stations = tried;
+  {
+    const Eigen::Vector3d e1 = n.unitOrthogonal();
+    const Eigen::Vector3d e2 = n.cross(e1);
+    const Eigen::Vector3d up = std::abs(n.z()) > 0.9 ? e2 : Eigen::Vector3d::UnitZ();
+    const std::vector<Eigen::Vector3d> facing = facing_centres(poses, n, turned);
+    const double far = std::min(out.distance, shape.size_distance);
+    for (std::size_t k = 0; k < 32 && !facing.empty(); ++k)
+      for (const double f : {1.0, 0.8, 0.6})
+        stations.push_back(station(shape, facing[k * facing.size() / 32], n, e1, e2, up, f * far));
+  }
+  const auto quick_counts = [&](const std::vector<Eigen::Isometry3d>& world_T_camera) {
+    return quick.counts(world_T_camera);
+  };
+  const auto full = [&](const std::vector<Eigen::Isometry3d>& cameras) {
+    return full_counts(model, params, cell, frame, poses.configs, turned, cameras);
+  };
+  CameraPlacement array = grow_array(out, stations, quick_counts, full, options, ncam);
+  if (!(array.station_look_at.size() > 1 && array.coverage > out.coverage)) return std::nullopt;
+  std::ostringstream a;
+  a << array.world_T_camera.size() << " cameras in " << array.station_look_at.size()
+    << " stations of " << ncam << " (one pair sees the target at only "
+    << std::lround(100 * out.coverage) << " % of " << poses.configs.size()
+    << " reachable sampled poses; two cameras of the array see it at "
+    << std::lround(100 * array.coverage) << " %); stations look at";
+  for (std::size_t k = 0; k < array.station_look_at.size(); ++k)
+    a << (k == 0 ? " (" : ", (") << array.station_look_at[k].transpose() << ")";
+  a << ", first station " << out.distance << " m away, baseline " << out.baseline << " m";
+  array.summary = a.str();
+  return array;
+}
+
+}  // namespace
+
+CameraPlacement propose_cameras(const calib::Mechanism& model, const Eigen::VectorXd& params,
+                                const Cell& cell, const PlacementOptions& options) {
+  if (cell.cameras.empty())
+    throw std::invalid_argument("camera placement needs one camera model (intrinsics)");
+  const int frame = target_frame(model, cell);
+  if (frame < 0) throw std::invalid_argument("the target's frame is not a body of the robot");
+  const BoardShape board = board_shape(cell.target.board);
+  const SampledPoses poses = sample_reachable_poses(model, params, cell, frame, options, board.mid);
+  if (poses.configs.empty())
+    throw std::invalid_argument("robot '" + model.name +
+                                "' reaches no configuration inside the workspace");
+  const StationShape shape = station_shape(cell, options, board.short_side);
+  const bool turned = target_turned_by_joints(model, frame);
+  const QuickVisibility quick(cell, poses.boards, board, turned);
+  // Every placement tried, with its quick coverage; the best few are measured in full.
+  std::vector<CameraPlacement> tried = try_placements(poses, turned, shape, board.half_diag, quick);
+  const CameraPlacement best =
+      best_under_full_test(tried, model, params, cell, frame, poses.configs, turned);
+  if (tried.empty())
+    throw std::invalid_argument("no viewing direction sees enough of robot '" + model.name +
+                                "'s reachable poses");
+  CameraPlacement out = best;
+  out.summary = placement_summary(out, shape.ncam, poses.configs.size());
+  if (options.max_cameras >= 2 * shape.ncam && shape.ncam >= 2 &&
+      out.coverage < options.min_coverage) {
+    if (auto array = propose_array(out, tried, model, params, cell, frame, options, poses, turned,
+                                   shape, quick))
+      return *array;
   }
   return out;
 }

@@ -216,6 +216,264 @@ SideMount best_side_mount(const SimulatedCell& cell, const Eigen::VectorXd& q,
   return best;
 }
 
+// The end-effector board is mounted by moving the tool frame's own parameters
+// (set_fixed_frame_pose): that is only a mounting when the tool is a fixed frame outside every
+// loop. Refuses anything else before any work, in words (it would otherwise surface as an
+// internal "closure failed while placing a frame").
+void check_mountable(const calib::Mechanism& model, int target_frame,
+                     const std::string& robot_file) {
+  const calib::Body& tool = model.bodies.at(static_cast<std::size_t>(target_frame));
+  bool in_loop = false;
+  for (const calib::Closure& c : model.closures)
+    in_loop = in_loop || (c.body_a >= target_frame && c.body_a < tool.subtree_end) ||
+              (c.body_b >= target_frame && c.body_b < tool.subtree_end);
+  // Identification places the robot in the cameras' world by moving its first body, which must
+  // therefore be a fixed base frame.
+  const calib::Body& root = model.bodies.front();
+  if (root.joint != calib::JointType::kFixed)
+    throw calib::RobotFileError(robot_file + ":" + std::to_string(root.line) +
+                                ": the first body '" + root.name +
+                                "' is a moving joint: a robot needs a fixed base frame first, "
+                                "from which the mechanism hangs (testdata/robots/README.md)");
+  if (tool.joint != calib::JointType::kFixed || in_loop)
+    throw calib::RobotFileError(
+        robot_file + ":" + std::to_string(tool.line) + ": the tool frame '" + tool.name + "' is " +
+        (in_loop ? "part of a closed loop" : "a moving joint") +
+        ": a simulated target cannot be mounted on it without changing the mechanism; add a "
+        "fixed tool frame on the output link (testdata/robots/README.md)");
+}
+
+// The end-effector target (CellOptions::ee_tags, 29 cm by default).
+vision::TargetSpec end_effector_spec(const CellOptions& options) {
+  vision::TargetSpec ee;
+  ee.kind = vision::TargetKind::kAprilTagGrid;
+  ee.name = "end_effector";
+  ee.cols = options.ee_tags;
+  ee.rows = options.ee_tags;
+  ee.tag_size = options.ee_tag_size;
+  ee.tag_spacing = options.ee_tag_spacing;
+  ee.first_id = 0;
+  return ee;
+}
+
+// A hand-held calibration board with its own id range, so that it can never be confused with
+// the end-effector target.
+vision::TargetSpec calibration_spec(const vision::TargetSpec& ee) {
+  vision::TargetSpec cal = ee;
+  cal.name = "calibration";
+  cal.cols = 7;
+  cal.rows = 5;
+  cal.tag_size = 0.05;
+  cal.tag_spacing = 0.015;
+  cal.first_id = 100;
+  return cal;
+}
+
+// The working volume: where the nominal robot goes over its actuator range (200 sampled
+// configurations, the tool poses of those that close, and their bounding box).
+struct WorkingVolume {
+  std::vector<Eigen::VectorXd> configs;
+  std::vector<Eigen::Isometry3d> tool_poses;
+  Eigen::Vector3d centre, extent;  // of the box, half sizes
+};
+
+WorkingVolume working_volume(const calib::Mechanism& model, const Eigen::VectorXd& nominal,
+                             int target_frame, const std::string& robot_file, std::mt19937& rng) {
+  WorkingVolume v;
+  calib::MechanismPredictor nominal_predictor(model);
+  v.configs = calib::sample_actuators(nominal_predictor, {nominal}, 200, rng);
+  if (v.configs.size() < 20)
+    throw calib::RobotFileError(fmt::format(
+        "{}: too few reachable configurations to build a cell: the robot assembles at {} of "
+        "up to 20000 random actuator readings within its limits (200 looked for, at least 20 "
+        "needed): it cannot assemble over most of its actuator range; check its lengths "
+        "(metres), its joint limits and home values (`robocal kin check {}`)",
+        robot_file, v.configs.size(), robot_file));
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+  for (const auto& q : v.configs) {
+    const auto fk = calib::forward_kinematics(model, nominal, q, target_frame);
+    if (!fk.closure.ok()) continue;
+    v.tool_poses.push_back(fk.pose);
+    lo = lo.cwiseMin(fk.pose.translation());
+    hi = hi.cwiseMax(fk.pose.translation());
+  }
+  v.centre = 0.5 * (lo + hi);
+  v.extent = 0.5 * (hi - lo);
+  return v;
+}
+
+// The elastic sag's law, scaled down where the robot reaches far enough to sag more than
+// kMaxElasticSag by it.
+double elastic_sag_law(const std::vector<Eigen::Isometry3d>& tool_poses, double elastic_sag) {
+  double reach2 = 0.0;
+  for (const Eigen::Isometry3d& p : tool_poses)
+    reach2 = std::max(reach2, p.translation().head<2>().squaredNorm());
+  return reach2 * elastic_sag > kMaxElasticSag ? kMaxElasticSag / reach2 : elastic_sag;
+}
+
+// Where the end-effector board is designed to be, at the working volume's first configuration
+// (the designed mount is the nominal tool).
+Eigen::Isometry3d designed_board_pose(const SimulatedCell& cell, const WorkingVolume& volume) {
+  // The board is mounted 1 cm below the tool point, level, facing down at the cameras (its z
+  // axis points up, away from them), centred on the tool point. On a body whose collision
+  // shapes reach lower than that (the Gantry-Tau's 10 cm platform box around its tool point),
+  // the board goes on the shapes' underside instead, where a camera can see it (the planner's
+  // lines of sight are blocked by the robot's own shapes).
+  const Eigen::Isometry3d& first = volume.tool_poses.front();
+  Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
+  const Eigen::Vector2d c = board_centre(cell.ee_board);
+  const double board_z =
+      std::min(first.translation().z() - 0.01,
+               lowest_rigid_shape_point(cell.model, cell.nominal, volume.configs.front(),
+                                        cell.target_frame));
+  world_T_board.translation() =
+      Eigen::Vector3d(first.translation().x() - c.x(), first.translation().y() - c.y(), board_z);
+  // A serial arm (no loops) whose task is the tool's full pose: the board goes on the flange,
+  // its printed face looking out along the tool's z axis, 1 cm in front of it. Level in the
+  // world at one random configuration (the rule above) would leave it at an arbitrary angle to
+  // the flange, edge-on with the wrist's links in front of its face in every orientation (UR5:
+  // no pose of 40 000 the planner sampled was seen whole by a camera pair).
+  if (cell.model.closures.empty() && cell.model.task.type == calib::TaskType::kPose) {
+    const Eigen::Isometry3d& flange = first;
+    world_T_board.linear() =
+        flange.linear() * Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    world_T_board.translation() = flange * Eigen::Vector3d(0.0, 0.0, 0.01) -
+                                  world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0.0);
+  }
+  // A robot whose own joints turn the target with fewer than six actuators (the wire robot's
+  // platform, pitch and yaw): the board across the tool's z axis (the last joint's), its face
+  // looking out along the tool's x, 1 cm from the tool point, so that the last two joints turn
+  // it as a pan-tilt head would (planner/task_sampling.hpp aims it at the cameras). Level at a
+  // random configuration, its face would lie at a random angle to the yaw axis: where that angle
+  // is small, the yaw only spins it about its face.
+  if (planner::target_turned_by_joints(cell.model, cell.target_frame)) {
+    const Eigen::Isometry3d& tool = first;
+    world_T_board.linear() =
+        tool.linear() * Eigen::AngleAxisd(-kPi / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    world_T_board.translation() = tool * Eigen::Vector3d(0.01, 0.0, 0.0) -
+                                  world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0.0);
+  }
+  return world_T_board;
+}
+
+// The true robot: every parameter the robot file lets identification estimate, perturbed; with
+// an unmodelled seed, the parameters it holds too (from their own random stream).
+Eigen::VectorXd true_parameters(const calib::Mechanism& model, const Eigen::VectorXd& nominal,
+                                const CellOptions& options, std::mt19937& rng) {
+  const Eigen::VectorXd sigma =
+      calib::tolerance_sigmas(model, options.length_sigma, options.angle_sigma);
+  Eigen::VectorXd truth = calib::perturb_parameters(nominal, sigma, rng);
+  if (options.unmodelled_seed != 0) {
+    std::mt19937 unmodelled_rng(options.unmodelled_seed);
+    const Eigen::VectorXd all =
+        calib::tolerance_sigmas(model, options.length_sigma, options.angle_sigma, 0.0, true);
+    const Eigen::VectorXd held = (sigma.array() == 0.0).select(all, 0.0);
+    truth = calib::perturb_parameters(truth, held, unmodelled_rng);
+  }
+  return truth;
+}
+
+// The planner's view of the cell before calibration: two cameras with the nominal intrinsics
+// (poses to be placed), the end-effector board on the tool frame.
+planner::Cell planning_cell(const SimulatedCell& cell) {
+  const CellOptions& options = cell.options;
+  planner::Cell plan;
+  plan.name = "simulated";
+  plan.source = "simulated cell";
+  for (int i = 0; i < 2; ++i) {
+    planner::CellCamera cam;
+    cam.name = "cam" + std::to_string(i);
+    cam.file = "(simulated)";
+    cam.model = vision::make_camera(vision::CameraKind::kPinholeRadtan, options.image_width,
+                                    options.image_height, options.focal_px, options.focal_px,
+                                    0.5 * (options.image_width - 1),
+                                    0.5 * (options.image_height - 1), {0.0, 0.0, 0.0, 0.0, 0.0});
+    plan.cameras.push_back(cam);
+  }
+  plan.target.board = vision::TargetBoard(cell.ee_board);  // (a copy, moved in)
+  plan.target.frame = cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame)).name;
+  plan.target.file = "(simulated)";
+  plan.visibility.min_image_size = options.min_board_image;
+  return plan;
+}
+
+// A camera pair at the triangulation angle, or an array of pairs where one pair sees too little
+// of the robot's range (below a quarter: the Gantry-Tau's guideways, 6 %; the modular arm's
+// reach, 13 %; the four-bar's pair sees 45 % and keeps it). A six-axis arm keeps its pair: its
+// wrist turns the board towards the pair anywhere in its reach, and its poses are planned that
+// way (UR5: 26-38 µm held-out with 3 %). The modular arm has no wrist: with one pair its seed 3
+// extrapolated to 62.5 µm, with an array of three pairs 33.6 µm.
+planner::PlacementOptions placement_options(const calib::Mechanism& model,
+                                            const CellOptions& options) {
+  planner::PlacementOptions placement;
+  placement.cameras = 2;
+  placement.triangulation_angle = options.triangulation_angle;
+  const bool wrist_faces_the_pair = model.closures.empty() && model.actuated.size() >= 6;
+  placement.max_cameras = wrist_faces_the_pair ? 2 : options.max_cameras;
+  placement.min_coverage = 0.25;
+  return placement;
+}
+
+// A fixed pair 1.25 m below the volume's centre, looking up, 0.5 m apart.
+planner::CameraPlacement fixed_pair_below(const Eigen::Vector3d& centre) {
+  planner::CameraPlacement fixed;
+  fixed.look_at = centre;
+  fixed.view_direction = -Eigen::Vector3d::UnitZ();
+  fixed.distance = 1.25;
+  fixed.baseline = 0.5;
+  for (int i = 0; i < 2; ++i)
+    fixed.world_T_camera.push_back(
+        vision::camera_T_board_look_at(
+            centre + Eigen::Vector3d((i == 0 ? -0.25 : 0.25), 0.0, -1.25), centre,
+            Eigen::Vector3d::UnitY())
+            .inverse());
+  return fixed;
+}
+
+// The cameras placed by the planner to see the board over the working volume (the nominal robot
+// and intrinsics: what is known before calibration). Where the proposal sees none of the
+// sampled reachable poses of a platform robot (a level board its own bed hides from every
+// camera below it), the board goes on the platform's side instead (best_side_mount), moving the
+// designed mount. Where nothing sees the board either way, the fixed pair below the volume
+// (fixed_pair_below): the renderer draws the board alone, so it sees random poses, which the
+// simulation then falls back to.
+void place_cameras(SimulatedCell& cell, const WorkingVolume& volume,
+                   const planner::PlacementOptions& placement, const std::string& robot_file) {
+  try {
+    cell.placement = planner::propose_cameras(cell.model, cell.nominal, cell.plan_cell, placement);
+  } catch (const std::invalid_argument& e) {
+    throw calib::RobotFileError(robot_file + ": no camera placement for this robot: " + e.what());
+  }
+  planner::CameraPlacement fixed = fixed_pair_below(cell.volume_centre);
+  double proposed = placement_coverage(cell, cell.placement);
+  if (proposed <= 0.0 && !cell.model.closures.empty() &&
+      !planner::target_turned_by_joints(cell.model, cell.target_frame)) {
+    SideMount side =
+        best_side_mount(cell, volume.configs.front(), volume.tool_poses.front(), placement);
+    if (side.coverage > 0.0) {
+      // The true robot keeps its random draws: only the designed mount moves.
+      cell.truth += side.nominal - cell.nominal;
+      cell.nominal = side.nominal;
+      cell.ee_board = std::move(side.board);
+      cell.plan_cell.target.board = std::move(side.plan_board);
+      cell.placement = side.placement;
+      proposed = side.coverage;
+    }
+  }
+  if (proposed <= 0.0) {
+    const double kept = placement_coverage(cell, fixed);
+    fixed.coverage = kept;
+    fixed.summary =
+        "the fixed pair 1.25 m below the working volume's centre, looking up, 0.5 m "
+        "apart (it sees the target at " +
+        std::to_string(static_cast<int>(std::lround(100 * kept))) +
+        " % of sampled reachable poses; the planner's proposal " +
+        std::to_string(static_cast<int>(std::lround(100 * proposed))) +
+        " %: " + cell.placement.summary + ")";
+    cell.placement = fixed;
+  }
+}
+
 }  // namespace
 
 CellOptions::CellOptions() {
@@ -280,214 +538,23 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
   cell.model = calib::load_robot_file(robot_file);
   cell.nominal = cell.model.nominal_parameters();
   cell.target_frame = cell.model.tool;
-  // The end-effector board is mounted by moving the tool frame's own parameters
-  // (set_fixed_frame_pose): that is only a mounting when the tool is a fixed frame outside every
-  // loop. Refuse anything else before any work, in words (it used to surface as an internal
-  // "closure failed while placing a frame").
-  {
-    const calib::Body& tool = cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame));
-    bool in_loop = false;
-    for (const calib::Closure& c : cell.model.closures)
-      in_loop = in_loop || (c.body_a >= cell.target_frame && c.body_a < tool.subtree_end) ||
-                (c.body_b >= cell.target_frame && c.body_b < tool.subtree_end);
-    // Identification places the robot in the cameras' world by moving its first body, which must
-    // therefore be a fixed base frame.
-    const calib::Body& root = cell.model.bodies.front();
-    if (root.joint != calib::JointType::kFixed)
-      throw calib::RobotFileError(robot_file + ":" + std::to_string(root.line) +
-                                  ": the first body '" + root.name +
-                                  "' is a moving joint: a robot needs a fixed base frame first, "
-                                  "from which the mechanism hangs (testdata/robots/README.md)");
-    if (tool.joint != calib::JointType::kFixed || in_loop)
-      throw calib::RobotFileError(
-          robot_file + ":" + std::to_string(tool.line) + ": the tool frame '" + tool.name +
-          "' is " + (in_loop ? "part of a closed loop" : "a moving joint") +
-          ": a simulated target cannot be mounted on it without changing the mechanism; add a "
-          "fixed tool frame on the output link (testdata/robots/README.md)");
-  }
+  check_mountable(cell.model, cell.target_frame, robot_file);
 
-  // Boards: the end-effector target (CellOptions::ee_tags, 29 cm by default), a hand-held
-  // calibration board with its own id range so the two can never be confused.
-  vision::TargetSpec ee;
-  ee.kind = vision::TargetKind::kAprilTagGrid;
-  ee.name = "end_effector";
-  ee.cols = options.ee_tags;
-  ee.rows = options.ee_tags;
-  ee.tag_size = options.ee_tag_size;
-  ee.tag_spacing = options.ee_tag_spacing;
-  ee.first_id = 0;
+  const vision::TargetSpec ee = end_effector_spec(options);
   cell.ee_board = vision::build_target(ee);
-  vision::TargetSpec cal = ee;
-  cal.name = "calibration";
-  cal.cols = 7;
-  cal.rows = 5;
-  cal.tag_size = 0.05;
-  cal.tag_spacing = 0.015;
-  cal.first_id = 100;
-  cell.calibration_board = vision::build_target(cal);
+  cell.calibration_board = vision::build_target(calibration_spec(ee));
 
-  // The working volume: where the nominal robot goes over its actuator range.
-  calib::MechanismPredictor nominal_predictor(cell.model);
-  const auto configs = calib::sample_actuators(nominal_predictor, {cell.nominal}, 200, rng);
-  if (configs.size() < 20)
-    throw calib::RobotFileError(fmt::format(
-        "{}: too few reachable configurations to build a cell: the robot assembles at {} of "
-        "up to 20000 random actuator readings within its limits (200 looked for, at least 20 "
-        "needed): it cannot assemble over most of its actuator range; check its lengths "
-        "(metres), its joint limits and home values (`robocal kin check {}`)",
-        robot_file, configs.size(), robot_file));
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
-  std::vector<Eigen::Isometry3d> tool_poses;
-  for (const auto& q : configs) {
-    const auto fk = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
-    if (!fk.closure.ok()) continue;
-    tool_poses.push_back(fk.pose);
-    lo = lo.cwiseMin(fk.pose.translation());
-    hi = hi.cwiseMax(fk.pose.translation());
-  }
-  cell.volume_centre = 0.5 * (lo + hi);
-  cell.volume_extent = 0.5 * (hi - lo);
-  // The elastic sag's law, scaled down where the robot reaches far enough to sag more than
-  // kMaxElasticSag by it.
-  double reach2 = 0.0;
-  for (const Eigen::Isometry3d& p : tool_poses)
-    reach2 = std::max(reach2, p.translation().head<2>().squaredNorm());
-  cell.elastic_sag =
-      reach2 * options.elastic_sag > kMaxElasticSag ? kMaxElasticSag / reach2 : options.elastic_sag;
+  const WorkingVolume volume =
+      working_volume(cell.model, cell.nominal, cell.target_frame, robot_file, rng);
+  cell.volume_centre = volume.centre;
+  cell.volume_extent = volume.extent;
+  cell.elastic_sag = elastic_sag_law(volume.tool_poses, options.elastic_sag);
+  calib::set_fixed_frame_pose(cell.model, cell.nominal, cell.target_frame, volume.configs.front(),
+                              designed_board_pose(cell, volume));
+  cell.truth = true_parameters(cell.model, cell.nominal, options, rng);
 
-  // The board is mounted 1 cm below the tool point, level, facing down at the cameras (its z
-  // axis points up, away from them), centred on the tool point. Designed mount = nominal tool.
-  // On a body whose collision shapes reach lower than that (the Gantry-Tau's 10 cm platform
-  // box around its tool point), the board goes on the shapes' underside instead, where a camera
-  // can see it (the planner's lines of sight are blocked by the robot's own shapes).
-  Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
-  const Eigen::Vector2d c = board_centre(cell.ee_board);
-  const double board_z = std::min(
-      tool_poses.front().translation().z() - 0.01,
-      lowest_rigid_shape_point(cell.model, cell.nominal, configs.front(), cell.target_frame));
-  world_T_board.translation() =
-      Eigen::Vector3d(tool_poses.front().translation().x() - c.x(),
-                      tool_poses.front().translation().y() - c.y(), board_z);
-  // A serial arm (no loops) whose task is the tool's full pose: the board goes on the flange,
-  // its printed face looking out along the tool's z axis, 1 cm in front of it. Level in the
-  // world at one random configuration (the rule above) would leave it at an arbitrary angle to
-  // the flange, edge-on with the wrist's links in front of its face in every orientation (UR5:
-  // no pose of 40 000 the planner sampled was seen whole by a camera pair).
-  if (cell.model.closures.empty() && cell.model.task.type == calib::TaskType::kPose) {
-    const Eigen::Isometry3d& flange = tool_poses.front();
-    world_T_board.linear() =
-        flange.linear() * Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitX()).toRotationMatrix();
-    world_T_board.translation() = flange * Eigen::Vector3d(0.0, 0.0, 0.01) -
-                                  world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0.0);
-  }
-  // A robot whose own joints turn the target with fewer than six actuators (the wire robot's
-  // platform, pitch and yaw): the board across the tool's z axis (the last joint's), its face
-  // looking out along the tool's x, 1 cm from the tool point, so that the last two joints turn
-  // it as a pan-tilt head would (planner/task_sampling.hpp aims it at the cameras). Level at a
-  // random configuration, its face lay at a random angle to the yaw axis: where that angle was
-  // small, the yaw only spun it about its face (seed 2: one pair, 1 % of poses seen, 154 µm).
-  if (planner::target_turned_by_joints(cell.model, cell.target_frame)) {
-    const Eigen::Isometry3d& tool = tool_poses.front();
-    world_T_board.linear() =
-        tool.linear() * Eigen::AngleAxisd(-kPi / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    world_T_board.translation() = tool * Eigen::Vector3d(0.01, 0.0, 0.0) -
-                                  world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0.0);
-  }
-  calib::set_fixed_frame_pose(cell.model, cell.nominal, cell.target_frame, configs.front(),
-                              world_T_board);
-
-  // The true robot: every parameter the robot file lets identification estimate, perturbed.
-  const Eigen::VectorXd sigma =
-      calib::tolerance_sigmas(cell.model, options.length_sigma, options.angle_sigma);
-  cell.truth = calib::perturb_parameters(cell.nominal, sigma, rng);
-  if (options.unmodelled_seed != 0) {
-    std::mt19937 unmodelled_rng(options.unmodelled_seed);
-    const Eigen::VectorXd all =
-        calib::tolerance_sigmas(cell.model, options.length_sigma, options.angle_sigma, 0.0, true);
-    const Eigen::VectorXd held = (sigma.array() == 0.0).select(all, 0.0);
-    cell.truth = calib::perturb_parameters(cell.truth, held, unmodelled_rng);
-  }
-
-  // Two cameras placed by the planner to see the board over the working volume (the nominal
-  // robot and intrinsics: what is known before calibration).
-  cell.plan_cell.name = "simulated";
-  cell.plan_cell.source = "simulated cell";
-  for (int i = 0; i < 2; ++i) {
-    planner::CellCamera cam;
-    cam.name = "cam" + std::to_string(i);
-    cam.file = "(simulated)";
-    cam.model = vision::make_camera(vision::CameraKind::kPinholeRadtan, options.image_width,
-                                    options.image_height, options.focal_px, options.focal_px,
-                                    0.5 * (options.image_width - 1),
-                                    0.5 * (options.image_height - 1), {0.0, 0.0, 0.0, 0.0, 0.0});
-    cell.plan_cell.cameras.push_back(cam);
-  }
-  cell.plan_cell.target.board = vision::TargetBoard(cell.ee_board);  // (a copy, moved in)
-  cell.plan_cell.target.frame =
-      cell.model.bodies.at(static_cast<std::size_t>(cell.target_frame)).name;
-  cell.plan_cell.target.file = "(simulated)";
-  cell.plan_cell.visibility.min_image_size = options.min_board_image;
-  planner::PlacementOptions placement;
-  placement.cameras = 2;
-  placement.triangulation_angle = options.triangulation_angle;
-  // An array of camera pairs where one pair sees too little of the robot's range (below a
-  // quarter: the Gantry-Tau's guideways, 6 %; the modular arm's reach, 13 %; the four-bar's pair
-  // sees 45 % and keeps it). A six-axis arm keeps its pair: its wrist turns the board towards the
-  // pair anywhere in its reach, and its poses are planned that way (UR5: 26-38 µm held-out with
-  // 3 %). The modular arm has no wrist: with one pair its seed 3 extrapolated to 62.5 µm, with
-  // an array of three pairs 33.6 µm.
-  const bool wrist_faces_the_pair = cell.model.closures.empty() && cell.model.actuated.size() >= 6;
-  placement.max_cameras = wrist_faces_the_pair ? 2 : options.max_cameras;
-  placement.min_coverage = 0.25;
-  try {
-    cell.placement = planner::propose_cameras(cell.model, cell.nominal, cell.plan_cell, placement);
-  } catch (const std::invalid_argument& e) {
-    throw calib::RobotFileError(robot_file + ": no camera placement for this robot: " + e.what());
-  }
-  // Where the planner's proposal sees none of the sampled reachable poses of a platform robot
-  // (a level board its own bed hides from every camera below it), the board goes on the
-  // platform's side instead (best_side_mount). Where nothing sees the board either way, a fixed
-  // pair 1.25 m below the volume's centre, looking up, 0.5 m apart: the renderer draws the board
-  // alone, so it sees random poses, which the simulation then falls back to.
-  {
-    planner::CameraPlacement fixed;
-    fixed.look_at = cell.volume_centre;
-    fixed.view_direction = -Eigen::Vector3d::UnitZ();
-    fixed.distance = 1.25;
-    fixed.baseline = 0.5;
-    for (int i = 0; i < 2; ++i)
-      fixed.world_T_camera.push_back(
-          vision::camera_T_board_look_at(
-              cell.volume_centre + Eigen::Vector3d((i == 0 ? -0.25 : 0.25), 0.0, -1.25),
-              cell.volume_centre, Eigen::Vector3d::UnitY())
-              .inverse());
-    double proposed = placement_coverage(cell, cell.placement);
-    if (proposed <= 0.0 && !cell.model.closures.empty() &&
-        !planner::target_turned_by_joints(cell.model, cell.target_frame)) {
-      SideMount side = best_side_mount(cell, configs.front(), tool_poses.front(), placement);
-      if (side.coverage > 0.0) {
-        // The true robot keeps its random draws: only the designed mount moves.
-        cell.truth += side.nominal - cell.nominal;
-        cell.nominal = side.nominal;
-        cell.ee_board = std::move(side.board);
-        cell.plan_cell.target.board = std::move(side.plan_board);
-        cell.placement = side.placement;
-        proposed = side.coverage;
-      }
-    }
-    if (proposed <= 0.0) {
-      const double kept = placement_coverage(cell, fixed);
-      fixed.coverage = kept;
-      fixed.summary =
-          "the fixed pair 1.25 m below the working volume's centre, looking up, 0.5 m "
-          "apart (it sees the target at " +
-          std::to_string(static_cast<int>(std::lround(100 * kept))) +
-          " % of sampled reachable poses; the planner's proposal " +
-          std::to_string(static_cast<int>(std::lround(100 * proposed))) +
-          " %: " + cell.placement.summary + ")";
-      cell.placement = fixed;
-    }
-  }
+  cell.plan_cell = planning_cell(cell);
+  place_cameras(cell, volume, placement_options(cell.model, options), robot_file);
   cell.plan_cell = planner::with_cameras(cell.plan_cell, cell.placement);
   for (std::size_t i = 0; i < cell.placement.world_T_camera.size(); ++i) {
     SimulatedCamera cam;

@@ -135,45 +135,25 @@ vision::DetectionRecord detect_unrecorded_shots(const fs::path& pose_folder,
   return out;
 }
 
-nlohmann::json measure_session(const fs::path& dir, const std::string& robot_override,
-                               const PipelineLog& log, const GateOptions& gates,
-                               const CalibratedIntrinsics& calibrated,
-                               const CalibratedRig* early_rig,
-                               const EarlyDetections* early_detections) {
-  const Session s = load_session(dir);
-  const SessionRobot robot = session_robot(s, robot_override);
-  const auto ee_board = load_board(s.path(s.ee_target));
-  const auto cal_board = load_board(s.path(s.calibration_target));
-  const auto names = s.camera_names();
-  const std::size_t n_cams = s.cameras.size();
-  // Written into a staged copy of results/ that replaces it when the measurement reaches its
-  // verdict (session/results_transaction.hpp). The copy starts without this stage's files and
-  // without the results computed from them, which would stand beside new measurements.
-  const ResultsLayout current{dir};
-  ResultsTransaction transaction(
-      dir, {(dir / ResultsLayout::kCamerasFolder).parent_path(), current.rig(),
-            current.measured_poses(), current.pixel_observations(), current.measurements(),
-            current.report("measure"), current.identification(), current.calibrated_robot(),
-            current.calibrated_robot_pixels(), current.report("validation")});
-  const ResultsLayout& results = transaction.staged();
-  nlohmann::json report{{"stage", "measure"}, {"session", dir.string()}};
-  // A step that could not be done: the previous results stay as they were (nothing committed);
-  // the reason goes to the console and the returned report.
-  const auto fail = [&](const std::string& message) {
-    report["status"] = "failed";
-    report["message"] = message;
-    say(log, "measure failed: {}; the previous results are unchanged\n", message);
-    return report;
-  };
+namespace {
 
-  // 1. Intrinsics of each camera from its calibration views.
-  stage(log, "measure: intrinsics");
-  std::vector<vision::RigCamera> rig_cameras;
-  std::vector<double> corner_sigma;
-  std::vector<vision::IntrinsicCalibrationResult> results_of;  // per camera
-  nlohmann::json intrinsics = nlohmann::json::array();
-  // The cameras calibrated before from these very views keep that result; the others are
-  // calibrated here, side by side.
+// The cameras' intrinsics: each camera's result, its row in measure.json, and why calibration
+// stopped ("" when every camera was calibrated).
+struct IntrinsicsPhase {
+  std::vector<vision::IntrinsicCalibrationResult> results;  // per camera
+  nlohmann::json report = nlohmann::json::array();
+  std::string failure;
+};
+
+// Intrinsics of each camera from its calibration views. The cameras calibrated before from these
+// very views keep that result; the others are calibrated here, side by side. Each camera file
+// is written as its camera is calibrated; the first camera that fails stops the phase.
+IntrinsicsPhase measure_intrinsics(const Session& s, const std::vector<std::string>& names,
+                                   const CalibratedIntrinsics& calibrated,
+                                   const vision::TargetBoard& cal_board,
+                                   const ResultsLayout& results, const PipelineLog& log) {
+  const std::size_t n_cams = s.cameras.size();
+  IntrinsicsPhase out;
   std::vector<std::vector<fs::path>> files_of(n_cams);
   std::vector<bool> reused(n_cams, false);
   std::vector<CameraViews> to_calibrate;
@@ -199,12 +179,12 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
     if (reuse) cj["calibrated"] = "before collection, from these views";
     cj["problems"] = step.problems;
     if (result.status != vision::CalibrationStatus::kOk) {
-      intrinsics.push_back(cj);
-      report["intrinsics"] = intrinsics;
-      return fail(
+      out.report.push_back(cj);
+      out.failure =
           fmt::format("camera {} calibration {}: {}", names[c],
                       result.status == vision::CalibrationStatus::kRefused ? "refused" : "failed",
-                      result.reason));
+                      result.reason);
+      return out;
     }
     const fs::path camera_file = results.camera(names[c]);
     vision::save_camera_file(result.camera, camera_file, names[c]);
@@ -217,14 +197,30 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
                {"param_stddev", result.param_stddev},
                {"warnings", result.warnings},
                {"camera_file", relative_to(camera_file, results.session)}});
-    intrinsics.push_back(cj);
-    results_of.push_back(result);
+    out.report.push_back(cj);
+    out.results.push_back(result);
   }
-  report["intrinsics"] = intrinsics;
-  rig_inputs(names, results_of, rig_cameras, corner_sigma);
+  return out;
+}
 
-  // 2. Rig: the cameras' relative poses from views they share (rig frame = first camera).
-  stage(log, "measure: rig");
+// The measured rig, its entry in measure.json, and why it could not be calibrated ("" when it
+// was).
+struct RigPhase {
+  std::vector<vision::RigCamera> rig;
+  nlohmann::json report;
+  std::string failure;
+};
+
+// The rig: the cameras' relative poses from views they share (rig frame = first camera). A rig
+// calibrated before measure from these very inputs is kept. Writes results/rig.json when the
+// calibration succeeds.
+RigPhase measure_rig(const Session& s, const std::vector<std::string>& names,
+                     const std::vector<vision::RigCamera>& rig_cameras,
+                     const std::vector<double>& corner_sigma, const CalibratedRig* early_rig,
+                     const vision::TargetBoard& cal_board, const ResultsLayout& results,
+                     const PipelineLog& log) {
+  const std::size_t n_cams = s.cameras.size();
+  RigPhase out;
   const auto rig_sets = scan_image_folder(s.path(s.rig_views), names);
   RigStepOptions rig_options;
   rig_options.corner_sigma_px = corner_sigma;
@@ -247,19 +243,135 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
       if (!p.empty()) rig_json["problems"].push_back(p);
   if (!rig.ok) {
     rig_json.erase("corner_sigma_px");
-    report["rig"] = rig_json;
-    return fail("rig calibration failed: " + rig.message);
+    out.report = rig_json;
+    out.failure = "rig calibration failed: " + rig.message;
+    return out;
   }
-  const std::vector<vision::RigCamera> measured_rig = rig.rig();
+  out.rig = rig.rig();
   write_json(rig_json, results.rig().string());
   if (n_cams > 1)
     say(log, "  baseline {:.5f} ± {:.5f} m, RMS {:.3f} px\n", rig.cameras.at(1).baseline_m,
         rig.cameras.at(1).baseline_sigma_m, rig.rms_px);
-  report["rig"] = {{"ok", true},
-                   {"rms_px", rig.rms_px},
-                   {"baseline_m", n_cams > 1 ? rig.cameras.at(1).baseline_m : 0.0},
-                   {"baseline_sigma_m", n_cams > 1 ? rig.cameras.at(1).baseline_sigma_m : 0.0},
-                   {"file", ResultsLayout::kRig}};
+  out.report = {{"ok", true},
+                {"rms_px", rig.rms_px},
+                {"baseline_m", n_cams > 1 ? rig.cameras.at(1).baseline_m : 0.0},
+                {"baseline_sigma_m", n_cams > 1 ? rig.cameras.at(1).baseline_sigma_m : 0.0},
+                {"file", ResultsLayout::kRig}};
+  return out;
+}
+
+// What the measured poses become: the identification's measurements, the per-pose records of
+// measured_poses.json and pixel_observations.json, and how many were measured and used.
+struct PoseRecords {
+  calib::MeasurementsFile mfile;
+  std::vector<MeasuredPoseRecord> measured_poses;
+  std::vector<PixelPoseRecord> pixel_poses;
+  int measured = 0, used = 0;
+};
+
+// Each pose's record and, when it goes to identification, its measurement; a pose that does not
+// is given the reason in words (said on the console unless every pose is refused by the gate).
+PoseRecords pose_records(const Session& s, const SessionRobot& robot,
+                         const std::vector<std::string>& names,
+                         const std::vector<PoseRecord>& records,
+                         const std::vector<PoseImages>& measured_images,
+                         const std::vector<std::string>& fit_problem, bool accept_implausible,
+                         bool refuse_all, const PipelineLog& log) {
+  PoseRecords out;
+  out.mfile.robot = robot.model.name;
+  out.mfile.frame = s.measured_frame;
+  for (std::size_t p = 0; p < records.size(); ++p) {
+    const auto& rec = records[p];
+    const auto& images = measured_images[p];
+    const vision::PoseMeasurement& m = images.measurement;
+    MeasuredPoseRecord row{rec.name,     m, images.problems, images.frames.size(), rec.timestamp,
+                           std::nullopt, ""};
+    if (rec.problem.empty()) row.actuators = rec.actuators;
+    if (m.status == vision::PoseStatus::kOk || m.status == vision::PoseStatus::kMoving)
+      ++out.measured;
+    // Why a pose does not go to identification, in words.
+    const auto reading_problem =
+        rec.problem.empty() ? calib::readings_problem(robot.model, robot.nominal, rec.actuators)
+                            : std::nullopt;
+    if (!rec.problem.empty())
+      row.excluded = rec.problem;
+    else if (reading_problem)
+      row.excluded = fmt::format("{}/{}/pose.yaml: {}", s.poses, rec.name, *reading_problem);
+    else if (!fit_problem[p].empty() && !accept_implausible)
+      row.excluded = fit_problem[p];
+    else if (!m.usable())
+      row.excluded = fmt::format("board pose {}{}", vision::pose_status_name(m.status),
+                                 m.message.empty() ? "" : " (" + m.message + ")");
+    else if (refuse_all)
+      row.excluded = "measurements not plausible (see board_fit_gate in measure.json)";
+    if (!row.excluded.empty()) {
+      if (!refuse_all || !m.usable() || !rec.problem.empty())
+        say(log, "  {} not used: {}\n", rec.name, row.excluded);
+    } else {
+      ++out.used;
+      out.mfile.measurements.poses.push_back({rec.name, rec.actuators, {to_pose_observation(m)}});
+      // An image problem that did not stop the pose (measured from the other cameras) is still
+      // the operator's to know.
+      for (const auto& problem : images.problems)
+        if (!problem.empty())
+          say(log, "  {}: {} (measured from the other cameras)\n", rec.name, problem);
+    }
+    // Raw pixel observations (camera-in-the-loop identification), for every pose with readings.
+    out.pixel_poses.push_back({rec.name, row.excluded.empty(), row.actuators, rec.problem,
+                               corner_observations_json(images.frames, names, 0.0, true)});
+    out.measured_poses.push_back(std::move(row));
+  }
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json measure_session(const fs::path& dir, const std::string& robot_override,
+                               const PipelineLog& log, const GateOptions& gates,
+                               const CalibratedIntrinsics& calibrated,
+                               const CalibratedRig* early_rig,
+                               const EarlyDetections* early_detections) {
+  const Session s = load_session(dir);
+  const SessionRobot robot = session_robot(s, robot_override);
+  const auto ee_board = load_board(s.path(s.ee_target));
+  const auto cal_board = load_board(s.path(s.calibration_target));
+  const auto names = s.camera_names();
+  // Written into a staged copy of results/ that replaces it when the measurement reaches its
+  // verdict (session/results_transaction.hpp). The copy starts without this stage's files and
+  // without the results computed from them, which would stand beside new measurements.
+  const ResultsLayout current{dir};
+  ResultsTransaction transaction(
+      dir, {(dir / ResultsLayout::kCamerasFolder).parent_path(), current.rig(),
+            current.measured_poses(), current.pixel_observations(), current.measurements(),
+            current.report("measure"), current.identification(), current.calibrated_robot(),
+            current.calibrated_robot_pixels(), current.report("validation")});
+  const ResultsLayout& results = transaction.staged();
+  nlohmann::json report{{"stage", "measure"}, {"session", dir.string()}};
+  // A step that could not be done: the previous results stay as they were (nothing committed);
+  // the reason goes to the console and the returned report.
+  const auto fail = [&](const std::string& message) {
+    report["status"] = "failed";
+    report["message"] = message;
+    say(log, "measure failed: {}; the previous results are unchanged\n", message);
+    return report;
+  };
+
+  // 1. Intrinsics of each camera from its calibration views.
+  stage(log, "measure: intrinsics");
+  const IntrinsicsPhase intrinsics =
+      measure_intrinsics(s, names, calibrated, cal_board, results, log);
+  report["intrinsics"] = intrinsics.report;
+  if (!intrinsics.failure.empty()) return fail(intrinsics.failure);
+  std::vector<vision::RigCamera> rig_cameras;
+  std::vector<double> corner_sigma;
+  rig_inputs(names, intrinsics.results, rig_cameras, corner_sigma);
+
+  // 2. Rig: the cameras' relative poses from views they share (rig frame = first camera).
+  stage(log, "measure: rig");
+  const RigPhase rig =
+      measure_rig(s, names, rig_cameras, corner_sigma, early_rig, cal_board, results, log);
+  report["rig"] = rig.report;
+  if (!rig.failure.empty()) return fail(rig.failure);
 
   // 3. The end-effector board's pose at every robot pose.
   stage(log, "measure: poses");
@@ -268,12 +380,11 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   const auto sets = scan_image_folder(s.path(s.poses), names);  // same folders, same order
   PoseStepOptions pose_options;
   pose_options.corner_sigma_px = corner_sigma;
-  const auto measured_images = measure_board_poses(measured_rig, ee_board, sets, pose_options,
-                                                   step_log(log), early_detections);
+  const auto measured_images =
+      measure_board_poses(rig.rig, ee_board, sets, pose_options, step_log(log), early_detections);
 
   const BoardFitGate fit_gate = judge_pose_fits(measured_images);
   const vision::BoardFitVerdict& fits = fit_gate.verdict;
-  const std::vector<std::string>& fit_problem = fit_gate.pose_problem;
   report["board_fit_gate"] = {{"plausible", fits.plausible},
                               {"median_chi2_dof", fits.median_chi2_dof},
                               {"inconsistent_poses", fit_gate.inconsistent()},
@@ -284,52 +395,9 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
   }
   const bool refuse_all = !fits.plausible && !gates.accept_implausible;
 
-  calib::MeasurementsFile mfile;
-  mfile.robot = robot.model.name;
-  mfile.frame = s.measured_frame;
-  std::vector<MeasuredPoseRecord> measured_poses;
-  std::vector<PixelPoseRecord> pixel_poses;
-  int measured = 0, used = 0;
-  for (std::size_t p = 0; p < records.size(); ++p) {
-    const auto& rec = records[p];
-    const auto& images = measured_images[p];
-    const vision::PoseMeasurement& m = images.measurement;
-    MeasuredPoseRecord out{rec.name,     m, images.problems, images.frames.size(), rec.timestamp,
-                           std::nullopt, ""};
-    if (rec.problem.empty()) out.actuators = rec.actuators;
-    if (m.status == vision::PoseStatus::kOk || m.status == vision::PoseStatus::kMoving) ++measured;
-    // Why a pose does not go to identification, in words.
-    const auto reading_problem =
-        rec.problem.empty() ? calib::readings_problem(robot.model, robot.nominal, rec.actuators)
-                            : std::nullopt;
-    if (!rec.problem.empty())
-      out.excluded = rec.problem;
-    else if (reading_problem)
-      out.excluded = fmt::format("{}/{}/pose.yaml: {}", s.poses, rec.name, *reading_problem);
-    else if (!fit_problem[p].empty() && !gates.accept_implausible)
-      out.excluded = fit_problem[p];
-    else if (!m.usable())
-      out.excluded = fmt::format("board pose {}{}", vision::pose_status_name(m.status),
-                                 m.message.empty() ? "" : " (" + m.message + ")");
-    else if (refuse_all)
-      out.excluded = "measurements not plausible (see board_fit_gate in measure.json)";
-    if (!out.excluded.empty()) {
-      if (!refuse_all || !m.usable() || !rec.problem.empty())
-        say(log, "  {} not used: {}\n", rec.name, out.excluded);
-    } else {
-      ++used;
-      mfile.measurements.poses.push_back({rec.name, rec.actuators, {to_pose_observation(m)}});
-      // An image problem that did not stop the pose (measured from the other cameras) is still
-      // the operator's to know.
-      for (const auto& problem : images.problems)
-        if (!problem.empty())
-          say(log, "  {}: {} (measured from the other cameras)\n", rec.name, problem);
-    }
-    // Raw pixel observations (camera-in-the-loop identification), for every pose with readings.
-    pixel_poses.push_back({rec.name, out.excluded.empty(), out.actuators, rec.problem,
-                           corner_observations_json(images.frames, names, 0.0, true)});
-    measured_poses.push_back(std::move(out));
-  }
+  const PoseRecords poses =
+      pose_records(s, robot, names, records, measured_images, fit_gate.pose_problem,
+                   gates.accept_implausible, refuse_all, log);
   std::size_t out_of_view = 0;
   for (const auto& images : measured_images) out_of_view += images.out_of_view.size();
   if (out_of_view > 0)
@@ -337,13 +405,14 @@ nlohmann::json measure_session(const fs::path& dir, const std::string& robot_ove
         "  {} pose images show no part of the board: in a camera array each pose is seen by "
         "the cameras facing it\n",
         out_of_view);
-  write_measured_poses(results, measured_poses);
-  write_pixel_observations(results, {s.robot_file, s.measured_frame, s.ee_target}, pixel_poses);
-  core::write_file_atomic(results.measurements(), calib::measurements_to_yaml(mfile));
-  say(log, "  {} of {} poses measured, {} used for identification\n", measured, records.size(),
-      used);
-  report["poses"] = {{"total", records.size()}, {"measured", measured}, {"used", used}};
-  if (!refuse_all && used == 0) return fail("no pose could be measured");
+  write_measured_poses(results, poses.measured_poses);
+  write_pixel_observations(results, {s.robot_file, s.measured_frame, s.ee_target},
+                           poses.pixel_poses);
+  core::write_file_atomic(results.measurements(), calib::measurements_to_yaml(poses.mfile));
+  say(log, "  {} of {} poses measured, {} used for identification\n", poses.measured,
+      records.size(), poses.used);
+  report["poses"] = {{"total", records.size()}, {"measured", poses.measured}, {"used", poses.used}};
+  if (!refuse_all && poses.used == 0) return fail("no pose could be measured");
   report["status"] = refuse_all ? "implausible" : "ok";
   if (refuse_all) {
     report["message"] = fits.reason;

@@ -203,6 +203,296 @@ void add_cameras(ReportData& d, const Session& s, const ResultsLayout& results,
   }
 }
 
+// The session's validation against the truth when it succeeded (none otherwise). A validation
+// without per-pose points (written by an older robocal) is refused: the page would show empty
+// per-pose plots under held-out headings.
+std::optional<ValidationFile> successful_validation(const ResultsLayout& results) {
+  std::optional<ValidationFile> validation;
+  if (fs::exists(results.report("validation"))) {
+    validation = read_validation(results, "");
+    if (validation->status != "ok") validation.reset();
+  }
+  if (validation && validation->points.empty() && !validation->report.contains("held_out_points"))
+    throw InputError(results.report("validation").string() +
+                     ": this validation has no per-pose held-out points (written by an older "
+                     "robocal); run `robocal validate` on the session again, then the report");
+  return validation;
+}
+
+// The accuracy rows and per-pose errors from held-out poses against the truth (a simulation,
+// `robocal validate`), with the regions' rows when the validation split them.
+void add_truth_accuracy(ReportData& d, nlohmann::json& summary, const ValidationFile& validation) {
+  const nlohmann::json& v = validation.report;
+  d.accuracy.push_back(accuracy_row(kTruthRow, v));
+  if (v.contains("held_out_by_region")) {
+    d.accuracy.push_back(
+        accuracy_row("inside the measured region", v.at("held_out_by_region").at("inside")));
+    d.accuracy.push_back(
+        accuracy_row("outside the measured region", v.at("held_out_by_region").at("outside")));
+  }
+  d.accuracy_note =
+      "Held-out poses against the truth (`robocal validate`, a simulated session): robot "
+      "positions the calibration never saw, compared with the true robot. Inside the measured "
+      "region (between the measured poses) the model interpolates; outside it extrapolates, "
+      "and the error usually grows.";
+  // Configurations a model could not answer are failures that the figures leave out: the
+  // page says how many, as the terminal summary does.
+  if (v.contains("unanswered") && v.at("unanswered").is_object()) {
+    int total = 0;
+    std::string which;
+    for (const auto& [model, count] : v.at("unanswered").items()) {
+      const int n = count.is_number_integer() ? count.get<int>() : 0;
+      if (n == 0) continue;
+      total += n;
+      which += fmt::format("{}{} model {}", which.empty() ? "" : ", ", model, n);
+    }
+    summary["unanswered"] = v.at("unanswered");
+    if (total > 0)
+      d.accuracy_note += fmt::format(
+          " FAILURES: of {} configurations drawn from the true robot, a model could not "
+          "answer ({}) at {}; the figures are over the {} that every model answers.",
+          v.value("held_out_drawn", validation.points.size()), kNoAnswerMeaning, which,
+          validation.points.size());
+  }
+  d.per_pose_source = "held-out poses (against the truth)";
+  for (const auto& p : validation.points) {
+    d.error_before.push_back(p.nominal_error.norm());
+    d.error_after.push_back(p.calibrated_error.norm());
+  }
+}
+
+// The accuracy row from held-out poses measured by the cameras (the wizard's validation step);
+// their per-pose errors when there is no validation against the truth.
+void add_measured_accuracy(ReportData& d, const HeldOutRecord& held_out, bool validated) {
+  ReportAccuracy a;
+  a.label = kMeasuredRow;
+  a.poses = held_out.calibrated.poses;
+  a.nominal_rms = held_out.nominal.rms_m;
+  a.nominal_max = held_out.nominal.max_m;
+  a.calibrated_rms = held_out.calibrated.rms_m;
+  a.calibrated_max = held_out.calibrated.max_m;
+  d.accuracy.push_back(a);
+  d.accuracy_note += fmt::format(
+      "{}Held-out poses measured by the cameras ({}): every {}th of the measured poses was "
+      "left out of a second identification, made the same way from the other {}; that fit's "
+      "model (after) and the nominal model with its base frame fitted (before) are compared "
+      "with where the cameras measured the board. The figures include the cameras' own "
+      "measurement error.",
+      d.accuracy_note.empty() ? "" : " ", ResultsLayout::kHeldOut, held_out.every,
+      held_out.fit_poses);
+  if (!held_out.unanswered.empty())
+    d.accuracy_note += fmt::format(
+        " FAILURES: at {} of the held-out poses a model had no answer ({}); the figures are "
+        "over the {} that both answer.",
+        held_out.unanswered.size(), kNoAnswerMeaning, held_out.poses.size());
+  if (!validated) {
+    d.per_pose_source = "held-out poses (measured by the cameras)";
+    for (const auto& p : held_out.poses) {
+      d.error_before.push_back(p.nominal_error.norm());
+      d.error_after.push_back(p.calibrated_error.norm());
+    }
+  }
+}
+
+// Without held-out poses: the fit's own residuals on the measured poses, said not to be an
+// accuracy figure.
+void add_fit_accuracy(ReportData& d, const IdentificationFile& ident,
+                      const nlohmann::json& analysis) {
+  const nlohmann::json& residuals = analysis.value("residuals", nlohmann::json::object());
+  ReportAccuracy a;
+  a.label = "measured poses (fit)";
+  a.poses = residuals.value("poses", nlohmann::json::array()).size();
+  if (ident.report.contains("nominal_fit")) {
+    a.nominal_rms = ident.report.at("nominal_fit").value("position_rms_m", 0.0);
+    a.nominal_max = ident.report.at("nominal_fit").value("position_max_m", 0.0);
+  }
+  a.calibrated_rms = residuals.value("position_rms_m", 0.0);
+  a.calibrated_max = residuals.value("position_max_m", 0.0);
+  d.accuracy.push_back(a);
+  d.accuracy_note =
+      "This session has no held-out validation, so these are the errors at the measured "
+      "poses themselves: they show how well the model fits, not how accurate it is elsewhere. "
+      "To measure accuracy on poses the calibration never saw, run the wizard's validation "
+      "step (`robocal wizard --resume FOLDER`), which records it in " +
+      std::string(ResultsLayout::kHeldOut) +
+      "; a simulated session is validated against its truth by `robocal validate`.";
+  d.per_pose_source = "measured poses (the fit's residual after calibration)";
+  for (const auto& p : residuals.value("poses", nlohmann::json::array()))
+    d.error_after.push_back(p.value("position_error_m", 0.0));
+}
+
+// The calibrated model's residual at each measured pose (measured board position minus the
+// model's, camera 0's frame), where the model closes.
+struct FitResiduals {
+  std::vector<Eigen::Vector3d> positions, residuals;
+};
+
+// The residual diagnostics against position and, on the poses whose loads the calibrated model
+// gives (a unit weight at the tool, calib::tool_weight_loads), against actuator load.
+FitResiduals add_residual_diagnostics(ReportData& d, const SessionRobot& robot,
+                                      const IdentificationFile& ident,
+                                      const std::vector<MeasuredPose>& measured) {
+  FitResiduals fit;
+  std::vector<Eigen::Vector3d> load_residuals;
+  std::vector<Eigen::VectorXd> loads;
+  const calib::MechanismPredictor tool_predictor(robot.model);
+  for (const auto& m : measured) {
+    const auto fk =
+        calib::forward_kinematics(robot.model, ident.estimate, m.actuators, robot.frame);
+    if (!fk.closure.ok()) continue;
+    fit.positions.emplace_back(m.rig_T_target.translation());
+    fit.residuals.emplace_back(m.rig_T_target.translation() - fk.pose.translation());
+    Eigen::VectorXd load;
+    if (calib::tool_weight_loads(tool_predictor, ident.estimate, m.actuators, load)) {
+      loads.push_back(load);
+      load_residuals.push_back(fit.residuals.back());
+    }
+  }
+  if (fit.positions.size() >= 4)
+    d.diagnostics.push_back({"measured poses: measured minus calibrated model, vs position",
+                             calib::residual_position_trends(fit.positions, fit.residuals)});
+  if (loads.size() >= 4)
+    d.diagnostics.push_back({"measured poses: measured minus calibrated model, vs actuator load",
+                             calib::residual_load_trends(loads, load_residuals)});
+  return fit;
+}
+
+// One error map (top and side views) from errors at positions; `before` may be empty.
+void add_error_map(ReportData& d, const std::vector<Eigen::Vector3d>& positions,
+                   const std::vector<double>& after, const std::vector<double>& before, int cells) {
+  std::vector<Eigen::Vector2d> t, sd;
+  for (const auto& p : positions) {
+    t.push_back(top(p));
+    sd.push_back(side(p));
+  }
+  d.has_map = true;
+  d.top_after = calib::error_grid(t, after, cells, cells);
+  d.side_after = calib::error_grid(sd, after, cells, cells);
+  if (!before.empty()) {
+    d.top_before = calib::error_grid(t, before, cells, cells);
+    d.side_before = calib::error_grid(sd, before, cells, cells);
+  }
+}
+
+// Error maps over the workspace (held-out positions, camera 0's frame): the truth's when
+// validated (many configurations), else the camera-measured held-out poses, else the fit's
+// residuals at the measured poses; and the measured poses drawn over them.
+void add_error_maps(ReportData& d, const std::optional<ValidationFile>& validation,
+                    const std::optional<HeldOutRecord>& held_out, const FitResiduals& fit,
+                    const std::vector<MeasuredPose>& measured) {
+  if (validation && !validation->points.empty()) {
+    std::vector<Eigen::Vector3d> positions;
+    std::vector<double> after, before;
+    for (const auto& p : validation->points) {
+      positions.push_back(p.position);
+      after.push_back(p.calibrated_error.norm());
+      before.push_back(p.nominal_error.norm());
+    }
+    d.map_source = "held-out poses (against the truth)";
+    add_error_map(d, positions, after, before, kMapCells);
+  } else if (held_out && !held_out->poses.empty()) {
+    std::vector<Eigen::Vector3d> positions;
+    std::vector<double> after, before;
+    for (const auto& p : held_out->poses) {
+      positions.push_back(p.measured);
+      after.push_back(p.calibrated_error.norm());
+      before.push_back(p.nominal_error.norm());
+    }
+    d.map_source = "held-out poses (measured by the cameras)";
+    add_error_map(d, positions, after, before, kMapCells / 2);
+  } else if (!fit.positions.empty()) {
+    // No held-out poses: the fit's residuals at the measured poses are the only errors with a
+    // position.
+    std::vector<double> after;
+    after.reserve(fit.residuals.size());
+    for (const auto& r : fit.residuals) after.push_back(r.norm());
+    d.map_source = "measured poses (the fit's residual; no held-out poses in this session)";
+    add_error_map(d, fit.positions, after, {}, kMapCells / 2);
+  }
+  for (const auto& m : measured) {
+    d.measured_top.push_back(top(m.rig_T_target.translation()));
+    d.measured_side.push_back(side(m.rig_T_target.translation()));
+  }
+}
+
+// The verdict a person reads first: the accuracy on poses the fit never saw (against the truth,
+// as the cameras measured them) or else the fit, and whether the remaining error looks like noise.
+std::string verdict(const ReportData& d, bool validated, const HeldOutRecord* held_out) {
+  const ReportAccuracy& all = d.accuracy.front();
+  bool unmodelled = false;
+  for (const auto& diag : d.diagnostics) unmodelled |= diag.trends.unmodelled_error_suspected();
+  const auto from_to = [](const ReportAccuracy& a) {
+    return fmt::format("from {} to {} RMS (worst {})",
+                       a.nominal_rms ? svg::length(*a.nominal_rms) : std::string("?"),
+                       svg::length(a.calibrated_rms), svg::length(a.calibrated_max));
+  };
+  const auto row = [&](const char* label) {
+    return *std::find_if(d.accuracy.begin(), d.accuracy.end(),
+                         [&](const ReportAccuracy& a) { return a.label == label; });
+  };
+  std::string out;
+  if (validated)
+    out = fmt::format(
+        "Calibration brought the tool's position error on {} poses it never saw {}, against "
+        "the simulated robot's truth.",
+        all.poses, from_to(all));
+  if (held_out)
+    out += fmt::format(
+        "{}Calibration brought the tool's position error on {} measured poses the fit never saw "
+        "{}, as the cameras measured them.",
+        out.empty() ? "" : " ", held_out->calibrated.poses, from_to(row(kMeasuredRow)));
+  if (!validated && !held_out)
+    out = fmt::format(
+        "The calibrated model fits the {} measured poses to {} RMS (no held-out validation in "
+        "this session).",
+        all.poses, svg::length(all.calibrated_rms));
+  out += unmodelled ? " Warning: the remaining error changes with position or with the "
+                      "actuators' load, so something "
+                      "in the robot or the measurement is not modelled (section 8)."
+                    : " The remaining error looks like noise (section 8).";
+  return out;
+}
+
+// The residual trends flagged as significant, per diagnostic, for the summary.
+nlohmann::json diagnostics_json(const std::vector<ReportDiagnostics>& all) {
+  nlohmann::json diagnostics = nlohmann::json::array();
+  for (const auto& diag : all) {
+    nlohmann::json flagged = nlohmann::json::array();
+    for (const auto& t : diag.trends.trends)
+      if (t.significant)
+        flagged.push_back(
+            {{"residual", std::string(1, "xyz"[t.component])},
+             {"variable", diag.trends.variables[static_cast<std::size_t>(t.variable)]},
+             {"correlation", t.correlation.r},
+             {"p_value", t.correlation.p_value},
+             {"change_over_workspace_m", t.amplitude}});
+    diagnostics.push_back({{"source", diag.source},
+                           {"poses", diag.trends.n},
+                           {"unmodelled_error_suspected", diag.trends.unmodelled_error_suspected()},
+                           {"flagged", flagged}});
+  }
+  return diagnostics;
+}
+
+// The terminal summary: the verdict, each accuracy row, the significant trends, the page.
+void say_report(const PipelineLog& log, const ReportData& d, const ResultsLayout& results,
+                std::size_t page_bytes) {
+  say(log, "  {}\n", d.verdict);
+  for (const auto& a : d.accuracy)
+    say(log, "    {:<30} {:>5} poses: {} -> {:.1f} µm RMS\n", a.label, a.poses,
+        a.nominal_rms ? fmt::format("{:.1f} µm", *a.nominal_rms * 1e6) : "?",
+        a.calibrated_rms * 1e6);
+  for (const auto& diag : d.diagnostics)
+    for (const auto& t : diag.trends.trends)
+      if (t.significant)
+        say(log, "    trend: {} error along {} changes with {} by {:.1f} µm (r {:+.2f})\n",
+            diag.source, "xyz"[t.component],
+            diag.trends.variables[static_cast<std::size_t>(t.variable)], t.amplitude * 1e6,
+            t.correlation.r);
+  say(log, "  page: {} ({:.0f} kB)\n", results.report_page().string(),
+      static_cast<double>(page_bytes) / 1024.0);
+}
+
 }  // namespace
 
 nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
@@ -227,17 +517,7 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   d.robot = s.robot_name.empty() ? ident.report.value("robot", "robot") : s.robot_name;
   d.software = ident.report.value("software", "robocal");
 
-  std::optional<ValidationFile> validation;
-  if (fs::exists(results.report("validation"))) {
-    validation = read_validation(results, "");
-    if (validation->status != "ok") validation.reset();
-  }
-  // A validation.json from before per-pose points were written has the summary figures but no
-  // points: the page would show empty per-pose plots under held-out headings. Say so instead.
-  if (validation && validation->points.empty() && !validation->report.contains("held_out_points"))
-    throw InputError(results.report("validation").string() +
-                     ": this validation has no per-pose held-out points (written by an older "
-                     "robocal); run `robocal validate` on the session again, then the report");
+  const std::optional<ValidationFile> validation = successful_validation(results);
   std::vector<MeasuredPose> measured;
   if (fs::exists(results.measured_poses())) measured = read_used_measured_poses(results, "");
   // Held-out poses measured by the cameras (the wizard's validation step), when they were held
@@ -255,182 +535,17 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   // validate`) and held-out poses measured by the cameras (the wizard) when the session has
   // them, else the fit's own residuals on the measured poses (not an accuracy figure: said so).
   nlohmann::json summary{{"stage", "report"}, {"session", dir.string()}};
-  if (validation) {
-    const nlohmann::json& v = validation->report;
-    d.accuracy.push_back(accuracy_row(kTruthRow, v));
-    if (v.contains("held_out_by_region")) {
-      d.accuracy.push_back(
-          accuracy_row("inside the measured region", v.at("held_out_by_region").at("inside")));
-      d.accuracy.push_back(
-          accuracy_row("outside the measured region", v.at("held_out_by_region").at("outside")));
-    }
-    d.accuracy_note =
-        "Held-out poses against the truth (`robocal validate`, a simulated session): robot "
-        "positions the calibration never saw, compared with the true robot. Inside the measured "
-        "region (between the measured poses) the model interpolates; outside it extrapolates, "
-        "and the error usually grows.";
-    // Configurations a model could not answer are failures that the figures leave out: the
-    // page says how many, as the terminal summary does.
-    if (v.contains("unanswered") && v.at("unanswered").is_object()) {
-      int total = 0;
-      std::string which;
-      for (const auto& [model, count] : v.at("unanswered").items()) {
-        const int n = count.is_number_integer() ? count.get<int>() : 0;
-        if (n == 0) continue;
-        total += n;
-        which += fmt::format("{}{} model {}", which.empty() ? "" : ", ", model, n);
-      }
-      summary["unanswered"] = v.at("unanswered");
-      if (total > 0)
-        d.accuracy_note += fmt::format(
-            " FAILURES: of {} configurations drawn from the true robot, a model could not "
-            "answer ({}) at {}; the figures are over the {} that every model answers.",
-            v.value("held_out_drawn", validation->points.size()), kNoAnswerMeaning, which,
-            validation->points.size());
-    }
-    d.per_pose_source = "held-out poses (against the truth)";
-    for (const auto& p : validation->points) {
-      d.error_before.push_back(p.nominal_error.norm());
-      d.error_after.push_back(p.calibrated_error.norm());
-    }
-  }
-  if (held_out) {
-    ReportAccuracy a;
-    a.label = kMeasuredRow;
-    a.poses = held_out->calibrated.poses;
-    a.nominal_rms = held_out->nominal.rms_m;
-    a.nominal_max = held_out->nominal.max_m;
-    a.calibrated_rms = held_out->calibrated.rms_m;
-    a.calibrated_max = held_out->calibrated.max_m;
-    d.accuracy.push_back(a);
-    d.accuracy_note += fmt::format(
-        "{}Held-out poses measured by the cameras ({}): every {}th of the measured poses was "
-        "left out of a second identification, made the same way from the other {}; that fit's "
-        "model (after) and the nominal model with its base frame fitted (before) are compared "
-        "with where the cameras measured the board. The figures include the cameras' own "
-        "measurement error.",
-        d.accuracy_note.empty() ? "" : " ", ResultsLayout::kHeldOut, held_out->every,
-        held_out->fit_poses);
-    if (!held_out->unanswered.empty())
-      d.accuracy_note += fmt::format(
-          " FAILURES: at {} of the held-out poses a model had no answer ({}); the figures are "
-          "over the {} that both answer.",
-          held_out->unanswered.size(), kNoAnswerMeaning, held_out->poses.size());
-    if (!validation) {
-      d.per_pose_source = "held-out poses (measured by the cameras)";
-      for (const auto& p : held_out->poses) {
-        d.error_before.push_back(p.nominal_error.norm());
-        d.error_after.push_back(p.calibrated_error.norm());
-      }
-    }
-  }
-  if (!validation && !held_out) {
-    const nlohmann::json& residuals = analysis.value("residuals", nlohmann::json::object());
-    ReportAccuracy a;
-    a.label = "measured poses (fit)";
-    a.poses = residuals.value("poses", nlohmann::json::array()).size();
-    if (ident.report.contains("nominal_fit")) {
-      a.nominal_rms = ident.report.at("nominal_fit").value("position_rms_m", 0.0);
-      a.nominal_max = ident.report.at("nominal_fit").value("position_max_m", 0.0);
-    }
-    a.calibrated_rms = residuals.value("position_rms_m", 0.0);
-    a.calibrated_max = residuals.value("position_max_m", 0.0);
-    d.accuracy.push_back(a);
-    d.accuracy_note =
-        "This session has no held-out validation, so these are the errors at the measured "
-        "poses themselves: they show how well the model fits, not how accurate it is elsewhere. "
-        "To measure accuracy on poses the calibration never saw, run the wizard's validation "
-        "step (`robocal wizard --resume FOLDER`), which records it in " +
-        std::string(ResultsLayout::kHeldOut) +
-        "; a simulated session is validated against its truth by `robocal validate`.";
-    d.per_pose_source = "measured poses (the fit's residual after calibration)";
-    for (const auto& p : residuals.value("poses", nlohmann::json::array()))
-      d.error_after.push_back(p.value("position_error_m", 0.0));
-  }
+  if (validation) add_truth_accuracy(d, summary, *validation);
+  if (held_out) add_measured_accuracy(d, *held_out, validation.has_value());
+  if (!validation && !held_out) add_fit_accuracy(d, ident, analysis);
   if (!held_out_stale.empty())
     d.accuracy_note += fmt::format(" The held-out poses of {} are not shown: {}.",
                                    ResultsLayout::kHeldOut, held_out_stale);
   if (!d.error_before.empty()) d.histogram_before = error_histogram(d.error_before);
   d.histogram_after = error_histogram(d.error_after);
 
-  // The calibrated model's residual at each measured pose (measured board position minus the
-  // model's, camera 0's frame): the residual diagnostics, and the error map without truth.
-  // The load test uses the poses whose loads the calibrated model gives (a unit weight at the
-  // tool, calib::tool_weight_loads).
-  std::vector<Eigen::Vector3d> fit_positions, fit_residuals, load_residuals;
-  std::vector<Eigen::VectorXd> loads;
-  const calib::MechanismPredictor tool_predictor(robot.model);
-  for (const auto& m : measured) {
-    const auto fk =
-        calib::forward_kinematics(robot.model, ident.estimate, m.actuators, robot.frame);
-    if (!fk.closure.ok()) continue;
-    fit_positions.emplace_back(m.rig_T_target.translation());
-    fit_residuals.emplace_back(m.rig_T_target.translation() - fk.pose.translation());
-    Eigen::VectorXd load;
-    if (calib::tool_weight_loads(tool_predictor, ident.estimate, m.actuators, load)) {
-      loads.push_back(load);
-      load_residuals.push_back(fit_residuals.back());
-    }
-  }
-  if (fit_positions.size() >= 4)
-    d.diagnostics.push_back({"measured poses: measured minus calibrated model, vs position",
-                             calib::residual_position_trends(fit_positions, fit_residuals)});
-  if (loads.size() >= 4)
-    d.diagnostics.push_back({"measured poses: measured minus calibrated model, vs actuator load",
-                             calib::residual_load_trends(loads, load_residuals)});
-
-  // Error maps over the workspace (held-out positions, camera 0's frame): the truth's when
-  // validated (many configurations), else the camera-measured held-out poses, else the fit's
-  // residuals at the measured poses.
-  const auto map_of = [&](const std::vector<Eigen::Vector3d>& positions,
-                          const std::vector<double>& after, const std::vector<double>& before,
-                          int cells) {
-    std::vector<Eigen::Vector2d> t, sd;
-    for (const auto& p : positions) {
-      t.push_back(top(p));
-      sd.push_back(side(p));
-    }
-    d.has_map = true;
-    d.top_after = calib::error_grid(t, after, cells, cells);
-    d.side_after = calib::error_grid(sd, after, cells, cells);
-    if (!before.empty()) {
-      d.top_before = calib::error_grid(t, before, cells, cells);
-      d.side_before = calib::error_grid(sd, before, cells, cells);
-    }
-  };
-  if (validation && !validation->points.empty()) {
-    std::vector<Eigen::Vector3d> positions;
-    std::vector<double> after, before;
-    for (const auto& p : validation->points) {
-      positions.push_back(p.position);
-      after.push_back(p.calibrated_error.norm());
-      before.push_back(p.nominal_error.norm());
-    }
-    d.map_source = "held-out poses (against the truth)";
-    map_of(positions, after, before, kMapCells);
-  } else if (held_out && !held_out->poses.empty()) {
-    std::vector<Eigen::Vector3d> positions;
-    std::vector<double> after, before;
-    for (const auto& p : held_out->poses) {
-      positions.push_back(p.measured);
-      after.push_back(p.calibrated_error.norm());
-      before.push_back(p.nominal_error.norm());
-    }
-    d.map_source = "held-out poses (measured by the cameras)";
-    map_of(positions, after, before, kMapCells / 2);
-  } else if (!fit_positions.empty()) {
-    // No held-out poses: the fit's residuals at the measured poses are the only errors with a
-    // position.
-    std::vector<double> after;
-    after.reserve(fit_residuals.size());
-    for (const auto& r : fit_residuals) after.push_back(r.norm());
-    d.map_source = "measured poses (the fit's residual; no held-out poses in this session)";
-    map_of(fit_positions, after, {}, kMapCells / 2);
-  }
-  for (const auto& m : measured) {
-    d.measured_top.push_back(top(m.rig_T_target.translation()));
-    d.measured_side.push_back(side(m.rig_T_target.translation()));
-  }
+  const FitResiduals fit = add_residual_diagnostics(d, robot, ident, measured);
+  add_error_maps(d, validation, held_out, fit, measured);
 
   add_parameters(d, ident, analysis);
   std::map<std::string, double> rms_by_pose;
@@ -449,38 +564,8 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
     d.timings.emplace_back("identification solver (camera-in-the-loop route)",
                            ident.report.at("pixel_route").at("result").value("solve_seconds", 0.0));
 
-  // The verdict a person reads first.
+  d.verdict = verdict(d, validation.has_value(), held_out ? &*held_out : nullptr);
   const ReportAccuracy& all = d.accuracy.front();
-  bool unmodelled = false;
-  for (const auto& diag : d.diagnostics) unmodelled |= diag.trends.unmodelled_error_suspected();
-  const auto from_to = [](const ReportAccuracy& a) {
-    return fmt::format("from {} to {} RMS (worst {})",
-                       a.nominal_rms ? svg::length(*a.nominal_rms) : std::string("?"),
-                       svg::length(a.calibrated_rms), svg::length(a.calibrated_max));
-  };
-  const auto row = [&](const char* label) {
-    return *std::find_if(d.accuracy.begin(), d.accuracy.end(),
-                         [&](const ReportAccuracy& a) { return a.label == label; });
-  };
-  if (validation)
-    d.verdict = fmt::format(
-        "Calibration brought the tool's position error on {} poses it never saw {}, against "
-        "the simulated robot's truth.",
-        all.poses, from_to(all));
-  if (held_out)
-    d.verdict += fmt::format(
-        "{}Calibration brought the tool's position error on {} measured poses the fit never saw "
-        "{}, as the cameras measured them.",
-        d.verdict.empty() ? "" : " ", held_out->calibrated.poses, from_to(row(kMeasuredRow)));
-  if (!validation && !held_out)
-    d.verdict = fmt::format(
-        "The calibrated model fits the {} measured poses to {} RMS (no held-out validation in "
-        "this session).",
-        all.poses, svg::length(all.calibrated_rms));
-  d.verdict += unmodelled ? " Warning: the remaining error changes with position or with the "
-                            "actuators' load, so something "
-                            "in the robot or the measurement is not modelled (section 8)."
-                          : " The remaining error looks like noise (section 8).";
 
   d.timings.emplace_back(
       "this report",
@@ -505,40 +590,11 @@ nlohmann::json report_session(const fs::path& dir, const PipelineLog& log,
   summary["parameters"] = {{"total", counts.total},           {"free", counts.free},
                            {"identified", counts.identified}, {"held_at_nominal", counts.held},
                            {"no_effect", counts.no_effect},   {"fixed", counts.fixed()}};
-  nlohmann::json diagnostics = nlohmann::json::array();
-  for (const auto& diag : d.diagnostics) {
-    nlohmann::json flagged = nlohmann::json::array();
-    for (const auto& t : diag.trends.trends)
-      if (t.significant)
-        flagged.push_back(
-            {{"residual", std::string(1, "xyz"[t.component])},
-             {"variable", diag.trends.variables[static_cast<std::size_t>(t.variable)]},
-             {"correlation", t.correlation.r},
-             {"p_value", t.correlation.p_value},
-             {"change_over_workspace_m", t.amplitude}});
-    diagnostics.push_back({{"source", diag.source},
-                           {"poses", diag.trends.n},
-                           {"unmodelled_error_suspected", diag.trends.unmodelled_error_suspected()},
-                           {"flagged", flagged}});
-  }
-  summary["residual_diagnostics"] = diagnostics;
+  summary["residual_diagnostics"] = diagnostics_json(d.diagnostics);
   summary["verdict"] = d.verdict;
   summary["seconds"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  say(log, "  {}\n", d.verdict);
-  for (const auto& a : d.accuracy)
-    say(log, "    {:<30} {:>5} poses: {} -> {:.1f} µm RMS\n", a.label, a.poses,
-        a.nominal_rms ? fmt::format("{:.1f} µm", *a.nominal_rms * 1e6) : "?",
-        a.calibrated_rms * 1e6);
-  for (const auto& diag : d.diagnostics)
-    for (const auto& t : diag.trends.trends)
-      if (t.significant)
-        say(log, "    trend: {} error along {} changes with {} by {:.1f} µm (r {:+.2f})\n",
-            diag.source, "xyz"[t.component],
-            diag.trends.variables[static_cast<std::size_t>(t.variable)], t.amplitude * 1e6,
-            t.correlation.r);
-  say(log, "  page: {} ({:.0f} kB)\n", results.report_page().string(),
-      static_cast<double>(html.size()) / 1024.0);
+  say_report(log, d, results, html.size());
   return summary;
 }
 

@@ -335,12 +335,9 @@ struct TakenPose {
   MotionVerdict verdict;  // set by the check
 };
 
-}  // namespace
-
-CaptureResult capture_poses(const fs::path& session_dir,
-                            const std::vector<Eigen::VectorXd>& targets, CaptureRobot& robot,
-                            const std::vector<CaptureCamera>& cameras,
-                            const vision::TargetBoard& board, const CaptureOptions& options) {
+// Refuses a capture that cannot start, in words.
+void check_capture_arguments(const std::vector<CaptureCamera>& cameras,
+                             const CaptureOptions& options) {
   if (cameras.empty()) {
     throw std::invalid_argument("capture: no camera");
   }
@@ -352,6 +349,149 @@ CaptureResult capture_poses(const fs::path& session_dir,
   if (options.shots_per_pose < 1) {
     throw std::invalid_argument("capture: shots_per_pose must be at least 1");
   }
+}
+
+// One detector per camera for each pose in flight: two poses' tests may run at once.
+using DetectorSet = std::vector<std::unique_ptr<vision::AprilTagDetector>>;
+std::vector<DetectorSet> make_detectors(std::size_t in_flight_limit, std::size_t cameras,
+                                        const vision::AprilTagDetectorOptions& options) {
+  std::vector<DetectorSet> detectors(in_flight_limit);
+  for (auto& set : detectors) {
+    for (std::size_t c = 0; c < cameras; ++c) {
+      set.push_back(std::make_unique<vision::AprilTagDetector>(options));
+    }
+  }
+  return detectors;
+}
+
+// What the robot does next: move to a target and take its pose, or only pass through it on the
+// way back from a retake.
+struct Step {
+  int index = 0;
+  bool capture = true;
+};
+
+// The steps taking every target whose pose folder does not exist yet; the others are reported
+// in `result` as already recorded.
+std::deque<Step> first_steps(std::size_t targets, const fs::path& poses_dir,
+                             CaptureResult& result) {
+  std::deque<Step> queue;
+  std::error_code error;
+  for (std::size_t i = 0; i < targets; ++i) {
+    PoseCaptureReport report;
+    report.index = static_cast<int>(i);
+    report.name = pose_folder_name(report.index);
+    if (fs::exists(poses_dir / report.name, error)) {
+      report.status = PoseCaptureStatus::kAlreadyRecorded;
+      result.poses.push_back(report);
+    } else {
+      queue.push_back({report.index, true});
+    }
+  }
+  return queue;
+}
+
+// Queues `pose` to be taken again: the robot goes back along the motions it made to reach it
+// (`visited`, in order; each was planned and checked: a new straight motion from elsewhere might
+// not be safe, and the guard would refuse it), takes it again, and returns the same way to go on
+// with the plan when there is more to take.
+void plan_retake(int pose, const std::vector<int>& visited, std::deque<Step>& queue) {
+  const auto last = std::find(visited.rbegin(), visited.rend(), pose);
+  const auto at = last == visited.rend()
+                      ? visited.size()
+                      : static_cast<std::size_t>(std::distance(visited.begin(), last.base()) - 1);
+  if (at + 1 >= visited.size()) {
+    queue.push_front({pose, true});  // the robot is still there
+    return;
+  }
+  std::vector<Step> steps;
+  for (std::size_t k = visited.size() - 1; k-- > at;) {
+    steps.push_back({visited[k], k == at});
+  }
+  const bool more_to_take =
+      std::any_of(queue.begin(), queue.end(), [](const Step& s) { return s.capture; });
+  for (std::size_t k = at + 1; more_to_take && k < visited.size(); ++k) {
+    steps.push_back({visited[k], false});
+  }
+  queue.insert(queue.begin(), steps.begin(), steps.end());
+}
+
+// Takes the shot series at the pose the robot has settled at. The readings tell at once whether
+// the robot moved during the shots: the series is taken again right away, up to
+// options.max_retakes times.
+void take_shots(TakenPose& taken, CaptureRobot& robot, const std::vector<CaptureCamera>& cameras,
+                const CaptureOptions& options) {
+  for (;;) {
+    const auto t = Clock::now();
+    taken.shots = grab_series(cameras, options, taken.report);
+    taken.after = robot.read_actuators();
+    taken.report.grab_s += seconds_since(t);
+    taken.moving = taken.after.size() != taken.before.size() ||
+                   (taken.after - taken.before).cwiseAbs().maxCoeff() > options.reading_tolerance;
+    if (!taken.moving || taken.report.retakes >= options.max_retakes) {
+      break;
+    }
+    ++taken.report.retakes;
+    taken.before = taken.after;
+    taken.flange = robot.flange_pose();
+  }
+}
+
+// `options` with its file observer serialised: poses in flight write side by side, and the
+// observer hears of their files one at a time.
+CaptureOptions one_file_at_a_time(const CaptureOptions& options, std::mutex& observer_mutex) {
+  CaptureOptions writing = options;
+  if (options.on_file_written) {
+    writing.on_file_written = [&observer_mutex, &options](const fs::path& file) {
+      const std::lock_guard lock(observer_mutex);
+      options.on_file_written(file);
+    };
+  }
+  return writing;
+}
+
+// What checking and writing a taken pose needs, the same for every pose of the capture.
+struct PoseWriter {
+  const std::vector<CaptureCamera>& cameras;
+  const vision::TargetBoard& board;
+  const vision::BoardPoints& points;
+  const CaptureOptions& options;
+  const CaptureOptions& writing;  // options, its observer hearing of one file at a time
+  const fs::path& staging;
+  const fs::path& poses_dir;
+  const std::string& detector_signature;
+};
+
+// The motion check of a taken pose (with `detectors`, its own while it is in flight), then its
+// writing; a pose whose target moved is returned unwritten while it may be taken again.
+TakenPose check_and_write(TakenPose taken, const PoseWriter& w, DetectorSet& detectors) {
+  auto t = Clock::now();
+  taken.verdict = check_motion(taken.shots, w.cameras, w.board, w.points, detectors,
+                               w.options.motion_false_alarm, w.options.workers);
+  taken.report.check_s += seconds_since(t);
+  taken.report.motion_chi2 = taken.verdict.chi2;
+  taken.report.corners = taken.verdict.corners;
+  taken.moving = taken.moving || taken.verdict.moving;
+  if (taken.moving && taken.report.retakes < w.options.max_retakes) {
+    return taken;  // not written: taken again (plan_retake)
+  }
+  taken.report.still_moving = taken.moving;
+  t = Clock::now();
+  write_pose(w.staging, w.poses_dir, taken.report.name, taken.shots, w.cameras, taken.before,
+             taken.after, taken.flange, taken.report, taken.verdict, w.detector_signature,
+             w.writing);
+  taken.report.write_s = seconds_since(t);
+  taken.written = true;
+  return taken;
+}
+
+}  // namespace
+
+CaptureResult capture_poses(const fs::path& session_dir,
+                            const std::vector<Eigen::VectorXd>& targets, CaptureRobot& robot,
+                            const std::vector<CaptureCamera>& cameras,
+                            const vision::TargetBoard& board, const CaptureOptions& options) {
+  check_capture_arguments(cameras, options);
   const fs::path poses_dir = session_dir / "poses";
   // Staging sits beside poses/, never inside it: the pipeline lists every folder in poses/.
   // What is left there from an interrupted run is an incomplete pose, never recorded data.
@@ -368,95 +508,29 @@ CaptureResult capture_poses(const fs::path& session_dir,
   // The board's detector, as measure builds it: the detections it makes are recorded for measure.
   const vision::AprilTagDetectorOptions detector_options = vision::detector_options_for(board);
   const std::string detector_signature = vision::detection_signature(board, detector_options);
-  // One detector per camera for each pose in flight: two poses' tests may run at once.
   const auto in_flight_limit = static_cast<std::size_t>(std::max(1, options.poses_in_flight));
-  std::vector<std::vector<std::unique_ptr<vision::AprilTagDetector>>> detectors(in_flight_limit);
-  for (auto& set : detectors) {
-    for (std::size_t c = 0; c < cameras.size(); ++c) {
-      set.push_back(std::make_unique<vision::AprilTagDetector>(detector_options));
-    }
-  }
+  std::vector<DetectorSet> detectors =
+      make_detectors(in_flight_limit, cameras.size(), detector_options);
 
   CaptureResult result;
   const auto started = Clock::now();
-  // What the robot does next: move to a target and take its pose, or only pass through it on the
-  // way back from a retake.
-  struct Step {
-    int index = 0;
-    bool capture = true;
-  };
-  std::deque<Step> queue;
+  std::deque<Step> queue = first_steps(targets.size(), poses_dir, result);
   std::vector<int> visited;    // the targets the robot moved to, in order
   std::map<int, int> retakes;  // by pose index: shot series rejected so far
-  for (std::size_t i = 0; i < targets.size(); ++i) {
-    PoseCaptureReport report;
-    report.index = static_cast<int>(i);
-    report.name = pose_folder_name(report.index);
-    if (fs::exists(poses_dir / report.name, error)) {
-      report.status = PoseCaptureStatus::kAlreadyRecorded;
-      result.poses.push_back(report);
-    } else {
-      queue.push_back({report.index, true});
-    }
-  }
 
   // The motion check and the writing of a pose run while the robot moves on (at most
   // options.poses_in_flight poses in flight). A pose whose target moved is taken again as soon as
-  // that is known:
-  // the robot goes back along the motions it made to reach it (each was planned and checked; a
-  // new straight motion from elsewhere might not be safe, and the guard would refuse it), takes
-  // it again, and returns the same way to go on with the plan.
-  const auto plan_retake = [&](int pose) {
-    const auto last = std::find(visited.rbegin(), visited.rend(), pose);
-    const auto at = last == visited.rend()
-                        ? visited.size()
-                        : static_cast<std::size_t>(std::distance(visited.begin(), last.base()) - 1);
-    if (at + 1 >= visited.size()) {
-      queue.push_front({pose, true});  // the robot is still there
-      return;
-    }
-    std::vector<Step> steps;
-    for (std::size_t k = visited.size() - 1; k-- > at;) {
-      steps.push_back({visited[k], k == at});
-    }
-    const bool more_to_take =
-        std::any_of(queue.begin(), queue.end(), [](const Step& s) { return s.capture; });
-    for (std::size_t k = at + 1; more_to_take && k < visited.size(); ++k) {
-      steps.push_back({visited[k], false});
-    }
-    queue.insert(queue.begin(), steps.begin(), steps.end());
-  };
-  // Poses in flight write side by side; the observer hears of their files one at a time.
+  // that is known (plan_retake).
   std::mutex observer_mutex;
-  CaptureOptions writing = options;
-  if (options.on_file_written) {
-    writing.on_file_written = [&observer_mutex, &options](const fs::path& file) {
-      const std::lock_guard lock(observer_mutex);
-      options.on_file_written(file);
-    };
-  }
+  const CaptureOptions writing = one_file_at_a_time(options, observer_mutex);
+  const PoseWriter writer{cameras, board,   points,    options,
+                          writing, staging, poses_dir, detector_signature};
   std::deque<std::future<TakenPose>> in_flight;  // oldest first
   std::size_t launched = 0;
   // `slot`: the detector set of this pose; the pose that used it last is settled (FIFO, at most
   // in_flight_limit at once).
-  const auto check_and_write = [&](TakenPose taken, std::size_t slot) {
-    auto t = Clock::now();
-    taken.verdict = check_motion(taken.shots, cameras, board, points, detectors[slot],
-                                 options.motion_false_alarm, options.workers);
-    taken.report.check_s += seconds_since(t);
-    taken.report.motion_chi2 = taken.verdict.chi2;
-    taken.report.corners = taken.verdict.corners;
-    taken.moving = taken.moving || taken.verdict.moving;
-    if (taken.moving && taken.report.retakes < options.max_retakes) {
-      return taken;  // not written: taken again (plan_retake)
-    }
-    taken.report.still_moving = taken.moving;
-    t = Clock::now();
-    write_pose(staging, poses_dir, taken.report.name, taken.shots, cameras, taken.before,
-               taken.after, taken.flange, taken.report, taken.verdict, detector_signature, writing);
-    taken.report.write_s = seconds_since(t);
-    taken.written = true;
-    return taken;
+  const auto check_and_write_in = [&](TakenPose taken, std::size_t slot) {
+    return check_and_write(std::move(taken), writer, detectors[slot]);
   };
   // Collects the oldest pose in flight; a rejected one is taken again next (plan_retake).
   const auto settle_oldest = [&] {
@@ -471,7 +545,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
       if (options.on_pose_recorded) options.on_pose_recorded(done.report);
     } else {
       retakes[done.report.index] = done.report.retakes + 1;
-      plan_retake(done.report.index);
+      plan_retake(done.report.index, visited, queue);
     }
   };
   const auto stop = [&](const std::string& reason, std::optional<CameraError::Kind> kind) {
@@ -531,22 +605,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
       taken.flange = robot.flange_pose();
       taken.report.move_s = seconds_since(t);
       visited.push_back(index);
-      // The readings tell at once whether the robot moved during the shots: retake right away.
-      for (;;) {
-        t = Clock::now();
-        taken.shots = grab_series(cameras, options, taken.report);
-        taken.after = robot.read_actuators();
-        taken.report.grab_s += seconds_since(t);
-        taken.moving =
-            taken.after.size() != taken.before.size() ||
-            (taken.after - taken.before).cwiseAbs().maxCoeff() > options.reading_tolerance;
-        if (!taken.moving || taken.report.retakes >= options.max_retakes) {
-          break;
-        }
-        ++taken.report.retakes;
-        taken.before = taken.after;
-        taken.flange = robot.flange_pose();
-      }
+      take_shots(taken, robot, cameras, options);
       t = Clock::now();
       while (in_flight.size() >= in_flight_limit) {
         settle_oldest();
@@ -559,7 +618,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
       stop(fmt::format("pose {}: {}", taken.report.name, other.what()), std::nullopt);
       return result;
     }
-    in_flight.push_back(std::async(std::launch::async, check_and_write, std::move(taken),
+    in_flight.push_back(std::async(std::launch::async, check_and_write_in, std::move(taken),
                                    launched++ % in_flight_limit));
   }
   std::sort(result.poses.begin(), result.poses.end(),
