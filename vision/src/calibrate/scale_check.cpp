@@ -156,21 +156,4 @@ ScaleCheck check_scale(const std::vector<RigCamera>& rig, const ScaleBar& bar,
   return out;
 }
 
-RigCalibrationResult scale_rig_calibration(const RigCalibrationResult& calibration, double factor) {
-  RigCalibrationResult out = calibration;
-  for (CameraCalibration& c : out.cameras) {
-    c.camera_T_rig.translation() *= factor;
-    c.extrinsic_covariance.bottomRightCorner<3, 3>() *= factor * factor;
-    c.extrinsic_covariance.topRightCorner<3, 3>() *= factor;
-    c.extrinsic_covariance.bottomLeftCorner<3, 3>() *= factor;
-    c.position *= factor;
-    c.position_covariance *= factor * factor;
-    c.baseline_m *= factor;
-    c.baseline_sigma_m *= factor;
-  }
-  for (auto& pose : out.rig_T_board)
-    if (pose) pose->translation() *= factor;
-  return out;
-}
-
 }  // namespace robocal::vision

@@ -65,10 +65,6 @@ ScaleCheck check_scale(const std::vector<RigCamera>& rig, const ScaleBar& bar,
                        const std::vector<std::vector<CameraFrame>>& frames,
                        const ScaleCheckOptions& options = {});
 
-// Every rig length multiplied by `factor` (camera translations and their covariance), the
-// reference camera staying at the origin; board poses scaled alike.
-RigCalibrationResult scale_rig_calibration(const RigCalibrationResult& calibration, double factor);
-
 // Triangulates one point seen by two or more cameras (pixel sigma per observation): linear
 // ray-intersection start, then Gauss-Newton on the reprojection error. Returns false when fewer
 // than two cameras see it or the rays are (nearly) parallel.
