@@ -52,8 +52,9 @@ int run_live(const DemoOptions& o) {
   l.seed = o.simulate.seed;
   l.poses = o.simulate.poses;
   l.held_out = o.held_out;
-  // Not given: the live demo's own default, which depends on the cell's cameras.
-  l.intrinsic_views = o.intrinsic_views_given || o.simulate.quick ? o.simulate.intrinsic_views : 0;
+  // Not given: the live demo's own default (kLiveIntrinsicViews per camera).
+  l.intrinsic_views = o.intrinsic_views_given || o.simulate.quick ? o.simulate.intrinsic_views
+                                                                  : kLiveIntrinsicViews;
   l.rig_views = o.simulate.rig_views;
   l.threads = o.threads;
   l.quick = o.simulate.quick;
@@ -168,8 +169,8 @@ CommandSpec demo_command() {
                 ->capture_default_str();
             cmd.add_option("--intrinsic-views", o->simulate.intrinsic_views,
                            fmt::format("Calibration-board views per camera (default {}, 12 with "
-                                       "--quick; --live with more than two cameras: {})",
-                                       SimulateOptions{}.intrinsic_views, kArrayIntrinsicViews))
+                                       "--quick; --live: {})",
+                                       SimulateOptions{}.intrinsic_views, kLiveIntrinsicViews))
                 ->check(CLI::Range(4, 1000));
             cmd.add_option("--rig-views", o->simulate.rig_views,
                            fmt::format("Board views the cameras see together (default {}, 6 "

@@ -38,7 +38,10 @@ InProcessCamera::InProcessCamera(LiveCameraSpec spec, const vision::TargetBoard&
     : spec_(std::move(spec)),
       board_(&board),
       truth_(&truth),
-      renderer_(std::make_unique<vision::StillSceneRenderer>(vision::precompute_rays(spec_.model))),
+      renderer_(std::make_unique<vision::StillSceneRenderer>(
+          spec_.rays && spec_.rays->camera == spec_.model
+              ? spec_.rays
+              : std::make_shared<const vision::CameraRays>(vision::precompute_rays(spec_.model)))),
       busy_(std::move(busy)) {}
 
 InProcessCamera::~InProcessCamera() {
@@ -153,6 +156,7 @@ LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision:
     s.camera_T_world = specs_[i].camera_T_world;
     s.render = specs_[i].render;
     s.busy_clock = busy_;
+    s.rays = specs_[i].rays;
     try {
       gige_[i] = std::make_unique<robotio::SimulatedGigECamera>(s, board, *truths_[i]);
       gige_[i]->set_history(1);

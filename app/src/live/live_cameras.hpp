@@ -53,6 +53,9 @@ struct LiveCameraSpec {
   vision::CameraModel model;
   Eigen::Isometry3d camera_T_world = Eigen::Isometry3d::Identity();
   vision::RenderOptions render;
+  // The rays of `model`, shared by every source that renders this camera (optional: computed from
+  // `model` where missing).
+  std::shared_ptr<const vision::CameraRays> rays;
 };
 
 // A simulated camera rendered in this process on trigger (a thread per frame, so triggering

@@ -38,7 +38,7 @@ std::vector<LiveCameraSpec> camera_specs(const SimulatedCell& cell, unsigned see
   std::vector<LiveCameraSpec> specs;
   for (std::size_t c = 0; c < cell.cameras.size(); ++c) {
     LiveCameraSpec s{fmt::format("cam{}", c), cell.cameras[c].model, cell.cameras[c].camera_T_world,
-                     cell.options.render};
+                     cell.options.render, cell.cameras[c].rays};
     s.render.seed = 1000003ULL * (seed + 1) + 7919ULL * c;
     // Each camera renders its frame on a thread of its own; a frame split in bands of rows as
     // well keeps both cores busy when one camera sees the board close up and the others little

@@ -4,11 +4,11 @@
 
 #include "robocal/core/files.hpp"
 #include "robocal/core/yaml.hpp"
+#include "robocal/robotio/png_encode.hpp"
 #include "robocal/vision/hand_eye_io.hpp"
 
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -251,9 +251,15 @@ std::vector<PoseRecord> load_pose_records(const Session& session) {
 }
 
 void write_image_atomic(const fs::path& path, const cv::Mat& image) {
-  std::vector<unsigned char> png;
-  if (!cv::imencode(".png", image, png)) throw InputError("cannot encode " + path.string());
-  core::write_file_atomic(path, std::string(png.begin(), png.end()), core::Overwrite::kRefuse);
+  // The capture's encoding (zlib level 1, Huffman coding only, no row filter): lossless like
+  // any PNG, in half cv::imencode's time for a camera frame (robotio/png_encode.hpp).
+  std::string png;
+  try {
+    png = robotio::encode_png(image, 1, path.string());
+  } catch (const std::runtime_error& e) {
+    throw InputError(e.what());
+  }
+  core::write_file_atomic(path, png, core::Overwrite::kRefuse);
 }
 
 std::string utc_now() {

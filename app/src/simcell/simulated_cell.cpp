@@ -560,7 +560,7 @@ SimulatedCell make_simulated_cell(const std::string& robot_file, const CellOptio
     SimulatedCamera cam;
     cam.model = true_camera(options, rng);
     cam.camera_T_world = cell.placement.world_T_camera[i].inverse();
-    cam.rays = vision::precompute_rays(cam.model);
+    cam.rays = std::make_shared<const vision::CameraRays>(vision::precompute_rays(cam.model));
     cell.cameras.push_back(std::move(cam));
   }
   return cell;

@@ -21,6 +21,7 @@
 
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -72,7 +73,8 @@ struct CellOptions {
 struct SimulatedCamera {
   vision::CameraModel model;         // true intrinsics (the pipeline never reads them)
   Eigen::Isometry3d camera_T_world;  // true extrinsics in the truth world
-  vision::CameraRays rays;           // precomputed for rendering
+  // Precomputed for rendering; shared with the renderers of the live cell's cameras.
+  std::shared_ptr<const vision::CameraRays> rays;
 };
 
 struct SimulatedCell {

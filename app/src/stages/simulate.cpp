@@ -50,7 +50,7 @@ void render_shots(const SimulatedCell& cell, const std::vector<Shot>& shots,
     vision::RenderOptions options = cell.options.render;
     options.seed = shot.seed;
     const auto& cam = cell.cameras[static_cast<std::size_t>(shot.camera)];
-    const auto rendered = vision::render(cam.rays, {{*shot.board, shot.camera_T_board}}, options);
+    const auto rendered = vision::render(*cam.rays, {{*shot.board, shot.camera_T_board}}, options);
     write_image_atomic(shot.file, rendered.image);
     bar.advance();
   });

@@ -15,7 +15,10 @@ SimulatedGigECamera::SimulatedGigECamera(SimulatedCameraSpec spec, vision::Targe
         "simulated camera " + spec_.serial + ": " + std::to_string(spec_.model.width) + "x" +
         std::to_string(spec_.model.height) + " exceeds the fake GigE sensor (2048 x 2048)");
   }
-  renderer_ = std::make_unique<vision::StillSceneRenderer>(vision::precompute_rays(spec_.model));
+  renderer_ = std::make_unique<vision::StillSceneRenderer>(
+      spec_.rays && spec_.rays->camera == spec_.model
+          ? spec_.rays
+          : std::make_shared<const vision::CameraRays>(vision::precompute_rays(spec_.model)));
   server_ = std::make_unique<FakeGigECamera>(
       spec_.address, spec_.serial,
       [this](const FakeFrameRequest& request) { return render_frame(request); });

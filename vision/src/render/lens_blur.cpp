@@ -47,25 +47,40 @@ cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma,
   const int W = pixels.cols, H = pixels.rows;
   const int r = static_cast<int>(std::ceil(5.0 * sigma)) + 1;  // the kernel below 1e-6
   const int taps = 2 * r + 1;
+  const cv::Rect whole(0, 0, W, H);
+  const auto grow = [r](const cv::Rect& a) {
+    return cv::Rect(a.x - r, a.y - r, a.width + 2 * r, a.height + 2 * r);
+  };
   const std::vector<float> pixel_kernel = substrip_weights(1, r, sigma);
-  cv::Mat uniform = pixels.clone();
-  for (const int k : scene.edge_pixels) uniform.at<float>(k / W, k % W) = 0.0f;
+  // The pixels' own light without the edge pixels' (their sub-cells are spread below), over
+  // `part` of the image.
+  const auto uniform_light = [&](const cv::Rect& part) {
+    cv::Mat uniform = pixels(part).clone();
+    for (const int k : scene.edge_pixels) {
+      const cv::Point p(k % W, k / W);
+      if (part.contains(p)) uniform.at<float>(p - part.tl()) = 0.0f;
+    }
+    return uniform;
+  };
   cv::Mat out;
   const cv::Mat kernel(taps, 1, CV_32F, const_cast<float*>(pixel_kernel.data()));
   if (blurred_background != nullptr) {
     out = blurred_background->clone();
     // Pixels farther than r from every changed one see only the background.
-    const cv::Rect near =
-        cv::Rect(changed.x - r, changed.y - r, changed.width + 2 * r, changed.height + 2 * r) &
-        cv::Rect(0, 0, W, H);
+    const cv::Rect near = grow(changed) & whole;
     if (!changed.empty() && !near.empty()) {
+      // The filter reads r pixels around `near` (the image's own where it has them, the mirror
+      // beyond its border): only that much of the light is copied, and the part filtered is the
+      // same part of it, so the sums are the whole image's.
+      const cv::Rect read = grow(near) & whole;
+      const cv::Mat uniform = uniform_light(read);
       cv::Mat part;
-      cv::sepFilter2D(uniform(near), part, CV_32F, kernel, kernel, cv::Point(-1, -1), 0.0,
-                      cv::BORDER_REFLECT);
+      cv::sepFilter2D(uniform(near - read.tl()), part, CV_32F, kernel, kernel, cv::Point(-1, -1),
+                      0.0, cv::BORDER_REFLECT);
       part.copyTo(out(near));
     }
   } else {
-    cv::sepFilter2D(uniform, out, CV_32F, kernel, kernel, cv::Point(-1, -1), 0.0,
+    cv::sepFilter2D(uniform_light(whole), out, CV_32F, kernel, kernel, cv::Point(-1, -1), 0.0,
                     cv::BORDER_REFLECT);
   }
   if (scene.edge_pixels.empty()) return out;
@@ -73,8 +88,18 @@ cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma,
   const int s = scene.subcells;
   const std::vector<float> w = substrip_weights(s, r, sigma);
   // Light of edge pixels, on the image grown by r on each side, then folded back (a mirrored
-  // source lands on the pixel mirrored from where the direct source lands).
-  cv::Mat grown = cv::Mat::zeros(H + 2 * r, W + 2 * r, CV_32F);
+  // source lands on the pixel mirrored from where the direct source lands). Only the part of
+  // the grown image the edge pixels reach is held: grown column x0 + x is image column
+  // x0 + x - r (edge pixel u reaches grown columns u .. u + 2r), and the same for rows.
+  int u_lo = W, u_hi = -1, v_lo = H, v_hi = -1;
+  for (const int k : scene.edge_pixels) {
+    u_lo = std::min(u_lo, k % W);
+    u_hi = std::max(u_hi, k % W);
+    v_lo = std::min(v_lo, k / W);
+    v_hi = std::max(v_hi, k / W);
+  }
+  const int x0 = u_lo, y0 = v_lo;
+  cv::Mat grown = cv::Mat::zeros(v_hi - v_lo + taps, u_hi - u_lo + taps, CV_32F);
   std::vector<float> across(static_cast<size_t>(s * taps));  // sub-row b spread across columns
   for (std::size_t e = 0; e < scene.edge_pixels.size(); ++e) {
     const int u = scene.edge_pixels[e] % W, v = scene.edge_pixels[e] / W;
@@ -86,7 +111,8 @@ cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma,
         across[static_cast<size_t>(b * taps + d)] = acc;
       }
     for (int dy = 0; dy < taps; ++dy) {
-      float* row = grown.ptr<float>(v + dy) + u;  // grown row v + dy = image row v + dy - r
+      // grown row v + dy = image row v + dy - r
+      float* row = grown.ptr<float>(v - y0 + dy) + (u - x0);
       for (int b = 0; b < s; ++b) {
         const float wy = w[static_cast<size_t>(b * taps + dy)];
         const float* a_row = &across[static_cast<size_t>(b * taps)];
@@ -95,17 +121,19 @@ cv::Mat blur_before_sampling(const SceneIrradiance& scene, double sigma,
     }
   }
   // Columns in the same order as one loop over x (the sums are the same to the last bit), the
-  // mirror looked up only where it is one.
+  // mirror looked up only where it is one. The grown image is zero outside the part held, and
+  // adding zero leaves a pixel as it is: the folded image is the whole grown image's.
+  const int x1 = x0 + grown.cols;  // one past the last grown column held
   const int inner_end = std::max(r, W + r);
-  for (int y = 0; y < H + 2 * r; ++y) {
+  for (int y = y0; y < y0 + grown.rows; ++y) {
     const int iy = cv::borderInterpolate(y - r, H, cv::BORDER_REFLECT);
-    const float* src = grown.ptr<float>(y);
+    const float* src = grown.ptr<float>(y - y0);
     float* dst = out.ptr<float>(iy);
-    for (int x = 0; x < std::min(r, W + 2 * r); ++x)
-      dst[cv::borderInterpolate(x - r, W, cv::BORDER_REFLECT)] += src[x];
-    for (int x = r; x < inner_end; ++x) dst[x - r] += src[x];
-    for (int x = inner_end; x < W + 2 * r; ++x)
-      dst[cv::borderInterpolate(x - r, W, cv::BORDER_REFLECT)] += src[x];
+    for (int x = x0; x < std::min(r, x1); ++x)
+      dst[cv::borderInterpolate(x - r, W, cv::BORDER_REFLECT)] += src[x - x0];
+    for (int x = std::max(x0, r); x < std::min(inner_end, x1); ++x) dst[x - r] += src[x - x0];
+    for (int x = std::max(x0, inner_end); x < x1; ++x)
+      dst[cv::borderInterpolate(x - r, W, cv::BORDER_REFLECT)] += src[x - x0];
   }
   return out;
 }

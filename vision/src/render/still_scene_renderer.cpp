@@ -11,6 +11,7 @@
 #include <memory>
 #include <mutex>
 #include <numbers>
+#include <stdexcept>
 
 namespace robocal::vision {
 
@@ -35,9 +36,14 @@ bool same_background(const RenderOptions& a, const RenderOptions& b) {
 
 }  // namespace
 
-StillSceneRenderer::StillSceneRenderer(CameraRays rays) : rays_(std::move(rays)) {
+StillSceneRenderer::StillSceneRenderer(CameraRays rays)
+    : StillSceneRenderer(std::make_shared<const CameraRays>(std::move(rays))) {}
+
+StillSceneRenderer::StillSceneRenderer(std::shared_ptr<const CameraRays> rays)
+    : rays_(std::move(rays)) {
+  if (!rays_) throw std::invalid_argument("StillSceneRenderer: no camera rays");
   double lowest_z = 1.0;
-  for (const Eigen::Vector3d& ray : rays_.rays)
+  for (const Eigen::Vector3d& ray : rays_->rays)
     if (ray.allFinite()) lowest_z = std::min(lowest_z, ray.z() / ray.norm());
   widest_ray_ = std::acos(std::clamp(lowest_z, -1.0, 1.0));
   if (!(lowest_z > 0.0)) return;
@@ -45,7 +51,7 @@ StillSceneRenderer::StillSceneRenderer(CameraRays rays) : rays_(std::move(rays))
   // lies behind the plane with normal (cos b, 0, -sin b) for every b >= a.
   constexpr double kPi = std::numbers::pi;
   double x_lo = kPi, x_hi = -kPi, y_lo = kPi, y_hi = -kPi;
-  for (const Eigen::Vector3d& ray : rays_.rays) {
+  for (const Eigen::Vector3d& ray : rays_->rays) {
     if (!ray.allFinite()) continue;
     const double ax = std::atan2(ray.x(), ray.z()), ay = std::atan2(ray.y(), ray.z());
     x_lo = std::min(x_lo, ax);
@@ -114,7 +120,7 @@ cv::Mat StillSceneRenderer::render(const std::vector<RenderTarget>& all_targets,
 cv::Mat StillSceneRenderer::light_of(const std::vector<RenderTarget>& targets,
                                      const RenderOptions& options) {
   if (!options.occluders.empty())
-    return blurred_irradiance(render_irradiance(rays_, targets, options), options);
+    return blurred_irradiance(render_irradiance(*rays_, targets, options), options);
   std::shared_ptr<const Background> background;
   {
     const std::lock_guard lock(mutex_);
@@ -123,7 +129,7 @@ cv::Mat StillSceneRenderer::light_of(const std::vector<RenderTarget>& targets,
   if (!background) {
     auto fresh = std::make_shared<Background>();
     fresh->options = options;
-    fresh->light = detail::background_light(rays_.cols - 1, rays_.rows - 1, options);
+    fresh->light = detail::background_light(rays_->cols - 1, rays_->rows - 1, options);
     if (options.blur_sigma > 0.0) {
       SceneIrradiance empty;
       empty.pixels = fresh->light;
@@ -135,7 +141,7 @@ cv::Mat StillSceneRenderer::light_of(const std::vector<RenderTarget>& targets,
   }
   cv::Rect changed;
   const SceneIrradiance scene = detail::render_scene(
-      rays_, targets, options, options.blur_sigma > 0.0, &background->light, &changed);
+      *rays_, targets, options, options.blur_sigma > 0.0, &background->light, &changed);
   if (!(options.blur_sigma > 0.0)) return scene.pixels;
   return detail::blur_before_sampling(scene, options.blur_sigma, &background->blurred, changed);
 }

@@ -84,6 +84,9 @@ struct SimulatedCameraSpec {
   double reference_exposure_us = 10000.0;
   // Counts this camera's renders into a clock shared with the cell's other cameras (optional).
   std::shared_ptr<RenderBusyClock> busy_clock;
+  // The rays of `model`, when another renderer of the same camera has them (optional: computed
+  // from `model` otherwise).
+  std::shared_ptr<const vision::CameraRays> rays;
 };
 
 // A frame as rendered, kept so tests can check what went over the wire bit for bit.

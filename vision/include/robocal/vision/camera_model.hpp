@@ -22,6 +22,7 @@ struct CameraModel {
   int height = 0;  // pixels
   // Layout of camera_models.hpp for `kind`: fx fy cx cy, then the distortion coefficients.
   std::vector<double> params;
+  bool operator==(const CameraModel&) const = default;
 };
 
 // Number of parameters of a kind (9, 12 or 8).

@@ -141,7 +141,10 @@ RenderResult render(const CameraRays& rays, const std::vector<RenderTarget>& tar
 class StillSceneRenderer {
  public:
   explicit StillSceneRenderer(CameraRays rays);
-  [[nodiscard]] const CameraRays& rays() const { return rays_; }
+  // Rays shared with other renderers of the same camera model (a 1600x1200 camera's take tens of
+  // MB and a good part of a second to compute).
+  explicit StillSceneRenderer(std::shared_ptr<const CameraRays> rays);
+  [[nodiscard]] const CameraRays& rays() const { return *rays_; }
   // The image render(rays(), targets, options) gives.
   cv::Mat render(const std::vector<RenderTarget>& targets, const RenderOptions& options);
   // Frames that reused the last scene (tests, statistics).
@@ -152,7 +155,7 @@ class StillSceneRenderer {
   // The blurred light of the scene (blurred_irradiance(render_irradiance(...))).
   cv::Mat light_of(const std::vector<RenderTarget>& targets, const RenderOptions& options);
 
-  CameraRays rays_;
+  std::shared_ptr<const CameraRays> rays_;
   double widest_ray_ = 0.0;  // largest angle of a ray from the optical axis, rad
   // Outward normals of planes through the camera centre with every ray behind them (left, right,
   // top, bottom; none for a lens that sees behind itself).
