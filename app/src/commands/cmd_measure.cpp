@@ -67,6 +67,7 @@ std::string swapped_camera_names(const std::vector<vision::RigCamera>& rig,
       std::vector<vision::RigCamera> exchanged = rig;
       std::swap(exchanged[i].name, exchanged[j].name);
       std::vector<std::string> names;
+      names.reserve(exchanged.size());
       for (const auto& c : exchanged) names.push_back(c.name);
       const auto measured = measure_board_poses(exchanged, board, scan_image_folder(poses, names),
                                                 options, {nullptr, threads});
