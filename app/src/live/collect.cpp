@@ -200,17 +200,6 @@ CollectInputs read_inputs(const CollectOptions& o) {
   return in;
 }
 
-robotio::SafetyLimits guard_limits(const CollectOptions& o, const planner::Cell& cell) {
-  robotio::SafetyLimits l;
-  if (cell.workspace.declared) {
-    l.workspace_min = cell.workspace.min;
-    l.workspace_max = cell.workspace.max;
-  }
-  l.max_speed = o.speed;
-  l.max_acceleration = o.acceleration;
-  return l;
-}
-
 // ---- the session folder ------------------------------------------------------------------------
 
 std::int64_t iso_utc_to_ns(const std::string& iso) {
@@ -460,56 +449,31 @@ CollectOutcome finished(CollectOutcome outcome) {
   return outcome;
 }
 
-}  // namespace
-
-CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) {
-  std::FILE* out = log.out;
-  const CollectInputs in = read_inputs(o);
-  CollectOutcome res;
-  nlohmann::json& r = res.summary;
-  r = {{"stage", "collect"},
-       {"session", o.session.string()},
-       {"robot", in.model.name},
-       {"plan", o.plan},
-       {"poses_planned", in.targets.size()}};
-
-  SafetyGuard guard(in.model, in.model.nominal_parameters(), guard_limits(o, in.cell));
-  planner::CollisionOptions co;
-  co.clearance = in.cell.margins.clearance;
-  co.self_clearance = in.cell.margins.self_clearance;
-  const Eigen::VectorXd params = in.model.nominal_parameters();
-  const planner::CollisionScene scene(in.model, in.cell, co);
-  guard.set_clearance_check(cell_clearance_check(in.model, params, scene));
-
-  if (o.dry_run) {
-    r.update(dry_run(in, guard, o, out, res.status));
-    return finished(std::move(res));
-  }
-  // Every motion of the plan through the guard before anything connects or moves: a pose the
-  // guard refuses stops the collection here, not after homing and the poses before it.
+// Every motion of the plan through the guard before anything connects or moves: a pose the
+// guard refuses stops the collection here, not after homing and the poses before it. Returns the
+// dry run's record (its motion time is shown to the operator); `res` is set when refused.
+nlohmann::json check_whole_plan(const CollectOptions& o, const CollectInputs& in,
+                                SafetyGuard& guard, std::FILE* out, CollectOutcome& res) {
   std::string plan_verdict;
-  const nlohmann::json plan_check = dry_run(in, guard, o, nullptr, plan_verdict);
+  nlohmann::json plan_check = dry_run(in, guard, o, nullptr, plan_verdict);
   guard.set_dry_run(false);
-  if (plan_verdict != "dry_run_ok") {
-    const nlohmann::json& first = plan_check.at("refused").front();
-    res.status = "refused";
-    res.message = fmt::format(
-        "the safety guard refuses {} of the plan's {} motions before anything moved; the first, "
-        "to pose {}: {} (check the plan and the cell, or the speed)",
-        plan_check.at("refused").size(), in.targets.size(), first.at("pose").get<int>(),
-        first.at("reason").get<std::string>());
-    r["refused"] = plan_check.at("refused");
-    if (out) fmt::print(out, "collect: {}\n", res.message);
-    return finished(std::move(res));
-  }
+  if (plan_verdict == "dry_run_ok") return plan_check;
+  const nlohmann::json& first = plan_check.at("refused").front();
+  res.status = "refused";
+  res.message = fmt::format(
+      "the safety guard refuses {} of the plan's {} motions before anything moved; the first, "
+      "to pose {}: {} (check the plan and the cell, or the speed)",
+      plan_check.at("refused").size(), in.targets.size(), first.at("pose").get<int>(),
+      first.at("reason").get<std::string>());
+  res.summary["refused"] = plan_check.at("refused");
+  if (out) fmt::print(out, "collect: {}\n", res.message);
+  return plan_check;
+}
 
-  // The session folder is checked first (file problems are exit 3, before any connection), and
-  // nothing is created or moved until the controller and every camera answer.
-  if (o.resume) {
-    (void)continue_session(o, in);
-  } else {
-    check_new_session_folder(o.session);
-  }
+// The link the address names: open:HOST:PORT is the open link, ur:HOST a Universal Robots
+// controller, manual the operator, anything else G-code.
+std::unique_ptr<robotio::RobotLink> make_link(const CollectOptions& o, const CollectInputs& in,
+                                              SafetyGuard& guard) {
   robotio::GcodeLinkOptions lo;
   lo.address = o.link;
   lo.baud = o.baud;
@@ -519,10 +483,14 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   lo.unlock_protective_stop = o.unlock_protective_stop;
   lo.mode = o.gcode_mode;
   lo.geometry = o.firmware_geometry;
-  // The address names the protocol: open:HOST:PORT is the open link, ur:HOST a Universal Robots
-  // controller, manual the operator, anything else G-code.
-  const std::unique_ptr<robotio::RobotLink> link_owner = robotio::make_robot_link(guard, lo);
-  robotio::RobotLink& link = *link_owner;
+  return robotio::make_robot_link(guard, lo);
+}
+
+// Connects to the controller and records what it is; false (and `res` says why) when it does not
+// answer as a controller of this robot.
+bool connect_controller(robotio::RobotLink& link, const CollectOptions& o, std::FILE* out,
+                        CollectOutcome& res) {
+  nlohmann::json& r = res.summary;
   try {
     const auto firmware = link.connect();
     r["firmware"] = firmware.name;
@@ -535,11 +503,124 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
                  "the controller reports its base -> flange pose: recorded with every pose "
                  "(pose.yaml flange_pose), for `robocal handeye`\n");
     note_gcode_mode(link, o, r, out);
+    return true;
   } catch (const robotio::LinkError& e) {
     res.status = "failed";
     res.message = fmt::format("controller at {}: {}", o.link, e.what());
+    return false;
+  }
+}
+
+// Homing, then every pose not yet on disk: moved to, settled, shot and written. A refused motion
+// or a lost controller ends the capture with its reason; what was recorded stays.
+robotio::CaptureResult capture_remaining(const CollectOptions& o, const CollectInputs& in,
+                                         robotio::RobotLink& link, SafetyGuard& guard,
+                                         const OpenCameras& cameras, std::int64_t start_ns,
+                                         std::size_t already, std::FILE* out) {
+  robotio::CaptureResult result;
+  try {
+    if (o.home) {
+      if (out) fmt::print(out, "homing...\n");
+      link.home();
+    }
+    robotio::LinkCaptureRobot link_robot(link, {o.speed, o.acceleration});
+    PausableRobot robot(link_robot, guard, out, o.on_settled);
+    robotio::CaptureOptions co_capture;
+    co_capture.shots_per_pose = o.shots;
+    co_capture.session_start_ns = start_ns;
+    StageProgress progress(out, "collect", in.targets.size() - already);
+    co_capture.on_pose_recorded = [&](const robotio::PoseCaptureReport&) { progress.advance(); };
+    result = robotio::capture_poses(o.session, in.targets, robot, cameras.capture,
+                                    in.cell.target.board, co_capture);
+    progress.finish(fmt::format("{} poses recorded", result.recorded()));
+  } catch (const robotio::MotionRefused& e) {
+    result.stop_reason = e.what();
+  } catch (const robotio::LinkError& e) {
+    result.stop_reason = fmt::format("controller at {}: {}", o.link, e.what());
+  }
+  return result;
+}
+
+// The capture's record in the summary, its status, and what the operator reads at the end.
+void record_capture(const CollectOptions& o, const CollectInputs& in,
+                    const robotio::CaptureResult& result, std::size_t already, std::FILE* out,
+                    CollectOutcome& res) {
+  nlohmann::json& r = res.summary;
+  nlohmann::json summary_poses = nlohmann::json::array();
+  int still_moving = 0;
+  int retakes = 0;
+  for (const auto& p : result.poses) {
+    if (p.status != robotio::PoseCaptureStatus::kRecorded) continue;
+    summary_poses.push_back(pose_json(p));
+    still_moving += p.still_moving ? 1 : 0;
+    retakes += p.retakes;
+  }
+  const std::size_t on_disk = recorded_on_disk(o.session, in.targets.size());
+  r["recorded"] = on_disk - already;
+  r["already_recorded"] = already;
+  r["recorded_total"] = on_disk;
+  r["retakes"] = retakes;
+  r["still_moving"] = still_moving;
+  r["poses"] = summary_poses;
+  r["capture_seconds"] = result.seconds;
+  const int sig = robotio::StopSignals::stop_signal();
+  if (result.complete && on_disk == in.targets.size()) {
+    res.status = "ok";
+  } else {
+    res.status = sig != 0 ? "interrupted" : "incomplete";
+    res.signal = sig;
+    res.message = result.stop_reason;
+  }
+  if (!out) return;
+  fmt::print(out, "{} of {} poses recorded ({} now, {} before){}\n", on_disk, in.targets.size(),
+             on_disk - already, already,
+             still_moving > 0 ? fmt::format("; {} recorded while the target still moved "
+                                            "(flagged in pose.yaml)",
+                                            still_moving)
+                              : "");
+  if (res.status != "ok")
+    fmt::print(out,
+               "collection stopped: {}\nThe robot was stopped. Every recorded pose is complete "
+               "on disk. To go on, run the same command with --resume.\n",
+               result.stop_reason);
+  else if (o.say_next_step)
+    fmt::print(out,
+               "next: calibration views for the intrinsics and rig (app/SESSION.md), then "
+               "`robocal measure {}`\n",
+               o.session.string());
+}
+
+}  // namespace
+
+CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) {
+  std::FILE* out = log.out;
+  const CollectInputs in = read_inputs(o);
+  CollectOutcome res;
+  nlohmann::json& r = res.summary;
+  r = {{"stage", "collect"},
+       {"session", o.session.string()},
+       {"robot", in.model.name},
+       {"plan", o.plan},
+       {"poses_planned", in.targets.size()}};
+  // The guard every motion of this collection passes.
+  CellGuard cell_guard(in.model, in.cell, {o.speed, o.acceleration});
+  SafetyGuard& guard = cell_guard.guard;
+  if (o.dry_run) {
+    r.update(dry_run(in, guard, o, out, res.status));
     return finished(std::move(res));
   }
+  const nlohmann::json plan_check = check_whole_plan(o, in, guard, out, res);
+  if (res.status == "refused") return finished(std::move(res));
+
+  // The session folder is checked first (file problems are exit 3, before any connection), and
+  // nothing is created or moved until the controller and every camera answer.
+  if (o.resume) {
+    (void)continue_session(o, in);
+  } else {
+    check_new_session_folder(o.session);
+  }
+  const std::unique_ptr<robotio::RobotLink> link = make_link(o, in, guard);
+  if (!connect_controller(*link, o, out, res)) return finished(std::move(res));
   OpenCameras cameras;
   try {
     cameras = open_cameras(o, in, out);
@@ -578,72 +659,10 @@ CollectOutcome collect_session(const CollectOptions& o, const PipelineLog& log) 
   const PauseKey pause_key;
   if (out != nullptr && pause_key.active())
     fmt::print(out, "press p to pause between poses, Ctrl-C to stop the robot\n");
-  nlohmann::json summary_poses = nlohmann::json::array();
-  robotio::CaptureResult result;
-  try {
-    if (o.home) {
-      if (out) fmt::print(out, "homing...\n");
-      link.home();
-    }
-    robotio::LinkCaptureRobot link_robot(link, {o.speed, o.acceleration});
-    PausableRobot robot(link_robot, guard, out, o.on_settled);
-    robotio::CaptureOptions co_capture;
-    co_capture.shots_per_pose = o.shots;
-    co_capture.session_start_ns = start_ns;
-    StageProgress progress(out, "collect", in.targets.size() - already);
-    co_capture.on_pose_recorded = [&](const robotio::PoseCaptureReport&) { progress.advance(); };
-    result = robotio::capture_poses(o.session, in.targets, robot, cameras.capture,
-                                    in.cell.target.board, co_capture);
-    progress.finish(fmt::format("{} poses recorded", result.recorded()));
-  } catch (const robotio::MotionRefused& e) {
-    result.stop_reason = e.what();
-  } catch (const robotio::LinkError& e) {
-    result.stop_reason = fmt::format("controller at {}: {}", o.link, e.what());
-  }
+  const robotio::CaptureResult result =
+      capture_remaining(o, in, *link, guard, cameras, start_ns, already, out);
   for (auto& c : cameras.sources) c->close();
-
-  int still_moving = 0;
-  int retakes = 0;
-  for (const auto& p : result.poses) {
-    if (p.status != robotio::PoseCaptureStatus::kRecorded) continue;
-    summary_poses.push_back(pose_json(p));
-    still_moving += p.still_moving ? 1 : 0;
-    retakes += p.retakes;
-  }
-  const std::size_t on_disk = recorded_on_disk(o.session, in.targets.size());
-  r["recorded"] = on_disk - already;
-  r["already_recorded"] = already;
-  r["recorded_total"] = on_disk;
-  r["retakes"] = retakes;
-  r["still_moving"] = still_moving;
-  r["poses"] = summary_poses;
-  r["capture_seconds"] = result.seconds;
-  const int sig = robotio::StopSignals::stop_signal();
-  if (result.complete && on_disk == in.targets.size()) {
-    res.status = "ok";
-  } else {
-    res.status = sig != 0 ? "interrupted" : "incomplete";
-    res.signal = sig;
-    res.message = result.stop_reason;
-  }
-  if (out) {
-    fmt::print(out, "{} of {} poses recorded ({} now, {} before){}\n", on_disk, in.targets.size(),
-               on_disk - already, already,
-               still_moving > 0 ? fmt::format("; {} recorded while the target still moved "
-                                              "(flagged in pose.yaml)",
-                                              still_moving)
-                                : "");
-    if (res.status != "ok")
-      fmt::print(out,
-                 "collection stopped: {}\nThe robot was stopped. Every recorded pose is complete "
-                 "on disk. To go on, run the same command with --resume.\n",
-                 result.stop_reason);
-    else if (o.say_next_step)
-      fmt::print(out,
-                 "next: calibration views for the intrinsics and rig (app/SESSION.md), then "
-                 "`robocal measure {}`\n",
-                 o.session.string());
-  }
+  record_capture(o, in, result, already, out, res);
   return finished(std::move(res));
 }
 

@@ -129,20 +129,8 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
                                            const calib::Mechanism& library,
                                            const planner::Cell& pcell, int count, unsigned seed,
                                            const robotio::MoveSpeed& speed) {
-  const Eigen::VectorXd params = library.nominal_parameters();
-  robotio::SafetyLimits limits;
-  if (pcell.workspace.declared) {
-    limits.workspace_min = pcell.workspace.min;
-    limits.workspace_max = pcell.workspace.max;
-  }
-  limits.max_speed = speed.speed;
-  limits.max_acceleration = speed.acceleration;
-  robotio::SafetyGuard guard(library, params, limits);
-  planner::CollisionOptions co;
-  co.clearance = pcell.margins.clearance;
-  co.self_clearance = pcell.margins.self_clearance;
-  const planner::CollisionScene scene(library, pcell, co);
-  guard.set_clearance_check(cell_clearance_check(library, params, scene));
+  CellGuard cell_guard(library, pcell, speed);
+  robotio::SafetyGuard& guard = cell_guard.guard;
   guard.set_dry_run(true);
   Eigen::VectorXd from = home_readings(library);
 

@@ -30,6 +30,7 @@
 #include <atomic>
 #include <functional>
 #include <future>
+#include <memory>
 #include <optional>
 #include <random>
 #include <set>
@@ -217,8 +218,203 @@ double motion_seconds_since(const fs::path& log, std::size_t first) {
   return sum;
 }
 
+// The true robot in its own process, reached through the robot's natural link.
+struct LiveController {
+  std::unique_ptr<robotio::SimControllerProcess> sim;
+  std::string protocol;
+  bool native = false;       // a delta printer run in its firmware's own kinematics
+  std::string link_address;  // collect's --link
+  std::string link_note;     // what the operator reads
+};
+
+// Every true parameter is given, so the simulated robot's geometry is the offline demo's (its
+// elastic sag is added where the cameras look: SaggingBoard).
+LiveController start_controller(const LiveDemoOptions& o, const LiveCell& lc,
+                                const std::string& robot_file, const LiveCellFiles& files,
+                                const fs::path& setup, const PipelineLog& log,
+                                nlohmann::json& report) {
+  LiveController c;
+  c.protocol = natural_protocol(lc.cell.model.name);
+  // A delta printer runs its firmware's own kinematics when native mode is asked for.
+  c.native = c.protocol == "gcode" && o.gcode_mode != "raw" &&
+             robotio::robot_file_delta(lc.cell.model).problem.empty();
+  std::vector<std::string> sim_args = {"--robot",
+                                       robot_file,
+                                       "--seed",
+                                       std::to_string(o.seed),
+                                       "--perturbation",
+                                       files.perturbation.string(),
+                                       "--protocol",
+                                       c.protocol,
+                                       "--no-pty",
+                                       "--log",
+                                       (setup / "sim-controller.jsonl").string(),
+                                       "--busy-interval",
+                                       "1",
+                                       "--max-seconds",
+                                       "3600"};
+  if (c.protocol == "gcode")
+    sim_args.insert(sim_args.end(),
+                    {"--firmware", o.firmware, "--kinematics", c.native ? "delta" : "axes"});
+  c.sim = std::make_unique<robotio::SimControllerProcess>(robocal_binary(), sim_args);
+  c.link_address = link_address_of(*c.sim, c.protocol);
+  // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D", "marlin G-code, raw
+  // axes at 127.0.0.1:P" (the address after the protocol's prefix).
+  const std::string gcode_note =
+      o.firmware + (c.native ? " G-code, firmware-native delta" : " G-code, raw axes");
+  c.link_note = fmt::format("{} at {}",
+                            c.protocol == "ur"     ? "Universal Robots link"
+                            : c.protocol == "open" ? "open link"
+                                                   : gcode_note,
+                            c.link_address.substr(c.link_address.find(':') + 1));
+  say(log, "sim-controller (pid {}): {}, truth channel at {}\n", c.sim->pid(), c.link_note,
+      c.sim->pose());
+  report["controller"] = {
+      {"link", c.link_address}, {"protocol", c.protocol}, {"pid", c.sim->pid()}};
+  return c;
+}
+
+// The measurement poses, planned once (a resumed demo keeps its plan).
+void plan_once(const LiveDemoOptions& o, const LiveCell& lc, const std::string& robot_file,
+               const LiveCellFiles& files, const LiveController& controller,
+               const fs::path& plan_file, const PipelineLog& log, nlohmann::json& report) {
+  if (o.resume && fs::exists(plan_file)) return;
+  const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
+  // The simulated firmware's kinematics is the robot file's drawing (sim-controller
+  // --kinematics delta): a pose it cannot command is left out of the plan.
+  std::function<bool(const Eigen::VectorXd&)> commandable;
+  if (controller.native) {
+    robotio::CarriageFrame frame;
+    const robotio::RobotFileDelta file = robotio::robot_file_delta(lc.cell.model);
+    frame.geometry = robotio::drawing_geometry(file, robotio::Firmware::kMarlin);
+    frame.endstop_reading = file.endstop_reading;
+    commandable = [frame](const Eigen::VectorXd& q) {
+      return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));
+    };
+  }
+  const LivePlan plan = plan_live_poses(lc.cell, robot_file, files, o.poses, o.seed, o.quick,
+                                        plan_file, {speed, 10.0 * speed}, log.out, commandable);
+  say(log, "plan: {}\n", plan.how);
+  report["plan"] = {{"poses", plan.readings.size()},
+                    {"planner", plan.planner},
+                    {"how", plan.how},
+                    {"predicted_rms_um", plan.predicted_rms_m * 1e6}};
+}
+
+// Collection through `robocal collect`'s own code (guard, confirmation, progress, resume), with
+// the cameras served as GigE Vision devices where they can be. A camera lost on a busy machine (a
+// render beyond the GigE heartbeat window) is rendered in-process from then on and the collection
+// resumed (`--resume`). The report gets the cameras, the collection and its time per pose.
+CollectOutcome collect_live(const LiveDemoOptions& o, const LiveCell& lc,
+                            const std::vector<LiveCameraSpec>& specs, const std::string& robot_file,
+                            const LiveCellFiles& files, const LiveController& controller,
+                            const fs::path& setup, const fs::path& session,
+                            const TruthLog& truth_log, const PipelineLog& log,
+                            nlohmann::json& report) {
+  robotio::SimControllerTruth truth(controller.sim->pose(), robotio::BoardMounting{});
+  SaggingBoard seen(truth, lc.cell.elastic_sag);
+  LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("L{}-", ::getpid()));
+  std::string camera_note;
+  for (std::size_t c = 0; c < specs.size(); ++c)
+    camera_note += fmt::format(
+        "{}{}: {}", c ? ", " : "", specs[c].name,
+        cams.served(c) ? "GigE Vision (Aravis fake camera on " + live_camera_address(c) + ")"
+                       : std::string("rendered in-process"));
+  say(log, "cameras: {}\n", camera_note);
+  for (const auto& n : cams.notes()) say(log, "  {}\n", n);
+  report["cameras"] = {{"how", camera_note}, {"notes", cams.notes()}};
+  CollectOptions co;
+  co.session = session;
+  co.robot = robot_file;
+  co.cell = files.cell.string();
+  co.plan = (setup / "plan.yaml").string();
+  co.link = controller.link_address;
+  co.gcode_mode =
+      controller.native ? robotio::GcodeMode::kNativeDelta : robotio::GcodeMode::kRawAxes;
+  for (std::size_t c = 0; c < specs.size(); ++c)
+    co.cameras.push_back({specs[c].name, cams.source(c)});
+  co.speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
+  co.acceleration = 10.0 * co.speed;
+  co.resume = o.resume && fs::exists(session / "session.yaml");
+  co.yes = o.yes;
+  co.open_camera = [&cams](const CollectCamera& c) { return cams.open(c.name); };
+  co.on_settled = [&](const Eigen::VectorXd& readings) {
+    truth_log.append(readings, truth.read(), lc.cell.elastic_sag);
+  };
+  const fs::path sim_log = setup / "sim-controller.jsonl";
+  // The overhead reported is that of the last attempt (capture_seconds is its wall time).
+  double render_start = cams.render_seconds();
+  std::size_t motions_start = robotio::simulated_motion_seconds(sim_log).size();
+  CollectOutcome collected = collect_session(co, log);
+  bool served = false;
+  for (std::size_t c = 0; c < specs.size(); ++c) served = served || cams.served(c);
+  if ((collected.status == "incomplete" || collected.status == "failed") && served &&
+      collected.message.find("camera") != std::string::npos) {
+    for (std::size_t c = 0; c < specs.size(); ++c)
+      cams.fall_back(c, "collection stopped (" + collected.message + ")");
+    say(log, "resuming the collection with the cameras rendered in-process\n");
+    report["collect_first_attempt"] = collected.summary;
+    co.resume = fs::exists(session / "session.yaml");
+    render_start = cams.render_seconds();
+    motions_start = robotio::simulated_motion_seconds(sim_log).size();
+    collected = collect_session(co, log);
+  }
+  report["cameras"]["notes"] = cams.notes();
+  report["collect"] = collected.summary;
+  report["collect"]["overhead"] =
+      collection_overhead(collected.summary, cams.render_seconds() - render_start,
+                          motion_seconds_since(sim_log, motions_start));
+  return collected;
+}
+
+void print_collection_overhead(std::FILE* out, const nlohmann::json& ov) {
+  if (ov.empty()) return;
+  fmt::print(
+      out,
+      "\n  collection, per pose: {:.0f} ms = robot motion {:.0f} + rendering {:.0f} + "
+      "robocal's own {:.0f} (of which waiting for frames beyond rendering {:.0f}, for "
+      "earlier poses' checks and writing {:.0f}; these took {:.0f} and {:.0f} ms "
+      "while the robot moved)\n",
+      ov.value("capture_s_per_pose", 0.0) * 1e3, ov.value("simulated_motion_s_per_pose", 0.0) * 1e3,
+      ov.value("render_s_per_pose", 0.0) * 1e3, ov.value("overhead_s_per_pose", 0.0) * 1e3,
+      ov.value("frame_wait_minus_render_s_per_pose", 0.0) * 1e3,
+      ov.value("waiting_for_check_and_write_s_per_pose", 0.0) * 1e3,
+      ov.value("detect_and_check_s_per_pose", 0.0) * 1e3, ov.value("write_s_per_pose", 0.0) * 1e3);
+}
+
+// The summary the operator reads, the time per stage, the HTML report and demo.json; the exit
+// code says whether the calibration improved the model.
+int report_live_demo(const LiveDemoOptions& o, const fs::path& session,
+                     const std::string& link_note, StageClock& clock, nlohmann::json& report) {
+  std::FILE* out = human_stream(o.json);
+  print_validation_summary(out, report["validate"], report["identify"]);
+  print_collection_overhead(out, report["collect"]["overhead"]);
+  fmt::print(out, "\n  robot driven through the {}\n", link_note);
+  fmt::print(out, "\n  time per stage:\n{}", clock.table());
+  nlohmann::json stages = nlohmann::json::object();
+  for (const auto& s : clock.stages()) stages[s.name] = s.seconds;
+  report["seconds"] = stages;
+  report["total_seconds"] = clock.total_seconds();
+  report["seed"] = o.seed;
+  report["robot"] = o.robot;
+  report["session"] = session.string();
+  std::vector<std::pair<std::string, double>> seconds;
+  for (const auto& s : clock.stages()) seconds.emplace_back(s.name, s.seconds);
+  report["report"] = report_session(session, PipelineLog{nullptr}, seconds);
+  const std::string json_path =
+      !o.json.empty() ? o.json : ResultsLayout{session}.report("demo").string();
+  write_json(report, json_path);
+  fmt::print(out, "  session: {}\n  report: {}\n", session.string(), json_path);
+  const bool improved = report["validate"].value("improved", false);
+  if (!improved) fmt::print(stderr, "calibration did not improve the model\n");
+  return improved ? kExitOk : kExitFailure;
+}
+
 }  // namespace
 
+// The mission's loop, each stage as its real command runs it: the cell, the controller, the
+// calibration views and intrinsics, the plan, the collection (the rig and the detections computed
+// meanwhile at the lowest priority), then measure, identify and validate.
 int run_live_demo(const LiveDemoOptions& o) {
   std::FILE* out = human_stream(o.json);
   StageClock clock;
@@ -242,44 +438,8 @@ int run_live_demo(const LiveDemoOptions& o) {
   const LiveCellFiles files = write_live_cell(lc.cell, robot_file, setup);
   const auto specs = camera_specs(lc.cell, o.seed, o.threads);
 
-  // The true robot in its own process: every true parameter given, so its geometry is the
-  // offline demo's (its elastic sag is added where the cameras look: SaggingBoard).
   stage(log, "live: start sim-controller");
-  const std::string protocol = natural_protocol(lc.cell.model.name);
-  // A delta printer runs its firmware's own kinematics when native mode is asked for.
-  const bool native = protocol == "gcode" && o.gcode_mode != "raw" &&
-                      robotio::robot_file_delta(lc.cell.model).problem.empty();
-  std::vector<std::string> sim_args = {"--robot",
-                                       robot_file,
-                                       "--seed",
-                                       std::to_string(o.seed),
-                                       "--perturbation",
-                                       files.perturbation.string(),
-                                       "--protocol",
-                                       protocol,
-                                       "--no-pty",
-                                       "--log",
-                                       (setup / "sim-controller.jsonl").string(),
-                                       "--busy-interval",
-                                       "1",
-                                       "--max-seconds",
-                                       "3600"};
-  if (protocol == "gcode")
-    sim_args.insert(sim_args.end(),
-                    {"--firmware", o.firmware, "--kinematics", native ? "delta" : "axes"});
-  robotio::SimControllerProcess sim(robocal_binary(), sim_args);
-  const std::string link_address = link_address_of(sim, protocol);
-  // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D", "marlin G-code, raw
-  // axes at 127.0.0.1:P" (the address after the protocol's prefix).
-  const std::string gcode_note =
-      o.firmware + (native ? " G-code, firmware-native delta" : " G-code, raw axes");
-  const std::string link_note = fmt::format("{} at {}",
-                                            protocol == "ur"     ? "Universal Robots link"
-                                            : protocol == "open" ? "open link"
-                                                                 : gcode_note,
-                                            link_address.substr(link_address.find(':') + 1));
-  say(log, "sim-controller (pid {}): {}, truth channel at {}\n", sim.pid(), link_note, sim.pose());
-  report["controller"] = {{"link", link_address}, {"protocol", protocol}, {"pid", sim.pid()}};
+  const LiveController controller = start_controller(o, lc, robot_file, files, setup, log, report);
 
   stage(log, "live: calibration views");
   if (!fs::exists(session / "calibration") && !fs::exists(setup / "calibration" / "done")) {
@@ -315,90 +475,12 @@ int run_live_demo(const LiveDemoOptions& o) {
   const CollectionEnds collection_ends(collection_over);  // whatever way this function ends
 
   stage(log, "live: plan");
-  const fs::path plan_file = setup / "plan.yaml";
-  if (!(o.resume && fs::exists(plan_file))) {
-    const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
-    // The simulated firmware's kinematics is the robot file's drawing (sim-controller
-    // --kinematics delta): a pose it cannot command is left out of the plan.
-    std::function<bool(const Eigen::VectorXd&)> commandable;
-    if (native) {
-      robotio::CarriageFrame frame;
-      const robotio::RobotFileDelta file = robotio::robot_file_delta(lc.cell.model);
-      frame.geometry = robotio::drawing_geometry(file, robotio::Firmware::kMarlin);
-      frame.endstop_reading = file.endstop_reading;
-      commandable = [frame](const Eigen::VectorXd& q) {
-        return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));
-      };
-    }
-    const LivePlan plan = plan_live_poses(lc.cell, robot_file, files, o.poses, o.seed, o.quick,
-                                          plan_file, {speed, 10.0 * speed}, out, commandable);
-    say(log, "plan: {}\n", plan.how);
-    report["plan"] = {{"poses", plan.readings.size()},
-                      {"planner", plan.planner},
-                      {"how", plan.how},
-                      {"predicted_rms_um", plan.predicted_rms_m * 1e6}};
-  }
+  plan_once(o, lc, robot_file, files, controller, setup / "plan.yaml", log, report);
 
-  // Collection through `robocal collect`'s own code: guard, confirmation, progress, resume.
   stage(log, "live: collect");
-  robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
-  SaggingBoard seen(truth, lc.cell.elastic_sag);
-  LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("L{}-", ::getpid()));
-  std::string camera_note;
-  for (std::size_t c = 0; c < specs.size(); ++c)
-    camera_note += fmt::format(
-        "{}{}: {}", c ? ", " : "", specs[c].name,
-        cams.served(c) ? "GigE Vision (Aravis fake camera on " + live_camera_address(c) + ")"
-                       : std::string("rendered in-process"));
-  say(log, "cameras: {}\n", camera_note);
-  for (const auto& n : cams.notes()) say(log, "  {}\n", n);
-  report["cameras"] = {{"how", camera_note}, {"notes", cams.notes()}};
   const TruthLog truth_log{setup / "truth_poses.jsonl"};
-  CollectOptions co;
-  co.session = session;
-  co.robot = robot_file;
-  co.cell = files.cell.string();
-  co.plan = plan_file.string();
-  co.link = link_address;
-  co.gcode_mode = native ? robotio::GcodeMode::kNativeDelta : robotio::GcodeMode::kRawAxes;
-  for (std::size_t c = 0; c < specs.size(); ++c)
-    co.cameras.push_back({specs[c].name, cams.source(c)});
-  co.speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
-  co.acceleration = 10.0 * co.speed;
-  co.resume = o.resume && fs::exists(session / "session.yaml");
-  co.yes = o.yes;
-  co.open_camera = [&cams](const CollectCamera& c) { return cams.open(c.name); };
-  co.on_settled = [&](const Eigen::VectorXd& readings) {
-    truth_log.append(readings, truth.read(), lc.cell.elastic_sag);
-  };
-  const fs::path sim_log = setup / "sim-controller.jsonl";
-  // The overhead reported is that of the last attempt (capture_seconds is its wall time).
-  double render_start = cams.render_seconds();
-  std::size_t motions_start = robotio::simulated_motion_seconds(sim_log).size();
-  CollectOutcome collected = collect_session(co, log);
-  // A camera lost on a busy machine (a render beyond the GigE heartbeat window): the served
-  // cameras are rendered in-process from then on and the collection resumed (`--resume`).
-  const auto served = [&] {
-    bool any = false;
-    for (std::size_t c = 0; c < specs.size(); ++c) any = any || cams.served(c);
-    return any;
-  };
-  if ((collected.status == "incomplete" || collected.status == "failed") && served() &&
-      collected.message.find("camera") != std::string::npos) {
-    for (std::size_t c = 0; c < specs.size(); ++c)
-      cams.fall_back(c, "collection stopped (" + collected.message + ")");
-    say(log, "resuming the collection with the cameras rendered in-process\n");
-    report["collect_first_attempt"] = collected.summary;
-    co.resume = fs::exists(session / "session.yaml");
-    render_start = cams.render_seconds();
-    motions_start = robotio::simulated_motion_seconds(sim_log).size();
-    collected = collect_session(co, log);
-  }
-  report["cameras"]["notes"] = cams.notes();
-  report["collect"] = collected.summary;
-  report["collect"]["overhead"] =
-      collection_overhead(collected.summary, cams.render_seconds() - render_start,
-                          motion_seconds_since(sim_log, motions_start));
+  const CollectOutcome collected = collect_live(o, lc, specs, robot_file, files, controller, setup,
+                                                session, truth_log, log, report);
   if (collected.status != "ok") {
     clock.stop();
     fmt::print(out, "collection: {}{}\n", collected.status,
@@ -415,7 +497,7 @@ int run_live_demo(const LiveDemoOptions& o) {
         e.what());
   }
   complete_session(lc, o, setup, session, truth_log);
-  sim.stop();
+  controller.sim->stop();
 
   fmt::print(out, "\nmeasure: cameras, rig and end-effector poses from the recorded images\n");
   report["measure"] =
@@ -428,41 +510,7 @@ int run_live_demo(const LiveDemoOptions& o) {
   fmt::print(out, "\nvalidate (against the simulator's truth, which only this stage reads)\n");
   report["validate"] = validate_session(session, o.held_out, log);
   clock.stop();
-
-  print_validation_summary(out, report["validate"], report["identify"]);
-  const nlohmann::json& ov = report["collect"]["overhead"];
-  if (!ov.empty())
-    fmt::print(out,
-               "\n  collection, per pose: {:.0f} ms = robot motion {:.0f} + rendering {:.0f} + "
-               "robocal's own {:.0f} (of which waiting for frames beyond rendering {:.0f}, for "
-               "earlier poses' checks and writing {:.0f}; these took {:.0f} and {:.0f} ms "
-               "while the robot moved)\n",
-               ov.value("capture_s_per_pose", 0.0) * 1e3,
-               ov.value("simulated_motion_s_per_pose", 0.0) * 1e3,
-               ov.value("render_s_per_pose", 0.0) * 1e3, ov.value("overhead_s_per_pose", 0.0) * 1e3,
-               ov.value("frame_wait_minus_render_s_per_pose", 0.0) * 1e3,
-               ov.value("waiting_for_check_and_write_s_per_pose", 0.0) * 1e3,
-               ov.value("detect_and_check_s_per_pose", 0.0) * 1e3,
-               ov.value("write_s_per_pose", 0.0) * 1e3);
-  fmt::print(out, "\n  robot driven through the {}\n", link_note);
-  fmt::print(out, "\n  time per stage:\n{}", clock.table());
-  nlohmann::json stages = nlohmann::json::object();
-  for (const auto& s : clock.stages()) stages[s.name] = s.seconds;
-  report["seconds"] = stages;
-  report["total_seconds"] = clock.total_seconds();
-  report["seed"] = o.seed;
-  report["robot"] = o.robot;
-  report["session"] = session.string();
-  std::vector<std::pair<std::string, double>> seconds;
-  for (const auto& s : clock.stages()) seconds.emplace_back(s.name, s.seconds);
-  report["report"] = report_session(session, PipelineLog{nullptr}, seconds);
-  const std::string json_path =
-      !o.json.empty() ? o.json : ResultsLayout{session}.report("demo").string();
-  write_json(report, json_path);
-  fmt::print(out, "  session: {}\n  report: {}\n", session.string(), json_path);
-  const bool improved = report["validate"].value("improved", false);
-  if (!improved) fmt::print(stderr, "calibration did not improve the model\n");
-  return improved ? kExitOk : kExitFailure;
+  return report_live_demo(o, session, controller.link_note, clock, report);
 }
 
 }  // namespace robocal::app
