@@ -6,7 +6,9 @@
 #include <fmt/core.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <chrono>
+#include <deque>
 #include <exception>
 #include <utility>
 
@@ -34,7 +36,8 @@ Eigen::Isometry3d SaggingBoard::world_T_board() {
 
 InProcessCamera::InProcessCamera(LiveCameraSpec spec, const vision::TargetBoard& board,
                                  robotio::TruePoseSource& truth,
-                                 std::shared_ptr<robotio::RenderBusyClock> busy)
+                                 std::shared_ptr<robotio::RenderBusyClock> busy,
+                                 std::shared_ptr<std::atomic<std::uint64_t>> frames)
     : spec_(std::move(spec)),
       board_(&board),
       truth_(&truth),
@@ -42,6 +45,7 @@ InProcessCamera::InProcessCamera(LiveCameraSpec spec, const vision::TargetBoard&
           spec_.rays && spec_.rays->camera == spec_.model
               ? spec_.rays
               : std::make_shared<const vision::CameraRays>(vision::precompute_rays(spec_.model)))),
+      frames_(frames ? std::move(frames) : std::make_shared<std::atomic<std::uint64_t>>(0)),
       busy_(std::move(busy)) {}
 
 InProcessCamera::~InProcessCamera() {
@@ -97,7 +101,7 @@ void InProcessCamera::trigger() {
   // The board is where the truth says at the trigger (the exposure), rendered on a thread.
   const Eigen::Isometry3d camera_T_board = spec_.camera_T_world * truth_->world_T_board();
   vision::RenderOptions options = spec_.render;
-  options.seed = spec_.render.seed + frames_++;
+  options.seed = spec_.render.seed + (*frames_)++;
   options.bit_depth = 8;
   pending_ = std::async(std::launch::async, [this, camera_T_board, options] {
     const robotio::RenderBusyScope busy(busy_.get());
@@ -116,7 +120,7 @@ robotio::Frame InProcessCamera::receive(std::chrono::milliseconds timeout) {
   robotio::Frame f;
   f.image = pending_.get();
   f.pixel_format = "Mono8";
-  f.frame_id = frames_;
+  f.frame_id = frames_->load();
   f.host_time_ns = robotio::host_time_ns();
   return f;
 }
@@ -148,6 +152,7 @@ LiveCameras::LiveCameras(const std::vector<LiveCameraSpec>& specs, const vision:
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     truths_.push_back(truths.size() == 1 ? truths.front() : truths.at(i));
     gige_.emplace_back();
+    frames_.push_back(std::make_shared<std::atomic<std::uint64_t>>(0));
     if (!gige) continue;
     robotio::SimulatedCameraSpec s;
     s.serial = fmt::format("{}{}", prefix_, i);  // Aravis: at most 15 characters
@@ -189,10 +194,11 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(std::size_t camera) {
           fmt::format("{}: served on {} but Aravis cannot open it ({}); rendered "
                       "in-process",
                       specs_[camera].name, live_camera_address(camera), e.what()));
-      gige_[camera].reset();
+      stop_serving(camera);
     }
   }
-  return std::make_unique<InProcessCamera>(specs_[camera], *board_, *truths_[camera], busy_);
+  return std::make_unique<InProcessCamera>(specs_[camera], *board_, *truths_[camera], busy_,
+                                           frames_[camera]);
 }
 
 std::unique_ptr<robotio::CameraSource> LiveCameras::open(const std::string& name) {
@@ -202,9 +208,17 @@ std::unique_ptr<robotio::CameraSource> LiveCameras::open(const std::string& name
                              "not a camera of the live cell");
 }
 
+void LiveCameras::stop_serving(std::size_t camera) {
+  // The in-process renderer goes on from the GigE camera's next frame index.
+  const std::deque<robotio::RenderedFrame> last = gige_[camera]->rendered();
+  if (!last.empty())
+    *frames_[camera] = std::max(frames_[camera]->load(), last.back().frame_index + 1);
+  gige_[camera].reset();
+}
+
 void LiveCameras::fall_back(std::size_t camera, const std::string& why) {
   if (!gige_[camera]) return;
-  gige_[camera].reset();
+  stop_serving(camera);
   notes_.push_back(
       fmt::format("{}: {}; rendered in-process from now on", specs_[camera].name, why));
 }

@@ -16,6 +16,7 @@
 
 #include <Eigen/Geometry>
 
+#include <atomic>
 #include <future>
 #include <memory>
 #include <mutex>
@@ -63,9 +64,12 @@ struct LiveCameraSpec {
 class InProcessCamera final : public robotio::CameraSource {
  public:
   // `busy` counts the rendering time, with the cell's other cameras (shared: it outlives the
-  // source).
+  // source). `frames` counts the camera's frames, from which each frame's noise is drawn: shared
+  // with the camera's earlier sources (a GigE camera it replaces, an earlier attempt's), so no
+  // frame repeats another's noise; null: this source's own count from zero.
   InProcessCamera(LiveCameraSpec spec, const vision::TargetBoard& board,
-                  robotio::TruePoseSource& truth, std::shared_ptr<robotio::RenderBusyClock> busy);
+                  robotio::TruePoseSource& truth, std::shared_ptr<robotio::RenderBusyClock> busy,
+                  std::shared_ptr<std::atomic<std::uint64_t>> frames = nullptr);
   ~InProcessCamera() override;
   InProcessCamera(const InProcessCamera&) = delete;
   InProcessCamera& operator=(const InProcessCamera&) = delete;
@@ -102,7 +106,7 @@ class InProcessCamera final : public robotio::CameraSource {
   double gain_ = 0.0;
   bool open_ = true;
   bool started_ = false;
-  std::uint64_t frames_ = 0;
+  std::shared_ptr<std::atomic<std::uint64_t>> frames_;
   std::future<cv::Mat> pending_;
   std::shared_ptr<robotio::RenderBusyClock> busy_;
   std::shared_ptr<const void>
@@ -137,10 +141,13 @@ class LiveCameras {
   [[nodiscard]] double render_seconds() const { return busy_->seconds(); }
 
  private:
+  void stop_serving(std::size_t camera);
   std::vector<LiveCameraSpec> specs_;
   const vision::TargetBoard* board_;
   std::vector<robotio::TruePoseSource*> truths_;  // per camera
   std::vector<std::unique_ptr<robotio::SimulatedGigECamera>> gige_;
+  // Per camera, the frames rendered so far (GigE or in-process): the next frame's noise index.
+  std::vector<std::shared_ptr<std::atomic<std::uint64_t>>> frames_;
   std::shared_ptr<robotio::RenderBusyClock> busy_ = std::make_shared<robotio::RenderBusyClock>();
   std::vector<std::string> notes_;
   std::string prefix_;
