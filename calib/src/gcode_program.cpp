@@ -442,24 +442,38 @@ struct Writer {
     ++stats.emitted_moves;
   }
 
+  // The line's extrusion split over the pieces it is cut into. Relative pieces are differences of
+  // rounded running sums, so they add up to the line's E exactly as written (no rounding drift
+  // over hundreds of pieces).
+  struct ExtrusionSplit {
+    bool given = false;  // the line has an E word
+    bool absolute = false;
+    double start = 0.0;
+    double end = 0.0;
+    [[nodiscard]] std::optional<double> between(double f0, double f1) const {
+      if (!given) return std::nullopt;
+      const double de = end - start;
+      return absolute ? start + f1 * de
+                      : rounded(f1 * de, kEDecimals) - rounded(f0 * de, kEDecimals);
+    }
+  };
+
+  [[nodiscard]] ExtrusionSplit split_extrusion(const GcodeLine& line) const {
+    const GcodeWord* ew = line.word('E');
+    if (ew == nullptr) return {false, e_absolute, e, e};
+    return {true, e_absolute, e, e_absolute ? ew->value : e + ew->value};
+  }
+
   void move_actuators(const GcodeLine& line, const MeantMove& meant, const std::string& source) {
     ++stats.moves;
     if (const GcodeWord* fw = line.word('F')) feed = fw->value;
-    const GcodeWord* ew = line.word('E');
-    const double e_start = e;
-    const double e_end = ew == nullptr ? e : (e_absolute ? ew->value : e + ew->value);
-    const auto e_at = [&](double f0, double f1) -> std::optional<double> {
-      if (ew == nullptr) return std::nullopt;
-      const double de = e_end - e_start;
-      return e_absolute ? e_start + f1 * de
-                        : rounded(f1 * de, kEDecimals) - rounded(f0 * de, kEDecimals);
-    };
+    const ExtrusionSplit extrusion = split_extrusion(line);
     const char* command = meant.rapid ? "G0" : "G1";
     if (!meant.from_known || !at) {
       // Nothing to interpolate from: one point, and no feed (its distance is unknown).
       at = solve(line, meant.to, 1.0, nullptr, source);
-      emit_axes(line, command, at->readings, true, e_at(0.0, 1.0), std::nullopt);
-      e = e_end;
+      emit_axes(line, command, at->readings, true, extrusion.between(0.0, 1.0), std::nullopt);
+      e = extrusion.end;
       return;
     }
     Node start = *at;
@@ -484,12 +498,13 @@ struct Writer {
         }
         if (tool_mm > 1e-9) f_value = feed * std::sqrt(axes_units) / tool_mm;
       }
-      emit_axes(line, command, piece.readings, first, e_at(previous.f, piece.f), f_value);
+      emit_axes(line, command, piece.readings, first, extrusion.between(previous.f, piece.f),
+                f_value);
       first = false;
       previous = piece;
     }
     at = end;
-    e = e_end;
+    e = extrusion.end;
   }
 
   void emit(const GcodeLine& line, const char* command, const Eigen::Vector3d& c, bool first,
@@ -514,25 +529,15 @@ struct Writer {
 
   void move(const GcodeLine& line, const MeantMove& meant, const std::string& source) {
     ++stats.moves;
-    const GcodeWord* ew = line.word('E');
-    const double e_start = e;
-    const double e_end = ew == nullptr ? e : (e_absolute ? ew->value : e + ew->value);
-    const auto e_at = [&](double f0, double f1) -> std::optional<double> {
-      if (ew == nullptr) return std::nullopt;
-      // Relative pieces are differences of rounded running sums, so they add up to the line's E
-      // exactly as written (no rounding drift over hundreds of pieces).
-      const double de = e_end - e_start;
-      return e_absolute ? e_start + f1 * de
-                        : rounded(f1 * de, kEDecimals) - rounded(f0 * de, kEDecimals);
-    };
+    const ExtrusionSplit extrusion = split_extrusion(line);
     const char* command = meant.rapid ? "G0" : "G1";
     if (!meant.from_known || !commanded) {
       // The first known position: nothing to interpolate from, one compensated point.
       const CompensatedTarget t = target(line, meant.to, source);
       commanded = t.commanded.translation();
       seed = {t.ik.actuator_q, t.ik.passive};
-      emit(line, command, *commanded, true, e_at(0.0, 1.0));
-      e = e_end;
+      emit(line, command, *commanded, true, extrusion.between(0.0, 1.0));
+      e = extrusion.end;
       return;
     }
     const int chords =
@@ -551,7 +556,7 @@ struct Writer {
       stats.max_deviation = std::max(stats.max_deviation, piece.max_deviation);
       for (std::size_t p = 0; p < piece.commanded.size(); ++p) {
         const double f = f_chord0 + piece.fractions[p] * (f_chord1 - f_chord0);
-        emit(line, command, piece.commanded[p], first, e_at(f_done, f));
+        emit(line, command, piece.commanded[p], first, extrusion.between(f_done, f));
         first = false;
         f_done = f;
       }
@@ -560,7 +565,7 @@ struct Writer {
       seed = piece.end_seed;
       from = to;
     }
-    e = e_end;
+    e = extrusion.end;
   }
 
   CompensatedTarget target(const GcodeLine& line, const Eigen::Vector3d& p,

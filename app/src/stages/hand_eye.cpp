@@ -141,6 +141,17 @@ struct SessionFlanges {
   std::vector<std::string> problems;
 };
 
+// The pose's record when it is usable; otherwise nullptr, with an empty pose and the reason in `f`.
+const PoseRecord* usable_record(const ImageSet& set,
+                                const std::map<std::string, PoseRecord>& records,
+                                SessionFlanges& f) {
+  const auto it = records.find(set.name);
+  if (it != records.end() && it->second.problem.empty()) return &it->second;
+  f.poses.emplace_back();
+  f.problems.push_back(it == records.end() ? "no pose.yaml" : it->second.problem);
+  return nullptr;
+}
+
 // The poses the controller reported, when every usable pose has one: what the robot's own
 // (calibrated) controller knows beats the robot file's nominal model, but a mix of the two
 // frames (flange, measured frame) would be no rigid hand-eye problem.
@@ -148,14 +159,10 @@ std::optional<SessionFlanges> reported_flanges(const std::vector<ImageSet>& sets
                                                const std::map<std::string, PoseRecord>& records) {
   SessionFlanges f;
   for (const ImageSet& set : sets) {
-    const auto it = records.find(set.name);
-    if (it == records.end() || !it->second.problem.empty()) {
-      f.poses.emplace_back();
-      f.problems.push_back(it == records.end() ? "no pose.yaml" : it->second.problem);
-      continue;
-    }
-    if (!it->second.base_T_flange) return std::nullopt;
-    f.poses.push_back(it->second.base_T_flange);
+    const PoseRecord* record = usable_record(set, records, f);
+    if (record == nullptr) continue;
+    if (!record->base_T_flange) return std::nullopt;
+    f.poses.push_back(record->base_T_flange);
     f.problems.emplace_back();
   }
   return f;
@@ -167,14 +174,10 @@ SessionFlanges nominal_flanges(const std::vector<ImageSet>& sets,
                                const SessionRobot& robot) {
   SessionFlanges f;
   for (const ImageSet& set : sets) {
-    const auto it = records.find(set.name);
-    if (it == records.end() || !it->second.problem.empty()) {
-      f.poses.emplace_back();
-      f.problems.push_back(it == records.end() ? "no pose.yaml" : it->second.problem);
-      continue;
-    }
+    const PoseRecord* record = usable_record(set, records, f);
+    if (record == nullptr) continue;
     const auto fk =
-        calib::forward_kinematics(robot.model, robot.nominal, it->second.actuators, robot.frame);
+        calib::forward_kinematics(robot.model, robot.nominal, record->actuators, robot.frame);
     if (fk.closure.status != calib::SolveStatus::kConverged) {
       f.poses.emplace_back();
       f.problems.emplace_back(

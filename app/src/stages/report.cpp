@@ -374,6 +374,20 @@ void add_error_map(ReportData& d, const std::vector<Eigen::Vector3d>& positions,
   }
 }
 
+// The error map of held-out configurations, each at its `position` with both models' errors.
+template <typename Point>
+void add_held_out_map(ReportData& d, const std::vector<Point>& points,
+                      Eigen::Vector3d Point::*position, int cells) {
+  std::vector<Eigen::Vector3d> positions;
+  std::vector<double> after, before;
+  for (const Point& p : points) {
+    positions.push_back(p.*position);
+    after.push_back(p.calibrated_error.norm());
+    before.push_back(p.nominal_error.norm());
+  }
+  add_error_map(d, positions, after, before, cells);
+}
+
 // Error maps over the workspace (held-out positions, camera 0's frame): the truth's when
 // validated (many configurations), else the camera-measured held-out poses, else the fit's
 // residuals at the measured poses; and the measured poses drawn over them.
@@ -381,25 +395,11 @@ void add_error_maps(ReportData& d, const std::optional<ValidationFile>& validati
                     const std::optional<HeldOutRecord>& held_out, const FitResiduals& fit,
                     const std::vector<MeasuredPose>& measured) {
   if (validation && !validation->points.empty()) {
-    std::vector<Eigen::Vector3d> positions;
-    std::vector<double> after, before;
-    for (const auto& p : validation->points) {
-      positions.push_back(p.position);
-      after.push_back(p.calibrated_error.norm());
-      before.push_back(p.nominal_error.norm());
-    }
     d.map_source = "held-out poses (against the truth)";
-    add_error_map(d, positions, after, before, kMapCells);
+    add_held_out_map(d, validation->points, &HeldOutPoint::position, kMapCells);
   } else if (held_out && !held_out->poses.empty()) {
-    std::vector<Eigen::Vector3d> positions;
-    std::vector<double> after, before;
-    for (const auto& p : held_out->poses) {
-      positions.push_back(p.measured);
-      after.push_back(p.calibrated_error.norm());
-      before.push_back(p.nominal_error.norm());
-    }
     d.map_source = "held-out poses (measured by the cameras)";
-    add_error_map(d, positions, after, before, kMapCells / 2);
+    add_held_out_map(d, held_out->poses, &HeldOutPose::measured, kMapCells / 2);
   } else if (!fit.positions.empty()) {
     // No held-out poses: the fit's residuals at the measured poses are the only errors with a
     // position.
