@@ -1,5 +1,7 @@
 #include "robocal/calib/conventions.hpp"
 
+#include "robocal/core/median.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -15,13 +17,6 @@ struct Observed {
   Eigen::Vector3d position;
   std::optional<Eigen::Matrix3d> rotation;
 };
-
-double median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 // Median over pose pairs of |measured − predicted| pairwise distance and relative-rotation angle:
 // invariant to the unknown base and tool frames.
@@ -58,7 +53,7 @@ Misfit misfit(const std::vector<Observed>& obs,
         }
       }
     }
-  return {median(dp), median(da)};
+  return {core::median(dp, NAN), core::median(da, NAN)};
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // fit residuals per type, the outlier-proof scales for the robust loss, and plain-words warnings
 // when the stated noise does not match the residuals.
 #include "identification_detail.hpp"
+#include "robocal/core/median.hpp"
 
 #include <fmt/core.h>
 
@@ -126,10 +127,7 @@ std::vector<std::pair<int, double>> row_labels(const Observation& obs) {
 }
 
 double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+  return core::median(std::move(v), 0.0);
 }
 
 void add_noise_warnings(const NoiseEstimate& noise, bool applied,

@@ -1,6 +1,7 @@
 #include "robocal/calib/noise_estimate.hpp"
 
 #include "robocal/calib/uncertainty.hpp"
+#include "robocal/core/median.hpp"
 
 #include <fmt/core.h>
 #include <Eigen/QR>
@@ -45,13 +46,6 @@ bool leverage(const Eigen::MatrixXd& J, Eigen::VectorXd& h, Eigen::MatrixXd& nor
                    s.cwiseAbs2().cwiseInverse().asDiagonal() * svd.matrixV().transpose() *
                    norms.cwiseInverse().asDiagonal();
   return true;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
 }
 
 }  // namespace
@@ -114,7 +108,7 @@ NoiseEstimate estimate_noise(const Eigen::MatrixXd& whitened_jacobian,
         normalised.push_back(std::abs(r(i)) / std::sqrt(out.redundancy(i)));
     grp.robust_scale = grp.scale;
     if (normalised.size() >= 5) {
-      const double mad = 1.4826 * median(normalised);
+      const double mad = 1.4826 * core::median(normalised, 0.0);
       if (mad > 0.0) grp.robust_scale = grp.scale * mad;
     }
     if (grp.estimable) {

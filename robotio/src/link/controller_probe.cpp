@@ -8,6 +8,7 @@
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/open_link.hpp"
 #include "robocal/robotio/transport.hpp"
+#include "robocal/robotio/ur_link.hpp"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -24,12 +25,6 @@ using std::chrono::milliseconds;
 
 constexpr int kDashboardPort = 29999;
 constexpr const char* kDashboardGreeting = "Universal Robots Dashboard Server";
-
-// The text after "Name: " in a dashboard reply ("Robotmode: RUNNING" -> "RUNNING").
-std::string reply_value(const std::string& reply) {
-  const std::size_t colon = reply.find(": ");
-  return colon == std::string::npos ? reply : reply.substr(colon + 2);
-}
 
 std::string printable(std::string text) {
   for (char& c : text)
@@ -149,12 +144,13 @@ class Probe {
             "moves it)";
     }
     const std::string mode = ask("robotmode");
-    if (mode.rfind("Robotmode: ", 0) == 0) words += ", robot mode " + reply_value(mode);
+    if (mode.rfind("Robotmode: ", 0) == 0) words += ", robot mode " + ur_dashboard_value(mode);
     // safetystatus from PolyScope 5.4; safetymode before it.
     const bool status = e_series && at_least(version, 5, 4);
     const std::string safety = ask(status ? "safetystatus" : "safetymode");
     if (safety.rfind(status ? "Safetystatus: " : "Safetymode: ", 0) == 0)
-      words += fmt::format(", safety {} {}", status ? "status" : "mode", reply_value(safety));
+      words +=
+          fmt::format(", safety {} {}", status ? "status" : "mode", ur_dashboard_value(safety));
     result_.kind = ProbedController::kUniversalRobots;
     if (port_ == kDashboardPort) {
       result_.link = "ur:" + host_;

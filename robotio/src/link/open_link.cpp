@@ -25,10 +25,6 @@ std::string device_name(const std::string& address) {
   return "open link " + (is_open_link_address(address) ? address.substr(5) : address);
 }
 
-Eigen::VectorXd nominal_scales(const SafetyGuard& guard) {
-  return calib::encoder_scales(guard.model(), guard.model().nominal_parameters());
-}
-
 // `count` finite numbers in `field` of `pose`; empty, with the problem named, when not.
 std::vector<double> finite_numbers(const json& pose, const char* field, std::size_t count,
                                    std::string& problem) {
@@ -81,7 +77,7 @@ OpenLink::OpenLink(SafetyGuard& guard, OpenLinkOptions options,
     : RobotLink(guard),
       options_(std::move(options)),
       client_(std::move(transport), device_name(options_.address)),
-      scale_(nominal_scales(guard)) {
+      scale_(nominal_encoder_scales(guard)) {
   status_.device = client_.device();
 }
 

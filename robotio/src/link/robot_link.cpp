@@ -1,10 +1,15 @@
 #include "robocal/robotio/robot_link.hpp"
 
+#include "robocal/calib/mechanism.hpp"
 #include "robocal/robotio/link_error.hpp"
 
 #include <chrono>
 
 namespace robocal::robotio {
+
+Eigen::VectorXd nominal_encoder_scales(const SafetyGuard& guard) {
+  return calib::encoder_scales(guard.model(), guard.model().nominal_parameters());
+}
 
 const char* to_string(LinkState state) {
   switch (state) {

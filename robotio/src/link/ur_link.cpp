@@ -49,18 +49,8 @@ std::vector<std::string> split_colons(const std::string& text) {
   }
 }
 
-Eigen::VectorXd nominal_scales(const SafetyGuard& guard) {
-  return calib::encoder_scales(guard.model(), guard.model().nominal_parameters());
-}
-
 Eigen::VectorXd vector_of(const rtde::FieldValues& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
-}
-
-// The text after "Name: " in a dashboard reply ("Safetystatus: NORMAL" -> "NORMAL").
-std::string reply_value(const std::string& reply) {
-  const std::size_t colon = reply.find(": ");
-  return colon == std::string::npos ? reply : reply.substr(colon + 2);
 }
 
 }  // namespace
@@ -171,6 +161,11 @@ std::string ur_safety_status_name(int status) {
   return names[status];
 }
 
+std::string ur_dashboard_value(const std::string& reply) {
+  const std::size_t colon = reply.find(": ");
+  return colon == std::string::npos ? reply : reply.substr(colon + 2);
+}
+
 std::string ur_motion_blocker(const UrState& state) {
   if (state.safety_status != kNormal && state.safety_status != kReduced)
     return fmt::format("safety status {} ({})", ur_safety_status_name(state.safety_status),
@@ -204,7 +199,7 @@ UrLink::UrLink(SafetyGuard& guard, UrLinkOptions options)
       rtde_(where_.host, where_.rtde_port),
       secondary_(where_.host, where_.secondary_port),
       dashboard_(where_.host, where_.dashboard_port),
-      scale_(nominal_scales(guard)) {
+      scale_(nominal_encoder_scales(guard)) {
   status_.device = device_;
 }
 
@@ -409,7 +404,7 @@ void UrLink::check_dashboard_state() {
         "interface accepts robocal's URScript",
         remote);
   const std::string safety = dashboard("safetystatus");
-  const std::string status = reply_value(safety);
+  const std::string status = ur_dashboard_value(safety);
   if (status == "PROTECTIVE_STOP") {
     if (!options_.unlock_protective_stop)
       fail(
@@ -423,7 +418,7 @@ void UrLink::check_dashboard_state() {
     fail(fmt::format("the UR's safety status is {}: clear it on the pendant", status), safety);
   }
   const std::string mode = dashboard("robotmode");
-  if (reply_value(mode) != "RUNNING")
+  if (ur_dashboard_value(mode) != "RUNNING")
     fail("the arm is not running: power it on and release the brakes on the pendant", mode);
 }
 
@@ -443,7 +438,7 @@ void UrLink::unlock_protective_stop() {
   // Packages already streamed still say PROTECTIVE_STOP: the next state is read afresh.
   pause_stream();
   for (;;) {
-    if (reply_value(dashboard("safetystatus")) == "NORMAL") return;
+    if (ur_dashboard_value(dashboard("safetystatus")) == "NORMAL") return;
     if (Clock::now() >= until) fail("the protective stop did not release", reply);
     std::this_thread::sleep_for(milliseconds(50));
   }

@@ -1,5 +1,6 @@
 #include "robocal/vision/hand_eye.hpp"
 
+#include "robocal/core/median.hpp"
 #include "robocal/vision/pose.hpp"
 
 #include <ceres/ceres.h>
@@ -20,10 +21,7 @@ using Vector6d = Eigen::Matrix<double, 6, 1>;
 constexpr double kDeg = std::numbers::pi / 180.0;
 
 double median_of(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+  return core::median(std::move(v), std::numeric_limits<double>::quiet_NaN());
 }
 
 double rotation_angle(const Eigen::Matrix3d& R) {

@@ -58,6 +58,10 @@ struct MoveResult {
   double seconds = 0.0;       // wall time from issue to readings parsed
 };
 
+// The robot file's nominal scale from each actuator's reading to its joint
+// (calib::encoder_scales of the guard's model): what a link converts the controller's values with.
+Eigen::VectorXd nominal_encoder_scales(const SafetyGuard& guard);
+
 class RobotLink {
  public:
   explicit RobotLink(SafetyGuard& guard) : guard_(&guard) {}

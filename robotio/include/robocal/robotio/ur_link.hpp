@@ -69,6 +69,8 @@ UrState ur_state_from(const rtde::DataPackage& package, int joints);
 // The UR's names for robot modes and safety statuses (RTDE guide, dashboard wording).
 std::string ur_robot_mode_name(int mode);
 std::string ur_safety_status_name(int status);
+// The text after "Name: " in a dashboard reply ("Safetystatus: NORMAL" -> "NORMAL").
+std::string ur_dashboard_value(const std::string& reply);
 // Why `state` does not allow a move ("" when it does): protective stop, not running, slider.
 std::string ur_motion_blocker(const UrState& state);
 // The URScript line robocal sends for a joint move (rad, rad/s, rad/s^2).
