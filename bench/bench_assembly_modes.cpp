@@ -1,4 +1,4 @@
-// Dense assembly-mode sweep (issue 15): every parallel robot of the library, 20 values per
+// Dense assembly-mode sweep: every parallel robot of the library, 20 values per
 // actuator over its whole range (limits included), the nominal model and 20 perturbed draws at 5x
 // the file's tolerances. Forward kinematics through the library (cold), judged against the
 // independent reference of tests/support/mode_sweep.hpp (closed forms written there, parameter

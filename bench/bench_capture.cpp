@@ -1,4 +1,4 @@
-// Capture bench (issue 18): N poses collected from a simulated cell through two fake GigE
+// Capture bench: N poses collected from a simulated cell through two fake GigE
 // Vision cameras (127.0.0.1 and 127.0.0.2: run it inside a network namespace, e.g.
 //   tests/integration/robotio_camera/run_in_netns.sh build/release/bench/bench_capture
 // ), checks every pose was recorded bit-exact, and reports robocal's overhead per pose: the

@@ -1,4 +1,4 @@
-// Where the correlated part of the AprilTag corner error comes from (issue 7), printed as JSON.
+// Where the correlated part of the AprilTag corner error comes from, printed as JSON.
 //
 // The demo's camera (1600x1200, f = 1600 px, barrel distortion) sees its 6x6 board of 40 mm tags
 // from ~1.25 m at random places in the image and tilts <= 25 deg. Each image is rendered under
@@ -24,7 +24,7 @@
 // integrate (blur_before_sampling: a camera). --edge-phase: the edge fit's offset bias against
 // the sub-pixel phase of an axis-aligned edge, for several edge profiles.
 //
-// Finding (issue 7, `robocal simulate --out S` seed 1, then --session S): the demo's correlated
+// Finding (`robocal simulate --out S` seed 1, then --session S): the demo's correlated
 // corner error is the renderer blurring after area sampling (vision/README.md), seen on a board
 // square to the image: 0.033 of its 0.037 px RMS is deterministic (read noise off), whatever the
 // lighting, vignetting or distortion; with the blur before sampling 0.019 px, stereo pose error

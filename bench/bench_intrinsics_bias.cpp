@@ -1,4 +1,4 @@
-// Where the signed error of the demo's intrinsic calibration comes from (issue 7), printed as JSON.
+// Where the signed error of the demo's intrinsic calibration comes from, printed as JSON.
 //
 // Rebuilds exactly the cameras and the intrinsic calibration views `robocal simulate --seed N`
 // makes (same random stream: the images of the `demo` condition are the session's own), then
@@ -22,7 +22,7 @@
 // board ring and per tag deformation mode (translation, scale, rotation, affine, projective),
 // and tag_expansion: per-tag size, aspect and taper (keystone) errors.
 //
-// Finding (issue 7, seeds 1-3, both cameras, 48 views): the focal error came from the edge fit
+// Finding (seeds 1-3, both cameras, 48 views): the focal error came from the edge fit
 // modelling the tag border with constant grey levels while vignetting and the lighting gradient
 // ramp them along each edge. The ramp rotated each fitted edge, which exaggerated every tag's
 // perspective taper by ~0.6 % (+0.022 px on tags tapered >= 3 px) - more perspective reads as a

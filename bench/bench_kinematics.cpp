@@ -114,7 +114,7 @@ Eigen::VectorXd perturbed_parameters() {
   return p;
 }
 
-// FK cold on a perturbed model (issue 15: a model whose loops differ from the robot file's design
+// FK cold on a perturbed model (a model whose loops differ from the robot file's design
 // is solved from the design's answer by continuation in the parameters).
 void BM_DeltaFkColdPerturbed(benchmark::State& state) {
   const Mechanism& m = delta();

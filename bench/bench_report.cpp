@@ -1,4 +1,4 @@
-// The calibration report's speed and size (issue 20: a report for 500 held-out poses written in
+// The calibration report's speed and size (a report for 500 held-out poses written in
 // <= 2 s, page <= 2 MB). Usage: bench_report SESSION [repeats]
 // SESSION: a validated session, e.g. `robocal demo --out SESSION` (500 held-out poses by default).
 // Prints JSON: held-out poses, wall time per report (median and worst of the repeats), page size.

@@ -1,4 +1,4 @@
-// Controller-link bench (issue 17): prints JSON.
+// Controller-link bench: prints JSON.
 //  1. Fault soak: N moves against `robocal sim-controller` over TCP and over the pty with every
 //     fault kind injected at a given rate: each move must end confirmed at its target or failed
 //     with its reason; the simulator's log must show no motion duplicated or lost and no motion

@@ -540,7 +540,7 @@ int main(int argc, char** argv) {
   }
   auto want = [&](const std::string& section) { return only.empty() || only == section; };
   json doc;
-  // Nominal condition of issue 5 (blur 0.8, noise 2, tilt <= 45) aggregated per resolution.
+  // The detector's nominal condition (blur 0.8, noise 2, tilt <= 45) aggregated per resolution.
   json nominal = json::array();
   struct Res {
     rt::SyntheticCamera cam;

@@ -1,4 +1,4 @@
-// Compensation figures for issue 20 on a simulated session (e.g. `robocal demo --out DIR`),
+// Compensation figures on a simulated session (e.g. `robocal demo --out DIR`),
 // printed as JSON:
 //
 //   build/release/bench/robocal_compensation_bench SESSION [held_out]
@@ -359,7 +359,7 @@ int main(int argc, char** argv) {
       time_compensator(false, compensator_cold_usable, compensator_cold_iterations);
   const double compensator_warm_us =
       time_compensator(true, compensator_warm_usable, compensator_warm_iterations);
-  // The calibrated IK alone (issue 20's "calibrated IK per target"): Compensator::calibrated_ik,
+  // The calibrated IK alone ("calibrated IK per target"): Compensator::calibrated_ik,
   // the first half of compensate(), cold (closed-form seed) and warm from the previous answer;
   // the Compensator built inside the timed region, as above.
   const auto time_calibrated_ik = [&](bool warm, int& ok) {

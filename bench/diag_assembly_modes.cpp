@@ -1,4 +1,4 @@
-// Diagnostic for the assembly-mode sweep (issue 15): lists every "silent wrong-mode" case of
+// Diagnostic for the assembly-mode sweep: lists every "silent wrong-mode" case of
 // tests/support/mode_sweep.hpp (library verdict intended, > 1e-9 m from the reference) with the
 // library answer, the reference answer (parameter continuation, 8 steps as in the sweep), a fine
 // continuation (512 steps), both verdicts, closure residuals, conditioning, and every distinct

@@ -1,5 +1,5 @@
 #pragma once
-// The printer firmwares' own delta calibration routines, for the bench only (issue 53): written
+// The printer firmwares' own delta calibration routines, for the bench only: written
 // from their documentation (Klipper docs/Delta_Calibrate.md, RepRapFirmware's "calibrating a
 // delta printer" / G32 least-squares auto-calibration, Marlin G33), not from their code.
 //

@@ -1,4 +1,4 @@
-// Identification figures for issue 4, printed as JSON.
+// Identification figures, printed as JSON.
 //
 //   build/release/bench/robocal_identify_bench [robot.yaml] [draws] [identifiable|all|groups|rank]
 //

@@ -1,4 +1,4 @@
-// Planner figures for issue 16, printed as JSON.
+// Planner figures, printed as JSON.
 //
 //   build/release/bench/robocal_planner_bench [trials] [pool] [count]
 //

@@ -1,4 +1,4 @@
-// What printer users measure (issue 21), against the Cramér–Rao bound, printed as JSON.
+// What printer users measure, against the Cramér–Rao bound, printed as JSON.
 //
 //   build/release/bench/printer_identify_bench [draws=20]
 //
@@ -23,7 +23,7 @@
 //    height over the printed square ±60 mm, the robot file's tolerances as the design's prior)
 //    against the firmwares' fixed 7-point pattern, same draws and noise: held-out bed height error
 //    of each, and the ratio; also the advice's rank/conditioning rule alone (design off).
-//  - "firmware_baseline" (issue 53): the firmwares' own calibration routines
+//  - "firmware_baseline": the firmwares' own calibration routines
 //    (firmware_routines.hpp: Klipper DELTA_CALIBRATE basic and extended, RepRapFirmware's least
 //    squares with 4/6/7 factors, Marlin G33's 7) on the same simulated data as robocal's plain
 //    `identify` (every free parameter of the robot file a candidate, its automatic choice): seven
@@ -91,7 +91,7 @@ void heights_draw(const calib::Mechanism& model, unsigned seed, HeightFigures& f
   opt.candidates = test::printer_candidates(model);
   opt.keep_stated_noise = true;  // the stated σ is the true one: Σ is the bound itself
   // The rank-sized gauge estimator these figures and the probe design are about, not identify's
-  // choice by predicted error (issue 53; that one is in "firmware_baseline").
+  // choice by predicted error (that one is in "firmware_baseline").
   opt.choose_estimator = false;
   const auto res = calib::identify(pred, nominal, data.measurements, opt);
   if (res.status != calib::IdentificationStatus::kConverged || !res.uncertainty.ok)

@@ -728,7 +728,7 @@ IdentificationResult identify(const FramePredictor& model, const Eigen::VectorXd
                               const Measurements& measurements, const SolveOptions& options) {
   IdentificationResult result = identify_at(model, nominal, nominal, measurements, options, {});
   if (!options.relinearise || options.estimate_redundant || !usable(result)) return result;
-  // A set smaller than the data's rank was chosen for what it predicts (issue 53): the
+  // A set smaller than the data's rank was chosen for what it predicts: the
   // relinearised analysis would add back what was held on purpose.
   if (result.estimator.made &&
       result.estimator.chosen.estimated.size() < result.estimator.data_rank)

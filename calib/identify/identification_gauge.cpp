@@ -248,7 +248,7 @@ std::string choose_little_data_gauge(const FramePredictor& model, const Eigen::V
       choose_gauge(Jc, targets, sigma, report.identifiable, {}, report.no_effect, gauge_options);
   if (!std::isfinite(choice.expected_error)) return "";
 
-  // Which set to estimate, by what each predicts over the measured area (issue 53): the 3-D
+  // Which set to estimate, by what each predicts over the measured area: the 3-D
   // position error in metres — when every observation is a probe height (with or without
   // distances), without a shift and turn of the whole area in the plane, which such data never
   // see and a print placed on the bed never shows — and beside it the bed height (first layer). The

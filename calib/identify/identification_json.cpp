@@ -151,7 +151,7 @@ nlohmann::json to_json(const IdentificationResult& r) {
   j["residuals"] = res;
   j["limited_data"] = r.limited_data;
   if (r.limited_data) j["gauge"] = r.gauge;
-  // With little data, the estimated set chosen by what it predicts (issue 53), µm.
+  // With little data, the estimated set chosen by what it predicts, µm.
   if (r.estimator.made) {
     auto candidate = [&](const EstimatorCandidate& c) {
       nlohmann::json names = nlohmann::json::array();

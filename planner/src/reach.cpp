@@ -207,7 +207,7 @@ ReachResult ReachChecker::reach_check(const Eigen::VectorXd& readings,
     out.detail = s.str();
     return out;
   }
-  // The robot file's assembly-mode invariants decide (calib's verdict, issue 15): another mode
+  // The robot file's assembly-mode invariants decide (calib's verdict): another mode
   // is refused naming the flipped invariant, an ambiguous answer (at a boundary where modes
   // meet) is treated as singular. Only robots that declare no invariants fall back to the
   // seed-continuity rule.

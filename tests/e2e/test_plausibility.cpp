@@ -1,4 +1,4 @@
-// Plausibility gates end to end (issue 14): mistakes a new user makes, on a small rendered
+// Plausibility gates end to end: mistakes a new user makes, on a small rendered
 // session, each with its verdict and exit code. A board file 5 % off is refused at measure and
 // again at identify (no calibrated file), unless the operator accepts it explicitly; readings
 // in degrees exclude their pose naming the unit; one camera's images swapped between two poses
@@ -253,7 +253,7 @@ void open_to_everyone(const fs::path& dir) {
                     fs::perm_options::add);
 }
 
-// A pose folder this user may not read (issue 49): the pose is left out with that cause named,
+// A pose folder this user may not read: the pose is left out with that cause named,
 // not as "pose.yaml: missing", which sends the operator looking for a lost file.
 TEST_F(Gates, APoseFolderWithoutReadPermissionIsNamedWithTheCause) {
   const fs::path s = scratch("unreadable");

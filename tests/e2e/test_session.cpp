@@ -115,7 +115,7 @@ TEST(SessionEndToEnd, PipelineWithoutTruthThenValidateThenBatchEqualsSingleRuns)
     estimated += p["estimated"].get<bool>() ? 1 : 0;
   EXPECT_GT(estimated, 10);
   EXPECT_EQ(s["sessions"][0]["estimated_parameters"].get<int>(), estimated);
-  // Each session gets its report page (issue 20), named in the summary.
+  // Each session gets its report page, named in the summary.
   for (const auto& dir : {a2, b2}) EXPECT_TRUE(fs::exists(dir / "results" / "report.html")) << dir;
   EXPECT_EQ(s["sessions"][0]["report"].get<std::string>(),
             (a2 / "results" / "report.html").string());

@@ -1,5 +1,5 @@
 #pragma once
-// Assembly-mode sweep over the parallel robots of the library (issue 15), shared by the coarse
+// Assembly-mode sweep over the parallel robots of the library, shared by the coarse
 // unit test (tests/unit/calib/test_assembly_mode.cpp) and the dense bench
 // (bench/bench_assembly_modes.cpp).
 //

@@ -1,5 +1,5 @@
 #pragma once
-// What printer and delta users measure (issue 21), simulated on the library linear delta with a
+// What printer and delta users measure, simulated on the library linear delta with a
 // known truth:
 //  - bed probing: the firmware moves the nozzle to (x, y, 0) by its NOMINAL model and the probe
 //    reports how far above the bed (plane z = 0, or a tilted plane) the nozzle really is there;

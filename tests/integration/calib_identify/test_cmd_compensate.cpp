@@ -1,4 +1,4 @@
-// `robocal compensate` through its command line (issue 20), on a session folder whose
+// `robocal compensate` through its command line, on a session folder whose
 // identification result is a known perturbed printer (the truth itself, so every command can be
 // checked exactly on the true robot): targets -> commands, refused targets named, bad inputs.
 #include "printer_scenario.hpp"

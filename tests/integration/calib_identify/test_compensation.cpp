@@ -1,4 +1,4 @@
-// Compensation (issue 20) checked on a simulated true robot with a known perturbation:
+// Compensation checked on a simulated true robot with a known perturbation:
 //  - a G-code program with arcs, relative moves and G92, rewritten for the nominal controller,
 //    then executed as that controller does (straight lines in its model, its inverse kinematics)
 //    on the true geometry: the tool follows the program's meant path within the tolerance, where

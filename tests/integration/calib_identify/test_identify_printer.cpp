@@ -349,7 +349,7 @@ TEST_F(Printer, AdviceSaysWhatToMeasureNextAndWhereAndItWorks) {
   const auto advice =
       advise_measurements(pred, before.estimate, data.measurements, opt.candidates, bed, layer);
   std::cout << advice.text;
-  // The data's rank (identify may estimate fewer, chosen by what they predict, issue 53).
+  // The data's rank (identify may estimate fewer, chosen by what they predict).
   EXPECT_EQ(advice.rank_before,
             before.estimator.made ? before.estimator.data_rank : before.estimated.size());
   EXPECT_EQ(advice.rank_reachable, 9u);
@@ -423,7 +423,7 @@ TEST_F(Printer, DesignedProbePointsBeatTheFixedPatternOnHeldOutHeights) {
   o.preference = opt.preference;
   opt.candidates = printer_candidates(model);
   // The design models identify's rank-sized gauge estimator, not the choice by predicted error
-  // (issue 53), which it does not weigh yet: with that choice on, the fixed pattern reached 9.41
+  //, which it does not weigh yet: with that choice on, the fixed pattern reached 9.41
   // µm and the designed points 9.57 µm over these 100 draws.
   opt.choose_estimator = false;
   const auto advice = advise_measurements(pred, nominal, {}, opt.candidates, bed, {}, o);

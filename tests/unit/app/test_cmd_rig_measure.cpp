@@ -185,7 +185,7 @@ TEST(RigMeasureCli, CalibratesARigAndMeasuresPosesWithPerPoseStatus) {
       << bad["message"];
 }
 
-// `measure --rig` refuses what a session's measure refuses, with the same words (issue 49): one
+// `measure --rig` refuses what a session's measure refuses, with the same words: one
 // camera whose every image is of another size (nothing written, exit 3), a rig file whose camera
 // names are swapped (every fit 1e6x the corner noise: exit 1, nothing usable), and one camera's
 // images swapped between two poses (those two excluded, the rest used).

@@ -1,4 +1,4 @@
-// Assembly modes (issue 15): every FK / IK / closure answer carries a verdict; an answer on
+// Assembly modes: every FK / IK / closure answer carries a verdict; an answer on
 // another mode is re-seeded or refused, never reported as converged; the robot file's declared
 // mode is checked against its own home configuration.
 #include "calib_test_support.hpp"

@@ -1,4 +1,4 @@
-// G-code parsing and the rewrite's bookkeeping (issue 20): what each line means, and malformed
+// G-code parsing and the rewrite's bookkeeping: what each line means, and malformed
 // lines refused naming the file and line.
 #include "robocal/calib/gcode_program.hpp"
 #include "robocal/calib/robot_file.hpp"

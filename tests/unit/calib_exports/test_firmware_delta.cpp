@@ -1,4 +1,4 @@
-// Delta firmware exports (issue 20), checked against the firmwares' documented equations written
+// Delta firmware exports, checked against the firmwares' documented equations written
 // here independently of calib/identify/firmware_delta.cpp:
 //   Klipper (klippy/kinematics/delta.py, config reference): towers at delta_radius, angle_i; the
 //     carriage height at the endstop is position_endstop_i + sqrt(arm_length_i² - delta_radius²).

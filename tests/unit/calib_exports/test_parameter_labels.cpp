@@ -1,4 +1,4 @@
-// Parameter labels (issue 20): every library robot says each parameter in words, exact labels win
+// Parameter labels: every library robot says each parameter in words, exact labels win
 // over a body's words, and a label for something the robot does not have is an error at its line.
 #include "../calib/calib_test_support.hpp"
 #include "robocal/calib/robot_file.hpp"

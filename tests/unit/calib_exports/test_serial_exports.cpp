@@ -1,4 +1,4 @@
-// Serial-arm exports (issue 20): URDF written by robocal, read back by urdfdom; forward kinematics
+// Serial-arm exports: URDF written by robocal, read back by urdfdom; forward kinematics
 // of every link composed here from urdfdom's joints equals robocal's to 1e-9 m; the URDF imported
 // back as a robot file gives the same tool; the DH table's printed numbers rebuild the model.
 #include "../calib/calib_test_support.hpp"

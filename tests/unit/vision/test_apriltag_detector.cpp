@@ -72,7 +72,7 @@ struct Scene {
 
 }  // namespace
 
-// The requirement of issue 5 at blur 0.8 px / noise 2 DN / tilt up to 45 deg: RMS <= 0.03 px.
+// The detector's requirement at blur 0.8 px / noise 2 DN / tilt up to 45 deg: RMS <= 0.03 px.
 // Bias limits here are 0.01 px: with ~80 corners per case the mean's own noise is ~0.002 px; the
 // 0.005 px limit is checked over the full sweep by bench_vision_accuracy.
 TEST(AprilTagDetector, RefinedCornersMeetAccuracyOnRenderedViews) {
@@ -254,7 +254,7 @@ TEST(EdgeFit, UnbiasedAtEverySubPixelPhaseOfAPixelIntegratedGaussianEdge) {
 // fitted line (the brighter end looks like more bright paper): at the demo's vignetting
 // (relative gain slope ~2e-4 / px at mid radius) the corners of a 60 px tag edge moved by
 // ~0.01 px, in the pattern of a tag's perspective taper, and the calibrated focal length came
-// out ~1 sigma short (issue 7, bench_intrinsics_bias). The fit models the gain as linear over
+// out ~1 sigma short (bench_intrinsics_bias). The fit models the gain as linear over
 // the edge, so the line stays where it is.
 TEST(EdgeFit, UnbiasedUnderAGainRampAlongAndAcrossTheEdge) {
   const double dark = 20.0, bright = 220.0, sigma = 0.8;

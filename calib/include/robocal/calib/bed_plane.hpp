@@ -1,5 +1,5 @@
 #pragma once
-// Probe heights against a bed whose tilt is unknown (issue 21).
+// Probe heights against a bed whose tilt is unknown.
 //
 // A printer's probe reports how far above the bed the nozzle is. The bed is rarely square to the
 // printer's axes; a fixed plane z = 0 then blames the bed's tilt on the printer's geometry (the

@@ -1,5 +1,5 @@
 #pragma once
-// Convention checks before fitting (issue 22): the common swaps in measurement files — quaternion
+// Convention checks before fitting: the common swaps in measurement files — quaternion
 // order (x, y, z, w read as w, x, y, z), readings in degrees where the robot expects radians,
 // target→camera given for camera→target — each tried against the nominal model on the data and
 // named when one fits far better than what was declared.

@@ -1,5 +1,5 @@
 #pragma once
-// Linear-delta printer firmware settings fitted from an identified robot model (issue 20).
+// Linear-delta printer firmware settings fitted from an identified robot model.
 //
 // The firmwares (Klipper `kinematics: delta`, Marlin and RepRapFirmware M665/M666) know a smaller
 // delta model than robocal's: three vertical towers on one circle of radius R (delta radius = the

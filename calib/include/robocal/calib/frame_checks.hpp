@@ -1,5 +1,5 @@
 #pragma once
-// Checks of a model's frames that `robocal kin check` reports (issue 22): a roll/pitch/yaw frame
+// Checks of a model's frames that `robocal kin check` reports: a roll/pitch/yaw frame
 // whose middle rotation is at or near ±90° sits at gimbal lock — its first and last rotations
 // turn about the same axis, so identification cannot separate them (the Jacobian loses a column)
 // and a small orientation change can need a large angle change.

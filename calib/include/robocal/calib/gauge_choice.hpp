@@ -1,6 +1,6 @@
 #pragma once
 // Which confounded parameters to hold at nominal (the gauge) when the data determine only some
-// combinations of the candidates (issue 21). Pure numerics on linearised, whitened rows.
+// combinations of the candidates. Pure numerics on linearised, whitened rows.
 //
 // The rank analysis (identifiability.hpp) finds how many parameters the data separate (r) and one
 // base set: the order of a column-pivoted QR. Any other r columns that the data separate as well
@@ -17,7 +17,7 @@
 // outside the span of the others kept) and leave every other column within the tolerance of
 // their span (so the analysis would hold exactly the rest). Search: every subset when there are
 // at most `max_subsets`, else exchanges (one held for one estimated) from the given set while
-// the error falls. Criteria within a relative `tie_tolerance` of each other are equal (issue 48:
+// the error falls. Criteria within a relative `tie_tolerance` of each other are equal (
 // the symmetric arms of a Delta give mirror-image sets whose criteria differ only in the last
 // bits, differently on different machines); among equal ones the lexicographically first set of
 // column indices wins, so the choice does not depend on rounding.

@@ -54,7 +54,7 @@ struct SolveOptions {
   // rank analysis' own choice.
   std::vector<double> gauge_sigma;
   // With gauge_sigma, little data and printer observations (probe heights, with or without
-  // distances), the estimated set is then chosen by what it predicts (EstimatorChoice, issue 53);
+  // distances), the estimated set is then chosen by what it predicts (EstimatorChoice);
   // false keeps the gauge choice's set of the data's rank.
   bool choose_estimator = true;
   // Estimate the redundant candidates too (all with an effect), regularised by the priors, instead
@@ -140,7 +140,7 @@ struct RelinearisationReport {
   std::string message;
 };
 
-// With little data (issue 53): which estimated set identify chose by what it predicts. Every
+// With little data: which estimated set identify chose by what it predicts. Every
 // candidate set is weighed by the expected squared position error over the measured area (the
 // bed height for height-only data, the 3-D position otherwise): the noise through the estimated
 // parameters plus the bias of those held at nominal, off nominal by the robot file's tolerances

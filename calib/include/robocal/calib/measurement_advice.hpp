@@ -1,5 +1,5 @@
 #pragma once
-// What to measure next, and where (issue 21).
+// What to measure next, and where.
 //
 // With little data the identification estimates only the combinations the data separate and
 // holds the rest at nominal (the gauge). This says which further measurements, at which

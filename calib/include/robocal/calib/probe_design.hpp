@@ -1,5 +1,5 @@
 #pragma once
-// Where to measure so that predictions over a working area are best (issue 21): an I-optimal
+// Where to measure so that predictions over a working area are best: an I-optimal
 // (V-optimal) exact design. Pure numerics on linearised, whitened rows.
 //
 // Each candidate measurement c adds the whitened rows F_c (k_c × p) to the information matrix

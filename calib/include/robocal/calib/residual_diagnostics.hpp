@@ -1,5 +1,5 @@
 #pragma once
-// Statistics the calibration report shows (issue 20), as pure functions over plain data:
+// Statistics the calibration report shows, as pure functions over plain data:
 // histograms of position errors, error maps binned over the workspace, and residual diagnostics
 // that flag unmodelled error — residual components that vary with where the robot is (an
 // effector tilt absorbed into arm lengths leaves residuals that grow with height; a sagging arm

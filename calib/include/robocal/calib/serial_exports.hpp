@@ -1,5 +1,5 @@
 #pragma once
-// Serial-arm exports (issue 20): URDF out and in (read through Debian's urdfdom), and the
+// Serial-arm exports: URDF out and in (read through Debian's urdfdom), and the
 // Denavit-Hartenberg table of a robot whose file already gives its joints in DH or modified DH.
 //
 // URDF: every robocal body becomes a link with the same frame. A moving body's transform

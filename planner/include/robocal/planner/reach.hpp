@@ -2,7 +2,7 @@
 // Reach of a candidate pose: can the robot assemble at these actuator readings on its intended
 // assembly mode, inside every joint limit (with margin), ball-joint cone and away from
 // singularities? ONE function, reach_check(), is the planner's only way to the closure solver,
-// so the assembly-mode verdict of calib (issue 15) slots in here.
+// so the assembly-mode verdict of calib slots in here.
 //
 // The intended mode: the closure solver is cold-started from the robot's closed-form seed
 // (rotary/linear delta, Gantry-Tau: the closed form picks the intended branch) or from the robot
