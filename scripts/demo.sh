@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/bootstrap.sh
-# Only the program, robocal_app's sources compiled in batches: the fastest cold build
+# Only the program, each library's sources compiled in batches: the fastest cold build
 # (ROBOCAL_UNITY_BUILD in CMakeLists.txt; scripts/test.sh switches it off again).
 cmake --preset release -DROBOCAL_UNITY_BUILD=ON >/dev/null
 bash scripts/build.sh release robocal
