@@ -11,10 +11,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 [ -f build/release/compile_commands.json ] || cmake --preset release >/dev/null
-# scripts/demo.sh compiles robocal_app's sources in batches, which leaves them no compile command
+# scripts/demo.sh compiles each library's sources in batches, which leaves them no compile command
 # of their own.
 if grep -q '^ROBOCAL_UNITY_BUILD:BOOL=ON' build/release/CMakeCache.txt; then
-  echo "tidy: build/release compiles robocal_app in batches (ROBOCAL_UNITY_BUILD=ON, from" \
+  echo "tidy: build/release compiles the sources in batches (ROBOCAL_UNITY_BUILD=ON, from" \
        "scripts/demo.sh); run: cmake --preset release -DROBOCAL_UNITY_BUILD=OFF" >&2
   exit 1
 fi

@@ -11,6 +11,7 @@
 
 #include "robocal/calib/measurements_file.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
+#include "robocal/calib/robot_file.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -32,7 +33,7 @@ namespace calib = robocal::calib;
 // A measured session of the linear delta (the recorded session's cameras and boards): `poses`
 // board poses of a robot drawn at the robot file's tolerances, in a rig frame 1.5 m from its
 // base, with 30 µm / 0.2 mrad noise stated as their covariance.
-void write_measured_session(const fs::path& dir, std::size_t poses) {
+void write_measured_session(const fs::path& dir, std::size_t poses, unsigned seed) {
   const fs::path recorded = fs::path(ROBOCAL_TESTDATA_DIR) / "sessions" / "delta_quick";
   fs::remove_all(dir);
   fs::create_directories(dir);
@@ -47,7 +48,7 @@ void write_measured_session(const fs::path& dir, std::size_t poses) {
   robocal::core::write_file_atomic(dir / "session.yaml", app::session_to_yaml(s));
   const app::SessionRobot robot = app::session_robot(s, "");
   const calib::MechanismPredictor predictor(robot.model, robot.frame);
-  std::mt19937 rng(7);
+  std::mt19937 rng(seed);
   const Eigen::VectorXd truth = calib::perturb_parameters(
       robot.nominal, calib::tolerance_sigmas(robot.model, 0.5e-3, 3e-3), rng);
   const Eigen::Isometry3d rig_T_world =
@@ -88,14 +89,52 @@ void write_measured_session(const fs::path& dir, std::size_t poses) {
   calib::save_measurements_file(file, results.measurements().string());
 }
 
-TEST(IdentifyRoutes, ASessionAndItsMeasurementsFileGiveTheSameEstimate) {
-  const fs::path work = fs::temp_directory_path() / "robocal_identify_routes";
-  write_measured_session(work, 30);
+// How far apart the measured frame's positions the two calibrated robots predict lie, at `count`
+// configurations drawn over the robot's range: the largest and the RMS distance.
+struct PredictionDifference {
+  double largest = 0.0;
+  double rms = 0.0;
+};
+PredictionDifference prediction_difference(const calib::Mechanism& a, const calib::Mechanism& b,
+                                           const std::string& frame, std::size_t count) {
+  const calib::MechanismPredictor pa(a, a.body_index(frame));
+  const calib::MechanismPredictor pb(b, b.body_index(frame));
+  const Eigen::VectorXd va = a.nominal_parameters();
+  const Eigen::VectorXd vb = b.nominal_parameters();
+  std::mt19937 rng(3);
+  PredictionDifference d;
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (const auto& q : calib::sample_actuators(pa, {va}, count, rng)) {
+    calib::FramePrediction fa;
+    calib::FramePrediction fb;
+    std::string why;
+    if (!pa.predict(va, q, -1, false, fa, why) || !pb.predict(vb, q, -1, false, fb, why)) {
+      ADD_FAILURE() << "a calibrated robot does not assemble: " << why;
+      return {INFINITY, INFINITY};
+    }
+    const double e = (fa.pose.translation() - fb.pose.translation()).norm();
+    d.largest = std::max(d.largest, e);
+    sum += e * e;
+    ++n;
+  }
+  d.rms = n > 0 ? std::sqrt(sum / static_cast<double>(n)) : INFINITY;
+  return d;
+}
+
+// Five draws of the robot and its noise (seeds 7-11).
+class IdentifyRoutes : public ::testing::TestWithParam<unsigned> {};
+
+TEST_P(IdentifyRoutes, ASessionAndItsMeasurementsFileGiveTheSameRobot) {
+  const fs::path work =
+      fs::temp_directory_path() / ("robocal_identify_routes_" + std::to_string(GetParam()));
+  write_measured_session(work, 30, GetParam());
   ASSERT_EQ(run_cli({"identify", work.string(), "--route", "pose"}), 0);
   const fs::path file_json = work / "file_route.json";
+  const fs::path file_robot = work / "file_route_robot.yaml";
   ASSERT_EQ(run_cli({"identify", "--robot", (work / "robot.yaml").string(), "--measurements",
                      (work / "results" / "measurements.yaml").string(), "--priors", "--quiet",
-                     "--json", file_json.string()}),
+                     "--json", file_json.string(), "--out-robot", file_robot.string()}),
             0);
   const json session =
       json::parse(robocal::test::read_file(work / "results" / "identification.json"));
@@ -115,16 +154,30 @@ TEST(IdentifyRoutes, ASessionAndItsMeasurementsFileGiveTheSameEstimate) {
     EXPECT_EQ(a["name"], b["name"]);
     EXPECT_EQ(a["nominal"].get<double>(), b["nominal"].get<double>()) << a["name"];
   }
-  // The same fit. Not the same values to 1e-9: which of the confounded parameters are held at
-  // their start (the gauge) is a near tie on this robot (carriage_a.x or carriage_c.x, among
-  // others), decided by those last digits, and a different gauge moves the base frame by a
-  // millimetre while the fit stays as good. What does not depend on the gauge is how well the
-  // model explains the data: the final cost and the residual within 1 %.
+  // The same fit: the final cost and the residual within 1 %.
   const double final_session = session["result"]["final_cost"].get<double>();
   EXPECT_NEAR(file["final_cost"].get<double>(), final_session, 0.01 * final_session);
   const double rms_session = session["result"]["residuals"]["position_rms_m"].get<double>();
   EXPECT_NEAR(file["residuals"]["position_rms_m"].get<double>(), rms_session, 0.01 * rms_session);
+  // The same robot. Not the same parameter values: which of the confounded parameters are held
+  // at their start (the gauge) is a near tie on this robot (carriage_a.x or carriage_c.x, among
+  // others), decided by those last digits, and another gauge moves the base frame by a
+  // millimetre. What the robot does hardly changes: both calibrated robot files put the measured
+  // frame at nearly the same place over the robot's range, far inside the 52 µm (3-D) noise of
+  // one measured pose. Over seeds 7-11, at 200 configurations: RMS 2.5 / 2.7 / 0.7 / 1.7 / 1.2 µm,
+  // largest 7.1 / 12.8 / 2.0 / 4.4 / 3.5 µm; the bounds are 1.25 times the largest of each.
+  const PredictionDifference d = prediction_difference(
+      calib::load_robot_file((work / "results" / "calibrated_robot.yaml").string()),
+      calib::load_robot_file(file_robot.string()), "tool", 200);
+  RecordProperty("rms_difference_um", std::to_string(d.rms * 1e6));
+  RecordProperty("largest_difference_um", std::to_string(d.largest * 1e6));
+  EXPECT_LT(d.rms, 1.25 * 2.7e-6) << "the two routes' robots differ by " << d.rms * 1e6
+                                  << " µm RMS";
+  EXPECT_LT(d.largest, 1.25 * 12.8e-6)
+      << "the two routes' robots differ by up to " << d.largest * 1e6 << " µm";
   fs::remove_all(work);
 }
+
+INSTANTIATE_TEST_SUITE_P(Seeds, IdentifyRoutes, ::testing::Values(7U, 8U, 9U, 10U, 11U));
 
 }  // namespace
