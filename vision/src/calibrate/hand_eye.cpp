@@ -1,5 +1,6 @@
 #include "robocal/vision/hand_eye.hpp"
 
+#include "fit/solver_options.hpp"
 #include "robocal/core/median.hpp"
 #include "robocal/vision/pose.hpp"
 
@@ -318,12 +319,7 @@ void adjust(const CameraModel& camera, const BoardPoints& board,
     }
   }
   if (!options.estimate_intrinsics) problem.SetParameterBlockConstant(s.intrinsics.data());
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 200;
-  so.function_tolerance = 1e-12;
-  so.parameter_tolerance = 1e-12;
-  so.gradient_tolerance = 1e-12;
+  const ceres::Solver::Options so = detail::tight_dense_fit(ceres::DENSE_QR, 200);
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   s.iterations += static_cast<int>(summary.iterations.size());

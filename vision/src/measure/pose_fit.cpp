@@ -3,6 +3,7 @@
 #include "fit/board_pose.hpp"
 #include "fit/corner_noise.hpp"
 #include "fit/reprojection_cost.hpp"
+#include "fit/solver_options.hpp"
 
 #include <ceres/ceres.h>
 #include <Eigen/Dense>
@@ -140,14 +141,7 @@ FitResult refine(const std::vector<RigCamera>& rig, const Observations& obs,
       problem.AddResidualBlock(make_block_cost(rig, obs, b, out.world_T_target, true).release(),
                                huber_scale > 0.0 ? new ceres::HuberLoss(huber_scale) : nullptr,
                                d_target);
-    ceres::Solver::Options sopts;
-    sopts.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-    sopts.max_num_iterations = 100;
-    sopts.function_tolerance = 1e-12;
-    sopts.gradient_tolerance = 1e-12;
-    sopts.parameter_tolerance = 1e-12;
-    sopts.logging_type = ceres::SILENT;
-    sopts.num_threads = 1;
+    const ceres::Solver::Options sopts = detail::tight_dense_fit(ceres::DENSE_NORMAL_CHOLESKY, 100);
     ceres::Solver::Summary summary;
     ceres::Solve(sopts, &problem, &summary);
     if (!summary.IsSolutionUsable()) return out;
