@@ -42,14 +42,13 @@ struct LiveDemoOptions {
 
 // Intrinsic views per camera of an array of more than two cameras, by default: six cameras at 96
 // views each would have the operator show the board 576 times; 48 each still gives an array 1.5
-// times the views of a pair. (The live Gantry-Tau's six cameras: 22.2 -> 27.3 um held-out, 305 ->
-// about 200 s.)
+// times the views of a pair, at a few micrometres of held-out error (docs/figures.md).
 inline constexpr int kArrayIntrinsicViews = 48;
 
 // Intrinsic views per camera of `robocal demo --live` when --intrinsic-views is not given, for
 // any number of cameras: rendering and calibrating the views was most of the live demo's time
-// for a pair of cameras too. Seed 1, held-out RMS with 96 -> 48 views each: rotary Delta 24.1 ->
-// 29.1 um, UR5 22.6 -> 23.0 um, four-bar 7.9 -> 7.3 um, in half the CPU time of the views.
+// for a pair of cameras too; 48 views take half the time of 96 at a few micrometres of held-out
+// error (`--intrinsic-views 96` for the difference, docs/figures.md).
 inline constexpr int kLiveIntrinsicViews = 48;
 
 // Runs the live demo; returns the process exit code (0: calibrated and improved).
