@@ -4,8 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/bootstrap.sh
-# Only the program, each library's sources compiled in batches: the fastest cold build
-# (ROBOCAL_UNITY_BUILD in CMakeLists.txt; scripts/test.sh switches it off again).
-cmake --preset release -DROBOCAL_UNITY_BUILD=ON >/dev/null
+# Only the program (each library's sources compiled in batches: ROBOCAL_BATCH_BUILD in
+# CMakeLists.txt).
+cmake --preset release >/dev/null
 bash scripts/build.sh release robocal
 exec ./build/release/app/robocal demo "$@"

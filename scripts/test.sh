@@ -4,7 +4,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/bootstrap.sh --tests
-# One compile command per source (clang-tidy) and objects ccache shares between checkouts.
-cmake --preset release -DROBOCAL_UNITY_BUILD=OFF >/dev/null
+cmake --preset release >/dev/null
 bash scripts/build.sh release
 ctest --preset release "$@"

@@ -4,41 +4,71 @@
 #
 # A file that passed is remembered (ROBOCAL_TIDY_CACHE, default ~/.cache/robocal-tidy) under a
 # key of everything its verdict depends on: the clang-tidy version, .clang-tidy, the file's own
-# compile command, its own text and the text of every project header it includes. The headers a file includes are the compiler's own record (ninja's dependency log of
-# the release build, current after a build); a file the log does not know is keyed on every
-# project header instead. So a header change re-checks only the files that include it.
+# compile command, its own text and the text of every project header it includes. The headers a
+# file includes are the compiler's own record (ninja's dependency log of the release build, current
+# after a build; for a source compiled in a batch, the batch's); a file the log does not know is
+# keyed on every project header instead. So a header change re-checks only the files that include
+# it.
 # ROBOCAL_TIDY_CACHE=off disables the cache.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 [ -f build/release/compile_commands.json ] || cmake --preset release >/dev/null
-# scripts/demo.sh compiles each library's sources in batches, which leaves them no compile command
-# of their own.
-if grep -q '^ROBOCAL_UNITY_BUILD:BOOL=ON' build/release/CMakeCache.txt; then
-  echo "tidy: build/release compiles the sources in batches (ROBOCAL_UNITY_BUILD=ON, from" \
-       "scripts/demo.sh); run: cmake --preset release -DROBOCAL_UNITY_BUILD=OFF" >&2
-  exit 1
-fi
 if [ $# -gt 0 ]; then files=("$@"); else
   mapfile -t files < <(git ls-files '*.cpp' | grep -E '^(app|calib|core|vision|planner|robotio)/')
 fi
 
+# Every source's own compile command. A library compiled in batches (ROBOCAL_BATCH_BUILD) has
+# commands for its batch sources only; each batch line names the source it includes (after //),
+# which is checked with the batch's command, compiling that source instead (without the warnings
+# only a batch switches off). Written as a
+# compilation database of its own (build/release/tidy-sources) for clang-tidy's -p, with the
+# object each source's dependencies are recorded under (its batch's, or its own).
+sources_db=build/release/tidy-sources
+mkdir -p "$sources_db"
+awk -v root="$PWD/" -v objects="$sources_db/objects.tsv" '
+  function emit(file, cmd) {
+    printf "%s{\"directory\": \"%s\", \"command\": \"%s\", \"file\": \"%s\"}\n", sep, dir, cmd, file
+    sep = ","
+  }
+  BEGIN { print "[" }
+  /^ *"directory":/ { dir = $0; sub(/^ *"directory": *"/, "", dir); sub(/",? *$/, "", dir) }
+  /^ *"command":/ { cmd = $0; sub(/^ *"command": *"/, "", cmd); sub(/",? *$/, "", cmd) }
+  /^ *"file":/ {
+    f = $0; sub(/^ *"file": *"/, "", f); sub(/",? *$/, "", f)
+    obj = cmd; sub(/^.* -o /, "", obj); sub(/ .*$/, "", obj)
+    if (f !~ /\.batches\/batch_[0-9]+\.cpp$/) {
+      rel = f; sub(root, "", rel); print rel "\t" obj > objects; emit(f, cmd); next
+    }
+    while ((getline line < f) > 0) {
+      if (line !~ /^#include ".*"  \/\/ /) continue
+      rel = line; sub(/^.*  \/\/ /, "", rel)
+      c = cmd; sub(/ -c [^ ]*$/, " -c " root rel, c)
+      # The warnings a batch alone switches off (cmake/RobocalBatches.cmake) stay on.
+      gsub(/ -Wno-(subobject-linkage|restrict|null-dereference)/, "", c)
+      print rel "\t" obj > objects; emit(root rel, c)
+    }
+    close(f)
+  }
+  END { print "]" }' build/release/compile_commands.json >"$sources_db/compile_commands.json"
+
 cache=${ROBOCAL_TIDY_CACHE:-$HOME/.cache/robocal-tidy}
 if [ "$cache" = off ]; then
-  printf '%s\n' "${files[@]}" | xargs -P 2 -n 4 clang-tidy -p build/release --quiet
+  printf '%s\n' "${files[@]}" | xargs -P 2 -n 4 clang-tidy -p "$sources_db" --quiet
   exit 0
 fi
 mkdir -p "$cache"
 
 # What every file's verdict depends on: the tool and its checks. Its flags are its own compile
-# command (compile_commands.json, with this checkout's path taken out so that a clean checkout
-# elsewhere finds the same keys).
+# command without its output and input (with this checkout's path taken out so that a clean
+# checkout elsewhere finds the same keys).
 common=$( { clang-tidy --version; cat .clang-tidy; } | sha256sum | cut -d' ' -f1)
-declare -A commands=()
+declare -A commands=() object_of=()
 while IFS=$'\t' read -r src cmd; do commands[$src]=$cmd; done < <(
   awk -v root="$PWD/" '
-    /^ *"command":/ { cmd = $0; gsub(root, "", cmd) }
+    /^ *"command":/ { cmd = $0; sub(/ -o .*$/, "", cmd); gsub(root, "", cmd) }
     /^ *"file":/ { f = $0; sub(/^ *"file": *"/, "", f); sub(/",? *$/, "", f); sub(root, "", f)
-                   print f "\t" cmd }' build/release/compile_commands.json)
+                   print f "\t" cmd }' "$sources_db/compile_commands.json")
+while IFS=$'\t' read -r src obj; do object_of[$src]=$obj; done <"$sources_db/objects.tsv"
 # Fallback for a file without a dependency record: every project and generated header.
 all_headers=$(
   {
@@ -48,20 +78,20 @@ all_headers=$(
   } | sha256sum | cut -d' ' -f1
 )
 
-# source file (relative to the checkout) -> the project headers it includes (relative to the
-# build directory: ../../x for the checkout's, generated ones without ../), one line per source.
+# object (relative to the build directory) -> the project headers its source includes (relative
+# to the build directory: ../../x for the checkout's, generated ones without ../), from ninja's
+# dependency log. A batch's list serves each of its sources: a superset of what one includes.
 declare -A deps=()
-while IFS=$'\t' read -r src list; do deps[$src]=$list; done < <(
+while IFS=$'\t' read -r obj list; do deps[$obj]=$list; done < <(
   ninja -C build/release -t deps 2>/dev/null | awk '
-    /^[^ ].*: #deps/ { if (src != "") print src "\t" list; src = ""; list = ""; first = 1; next }
-    /^    / { p = $1
-              if (first) { first = 0; sub(/^\.\.\/\.\.\//, "", p); src = p; next }
-              if (p !~ /^\//) list = list " " p }
-    END { if (src != "") print src "\t" list }')
+    /^[^ ].*: #deps/ { if (obj != "") print obj "\t" list; obj = $1; sub(/:$/, "", obj); list = ""; next }
+    /^    / { p = $1; if (p !~ /^\// && p !~ /\.cpp$/) list = list " " p }
+    END { if (obj != "") print obj "\t" list }')
 
 header_key() {  # $1: the source; prints the hash of the project headers it includes
-  local list=${deps[$1]-}
-  if [ -z "${deps[$1]+set}" ]; then echo "all $all_headers"; return; fi
+  local obj=${object_of[$1]-}
+  local list=${deps[$obj]-}
+  if [ -z "$obj" ] || [ -z "${deps[$obj]+set}" ]; then echo "all $all_headers"; return; fi
   # shellcheck disable=SC2086  # the list is space-separated paths without spaces
   (cd build/release && sha256sum $list </dev/null) | sha256sum | cut -d' ' -f1
 }
@@ -91,7 +121,7 @@ while IFS=$'\t' read -r src cmd; do raw[$src]=$cmd; done < <(
   awk -v root="$PWD/" '
     /^ *"command":/ { cmd = $0; sub(/^ *"command": *"/, "", cmd); sub(/",? *$/, "", cmd) }
     /^ *"file":/ { f = $0; sub(/^ *"file": *"/, "", f); sub(/",? *$/, "", f); sub(root, "", f)
-                   print f "\t" cmd }' build/release/compile_commands.json)
+                   print f "\t" cmd }' "$sources_db/compile_commands.json")
 declare -A group_of=() members=()
 jobs=()
 for ((i = 0; i < ${#todo[@]}; i += 2)); do
@@ -133,10 +163,10 @@ check_job() {
   fi
   local status=0
   for ((j = 1; j < ${#w[@]}; j += 2)); do
-    if clang-tidy -p build/release --quiet "${w[j]}"; then touch "$cache/${w[j + 1]}"; else status=1; fi
+    if clang-tidy -p "$sources_db" --quiet "${w[j]}"; then touch "$cache/${w[j + 1]}"; else status=1; fi
   done
   return $status
 }
 export -f check_job
-export cache batches
+export cache batches sources_db
 printf '%s\0' "${jobs[@]}" | xargs -0 -P 2 -n 1 bash -c 'check_job "$0"'

@@ -6,8 +6,12 @@
 
 #include "robocal/core/files.hpp"
 
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
@@ -18,6 +22,13 @@ inline int run_cli(const std::vector<std::string>& args) {
   std::vector<const char*> argv = {"robocal"};
   for (const auto& a : args) argv.push_back(a.c_str());
   return robocal::app::run_cli(static_cast<int>(argv.size()), argv.data());
+}
+
+// A results file's JSON (a test failure when it cannot be opened).
+inline nlohmann::json load_json(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  EXPECT_TRUE(in) << p;
+  return nlohmann::json::parse(in);
 }
 
 // FNV-1a of every file's relative path and bytes, outside results/: the recorded data.

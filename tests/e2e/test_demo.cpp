@@ -18,13 +18,13 @@
 
 namespace {
 
-constexpr auto& run = robocal::test::run_robocal;
+using robocal::test::run_robocal;
 
 TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
   const auto dir = std::filesystem::temp_directory_path() / "robocal_e2e_demo";
   std::filesystem::remove_all(dir);
-  ASSERT_EQ(run({"demo", "--quick", "--poses", "24", "--held-out", "200", "--seed", "3", "--out",
-                 dir.string()}),
+  ASSERT_EQ(run_robocal({"demo", "--quick", "--poses", "24", "--held-out", "200", "--seed", "3",
+                         "--out", dir.string()}),
             0);
   std::ifstream in(dir / "results" / "demo.json");
   ASSERT_TRUE(in) << "no demo.json";
@@ -117,7 +117,7 @@ TEST(DemoEndToEnd, QuickDeltaCalibratesFromRenderedImages) {
 TEST(DemoEndToEnd, DefaultDeltaSeed1ReachesItsDocumentedFigure) {
   const auto dir = std::filesystem::temp_directory_path() / "robocal_e2e_demo_default";
   std::filesystem::remove_all(dir);
-  ASSERT_EQ(run({"demo", "--seed", "1", "--out", dir.string()}), 0);
+  ASSERT_EQ(run_robocal({"demo", "--seed", "1", "--out", dir.string()}), 0);
   std::ifstream in(dir / "results" / "demo.json");
   ASSERT_TRUE(in) << "no demo.json";
   const auto report = nlohmann::json::parse(in);

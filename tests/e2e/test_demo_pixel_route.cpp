@@ -14,13 +14,13 @@
 
 namespace {
 
-constexpr auto& run = robocal::test::run_robocal;
+using robocal::test::run_robocal;
 
 TEST(DemoEndToEnd, PixelRouteCalibratesFromTheSameDetections) {
   const auto dir = std::filesystem::temp_directory_path() / "robocal_e2e_demo_pixels";
   std::filesystem::remove_all(dir);
-  ASSERT_EQ(run({"demo", "--quick", "--poses", "24", "--held-out", "200", "--seed", "3", "--route",
-                 "both", "--out", dir.string()}),
+  ASSERT_EQ(run_robocal({"demo", "--quick", "--poses", "24", "--held-out", "200", "--seed", "3",
+                         "--route", "both", "--out", dir.string()}),
             0);
   std::ifstream in(dir / "results" / "demo.json");
   ASSERT_TRUE(in) << "no results/demo.json";

@@ -26,16 +26,11 @@ namespace {
 
 namespace fs = std::filesystem;
 using robocal::test::copy_recorded;
+using robocal::test::load_json;
 using robocal::test::read_file;
 using robocal::test::run_cli;
 
-nlohmann::json load_json(const fs::path& p) {
-  std::ifstream in(p);
-  EXPECT_TRUE(in) << p;
-  return nlohmann::json::parse(in);
-}
-
-fs::path scratch(const std::string& name) {
+fs::path gate_scratch(const std::string& name) {
   const auto dir = fs::temp_directory_path() / ("robocal_e2e_gates_" + name);
   fs::remove_all(dir);
   return dir;
@@ -53,7 +48,7 @@ class Gates : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     // One per process: ctest runs each test in its own process, possibly at the same time.
-    recorded_ = scratch("recorded_" + std::to_string(::getpid()));
+    recorded_ = gate_scratch("recorded_" + std::to_string(::getpid()));
     ASSERT_EQ(run_cli({"simulate", "--quick", "--poses", "16", "--seed", "7", "--out",
                        recorded_.string()}),
               0);
@@ -64,7 +59,7 @@ class Gates : public ::testing::Test {
 fs::path Gates::recorded_;
 
 TEST_F(Gates, BoardFileFivePercentOffIsRefusedUnlessTheOperatorAcceptsIt) {
-  const fs::path s = scratch("board");
+  const fs::path s = gate_scratch("board");
   copy_recorded(recorded_, s);
   const fs::path board = s / "targets" / "end_effector.yaml";
   std::string text = read_file(board);
@@ -110,7 +105,7 @@ TEST_F(Gates, BoardFileFivePercentOffIsRefusedUnlessTheOperatorAcceptsIt) {
 }
 
 TEST_F(Gates, DegreesAndSwappedImagesExcludeTheirPosesAndTheRestCalibrates) {
-  const fs::path s = scratch("poses");
+  const fs::path s = gate_scratch("poses");
   copy_recorded(recorded_, s);
   // pose_002's readings in degrees.
   const fs::path pose = s / "poses" / "pose_002" / "pose.yaml";
@@ -161,7 +156,7 @@ TEST_F(Gates, DegreesAndSwappedImagesExcludeTheirPosesAndTheRestCalibrates) {
 // results/pixel_observations.json only) fail its gate, and the pose route's calibration stands
 // with a warning; asked for alone, that route's verdict is the identification's.
 TEST_F(Gates, AnImplausiblePixelRouteLeavesThePoseRouteStanding) {
-  const fs::path s = scratch("pixels");
+  const fs::path s = gate_scratch("pixels");
   copy_recorded(recorded_, s);
   ASSERT_EQ(run_cli({"measure", s.string()}), 0);
   const fs::path pixels = s / "results" / "pixel_observations.json";
@@ -204,7 +199,7 @@ namespace {
 // run as root, for whom permission bits do not stop a write): an input error naming the path,
 // exit 3, not an internal error; the recorded data is untouched.
 TEST_F(Gates, AResultsFolderThatCannotBeWrittenIsNamedWithExit3) {
-  const fs::path s = scratch("unwritable");
+  const fs::path s = gate_scratch("unwritable");
   copy_recorded(recorded_, s);
   std::ofstream(s / "results") << "not a folder\n";
   const auto before = robocal::test::recorded_fingerprint(s);
@@ -256,7 +251,7 @@ void open_to_everyone(const fs::path& dir) {
 // A pose folder this user may not read: the pose is left out with that cause named,
 // not as "pose.yaml: missing", which sends the operator looking for a lost file.
 TEST_F(Gates, APoseFolderWithoutReadPermissionIsNamedWithTheCause) {
-  const fs::path s = scratch("unreadable");
+  const fs::path s = gate_scratch("unreadable");
   copy_recorded(recorded_, s);
   open_to_everyone(s);
   for (fs::path p = s.parent_path(); p != p.root_path(); p = p.parent_path())
@@ -280,7 +275,7 @@ TEST_F(Gates, APoseFolderWithoutReadPermissionIsNamedWithTheCause) {
 // A symbolic link loop inside a session folder is the session's problem, named with the link and
 // the cause: exit 3 from measure, the session's error in batch's summary, never an internal error.
 TEST_F(Gates, ASymbolicLinkLoopInASessionIsNamedNotAnInternalError) {
-  const fs::path s = scratch("link_loop");
+  const fs::path s = gate_scratch("link_loop");
   copy_recorded(recorded_, s);
   fs::create_symlink("loop_b", s / "poses" / "loop_a");
   fs::create_symlink("loop_a", s / "poses" / "loop_b");
@@ -289,7 +284,7 @@ TEST_F(Gates, ASymbolicLinkLoopInASessionIsNamedNotAnInternalError) {
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("loop_"), std::string::npos) << err;
   EXPECT_NE(err.find("a symbolic link loop"), std::string::npos) << err;
-  const fs::path summary = scratch("link_loop_batch.json");
+  const fs::path summary = gate_scratch("link_loop_batch.json");
   testing::internal::CaptureStdout();
   EXPECT_EQ(run_cli({"batch", s.string(), "--json", summary.string()}), 1);
   const std::string out = testing::internal::GetCapturedStdout();
@@ -304,13 +299,9 @@ TEST_F(Gates, ASymbolicLinkLoopInASessionIsNamedNotAnInternalError) {
 // images' size and the camera file's, not only "sees the board in none of the views".
 TEST_F(Gates, ARigCameraFileOfAnotherResolutionIsNamed) {
   const fs::path views = recorded_ / "calibration" / "rig";
-  std::vector<std::string> args = {"rig",
-                                   "--target",
-                                   (recorded_ / "targets" / "calibration.yaml").string(),
-                                   "--views",
-                                   views.string(),
-                                   "--out",
-                                   scratch("rig_resolution.json").string()};
+  std::vector<std::string> args = {
+      "rig",          "--target", (recorded_ / "targets" / "calibration.yaml").string(), "--views",
+      views.string(), "--out",    gate_scratch("rig_resolution.json").string()};
   const std::string small = std::string(ROBOCAL_TESTDATA_DIR) + "/vision/camera_640x480.yaml";
   fs::path first_view;
   for (const auto& e : fs::directory_iterator(views))
@@ -332,7 +323,7 @@ TEST_F(Gates, ARigCameraFileOfAnotherResolutionIsNamed) {
 // A board file with a column too many: every pose's fit is bad (and most ambiguous); the refusal
 // blames the board's file, not each pose's images as swapped.
 TEST_F(Gates, ABoardFileWithTheWrongColumnCountBlamesTheBoardFile) {
-  const fs::path s = scratch("columns");
+  const fs::path s = gate_scratch("columns");
   copy_recorded(recorded_, s);
   const fs::path board = s / "targets" / "end_effector.yaml";
   std::string text = read_file(board);
@@ -359,7 +350,7 @@ namespace {
 // seed of validation's draws), the configurations drawn equal the count requested, and the
 // figures cover all of them except the ones a model could not answer (counted).
 TEST_F(Gates, HeldOutCountEqualsTheRequestedCountForEverySeed) {
-  const fs::path s = scratch("held_out");
+  const fs::path s = gate_scratch("held_out");
   copy_recorded(recorded_, s);
   ASSERT_EQ(run_cli({"measure", s.string()}), 0);
   ASSERT_EQ(run_cli({"identify", s.string(), "--route", "pose"}), 0);
@@ -390,7 +381,7 @@ namespace {
 // robot file, or whose values are not the identified ones (edited by hand, copied from another
 // run), is refused with exit 3 naming the file (and the parameter), not validated.
 TEST_F(Gates, ValidateRefusesACalibratedFileThatIsNotTheIdentifiedModel) {
-  const fs::path s = scratch("calibrated_file");
+  const fs::path s = gate_scratch("calibrated_file");
   copy_recorded(recorded_, s);
   ASSERT_EQ(run_cli({"measure", s.string()}), 0);
   ASSERT_EQ(run_cli({"identify", s.string(), "--route", "pose"}), 0);

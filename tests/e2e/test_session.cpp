@@ -15,15 +15,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using robocal::test::copy_recorded;
+using robocal::test::load_json;
 using robocal::test::read_file;
 using robocal::test::recorded_fingerprint;
 using robocal::test::run_cli;
-
-nlohmann::json load_json(const fs::path& p) {
-  std::ifstream in(p);
-  EXPECT_TRUE(in) << p;
-  return nlohmann::json::parse(in);
-}
 
 fs::path scratch(const std::string& name) {
   const auto dir = fs::temp_directory_path() / ("robocal_e2e_session_" + name);

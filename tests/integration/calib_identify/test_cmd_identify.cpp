@@ -22,8 +22,8 @@ std::string replaced(std::string text, const std::string& from, const std::strin
   return text;
 }
 
-constexpr auto& run = robocal::test::run_robocal;
 using robocal::test::read_text;
+using robocal::test::run_robocal;
 
 struct IdentifyCli : robocal::test::ScratchDirTest {
   IdentifyCli() : ScratchDirTest("robocal_identify_cli_") {}
@@ -31,11 +31,11 @@ struct IdentifyCli : robocal::test::ScratchDirTest {
 };
 
 TEST_F(IdentifyCli, SimulateIdentifyAndWriteCalibratedRobot) {
-  ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--poses", "40",
-                 "--json", file("sim.json")}),
+  ASSERT_EQ(run_robocal({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--poses",
+                         "40", "--json", file("sim.json")}),
             0);
-  ASSERT_EQ(run({"identify", "--robot", robot, "--measurements", file("m.yaml"), "--json",
-                 file("r.json"), "--out-robot", file("cal.yaml"), "--holdout-every", "4"}),
+  ASSERT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("m.yaml"), "--json",
+                         file("r.json"), "--out-robot", file("cal.yaml"), "--holdout-every", "4"}),
             0);
   const auto doc = nlohmann::json::parse(read_text(file("r.json")));
   EXPECT_EQ(doc["status"], "converged");
@@ -54,15 +54,15 @@ TEST_F(IdentifyCli, SimulateIdentifyAndWriteCalibratedRobot) {
 }
 
 TEST_F(IdentifyCli, BadMeasurementFilesAreRefusedWithTheReason) {
-  ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--poses", "30",
-                 "--json", file("sim.json")}),
+  ASSERT_EQ(run_robocal({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--poses",
+                         "30", "--json", file("sim.json")}),
             0);
   const std::string good = read_text(file("m.yaml"));
   // Duplicate pose id.
   std::ofstream(file("dup.yaml")) << replaced(good, "id: p0003", "id: p0002");
   testing::internal::CaptureStderr();
-  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("dup.yaml"), "--json",
-                 file("r.json")}),
+  EXPECT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("dup.yaml"), "--json",
+                         file("r.json")}),
             3);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("p0002"), std::string::npos) << err;
@@ -70,13 +70,13 @@ TEST_F(IdentifyCli, BadMeasurementFilesAreRefusedWithTheReason) {
   // Metre values declared as millimetres: off by 1000.
   std::ofstream(file("mm.yaml")) << replaced(good, "units:\n  length: m", "units:\n  length: mm");
   testing::internal::CaptureStderr();
-  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("mm.yaml"), "--json",
-                 file("r.json")}),
+  EXPECT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("mm.yaml"), "--json",
+                         file("r.json")}),
             3);
   const std::string err2 = testing::internal::GetCapturedStderr();
   EXPECT_NE(err2.find("1000"), std::string::npos) << err2;
   // Missing file.
-  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("none.yaml")}), 3);
+  EXPECT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("none.yaml")}), 3);
 }
 
 }  // namespace

@@ -13,8 +13,8 @@
 
 namespace {
 
-constexpr auto& run = robocal::test::run_robocal;
 using robocal::test::read_text;
+using robocal::test::run_robocal;
 
 struct IdentifyPixelsCli : robocal::test::ScratchDirTest {
   IdentifyPixelsCli() : ScratchDirTest("robocal_identify_pixels_") {}
@@ -22,13 +22,13 @@ struct IdentifyPixelsCli : robocal::test::ScratchDirTest {
 };
 
 TEST_F(IdentifyPixelsCli, SimulatedPixelsCalibrateRobotAndCamera) {
-  ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "pixel",
-                 "--poses", "40", "--json", file("sim.json")}),
+  ASSERT_EQ(run_robocal({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind",
+                         "pixel", "--poses", "40", "--json", file("sim.json")}),
             0);
   const auto sim = nlohmann::json::parse(read_text(file("sim.json")));
   ASSERT_GE(sim["poses"].get<int>(), 30);
-  ASSERT_EQ(run({"identify", "--robot", robot, "--measurements", file("m.yaml"), "--json",
-                 file("r.json"), "--out-robot", file("cal.yaml"), "--holdout-every", "4"}),
+  ASSERT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("m.yaml"), "--json",
+                         file("r.json"), "--out-robot", file("cal.yaml"), "--holdout-every", "4"}),
             0);
   const auto doc = nlohmann::json::parse(read_text(file("r.json")));
   EXPECT_EQ(doc["status"], "converged");
@@ -64,8 +64,8 @@ TEST_F(IdentifyPixelsCli, SimulatedPixelsCalibrateRobotAndCamera) {
 }
 
 TEST_F(IdentifyPixelsCli, UnknownCameraIsRefusedWithFileAndLine) {
-  ASSERT_EQ(run({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind", "pixel",
-                 "--poses", "12", "--json", file("sim.json")}),
+  ASSERT_EQ(run_robocal({"identify", "--robot", robot, "--simulate", file("m.yaml"), "--kind",
+                         "pixel", "--poses", "12", "--json", file("sim.json")}),
             0);
   std::string text = read_text(file("m.yaml"));
   const auto pos = text.find("camera: camera1,");
@@ -73,8 +73,8 @@ TEST_F(IdentifyPixelsCli, UnknownCameraIsRefusedWithFileAndLine) {
   text.replace(pos, 16, "camera: camera7,");
   std::ofstream(file("bad.yaml")) << text;
   testing::internal::CaptureStderr();
-  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("bad.yaml"), "--json",
-                 file("r.json")}),
+  EXPECT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("bad.yaml"), "--json",
+                         file("r.json")}),
             3);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("bad.yaml:"), std::string::npos) << err;

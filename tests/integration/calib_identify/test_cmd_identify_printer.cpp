@@ -32,8 +32,8 @@ bool names_number_after(const std::string& text, const std::string& prefix,
 }
 
 using namespace robocal::calib;
-constexpr auto& run = robocal::test::run_robocal;
 using robocal::test::read_text;
+using robocal::test::run_robocal;
 
 struct PrinterCli : robocal::test::ScratchDirTest {
   PrinterCli() : ScratchDirTest("robocal_printer_cli_") {}
@@ -72,7 +72,7 @@ TEST_F(PrinterCli, HeightsAndDistanceOnlyPosesIdentifyWithASummary) {
                                    m,          "--json",  file("r.json")};
   for (const auto& a : printer_free()) args.push_back(a);
   testing::internal::CaptureStdout();
-  ASSERT_EQ(run(args), 0);
+  ASSERT_EQ(run_robocal(args), 0);
   const std::string out = testing::internal::GetCapturedStdout();
   EXPECT_NE(out.find("Identified 9 of the 9 free parameters"), std::string::npos) << out;
   EXPECT_NE(out.find("Noise (stated -> estimated"), std::string::npos) << out;
@@ -91,7 +91,7 @@ TEST_F(PrinterCli, HeightsAndDistanceOnlyPosesIdentifyWithASummary) {
   // --quiet: nothing on the terminal.
   args.push_back("--quiet");
   testing::internal::CaptureStdout();
-  ASSERT_EQ(run(args), 0);
+  ASSERT_EQ(run_robocal(args), 0);
   EXPECT_EQ(testing::internal::GetCapturedStdout(), "");
 }
 
@@ -102,7 +102,7 @@ TEST_F(PrinterCli, BedTiltIsEstimatedAndReported) {
   std::vector<std::string> args = {"identify", "--robot",      robot,        "--measurements", m,
                                    "--json",   file("r.json"), "--bed-tilt", "--quiet"};
   for (const auto& a : printer_free()) args.push_back(a);
-  ASSERT_EQ(run(args), 0);
+  ASSERT_EQ(run_robocal(args), 0);
   const auto doc = nlohmann::json::parse(read_text(file("r.json")));
   ASSERT_TRUE(doc.contains("bed")) << doc.dump(2);
   for (const auto& [key, truth] : {std::pair{"tilt_x", 3.0}, std::pair{"tilt_y", -2.0}}) {
@@ -115,7 +115,7 @@ TEST_F(PrinterCli, BedTiltIsEstimatedAndReported) {
   // The calibrated robot file never carries the bed.
   args.push_back("--out-robot");
   args.push_back(file("cal.yaml"));
-  ASSERT_EQ(run(args), 0);
+  ASSERT_EQ(run_robocal(args), 0);
   EXPECT_EQ(read_text(file("cal.yaml")).find("bed."), std::string::npos);
 }
 
@@ -124,7 +124,7 @@ TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableI
   std::vector<std::string> args = {"identify", "--robot", robot, "--measurements", m};
   for (const auto& a : printer_free()) args.push_back(a);
   testing::internal::CaptureStdout();
-  ASSERT_EQ(run(args), 0);
+  ASSERT_EQ(run_robocal(args), 0);
   const std::string out = testing::internal::GetCapturedStdout();
   EXPECT_NE(out.find("Little data"), std::string::npos) << out;
   EXPECT_NE(out.find("held at their nominal values"), std::string::npos) << out;
@@ -134,7 +134,7 @@ TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableI
   args.push_back("--json");
   args.push_back(file("advice.json"));
   args.push_back("--quiet");
-  ASSERT_EQ(run(args), 0);
+  ASSERT_EQ(run_robocal(args), 0);
   const auto doc = nlohmann::json::parse(read_text(file("advice.json")));
   ASSERT_TRUE(doc.contains("advice"));
   EXPECT_EQ(doc["advice"]["identifiable_with_suggestions"].get<int>(), 9) << doc["advice"].dump(2);
@@ -144,7 +144,7 @@ TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableI
                                           m,          "--priors", "--json", file("priors.json"),
                                           "--quiet"};
   for (const auto& a : printer_free()) with_priors.push_back(a);
-  ASSERT_EQ(run(with_priors), 0);
+  ASSERT_EQ(run_robocal(with_priors), 0);
   const auto pj = nlohmann::json::parse(read_text(file("priors.json")));
   int estimated = 0;
   for (const auto& p : pj["parameters"]) estimated += p["estimated"].get<bool>() ? 1 : 0;
@@ -152,8 +152,8 @@ TEST_F(PrinterCli, SevenHeightsAreIdentifiedAsFarAsTheyGoAndNothingIdentifiableI
   EXPECT_TRUE(pj["limited_data"].get<bool>());
   // Horizontal tool offsets do not move bed heights: nothing identifiable, exit 1, said so.
   testing::internal::CaptureStderr();
-  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", m, "--free", "tool.z", "--fix",
-                 "tool.z", "--free", "base.x", "--free", "base.y", "--quiet"}),
+  EXPECT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", m, "--free", "tool.z",
+                         "--fix", "tool.z", "--free", "base.x", "--free", "base.y", "--quiet"}),
             1);
   const std::string err = testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("nothing is identifiable"), std::string::npos) << err;
@@ -166,7 +166,8 @@ TEST_F(PrinterCli, BadInputNamesFileLineAndProblem) {
   auto expect_refused = [&](const std::string& text, const std::string& what) {
     std::ofstream(file("bad.yaml")) << text;
     testing::internal::CaptureStderr();
-    EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("bad.yaml")}), 3) << what;
+    EXPECT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("bad.yaml")}), 3)
+        << what;
     const std::string err = testing::internal::GetCapturedStderr();
     EXPECT_NE(err.find(what), std::string::npos) << err;
     return err;
@@ -191,7 +192,7 @@ TEST_F(PrinterCli, BadInputNamesFileLineAndProblem) {
         h->measured_height = 1e3 * (h->measured_height + 1e-3);  // bed 1 mm lower, in mm
   save_measurements_file(mm, file("mm.yaml"));
   testing::internal::CaptureStderr();
-  EXPECT_EQ(run({"identify", "--robot", robot, "--measurements", file("mm.yaml")}), 3);
+  EXPECT_EQ(run_robocal({"identify", "--robot", robot, "--measurements", file("mm.yaml")}), 3);
   const std::string e3 = testing::internal::GetCapturedStderr();
   EXPECT_NE(e3.find("implausible in metres"), std::string::npos) << e3;
   EXPECT_TRUE(names_number_after(e3, "line ", "")) << e3;

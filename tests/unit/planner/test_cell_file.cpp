@@ -46,13 +46,15 @@ std::string error_of(const std::string& text) {
   return "";
 }
 
-const char* kTarget = "target: {file: ../vision/apriltag_4x3.yaml}\n";
+// Named apart from planner_test_geometry.hpp's kTarget (the Delta's posed target): a source
+// compiled in a batch sees the names of the anonymous namespaces of the sources before it.
+const char* kTargetWithoutPose = "target: {file: ../vision/apriltag_4x3.yaml}\n";
 
 TEST(CellFile, MissingCameraFileIsNamedWithItsLine) {
   const std::string msg =
       error_of(std::string("cameras:\n  - name: left\n    file: no_such_camera.yaml\n"
                            "    pose: {position: [0, 0, -2], look_at: [0, 0, 0]}\n") +
-               kTarget);
+               kTargetWithoutPose);
   EXPECT_NE(msg.find("bad.yaml:3:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("no_such_camera.yaml"), std::string::npos) << msg;
   EXPECT_NE(msg.find("does not exist"), std::string::npos) << msg;
@@ -64,32 +66,32 @@ TEST(CellFile, BadInputNamesTheLine) {
       "[0, 0, 0]}}\n";
   // Unknown key, with the known ones listed.
   std::string msg = error_of(
-      cam + kTarget +
+      cam + kTargetWithoutPose +
       "obstacles:\n  - {name: x, box: {center: [0, 0, 0], size: [1, 1, 1]}, colour: red}\n");
   EXPECT_NE(msg.find("bad.yaml:5:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("unknown key 'colour'"), std::string::npos) << msg;
   // A negative size.
-  msg = error_of(cam + kTarget +
+  msg = error_of(cam + kTargetWithoutPose +
                  "obstacles:\n  - {name: x, box: {center: [0, 0, 0], size: [1, -1, 1]}}\n");
   EXPECT_NE(msg.find("bad.yaml:5:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("must be > 0"), std::string::npos) << msg;
   // Two shapes in one obstacle.
-  msg = error_of(cam + kTarget +
+  msg = error_of(cam + kTargetWithoutPose +
                  "obstacles:\n  - {name: x, sphere: {center: [0, 0, 0], radius: 1}, box: {center: "
                  "[0, 0, 0], size: [1, 1, 1]}}\n");
   EXPECT_NE(msg.find("exactly one of"), std::string::npos) << msg;
   // Unknown unit.
-  msg = error_of("units: inch\n" + cam + kTarget);
+  msg = error_of("units: inch\n" + cam + kTargetWithoutPose);
   EXPECT_NE(msg.find("bad.yaml:1:"), std::string::npos) << msg;
   // Degrees given as radians for the joint-limit margin.
-  msg = error_of(cam + kTarget + "margins: {joint_limit: 2}\n");
+  msg = error_of(cam + kTargetWithoutPose + "margins: {joint_limit: 2}\n");
   EXPECT_NE(msg.find("deg(2)"), std::string::npos) << msg;
   // Visibility naming a camera that does not exist.
-  msg = error_of(cam + kTarget + "visibility: {cameras: [b]}\n");
+  msg = error_of(cam + kTargetWithoutPose + "visibility: {cameras: [b]}\n");
   EXPECT_NE(msg.find("'b'"), std::string::npos) << msg;
   // 'unknown' pose without a rough position.
   msg = error_of("cameras:\n  - {name: a, file: camera_1600x1200.yaml, pose: unknown}\n" +
-                 std::string(kTarget));
+                 std::string(kTargetWithoutPose));
   EXPECT_NE(msg.find("roughly"), std::string::npos) << msg;
   // No target.
   msg = error_of(cam);
@@ -105,7 +107,7 @@ TEST(CellFile, MillimetresAreConverted) {
       "{position: [0, 0, -2000], look_at: [0, 0, 0], uncertainty: 50}}\n"
       "obstacles:\n  - {name: post, cylinder: {center: [100, 0, -500], radius: 20, length: "
       "300}}\n" +
-          std::string(kTarget) +
+          std::string(kTargetWithoutPose) +
           "workspace: {min: [-500, -500, -1200], max: [500, 500, -500]}\nmargins: {clearance: "
           "15}\n",
       "mm.yaml", kCells);
