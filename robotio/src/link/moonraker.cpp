@@ -1,0 +1,82 @@
+#include "robocal/robotio/moonraker.hpp"
+
+#include "robocal/robotio/link_error.hpp"
+
+#include <fmt/format.h>
+
+#include <utility>
+
+namespace robocal::robotio {
+
+MoonrakerError::MoonrakerError(const std::string& device, const std::string& method, int code,
+                               const std::string& message)
+    : LinkError(device, fmt::format("{} answered error {}", method, code), message), code_(code) {}
+
+std::string jsonrpc_request(const std::string& method, const nlohmann::json& params, long id) {
+  nlohmann::json request = {{"jsonrpc", "2.0"}, {"method", method}};
+  if (!params.is_null()) request["params"] = params;
+  request["id"] = id;
+  return request.dump();
+}
+
+MoonrakerClient::MoonrakerClient(std::string host, int port, std::string path)
+    : ws_(std::move(host), port, std::move(path)) {}
+
+std::optional<nlohmann::json> MoonrakerClient::receive(Clock::time_point deadline) {
+  for (;;) {
+    const auto text = ws_.receive_text(deadline);
+    if (!text) return std::nullopt;
+    nlohmann::json message = nlohmann::json::parse(*text, nullptr, /*allow_exceptions=*/false);
+    if (!message.is_object())
+      throw LinkError(device(), "Moonraker sent a message that is not a JSON object",
+                      text->substr(0, 200));
+    if (message.contains("id") && (message.contains("result") || message.contains("error")))
+      return message;
+    if (message.contains("method") && message["method"].is_string()) {
+      notifications_.push_back({message["method"].get<std::string>(),
+                                message.contains("params") ? message["params"] : nlohmann::json()});
+      continue;
+    }
+    throw LinkError(device(),
+                    "Moonraker sent a message that is neither an answer nor a notification",
+                    text->substr(0, 200));
+  }
+}
+
+nlohmann::json MoonrakerClient::call(const std::string& method, const nlohmann::json& params,
+                                     Clock::time_point deadline) {
+  const long id = next_id_++;
+  ws_.send_text(jsonrpc_request(method, params, id));
+  for (;;) {
+    auto answer = receive(deadline);
+    if (!answer) throw LinkError(device(), fmt::format("no answer to {} in time", method));
+    // An answer to an earlier request that timed out here: not this one's.
+    if (!(*answer)["id"].is_number_integer() || (*answer)["id"].get<long>() != id) continue;
+    if (answer->contains("error")) {
+      const nlohmann::json& e = (*answer)["error"];
+      const int code = e.is_object() && e.contains("code") && e["code"].is_number_integer()
+                           ? e["code"].get<int>()
+                           : 0;
+      const std::string message = e.is_object() && e.contains("message") && e["message"].is_string()
+                                      ? e["message"].get<std::string>()
+                                      : e.dump();
+      throw MoonrakerError(device(), method, code, message);
+    }
+    return (*answer)["result"];
+  }
+}
+
+std::deque<MoonrakerNotification> MoonrakerClient::take_notifications() {
+  return std::exchange(notifications_, {});
+}
+
+bool MoonrakerClient::wait_notification(Clock::time_point deadline) {
+  while (notifications_.empty()) {
+    auto answer = receive(deadline);
+    if (!answer && notifications_.empty()) return false;
+    // An answer nobody waits for any more (its call timed out) is dropped.
+  }
+  return true;
+}
+
+}  // namespace robocal::robotio
