@@ -23,7 +23,7 @@ std::uint32_t rotl(std::uint32_t v, int bits) {
 // One 64-byte block of SHA-1's compression (FIPS 180-4, section 6.1.2).
 void sha1_block(std::array<std::uint32_t, 5>& h, const std::uint8_t* block) {
   std::array<std::uint32_t, 80> w{};
-  for (int t = 0; t < 16; ++t)
+  for (std::size_t t = 0; t < 16; ++t)
     w[t] = (std::uint32_t{block[4 * t]} << 24) | (std::uint32_t{block[4 * t + 1]} << 16) |
            (std::uint32_t{block[4 * t + 2]} << 8) | std::uint32_t{block[4 * t + 3]};
   for (int t = 16; t < 80; ++t) w[t] = rotl(w[t - 3] ^ w[t - 8] ^ w[t - 14] ^ w[t - 16], 1);
