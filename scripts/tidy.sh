@@ -26,8 +26,9 @@ fi
 sources_db=build/release/tidy-sources
 mkdir -p "$sources_db"
 awk -v root="$PWD/" -v objects="$sources_db/objects.tsv" '
+  # One field per line, as CMake writes it: the readers below take a field per line.
   function emit(file, cmd) {
-    printf "%s{\"directory\": \"%s\", \"command\": \"%s\", \"file\": \"%s\"}\n", sep, dir, cmd, file
+    printf "%s{\n  \"directory\": \"%s\",\n  \"command\": \"%s\",\n  \"file\": \"%s\"\n}\n", sep, dir, cmd, file
     sep = ","
   }
   BEGIN { print "[" }
