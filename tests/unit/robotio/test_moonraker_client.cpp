@@ -2,12 +2,11 @@
 // Moonraker's documentation shows (docs/external_api: printer.md, jsonrpc_notifications.md,
 // introduction.md): results and errors matched by id, G-code output as notify_gcode_response
 // notifications sent before the script's "ok", an answer that never comes, a stale answer.
+#include "loopback_listener.hpp"
 #include "robocal/robotio/moonraker.hpp"
 
 #include <gtest/gtest.h>
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -27,15 +26,9 @@ class ScriptedMoonraker {
  public:
   using Answer = std::function<std::vector<json>(const json& request)>;
   explicit ScriptedMoonraker(Answer answer) : answer_(std::move(answer)) {
-    listen_fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    EXPECT_EQ(::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
-    EXPECT_EQ(::listen(listen_fd_, 1), 0);
-    socklen_t len = sizeof addr;
-    ::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&addr), &len);
-    port_ = ntohs(addr.sin_port);
+    const test::LoopbackListener listener = test::listen_on_loopback();
+    listen_fd_ = listener.fd;
+    port_ = listener.port;
     thread_ = std::thread([this] { serve(); });
   }
   ~ScriptedMoonraker() {

@@ -2,13 +2,12 @@
 // handshake's key and accept value; section 5.7: frame bytes), SHA-1 against FIPS 180-4's
 // examples and base64 against RFC 4648's test vectors; and a client talking to a server made of
 // the same pure functions over a real loopback socket.
+#include "loopback_listener.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/websocket.hpp"
 
 #include <gtest/gtest.h>
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -175,16 +174,9 @@ TEST(WebSocket, HandshakeRequestAndAnswerCheckEachOther) {
 class OneClientServer {
  public:
   OneClientServer() {
-    listen_fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    addr.sin_port = 0;
-    EXPECT_EQ(::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
-    EXPECT_EQ(::listen(listen_fd_, 1), 0);
-    socklen_t len = sizeof addr;
-    ::getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&addr), &len);
-    port_ = ntohs(addr.sin_port);
+    const test::LoopbackListener listener = test::listen_on_loopback();
+    listen_fd_ = listener.fd;
+    port_ = listener.port;
     thread_ = std::thread([this] { serve(); });
   }
   ~OneClientServer() {
@@ -270,14 +262,8 @@ TEST(WebSocket, ClientAnswersPingsJoinsFragmentsAndNamesTheServersClose) {
 
 TEST(WebSocket, AServerThatIsNotAWebSocketIsNamed) {
   // A plain HTTP server's refusal: the client reports the status line it got.
-  const int listen_fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ASSERT_EQ(::bind(listen_fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
-  ASSERT_EQ(::listen(listen_fd, 1), 0);
-  socklen_t len = sizeof addr;
-  ::getsockname(listen_fd, reinterpret_cast<sockaddr*>(&addr), &len);
+  const test::LoopbackListener listener = test::listen_on_loopback();
+  const int listen_fd = listener.fd;
   std::thread server([&] {
     const int fd = ::accept(listen_fd, nullptr, nullptr);
     char chunk[4096];
@@ -286,7 +272,7 @@ TEST(WebSocket, AServerThatIsNotAWebSocketIsNamed) {
     (void)::send(fd, answer.data(), answer.size(), MSG_NOSIGNAL);
     ::close(fd);
   });
-  WebSocketClient client("127.0.0.1", ntohs(addr.sin_port), "/websocket");
+  WebSocketClient client("127.0.0.1", listener.port, "/websocket");
   try {
     client.open(Clock::now() + std::chrono::seconds(5));
     ADD_FAILURE() << "a 404 must not open the connection";
