@@ -58,6 +58,13 @@ void sha1_block(std::array<std::uint32_t, 5>& h, const std::uint8_t* block) {
   h[4] += e;
 }
 
+std::string lower_case(std::string_view text) {
+  std::string out(text);
+  std::transform(out.begin(), out.end(), out.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  return out;
+}
+
 // Header lines of an HTTP message after its first line, names lower-cased, values trimmed.
 std::vector<std::pair<std::string, std::string>> http_headers(std::string_view message) {
   std::vector<std::pair<std::string, std::string>> out;
@@ -69,9 +76,7 @@ std::vector<std::pair<std::string, std::string>> http_headers(std::string_view m
     const std::string_view line = message.substr(start, end - start);
     const std::size_t colon = line.find(':');
     if (colon != std::string_view::npos) {
-      std::string name(line.substr(0, colon));
-      std::transform(name.begin(), name.end(), name.begin(),
-                     [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+      std::string name = lower_case(line.substr(0, colon));
       std::string_view value = line.substr(colon + 1);
       while (!value.empty() && (value.front() == ' ' || value.front() == '\t'))
         value.remove_prefix(1);
@@ -92,12 +97,9 @@ std::string header(const std::vector<std::pair<std::string, std::string>>& heade
 }
 
 // A comma-separated header value holding `token`, case-insensitively ("keep-alive, Upgrade").
-bool has_token(std::string value, std::string_view token) {
-  std::transform(value.begin(), value.end(), value.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-  std::string lower(token);
-  std::transform(lower.begin(), lower.end(), lower.begin(),
-                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+bool has_token(const std::string& header_value, std::string_view token) {
+  const std::string value = lower_case(header_value);
+  const std::string lower = lower_case(token);
   std::size_t start = 0;
   while (start <= value.size()) {
     std::size_t end = value.find(',', start);
