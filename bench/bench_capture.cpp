@@ -145,7 +145,6 @@ int main(int argc, char** argv) {
 
   const auto targets = sim_controller ? testing::sim_cell_targets(sim->model, poses)
                                       : testing::gantry_targets(poses);
-  using Clock = std::chrono::steady_clock;
   std::vector<Clock::time_point> pose_start;
   TimedRobot timed(*robot, pose_start);
   CaptureOptions options;

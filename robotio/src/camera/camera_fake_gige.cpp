@@ -81,8 +81,8 @@ void FakeGigECamera::set_sensor_size(int width, int height) {
 }
 
 void FakeGigECamera::set_heartbeat_timeout_ms(std::uint32_t timeout_ms) {
-  constexpr std::uint32_t kHeartbeatTimeoutRegister = 0x0938;  // GigE Vision bootstrap register
-  arv_fake_camera_write_register(static_cast<ArvFakeCamera*>(fake_), kHeartbeatTimeoutRegister,
+  constexpr std::uint32_t kBootstrapHeartbeatTimeout = 0x0938;  // GigE Vision bootstrap register
+  arv_fake_camera_write_register(static_cast<ArvFakeCamera*>(fake_), kBootstrapHeartbeatTimeout,
                                  timeout_ms);
 }
 

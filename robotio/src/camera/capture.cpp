@@ -27,10 +27,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using SteadyClock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
+double seconds_since(SteadyClock::time_point start) {
+  return std::chrono::duration<double>(SteadyClock::now() - start).count();
 }
 
 // shots[k][c]: shot k of camera c.
@@ -422,7 +422,7 @@ void plan_retake(int pose, const std::vector<int>& visited, std::deque<Step>& qu
 void take_shots(TakenPose& taken, CaptureRobot& robot, const std::vector<CaptureCamera>& cameras,
                 const CaptureOptions& options) {
   for (;;) {
-    const auto t = Clock::now();
+    const auto t = SteadyClock::now();
     taken.shots = grab_series(cameras, options, taken.report);
     taken.after = robot.read_actuators();
     taken.report.grab_s += seconds_since(t);
@@ -465,7 +465,7 @@ struct PoseWriter {
 // The motion check of a taken pose (with `detectors`, its own while it is in flight), then its
 // writing; a pose whose target moved is returned unwritten while it may be taken again.
 TakenPose check_and_write(TakenPose taken, const PoseWriter& w, DetectorSet& detectors) {
-  auto t = Clock::now();
+  auto t = SteadyClock::now();
   taken.verdict = check_motion(taken.shots, w.cameras, w.board, w.points, detectors,
                                w.options.motion_false_alarm, w.options.workers);
   taken.report.check_s += seconds_since(t);
@@ -476,7 +476,7 @@ TakenPose check_and_write(TakenPose taken, const PoseWriter& w, DetectorSet& det
     return taken;  // not written: taken again (plan_retake)
   }
   taken.report.still_moving = taken.moving;
-  t = Clock::now();
+  t = SteadyClock::now();
   write_pose(w.staging, w.poses_dir, taken.report.name, taken.shots, w.cameras, taken.before,
              taken.after, taken.flange, taken.report, taken.verdict, w.detector_signature,
              w.writing);
@@ -513,7 +513,7 @@ CaptureResult capture_poses(const fs::path& session_dir,
       make_detectors(in_flight_limit, cameras.size(), detector_options);
 
   CaptureResult result;
-  const auto started = Clock::now();
+  const auto started = SteadyClock::now();
   std::deque<Step> queue = first_steps(targets.size(), poses_dir, result);
   std::vector<int> visited;    // the targets the robot moved to, in order
   std::map<int, int> retakes;  // by pose index: shot series rejected so far
@@ -600,13 +600,13 @@ CaptureResult capture_poses(const fs::path& session_dir,
     taken.report.name = pose_folder_name(index);
     taken.report.retakes = retakes[index];
     try {
-      auto t = Clock::now();
+      auto t = SteadyClock::now();
       taken.before = robot.move_and_settle(targets[static_cast<std::size_t>(index)]);
       taken.flange = robot.flange_pose();
       taken.report.move_s = seconds_since(t);
       visited.push_back(index);
       take_shots(taken, robot, cameras, options);
-      t = Clock::now();
+      t = SteadyClock::now();
       while (in_flight.size() >= in_flight_limit) {
         settle_oldest();
       }

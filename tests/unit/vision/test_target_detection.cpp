@@ -470,7 +470,8 @@ TEST(AprilTagBoardDetection, ViewOfUnrefinedTagsIsDetectedAgainInFull) {
   rv::AprilTagDetector detector(rv::detector_options_for(board));
   // 1.0 m: no tag refined; 0.9 m: one of the twelve.
   for (const auto& [distance, refined] : {std::pair{1.0, 0u}, std::pair{0.9, 1u}}) {
-    const auto view = [&](unsigned seed) {
+    // An init-capture: clang 14 cannot capture a structured binding.
+    const auto view = [&, distance = distance](unsigned seed) {
       return rt::render_board_view(board, cam, distance, 35.0, 20.0, 5.0, 319.5, 255.5, 0.8, 2.0,
                                    seed);
     };
