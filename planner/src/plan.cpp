@@ -211,9 +211,19 @@ PlanResult plan_measurements(const calib::Mechanism& model, const Eigen::VectorX
   std::vector<Candidate> sampled =
       task_space ? sample_facing_cameras(checker, options.pool, rng, &res.counts)
                  : checker.sample(options.pool, rng, &res.counts);
-  for (Candidate& c : sampled)
-    if (c.feasible()) res.pool.push_back(std::move(c));
+  std::size_t not_admissible = 0;
+  for (Candidate& c : sampled) {
+    if (!c.feasible()) continue;
+    if (options.admissible && !options.admissible(c.readings)) {
+      ++not_admissible;
+      continue;
+    }
+    res.pool.push_back(std::move(c));
+  }
   say(res.counts.summary());
+  if (not_admissible > 0)
+    say(std::to_string(not_admissible) +
+        " feasible candidates the controller cannot command left out");
   // Sequential mode: the measured poses join the pool (first) so the selection knows them.
   std::vector<Eigen::VectorXd> readings;
   std::vector<std::size_t> measured_idx;

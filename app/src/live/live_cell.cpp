@@ -186,15 +186,19 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
       // Where the cell sees so small a part of the robot's range that the pool cannot hold the
       // poses asked (the wire robot's pair: one feasible candidate in 1500), sampled again as
       // the offline demo does; other robots' plans stay as they were.
+      // Candidates the firmware cannot command are left out before the selection and the tour,
+      // so the tour joins commandable poses only.
+      std::size_t left_out = 0;
+      if (commandable)
+        po.admissible = [&](const Eigen::VectorXd& q) {
+          const bool ok = commandable(q);
+          if (!ok) ++left_out;
+          return ok;
+        };
       planner::PlanResult r = planner::plan_with_enough_candidates(
           library, library.nominal_parameters(), pcell, po, po.selection.count);
-      const std::size_t planned = r.poses.size();
-      if (commandable)
-        std::erase_if(r.poses,
-                      [&](const planner::PlannedPose& p) { return !commandable(p.readings); });
-      const std::size_t left_out = planned - r.poses.size();
       if ((r.status != planner::PlanStatus::kOk && r.status != planner::PlanStatus::kNotAccepted) ||
-          r.poses.size() + left_out != static_cast<std::size_t>(count)) {
+          r.poses.size() != static_cast<std::size_t>(count)) {
         why +=
             (why.empty() ? "" : "; then ") +
             (r.message.empty() ? fmt::format("{} of {} poses", r.poses.size(), count) : r.message);
@@ -212,8 +216,8 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
           r.selection.accepted ? "" : "; the acceptance test is not met");
       if (left_out > 0)
         plan.how += fmt::format(
-            "; {} left out: the firmware's delta kinematics cannot command them (a carriage "
-            "below the nozzle)",
+            "; {} feasible candidates left out: the firmware's delta kinematics cannot command "
+            "them (a carriage below the nozzle)",
             left_out);
       core::write_file_atomic(plan_file, planner::plan_to_yaml(library, pcell, r, po));
       core::write_file_atomic(fs::path(plan_file).replace_extension(".svg"),

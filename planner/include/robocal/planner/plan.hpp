@@ -39,6 +39,10 @@ struct PlanOptions {
   // robot file's sigmas.
   Eigen::VectorXd tolerance_sigma;
   std::function<void(const std::string&)> progress;  // optional, one line per stage
+  // Optional: readings the controller can command. A candidate it refuses is not feasible, so the
+  // selection and the tour are made of commandable poses only (a delta printer's firmware cannot
+  // hold a carriage below the nozzle).
+  std::function<bool(const Eigen::VectorXd&)> admissible;
 };
 
 struct PlannedPose {
