@@ -213,8 +213,9 @@ CommandSpec demo_command() {
                            "2 rad/s revolute)");
             cmd.add_option("--firmware", o->firmware,
                            "--live, a G-code printer (linear_delta): the simulated printer's "
-                           "firmware, marlin or rrf")
-                ->check(CLI::IsMember({"marlin", "rrf"}));
+                           "firmware, marlin, rrf or klipper (through Moonraker, always in its "
+                           "own delta kinematics)")
+                ->check(CLI::IsMember({"marlin", "rrf", "klipper"}));
             cmd.add_option("--gcode-mode", o->gcode_mode,
                            "--live, a delta printer: raw (one G-code axis per motor, the "
                            "default) or native (its firmware's own delta kinematics)")

@@ -162,8 +162,18 @@ int run_sim_controller(const SimCliOptions& o) {
     s.dialect = robotio::Firmware::kMarlin;
   } else if (o.firmware == "rrf" || o.firmware == "reprapfirmware") {
     s.dialect = robotio::Firmware::kRepRapFirmware;
+  } else if (o.firmware == "klipper") {
+    // Klipper is reached through Moonraker, in its own delta kinematics.
+    s.dialect = robotio::Firmware::kKlipper;
+    if (o.protocol != "gcode" && o.protocol != "moonraker")
+      throw InputError("--firmware klipper is served through Moonraker (--protocol moonraker)");
+    if (o.kinematics != "delta")
+      throw InputError(
+          "--firmware klipper drives a delta in Klipper's kinematics: add "
+          "--kinematics delta");
+    s.protocol = robotio::SimProtocol::kMoonraker;
   } else {
-    throw InputError("--firmware must be marlin or rrf, got '" + o.firmware + "'");
+    throw InputError("--firmware must be marlin, rrf or klipper, got '" + o.firmware + "'");
   }
   if (o.protocol == "open") {
     s.protocol = robotio::SimProtocol::kOpen;
@@ -175,8 +185,13 @@ int run_sim_controller(const SimCliOptions& o) {
     s.ur.remote_control = !o.ur_remote_off;
     if (!o.ur_tcp_offset.empty())
       std::copy(o.ur_tcp_offset.begin(), o.ur_tcp_offset.end(), s.ur.tcp_offset.begin());
+  } else if (o.protocol == "moonraker") {
+    if (s.dialect != robotio::Firmware::kKlipper)
+      throw InputError(
+          "--protocol moonraker serves a Klipper printer: add --firmware klipper "
+          "--kinematics delta");
   } else if (o.protocol != "gcode") {
-    throw InputError("--protocol must be gcode, open or ur, got '" + o.protocol + "'");
+    throw InputError("--protocol must be gcode, open, ur or moonraker, got '" + o.protocol + "'");
   }
   s.firmware_name = o.firmware_name;
   s.mute = o.mute;
@@ -227,6 +242,8 @@ int run_sim_controller(const SimCliOptions& o) {
           ? fmt::format("open link protocol {}.{}", s.open_major, s.open_minor)
       : s.protocol == robotio::SimProtocol::kUr
           ? std::string("Universal Robots (RTDE, secondary interface, dashboard server)")
+      : s.protocol == robotio::SimProtocol::kMoonraker
+          ? std::string("Klipper in delta kinematics behind Moonraker (JSON-RPC on a WebSocket)")
           : fmt::format("{} dialect{}", robotio::to_string(s.dialect),
                         s.delta ? " in delta kinematics" : "");
   fmt::print("robocal sim-controller: {}, robot {} (axes {}), truth {}\n", speaks, robot_name,
@@ -237,6 +254,8 @@ int run_sim_controller(const SimCliOptions& o) {
   if (!o.pty_link.empty()) fmt::print("pty-link {}\n", o.pty_link);
   if (!sim.pose_address().empty()) fmt::print("pose {}\n", sim.pose_address());
   if (!sim.ur_address().empty()) fmt::print("ur {}\n", sim.ur_address());
+  if (s.protocol == robotio::SimProtocol::kMoonraker)
+    fmt::print("moonraker moonraker:{}\n", sim.tcp_address());
   if (!o.log.empty()) fmt::print("log {}\n", o.log);
   fmt::print("ready\n");
   std::fflush(stdout);
@@ -280,6 +299,10 @@ CommandSpec sim_controller_command() {
                 "--dashboard-port, announced as 'ur ur:127.0.0.1:RTDE:SECONDARY:DASHBOARD' (a\n"
                 "--link address); its faults (on movej): drop error stall slow (late RTDE\n"
                 "packages) missing (RTDE packages not sent) pstop (a protective stop).\n"
+                "--firmware klipper --kinematics delta serves a Klipper delta printer behind\n"
+                "Moonraker's JSON-RPC API on a WebSocket (ws://127.0.0.1:PORT/websocket),\n"
+                "announced as 'moonraker moonraker:127.0.0.1:PORT' (a --link address); its\n"
+                "faults (on printer.gcode.script): drop error slow shutdown (Klippy halts).\n"
                 "Its read replies carry the true robot's base -> flange pose (capability\n"
                 "flange_pose, as an accurate industrial controller reports it; --flange-noise-mm\n"
                 "and --flange-noise-deg add noise, --no-flange-pose leaves the capability out).\n"
@@ -294,8 +317,9 @@ CommandSpec sim_controller_command() {
             cmd.add_option("--protocol", o->protocol,
                            "gcode (TCP and pty), open (the open link protocol, "
                            "robotio/OPEN_LINK.md, TCP only) or ur (Universal Robots: RTDE, "
-                           "secondary interface, dashboard server)")
-                ->check(CLI::IsMember({"gcode", "open", "ur"}));
+                           "secondary interface, dashboard server); moonraker comes with "
+                           "--firmware klipper")
+                ->check(CLI::IsMember({"gcode", "open", "ur", "moonraker"}));
             cmd.add_option("--secondary-port", o->ur.secondary_port,
                            "ur: URScript port (0 = any free; 30002 on a real UR)")
                 ->check(CLI::Range(0, 65535));
@@ -322,8 +346,9 @@ CommandSpec sim_controller_command() {
                 ->check(CLI::Range(0.0, 60.0));
             cmd.add_option("--open-version", o->open_version,
                            "Open protocol version the controller speaks (MAJOR.MINOR)");
-            cmd.add_option("--firmware", o->firmware, "marlin or rrf")
-                ->check(CLI::IsMember({"marlin", "rrf", "reprapfirmware"}));
+            cmd.add_option("--firmware", o->firmware,
+                           "marlin, rrf or klipper (through Moonraker, delta kinematics)")
+                ->check(CLI::IsMember({"marlin", "rrf", "reprapfirmware", "klipper"}));
             cmd.add_option("--kinematics", o->kinematics,
                            "axes (one G-code axis per actuator) or delta (the firmware's own "
                            "delta kinematics, M665/M666 from the robot file's drawing)")

@@ -17,6 +17,7 @@
 #include "robocal/robotio/capture.hpp"
 #include "robocal/robotio/capture_link.hpp"
 #include "robocal/robotio/gcode_link.hpp"
+#include "robocal/robotio/klipper_link.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/link_factory.hpp"
 #include "robocal/robotio/safety_guard.hpp"
@@ -343,23 +344,27 @@ std::size_t recorded_on_disk(const fs::path& session, std::size_t count) {
 void note_gcode_mode(const robotio::RobotLink& link, const CollectOptions& o, nlohmann::json& r,
                      std::FILE* out) {
   const auto* gcode = dynamic_cast<const robotio::GcodeLink*>(&link);
-  if (gcode == nullptr) return;
-  const bool native = gcode->native_frame().has_value();
+  const auto* klipper = dynamic_cast<const robotio::KlipperLink*>(&link);
+  if (gcode == nullptr && klipper == nullptr) return;
+  // Klipper is always driven in its own delta kinematics.
+  const bool native = klipper != nullptr || gcode->native_frame().has_value();
+  const std::vector<std::string>& disagreements =
+      gcode != nullptr ? gcode->geometry_disagreements() : klipper->geometry_disagreements();
   r["gcode_mode"] = native ? "native delta" : "raw axes";
   if (out)
     fmt::print(out, "  driven {}\n",
                native ? "in the firmware's own delta kinematics (firmware-native mode)"
                       : "one G-code axis per motor (raw-axis mode)");
-  if (gcode->geometry_disagreements().empty()) return;
+  if (disagreements.empty()) return;
   const bool firmware = o.firmware_geometry == robotio::GeometryChoice::kFirmware;
-  r["geometry_disagreements"] = gcode->geometry_disagreements();
+  r["geometry_disagreements"] = disagreements;
   r["geometry_trusted"] = firmware ? "firmware" : "robot-file";
   if (out) {
     fmt::print(out,
                "  the firmware's delta geometry differs from the robot file's; you chose to "
                "trust the {}:\n",
                firmware ? "firmware's" : "robot file's");
-    for (const std::string& d : gcode->geometry_disagreements()) fmt::print(out, "    {}\n", d);
+    for (const std::string& d : disagreements) fmt::print(out, "    {}\n", d);
   }
 }
 

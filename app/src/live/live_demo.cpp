@@ -236,8 +236,13 @@ LiveController start_controller(const LiveDemoOptions& o, const LiveCell& lc,
   LiveController c;
   c.protocol = natural_protocol(lc.cell.model.name);
   // A delta printer runs its firmware's own kinematics when native mode is asked for.
-  c.native = c.protocol == "gcode" && o.gcode_mode != "raw" &&
+  // Klipper drives a delta only in its own kinematics (through Moonraker).
+  const bool klipper = c.protocol == "gcode" && o.firmware == "klipper";
+  c.native = c.protocol == "gcode" && (o.gcode_mode != "raw" || klipper) &&
              robotio::robot_file_delta(lc.cell.model).problem.empty();
+  if (klipper && !c.native)
+    throw InputError("--firmware klipper: robot '" + lc.cell.model.name +
+                     "' is not a linear delta, the only robot Klipper's delta kinematics drives");
   std::vector<std::string> sim_args = {"--robot",
                                        robot_file,
                                        "--seed",
@@ -257,11 +262,13 @@ LiveController start_controller(const LiveDemoOptions& o, const LiveCell& lc,
     sim_args.insert(sim_args.end(),
                     {"--firmware", o.firmware, "--kinematics", c.native ? "delta" : "axes"});
   c.sim = std::make_unique<robotio::SimControllerProcess>(robocal_binary(), sim_args);
-  c.link_address = link_address_of(*c.sim, c.protocol);
+  c.link_address =
+      klipper ? "moonraker:" + c.sim->tcp().substr(4) : link_address_of(*c.sim, c.protocol);
   // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D", "marlin G-code, raw
   // axes at 127.0.0.1:P" (the address after the protocol's prefix).
   const std::string gcode_note =
-      o.firmware + (c.native ? " G-code, firmware-native delta" : " G-code, raw axes");
+      klipper ? std::string("Klipper through Moonraker, its own delta kinematics")
+              : o.firmware + (c.native ? " G-code, firmware-native delta" : " G-code, raw axes");
   c.link_note = fmt::format("{} at {}",
                             c.protocol == "ur"     ? "Universal Robots link"
                             : c.protocol == "open" ? "open link"
@@ -286,7 +293,8 @@ void plan_once(const LiveDemoOptions& o, const LiveCell& lc, const std::string& 
   if (controller.native) {
     robotio::CarriageFrame frame;
     const robotio::RobotFileDelta file = robotio::robot_file_delta(lc.cell.model);
-    frame.geometry = robotio::drawing_geometry(file, robotio::Firmware::kMarlin);
+    frame.geometry = robotio::drawing_geometry(
+        file, o.firmware == "klipper" ? robotio::Firmware::kKlipper : robotio::Firmware::kMarlin);
     frame.endstop_reading = file.endstop_reading;
     commandable = [frame](const Eigen::VectorXd& q) {
       return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));

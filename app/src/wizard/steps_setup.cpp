@@ -201,8 +201,9 @@ std::optional<std::string> probe_and_propose(WizardContext& ctx, const std::stri
   const robotio::ProbeResult found = robotio::probe_controller(address);
   if (found.link.empty()) {
     say_check(ctx, false, found.explanation,
-              "a Universal Robots controller answers on port 29999 (its dashboard server); an "
-              "open link adapter or a G-code board on the port its configuration gives");
+              "a Universal Robots controller answers on port 29999 (its dashboard server), a "
+              "Klipper printer's Moonraker on 7125; an open link adapter or a G-code board on "
+              "the port its configuration gives");
     return std::nullopt;
   }
   say_check(ctx, true, "found " + found.explanation);
@@ -218,8 +219,9 @@ class ControllerStep final : public Step {
   std::string title() const override { return "Connect the controller"; }
   std::string what() const override {
     return "The wizard connects to the robot's controller: a G-code board (Marlin or "
-           "RepRapFirmware) over a serial port or TCP, a Universal Robots controller, or an open "
-           "link adapter. Give just its network address to find out what answers there. It "
+           "RepRapFirmware) over a serial port or TCP, a Klipper printer through Moonraker, a "
+           "Universal Robots controller, or an open link adapter. Give just its network address "
+           "to find out what answers there. It "
            "identifies the controller and reads where the axes are; nothing moves unless you ask "
            "for homing.";
   }

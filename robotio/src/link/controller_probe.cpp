@@ -1,11 +1,13 @@
 // The wizard's probe of a controller address (controller_probe.hpp). Each question is one a
 // controller of that kind documents an answer to: the UR dashboard server's greeting line and its
 // one-line replies (UR's dashboard server command list), the open link's hello
-// (robotio/OPEN_LINK.md), a G-code firmware's M115 report (gcode_dialect.hpp).
+// (robotio/OPEN_LINK.md), a G-code firmware's M115 report (gcode_dialect.hpp), Moonraker's
+// WebSocket upgrade and its server.info and printer.info answers (moonraker.hpp).
 #include "robocal/robotio/controller_probe.hpp"
 
 #include "robocal/robotio/gcode_dialect.hpp"
 #include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/moonraker.hpp"
 #include "robocal/robotio/open_link.hpp"
 #include "robocal/robotio/transport.hpp"
 #include "robocal/robotio/ur_link.hpp"
@@ -24,6 +26,7 @@ using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 
 constexpr int kDashboardPort = 29999;
+constexpr int kMoonrakerPort = 7125;
 constexpr const char* kDashboardGreeting = "Universal Robots Dashboard Server";
 
 std::string printable(std::string text) {
@@ -73,6 +76,16 @@ class Probe {
     } catch (const LinkError&) {
       return nothing();
     }
+    // Moonraker's port: a WebSocket server says nothing until it is asked over HTTP.
+    if (port_ == kMoonrakerPort) {
+      t.close();
+      if (std::optional<ProbeResult> r = moonraker()) return *r;
+      try {
+        t.open();
+      } catch (const LinkError&) {
+        return unrecognised();
+      }
+    }
     // A UR dashboard greets every client; a G-code board may print its boot banner.
     const std::optional<std::string> greeting = line(t, milliseconds(timeout_ / 3));
     if (greeting) said(*greeting);
@@ -92,7 +105,45 @@ class Probe {
     } catch (const LinkError&) {
       // Closed on us: judged by what it said before.
     }
+    // Silent to lines: perhaps a WebSocket server (Moonraker on a port of its own).
+    if (result_.said.empty() && port_ != kMoonrakerPort) {
+      t.close();
+      if (std::optional<ProbeResult> r = moonraker()) return *r;
+    }
     return unrecognised();
+  }
+
+  // Moonraker: the WebSocket upgrade, then server.info (is Klippy connected and ready) and
+  // printer.info (Klipper's version and its state message).
+  std::optional<ProbeResult> moonraker() {
+    try {
+      MoonrakerClient client(host_, port_);
+      client.open(Clock::now() + timeout_);
+      const nlohmann::json server = client.call("server.info", nullptr, Clock::now() + timeout_);
+      std::string words = fmt::format("a Klipper printer through Moonraker {}",
+                                      server.value("moonraker_version", std::string("?")));
+      const std::string state = server.value("klippy_state", std::string("?"));
+      if (server.value("klippy_connected", false)) {
+        const nlohmann::json printer =
+            client.call("printer.info", nullptr, Clock::now() + timeout_);
+        words += fmt::format(", Klipper {}", printer.value("software_version", std::string("?")));
+        if (state != "ready") {
+          const std::string message = printer.value("state_message", std::string());
+          words += fmt::format(", NOT ready (state {}: {})", state,
+                               message.substr(0, message.find('\n')));
+        }
+      } else {
+        words += ", but Moonraker is not connected to Klipper (is the klipper service running?)";
+      }
+      client.close();
+      result_.kind = ProbedController::kKlipper;
+      result_.link = port_ == kMoonrakerPort ? "moonraker:" + host_
+                                             : fmt::format("moonraker:{}:{}", host_, port_);
+      result_.explanation = fmt::format("{} on {}", words, where());
+      return result_;
+    } catch (const LinkError&) {
+      return std::nullopt;
+    }
   }
 
  private:
@@ -228,14 +279,14 @@ class Probe {
       result_.kind = ProbedController::kSilent;
       result_.explanation = fmt::format(
           "something accepts connections on {} but says nothing: not a UR dashboard server, an "
-          "open link controller or a G-code board (is the port right? is the controller busy "
-          "with another client?)",
+          "open link controller, a G-code board or Moonraker (is the port right? is the "
+          "controller busy with another client?)",
           where());
     } else {
       result_.kind = ProbedController::kUnknown;
       result_.explanation = fmt::format(
-          "something answers on {} but is not a UR dashboard server, an open link controller "
-          "or a G-code board; it said: \"{}\"",
+          "something answers on {} but is not a UR dashboard server, an open link controller, "
+          "a G-code board or Moonraker; it said: \"{}\"",
           where(), result_.said);
     }
     return result_;
@@ -263,6 +314,8 @@ const char* to_string(ProbedController kind) {
       return "open-link";
     case ProbedController::kGcode:
       return "gcode";
+    case ProbedController::kKlipper:
+      return "klipper";
   }
   return "?";
 }
@@ -283,7 +336,15 @@ ProbeResult probe_controller(const std::string& address, milliseconds timeout) {
     return r;
   }
   const std::size_t colon = address.find(':');
-  if (colon == std::string::npos) return Probe(address, kDashboardPort, timeout).run();
+  if (colon == std::string::npos) {
+    // A bare host: a UR's dashboard server, else a Klipper printer's Moonraker.
+    ProbeResult ur = Probe(address, kDashboardPort, timeout).run();
+    if (ur.kind != ProbedController::kNothing) return ur;
+    ProbeResult klipper = Probe(address, kMoonrakerPort, timeout).run();
+    if (klipper.kind != ProbedController::kNothing) return klipper;
+    ur.explanation += " (nor does Moonraker on 7125, a Klipper printer's port)";
+    return ur;
+  }
   int port = 0;
   for (char c : address.substr(colon + 1)) port = port > 65535 ? port : port * 10 + (c - '0');
   if (port < 1 || port > 65535) {

@@ -248,7 +248,8 @@ double endstop_coordinate(const DeltaGeometry& g, int tower) {
   const double l = g.diagonal_rod[k];
   const double rise = std::sqrt(l * l - g.radius * g.radius);
   // Marlin calls the backed-off position (0, 0, H), so the endstop is |M666| above it; RRF puts
-  // the endstop itself at H + rise + M666.
+  // the endstop itself at H + rise + M666; Klipper at position_endstop + rise, which is H + rise +
+  // adjustment with H = stepper_a's position_endstop (klipper.hpp).
   if (g.firmware == Firmware::kMarlin) return g.height + rise + std::abs(g.endstop_adjustment[k]);
   return g.height + rise + g.endstop_adjustment[k];
 }
@@ -292,11 +293,25 @@ Eigen::VectorXd delta_readings(const CarriageFrame& f, const std::vector<long>& 
   return r;
 }
 
+double coordinate_of_count(const CarriageFrame& f, int tower, long count) {
+  if (f.geometry.firmware == Firmware::kKlipper)
+    return endstop_coordinate(f.geometry, tower) +
+           static_cast<double>(count - endstop_count(f, tower)) / f.steps_per_mm;
+  return static_cast<double>(count) / f.steps_per_mm;
+}
+
+long count_of_coordinate(const CarriageFrame& f, int tower, double coordinate) {
+  if (f.geometry.firmware == Firmware::kKlipper)
+    return endstop_count(f, tower) +
+           std::lround((coordinate - endstop_coordinate(f.geometry, tower)) * f.steps_per_mm);
+  return std::lround(coordinate * f.steps_per_mm);
+}
+
 std::optional<Eigen::Vector3d> cartesian_for_counts(const CarriageFrame& f,
                                                     const std::vector<long>& counts) {
   Eigen::Vector3d coordinates;
   for (int i = 0; i < 3; ++i)
-    coordinates[i] = static_cast<double>(counts[static_cast<std::size_t>(i)]) / f.steps_per_mm;
+    coordinates[i] = coordinate_of_count(f, i, counts[static_cast<std::size_t>(i)]);
   return nozzle_position(f.geometry, coordinates);
 }
 
@@ -306,7 +321,7 @@ std::optional<std::vector<long>> counts_for_cartesian(const CarriageFrame& f,
   if (!coordinates) return std::nullopt;
   std::vector<long> c(3);
   for (int i = 0; i < 3; ++i)
-    c[static_cast<std::size_t>(i)] = std::lround((*coordinates)[i] * f.steps_per_mm);
+    c[static_cast<std::size_t>(i)] = count_of_coordinate(f, i, (*coordinates)[i]);
   return c;
 }
 

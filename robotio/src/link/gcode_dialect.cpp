@@ -69,6 +69,8 @@ const char* to_string(Firmware firmware) {
       return "Marlin";
     case Firmware::kRepRapFirmware:
       return "RepRapFirmware";
+    case Firmware::kKlipper:
+      return "Klipper";
     case Firmware::kUnknown:
       break;
   }

@@ -2,6 +2,7 @@
 
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/motion_profile.hpp"
+#include "robocal/robotio/native_delta.hpp"
 
 #include <fmt/core.h>
 
@@ -140,23 +141,13 @@ void GcodeLink::read_native_geometry() {
                                 to_string(status_.firmware.firmware), rrf ? "M665" : "M503"),
                     said);
   }
-  CarriageFrame frame;
-  frame.geometry = *geometry;
-  frame.endstop_reading = file.endstop_reading;
-  frame.steps_per_mm = options_.axes.steps_per_unit[0];
-  disagreements_ = robotio::geometry_disagreements(frame.geometry, file);
-  if (!disagreements_.empty() && options_.geometry == GeometryChoice::kAsk) {
+  try {
+    native_ = robotio::native_frame(*geometry, model, options_.axes.steps_per_unit[0],
+                                    options_.geometry, status_.device, disagreements_);
+  } catch (const LinkError&) {
     status_.state = LinkState::kFault;
-    std::string list;
-    for (const std::string& d : disagreements_) list += "\n  " + d;
-    throw GeometryDisagreement(
-        status_.device,
-        fmt::format("the firmware's delta geometry disagrees with the robot file '{}' "
-                    "(nothing moved):{}\nchoose which to trust: the firmware's or the "
-                    "robot file's (--firmware-geometry firmware|robot-file)",
-                    model.name, list));
+    throw;
   }
-  native_ = frame;
 }
 
 FirmwareInfo GcodeLink::connect() {
@@ -408,69 +399,10 @@ std::string GcodeLink::move_gcode(const Eigen::VectorXd& target, const MoveSpeed
   return cmd;
 }
 
-std::optional<Eigen::Vector3d> GcodeLink::native_cartesian(const Eigen::VectorXd& readings) const {
-  return cartesian_for_counts(*native_, counts_for(readings));
-}
-
-std::vector<Eigen::VectorXd> GcodeLink::native_waypoints(const Eigen::VectorXd& from,
-                                                         const Eigen::VectorXd& to) const {
-  // The firmware moves straight in its Cartesian frame, the guard checked the straight line in
-  // actuator space: points of that line close together keep the two within the chord's sag
-  // (5 mm of carriage travel on 270 mm rods: about 10 um).
-  const double joint = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
-  const int n = from.size() == to.size()
-                    ? std::max(1, static_cast<int>(std::ceil(joint / options_.native_segment)))
-                    : 1;
-  std::vector<Eigen::VectorXd> points;
-  for (int k = 1; k <= n; ++k)
-    points.push_back(k == n || from.size() != to.size()
-                         ? to
-                         : Eigen::VectorXd(from + (to - from) * (static_cast<double>(k) / n)));
-  return points;
-}
-
-std::vector<std::string> GcodeLink::native_move_gcodes(const Eigen::VectorXd& from,
-                                                       const Eigen::VectorXd& to,
-                                                       const MoveSpeed& speed) const {
-  std::vector<std::string> out;
-  const bool known = from.size() == to.size();  // unknown start: one move at the plain feed
-  Eigen::VectorXd previous = known ? from : to;
-  std::optional<Eigen::Vector3d> at = known ? native_cartesian(from) : std::nullopt;
-  for (const Eigen::VectorXd& point : native_waypoints(from, to)) {
-    if (!firmware_can_command(*native_, counts_for(point)))
-      throw MotionRefused(fmt::format(
-          "move refused: the firmware's delta kinematics cannot command carriage readings "
-          "({:.6f}, {:.6f}, {:.6f}) m on the way (a carriage below the nozzle): nothing was sent",
-          point[0], point[1], point[2]));
-    const std::optional<Eigen::Vector3d> xyz = native_cartesian(point);
-    if (!xyz)
-      throw LinkError(
-          status_.device,
-          fmt::format("the firmware's delta model ({}) cannot reach carriage readings "
-                      "({:.6f}, {:.6f}, {:.6f}) m: its rods do not meet there",
-                      to_string(native_->geometry.firmware), point[0], point[1], point[2]));
-    // The firmware's feed is along its Cartesian path: scaled per segment so the segment takes
-    // as long as `speed` along the joints.
-    const double joint = (point - previous).cwiseProduct(guard().joint_per_reading()).norm();
-    const double cartesian = at ? (*xyz - *at).norm() : 1000.0 * joint;
-    const double feed = joint > 0.0 ? speed.speed * cartesian / joint * 60.0 : speed.speed * 6e4;
-    out.push_back(fmt::format("G1 X{:.5f} Y{:.5f} Z{:.5f} F{:.3f}", xyz->x(), xyz->y(), xyz->z(),
-                              std::max(feed, 1e-3)));
-    previous = point;
-    at = xyz;
-  }
-  return out;
-}
-
 double GcodeLink::gcode_per_joint_unit(const Eigen::VectorXd& from,
                                        const Eigen::VectorXd& to) const {
-  if (native_ && from.size() == to.size()) {
-    // The firmware's acceleration is Cartesian too: the whole move's ratio.
-    const auto a = native_cartesian(from), b = native_cartesian(to);
-    const double joint = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
-    if (a && b && joint > 0.0 && (*b - *a).norm() > 0.0) return (*b - *a).norm() / joint;
-    return 1000.0;
-  }
+  if (native_ && from.size() == to.size())
+    return native_gcode_per_joint(*native_, from, to, guard().joint_per_reading());
   const std::vector<double>& f = options_.axes.unit_factor;
   const Eigen::VectorXd& j = guard().joint_per_reading();
   if (from.size() != to.size() || static_cast<std::size_t>(to.size()) != f.size())
@@ -518,7 +450,9 @@ void GcodeLink::do_move(const Eigen::VectorXd& target, const MoveSpeed& speed) {
         acceleration_sent_ = accel;
       }
       if (native_) {
-        for (const std::string& g : native_move_gcodes(from, target, speed))
+        for (const std::string& g :
+             native_move_gcodes(*native_, from, target, speed, guard().joint_per_reading(),
+                                options_.native_segment, status_.device))
           exchange(g, options_.reply_timeout, total, true);
         return;
       }
@@ -627,13 +561,8 @@ double GcodeLink::expected_seconds(const Eigen::VectorXd& from, const Eigen::Vec
   // The firmware's trapezoid in G-code units is this one scaled by gcode_per_joint_unit.
   double s = 0.0;
   if (native_) {
-    // Each native segment is its own move, standstill to standstill at worst.
-    Eigen::VectorXd previous = from;
-    for (const Eigen::VectorXd& point : native_waypoints(from, to)) {
-      const double length = (point - previous).cwiseProduct(guard().joint_per_reading()).norm();
-      s += trapezoid_seconds(length, speed.speed, speed.acceleration);
-      previous = point;
-    }
+    s = native_expected_seconds(from, to, speed, guard().joint_per_reading(),
+                                options_.native_segment);
   } else {
     const double length = (to - from).cwiseProduct(guard().joint_per_reading()).norm();
     s = trapezoid_seconds(length, speed.speed, speed.acceleration);

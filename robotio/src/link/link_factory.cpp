@@ -1,5 +1,6 @@
 #include "robocal/robotio/link_factory.hpp"
 
+#include "robocal/robotio/klipper_link.hpp"
 #include "robocal/robotio/manual_link.hpp"
 #include "robocal/robotio/open_link.hpp"
 #include "robocal/robotio/ur_link.hpp"
@@ -24,6 +25,7 @@ std::unique_ptr<RobotLink> make_robot_link(SafetyGuard& guard, const GcodeLinkOp
     o.unlock_protective_stop = options.unlock_protective_stop;
     return std::make_unique<UrLink>(guard, o);
   }
+  if (is_moonraker_address(options.address)) return std::make_unique<KlipperLink>(guard, options);
   return std::make_unique<GcodeLink>(guard, options);
 }
 

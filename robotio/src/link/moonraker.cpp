@@ -43,27 +43,39 @@ std::optional<nlohmann::json> MoonrakerClient::receive(Clock::time_point deadlin
   }
 }
 
-nlohmann::json MoonrakerClient::call(const std::string& method, const nlohmann::json& params,
-                                     Clock::time_point deadline) {
+long MoonrakerClient::send(const std::string& method, const nlohmann::json& params) {
   const long id = next_id_++;
   ws_.send_text(jsonrpc_request(method, params, id));
+  return id;
+}
+
+std::optional<nlohmann::json> MoonrakerClient::answer(long id, const std::string& method,
+                                                      Clock::time_point deadline) {
   for (;;) {
-    auto answer = receive(deadline);
-    if (!answer) throw LinkError(device(), fmt::format("no answer to {} in time", method));
+    auto message = receive(deadline);
+    if (!message) return std::nullopt;
     // An answer to an earlier request that timed out here: not this one's.
-    if (!(*answer)["id"].is_number_integer() || (*answer)["id"].get<long>() != id) continue;
-    if (answer->contains("error")) {
-      const nlohmann::json& e = (*answer)["error"];
+    if (!(*message)["id"].is_number_integer() || (*message)["id"].get<long>() != id) continue;
+    if (message->contains("error")) {
+      const nlohmann::json& e = (*message)["error"];
       const int code = e.is_object() && e.contains("code") && e["code"].is_number_integer()
                            ? e["code"].get<int>()
                            : 0;
-      const std::string message = e.is_object() && e.contains("message") && e["message"].is_string()
-                                      ? e["message"].get<std::string>()
-                                      : e.dump();
-      throw MoonrakerError(device(), method, code, message);
+      const std::string text = e.is_object() && e.contains("message") && e["message"].is_string()
+                                   ? e["message"].get<std::string>()
+                                   : e.dump();
+      throw MoonrakerError(device(), method, code, text);
     }
-    return (*answer)["result"];
+    return (*message)["result"];
   }
+}
+
+nlohmann::json MoonrakerClient::call(const std::string& method, const nlohmann::json& params,
+                                     Clock::time_point deadline) {
+  const long id = send(method, params);
+  auto result = answer(id, method, deadline);
+  if (!result) throw LinkError(device(), fmt::format("no answer to {} in time", method));
+  return *result;
 }
 
 std::deque<MoonrakerNotification> MoonrakerClient::take_notifications() {

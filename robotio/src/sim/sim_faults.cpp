@@ -17,8 +17,8 @@ namespace robocal::robotio {
 namespace {
 
 constexpr std::array<const char*, kFaultKindCount> kFaultNames = {
-    "drop",   "busy", "error",   "stall",   "corrupt", "lost_ok",
-    "resend", "slow", "garbage", "partial", "pstop",   "missing"};
+    "drop", "busy",    "error",   "stall", "corrupt", "lost_ok", "resend",
+    "slow", "garbage", "partial", "pstop", "missing", "shutdown"};
 
 }  // namespace
 
@@ -58,7 +58,7 @@ FaultPlan parse_fault_spec(const std::string& spec) {
     if (!k)
       throw std::invalid_argument("fault '" + kind +
                                   "': unknown kind (drop, busy, error, stall, corrupt, lost_ok, "
-                                  "resend, slow, garbage, partial, pstop, missing, all)");
+                                  "resend, slow, garbage, partial, pstop, missing, shutdown, all)");
     plan.rate[static_cast<std::size_t>(*k)] = rate;
   }
   return plan;
@@ -95,8 +95,10 @@ std::optional<FaultKind> SimController::Impl::draw_fault() {
   } else {
     std::uniform_real_distribution<double> u(0.0, 1.0);
     // The line protocols draw only their kinds, so their fault sequences stay as they were.
-    const std::size_t kinds =
-        options.protocol == SimProtocol::kUr ? kFaultNames.size() : kLineFaultKindCount;
+    const std::size_t kinds = options.protocol == SimProtocol::kUr ? std::size_t{kUrFaultKindCount}
+                              : options.protocol == SimProtocol::kMoonraker
+                                  ? kFaultNames.size()
+                                  : std::size_t{kLineFaultKindCount};
     for (std::size_t k = 0; k < kinds && !f; ++k) {
       const double r = u(fault_rng);  // always drawn: the sequence does not depend on hits
       if (r < options.faults.rate[k]) f = static_cast<FaultKind>(k);

@@ -7,7 +7,8 @@
 //   sim_gcode.cpp   the G-code firmware (Marlin / RepRapFirmware dialects);
 //   sim_open.cpp    the open link protocol (robotio/OPEN_LINK.md);
 //   sim_ur.cpp      a Universal Robots controller: RTDE, URScript on the secondary interface,
-//                   the dashboard server.
+//                   the dashboard server;
+//   sim_moonraker.cpp  a Klipper delta printer behind Moonraker's WebSocket JSON-RPC API.
 // A further protocol is one more file with its receive/process pair, dispatched in run().
 #include "robocal/robotio/sim_controller.hpp"
 
@@ -73,6 +74,12 @@ struct Channel {
   nlohmann::json wait_id;
   std::string wait_cmd;
   long notified_motion = 0;  // motions whose "settled" event was sent
+  // Moonraker: the WebSocket upgrade done, and the G-code script being run (its remaining lines
+  // and the request it answers).
+  bool upgraded = false;
+  std::deque<std::string> script;
+  nlohmann::json script_id;
+  bool script_lost = false;  // fault: the script runs, its answer is lost with the connection
   bool open() const { return fd >= 0; }
 };
 
@@ -225,6 +232,26 @@ struct SimController::Impl {
   void ur_script_exception(Channel& c, const std::string& text);
   void ur_protective_stop(const std::string& why);
   std::optional<FaultKind> ur_roll_fault(const std::string& cmd);
+
+  // ---- Klipper behind Moonraker (sim_moonraker.cpp) ------------------------------------------
+  std::string klippy_state = "ready";  // ready, shutdown (emergency stop, a fault)
+  std::string klippy_message = "Printer is ready";
+  bool klipper_homed = false;
+  // Replies of the G-code engine while a Moonraker script runs (G-code lines are not sent).
+  std::vector<std::string>* gcode_capture = nullptr;
+  void moonraker_receive(Channel& c);
+  void moonraker_process(Channel& c, double now);
+  void moonraker_request(Channel& c, const nlohmann::json& request, std::optional<FaultKind> fault);
+  void moonraker_send(Channel& c, const nlohmann::json& message);
+  void moonraker_answer(Channel& c, const nlohmann::json& id, const nlohmann::json& result);
+  void moonraker_error(Channel& c, const nlohmann::json& id, int code, const std::string& message);
+  void moonraker_notify(Channel& c, const std::string& method, nlohmann::json params);
+  // Runs the script's lines until one blocks (G28, M400) or all ran; answers the request then.
+  void moonraker_run_script(Channel& c);
+  // Klippy halts (emergency stop or an injected shutdown): motion stops, clients are told.
+  void klippy_shutdown(Channel& c, const std::string& why);
+  std::string klipper_get_position() const;
+  std::optional<FaultKind> moonraker_roll_fault(const std::string& method);
 };
 
 }  // namespace robocal::robotio

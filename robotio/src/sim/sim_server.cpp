@@ -122,6 +122,10 @@ void SimController::Impl::reset_channel(Channel& c) {
   c.wait_id = nullptr;
   c.wait_cmd.clear();
   c.notified_motion = motion_ids;
+  c.upgraded = false;
+  c.script.clear();
+  c.script_id = nullptr;
+  c.script_lost = false;
 }
 
 void SimController::Impl::close_channel(Channel& c, bool reopen) {
@@ -138,6 +142,10 @@ void SimController::Impl::close_channel(Channel& c, bool reopen) {
 }
 
 void SimController::Impl::send(Channel& c, const std::string& line) {
+  if (gcode_capture != nullptr) {
+    gcode_capture->push_back(line);
+    return;
+  }
   if (c.fd < 0) return;
   write_log({{"ev", "tx"}, {"ch", c.name}, {"line", line}});
   write_all(c.fd, line + "\n");
@@ -222,7 +230,9 @@ bool SimController::Impl::read_input(Channel& c) {
 }
 
 void SimController::Impl::receive_any(Channel& c) {
-  if (options.protocol == SimProtocol::kOpen) {
+  if (options.protocol == SimProtocol::kMoonraker) {
+    moonraker_receive(c);
+  } else if (options.protocol == SimProtocol::kOpen) {
     open_receive(c);
   } else if (options.protocol == SimProtocol::kUr) {
     ur_receive(c);
@@ -232,7 +242,9 @@ void SimController::Impl::receive_any(Channel& c) {
 }
 
 void SimController::Impl::process_any(Channel& c, double now) {
-  if (options.protocol == SimProtocol::kOpen) {
+  if (options.protocol == SimProtocol::kMoonraker) {
+    moonraker_process(c, now);
+  } else if (options.protocol == SimProtocol::kOpen) {
     open_process(c, now);
   } else if (options.protocol == SimProtocol::kUr) {
     ur_process(c, now);
@@ -247,6 +259,11 @@ SimController::~SimController() = default;
 
 void SimController::start() {
   Impl& s = *impl_;
+  if (s.options.protocol == SimProtocol::kMoonraker &&
+      (!s.options.delta || s.options.delta->geometry.firmware != Firmware::kKlipper))
+    throw std::runtime_error(
+        "the simulated Moonraker serves a Klipper delta: it needs the delta "
+        "geometry in Klipper's terms");
   if (!s.options.log_path.empty()) {
     s.log = std::fopen(s.options.log_path.c_str(), "w");
     if (s.log == nullptr)
@@ -256,15 +273,16 @@ void SimController::start() {
   if (s.options.tcp_port >= 0) s.tcp_listen = listen_loopback(s.options.tcp_port, &s.tcp_port);
   if (s.options.pose_port >= 0) s.pose_listen = listen_loopback(s.options.pose_port, &s.pose_port);
   if (s.options.protocol == SimProtocol::kUr) s.ur_start();
-  if (s.options.pty) {
+  if (s.options.pty && s.options.protocol != SimProtocol::kMoonraker) {
     s.open_pty();
     s.greet(s.pty);
   }
   s.write_log({{"ev", "start"},
                {"robot", s.robot.model.name},
-               {"protocol", s.options.protocol == SimProtocol::kOpen ? "open"
-                            : s.options.protocol == SimProtocol::kUr ? "ur"
-                                                                     : "gcode"},
+               {"protocol", s.options.protocol == SimProtocol::kOpen        ? "open"
+                            : s.options.protocol == SimProtocol::kUr        ? "ur"
+                            : s.options.protocol == SimProtocol::kMoonraker ? "moonraker"
+                                                                            : "gcode"},
                {"ur", ur_address()},
                {"firmware", to_string(s.options.dialect)},
                {"tcp", tcp_address()},

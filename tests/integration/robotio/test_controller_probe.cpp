@@ -83,6 +83,19 @@ TEST_F(ControllerProbe, GcodeBoardIsNamedFromItsM115) {
   expect_nothing_moved();
 }
 
+// Moonraker answers no line protocol: found by its WebSocket upgrade and server.info.
+TEST_F(ControllerProbe, KlipperPrinterBehindMoonrakerIsNamedFromServerInfo) {
+  start("linear_delta", {"--firmware", "klipper", "--kinematics", "delta", "--no-pty"});
+  const ProbeResult r = robotio::probe_controller(host_port(sim_->tcp()));
+  EXPECT_EQ(r.kind, ProbedController::kKlipper) << r.explanation << "\nsaid: " << r.said;
+  EXPECT_EQ(r.link, "moonraker:" + host_port(sim_->tcp()));
+  EXPECT_NE(r.explanation.find("a Klipper printer through Moonraker"), std::string::npos)
+      << r.explanation;
+  EXPECT_NE(r.explanation.find("Klipper v0.12.0"), std::string::npos) << r.explanation;
+  EXPECT_EQ(r.explanation.find("NOT ready"), std::string::npos) << r.explanation;
+  expect_nothing_moved();
+}
+
 TEST_F(ControllerProbe, ControllerThatNeverAnswersIsCalledSilent) {
   start("linear_delta", {"--mute"});
   const ProbeResult r =

@@ -2,8 +2,10 @@
 // What answers at an address the operator gives (the wizard's controller step): a Universal
 // Robots dashboard server (its "Connected: Universal Robots Dashboard Server" greeting, then
 // PolyscopeVersion, robotmode, safetystatus and, from PolyScope 5.6, "is in remote control"), an
-// open link controller (its `hello` reply, robotio/OPEN_LINK.md) or a G-code board (its M115
-// report). Only questions are sent: nothing moves, nothing is unlocked or changed.
+// open link controller (its `hello` reply, robotio/OPEN_LINK.md), a G-code board (its M115
+// report) or a Klipper printer's Moonraker (its WebSocket upgrade, server.info and printer.info;
+// port 7125, or any port silent to lines). Only questions are sent: nothing moves, nothing is
+// unlocked or changed.
 #include <chrono>
 #include <cstdint>
 #include <string>
@@ -17,6 +19,7 @@ enum class ProbedController : std::uint8_t {
   kUniversalRobots,
   kOpenLink,
   kGcode,
+  kKlipper,  // Moonraker in front of Klipper
 };
 const char* to_string(ProbedController kind);
 
@@ -29,8 +32,8 @@ struct ProbeResult {
   std::string said;         // what the device said first ("" when nothing)
 };
 
-// "HOST" (probes a UR's dashboard server on 29999) or "HOST:PORT". An address that is neither
-// gives kNothing with the explanation.
+// "HOST" (probes a UR's dashboard server on 29999, then Moonraker on 7125) or "HOST:PORT". An
+// address that is neither gives kNothing with the explanation.
 ProbeResult probe_controller(const std::string& address,
                              std::chrono::milliseconds timeout = std::chrono::milliseconds(1500));
 

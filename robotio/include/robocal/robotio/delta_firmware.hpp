@@ -19,6 +19,11 @@
 //   z + sqrt(L_i^2 - dx^2 - dy^2) + x * tilt_x + y * tilt_y; motor steps lrintf(coordinate *
 //   steps/mm); at the endstop the carriage coordinate is H + sqrt(L_i^2 - R^2) + M666_i. M114
 //   lists the counts in motor order after "Count".
+// - Klipper (klippy/kinematics/delta.py, docs/Config_Reference.md "Linear Delta Kinematics"):
+//   `delta_radius`, per tower `arm_length`, `angle` (210, 330, 90 by default) and
+//   `position_endstop`; the carriage coordinate at tower i's endstop is position_endstop_i +
+//   sqrt(arm_i^2 - R^2), the same form as RRF's with H = stepper_a's position_endstop and the
+//   others' differences as adjustments (klipper.hpp reads the configuration).
 #include "robocal/calib/mechanism.hpp"
 #include "robocal/robotio/gcode_dialect.hpp"
 
@@ -88,6 +93,13 @@ struct CarriageFrame {
 long endstop_count(const CarriageFrame& f, int tower);
 double carriage_coordinate_of_reading(const CarriageFrame& f, int tower, double reading);
 double reading_of_carriage_coordinate(const CarriageFrame& f, int tower, double coordinate);
+// A firmware's carriage coordinate (mm) of a step count and the step count it plans for a
+// coordinate. Marlin and RRF count steps from their coordinate's zero (count = round(coordinate *
+// steps/mm)); Klipper counts them from where homing set the position (stepper.py: mcu position =
+// round((commanded position + offset) / step distance), the offset set so that the endstop
+// coordinate falls on the step counted there), so its steps lie on a grid through the endstop.
+double coordinate_of_count(const CarriageFrame& f, int tower, long count);
+long count_of_coordinate(const CarriageFrame& f, int tower, double coordinate);
 // Step counts of readings (what the firmware counts there) and readings of step counts.
 std::vector<long> delta_counts(const CarriageFrame& f, const Eigen::VectorXd& readings);
 Eigen::VectorXd delta_readings(const CarriageFrame& f, const std::vector<long>& counts);

@@ -19,7 +19,9 @@
 
 namespace robocal::robotio {
 
-enum class Firmware : std::uint8_t { kUnknown, kMarlin, kRepRapFirmware };
+// Klipper is reached through Moonraker (klipper.hpp), not a G-code line protocol; it is named
+// here because the delta geometry (delta_firmware.hpp) is shared by all three.
+enum class Firmware : std::uint8_t { kUnknown, kMarlin, kRepRapFirmware, kKlipper };
 const char* to_string(Firmware firmware);
 
 // What a firmware line means to the link.

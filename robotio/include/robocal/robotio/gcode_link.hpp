@@ -19,6 +19,7 @@
 // controller's position before re-issuing a move (so no motion is duplicated or lost).
 #include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/link_error.hpp"
+#include "robocal/robotio/native_delta.hpp"
 #include "robocal/robotio/robot_link.hpp"
 #include "robocal/robotio/transport.hpp"
 
@@ -52,22 +53,6 @@ std::vector<long> axis_counts(const ActuatorAxes& axes, const Eigen::VectorXd& r
 // (`controller: {gcode_axes: tool}`, a linear delta) and the firmware reports delta geometry, raw
 // axes otherwise (a firmware reconfigured to one axis per motor reports none).
 enum class GcodeMode : std::uint8_t { kRawAxes, kNativeDelta, kAuto };
-// Which geometry the operator trusts when the firmware's delta geometry disagrees with the robot
-// file's beyond the file's tolerance. kAsk: the link refuses to connect and names every
-// difference (nothing moves); kFirmware / kRobotFile: the operator's answer. Moves are computed
-// with the firmware's own model either way (only it lands the carriages on the requested steps);
-// the answer is the operator's record of which drawing is right (GcodeLink::geometry_disagreements
-// keeps what was accepted; collect writes both into the session).
-enum class GeometryChoice : std::uint8_t { kAsk, kFirmware, kRobotFile };
-
-// The firmware's delta geometry differs from the robot file's beyond its tolerance and the
-// operator has not chosen which to trust (GeometryChoice::kAsk): nothing moved. what() names
-// every difference.
-class GeometryDisagreement final : public LinkError {
- public:
-  using LinkError::LinkError;
-};
-
 // The option words (`--gcode-mode auto|native|raw`, `--firmware-geometry
 // ask|firmware|robot-file`); nullopt for any other word.
 std::optional<GcodeMode> gcode_mode_from_string(const std::string& word);
@@ -153,13 +138,6 @@ class GcodeLink final : public RobotLink {
   void read_native_geometry();
   // nullopt when the firmware reports no delta geometry (`said`: its last words on it).
   std::optional<DeltaGeometry> query_delta_geometry(std::string& said);
-  // Native mode: the points (readings) the straight path from `from` to `to` is sent through.
-  std::vector<Eigen::VectorXd> native_waypoints(const Eigen::VectorXd& from,
-                                                const Eigen::VectorXd& to) const;
-  std::vector<std::string> native_move_gcodes(const Eigen::VectorXd& from,
-                                              const Eigen::VectorXd& to,
-                                              const MoveSpeed& speed) const;
-  std::optional<Eigen::Vector3d> native_cartesian(const Eigen::VectorXd& readings) const;
 
   GcodeLinkOptions options_;
   std::unique_ptr<Transport> transport_;

@@ -2,7 +2,8 @@
 // The link an address names, for every command that takes --link: "open:HOST:PORT" is the open
 // link protocol (OPEN_LINK.md); "ur:HOST" (or ur:HOST:RTDE:SECONDARY:DASHBOARD ports) is a
 // Universal Robots controller (ur_link.hpp); "manual" is the operator (manual_link.hpp, standard
-// input and output); a serial device path or tcp:HOST:PORT is a G-code firmware.
+// input and output); "moonraker:HOST[:PORT]" is a Klipper printer through Moonraker
+// (klipper_link.hpp); a serial device path or tcp:HOST:PORT is a G-code firmware.
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/robot_link.hpp"
 

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include <deque>
+#include <optional>
 #include <string>
 
 namespace robocal::robotio {
@@ -54,6 +55,12 @@ class MoonrakerClient {
   // answer comes before `deadline` or the connection is lost.
   nlohmann::json call(const std::string& method, const nlohmann::json& params,
                       Clock::time_point deadline);
+  // The same in two halves, for a caller that must look at other things while it waits (a stop
+  // request): sends the request and returns its id; then the answer to that id, or nullopt when
+  // the deadline passes first (call again to keep waiting). Throws as call() does.
+  long send(const std::string& method, const nlohmann::json& params);
+  std::optional<nlohmann::json> answer(long id, const std::string& method,
+                                       Clock::time_point deadline);
   // Notifications received so far, oldest first (and forgotten here).
   std::deque<MoonrakerNotification> take_notifications();
   // Waits until a notification arrives or the deadline passes; false on the deadline.

@@ -7,7 +7,8 @@
 //
 // Implementations: GcodeLink (Marlin / RepRapFirmware over serial or TCP), OpenLink (the open
 // link protocol, robotio/OPEN_LINK.md, for controllers without a standard interface), UrLink
-// (Universal Robots: RTDE, URScript on the secondary interface, the dashboard server) and
+// (Universal Robots: RTDE, URScript on the secondary interface, the dashboard server), KlipperLink
+// (a Klipper delta printer through Moonraker) and
 // ManualLink (the operator); make_robot_link (link_factory.hpp) picks one from the --link
 // address. robotio/README.md shows how ABB (EGM/RWS) and KUKA (RSI) links plug in.
 #include "robocal/robotio/gcode_dialect.hpp"

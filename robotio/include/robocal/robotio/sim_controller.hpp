@@ -39,10 +39,13 @@ enum class FaultKind : std::uint8_t {
   // Universal Robots only (--protocol ur):
   kProtectiveStop,  // the arm halts partway with a protective stop
   kMissing,         // RTDE data packages are not sent for a while (slow_seconds)
+  // Klipper behind Moonraker only (--protocol moonraker):
+  kShutdown,  // Klippy shuts down (an MCU error) instead of running the script
 };
-constexpr int kFaultKindCount = 12;
-// The kinds the G-code and open protocols draw (the UR protocol draws all kFaultKindCount).
+constexpr int kFaultKindCount = 13;
+// The kinds the G-code and open protocols draw, and the UR protocol's (Moonraker draws all).
 constexpr int kLineFaultKindCount = 10;
+constexpr int kUrFaultKindCount = 12;
 const char* to_string(FaultKind kind);
 std::optional<FaultKind> fault_kind_from_string(const std::string& name);
 
@@ -71,7 +74,9 @@ struct SimRobot {
 // What the TCP port speaks: G-code (and the pty), the open link protocol (robotio/OPEN_LINK.md,
 // TCP only), or a Universal Robots controller (RTDE on the TCP port, URScript on a secondary
 // client port, the dashboard server on a third; robotio/README.md).
-enum class SimProtocol : std::uint8_t { kGcode, kOpen, kUr };
+// kMoonraker: a Klipper delta printer behind Moonraker's JSON-RPC API on a WebSocket (TCP only;
+// `delta` must be set, with the Klipper firmware).
+enum class SimProtocol : std::uint8_t { kGcode, kOpen, kUr, kMoonraker };
 
 // The Universal Robots controller's own state and ports (--protocol ur).
 struct SimUrOptions {
