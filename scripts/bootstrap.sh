@@ -6,8 +6,8 @@
 #   scripts/bootstrap.sh --tests  that, plus what the test suite, the benchmarks and the CI
 #                                 checks use (scripts/test.sh, .ci/run)
 #
-# The test-only packages are about a third of the download (chromium alone pulls in dozens of
-# packages), which a user trying the demo does not need.
+# The test-only packages are about a third of the download (chromium and clang alone pull in
+# ~95 packages), which a user trying the demo does not need.
 set -euo pipefail
 
 usage() { echo "usage: $0 [--tests]" >&2; exit 2; }
@@ -20,9 +20,8 @@ esac
 [ $# -le 1 ] || usage
 
 packages=(
-  # toolchain: clang compiles robocal (CMakePresets.json) in about half the time GCC takes
-  # (Eigen's and Ceres' templates); build-essential brings the C++ library and the linker
-  build-essential clang cmake ninja-build pkg-config ccache
+  # toolchain
+  build-essential cmake ninja-build pkg-config ccache
   # the Debian package (cpack): dpkg-shlibdeps (dpkg-dev, from build-essential) reads the
   # dependencies of the files `file` says are ELF programs
   file
@@ -51,8 +50,6 @@ if [ "$with_tests" -eq 1 ]; then
     iproute2
     # CI's format and static checks (scripts/check-format.sh, scripts/tidy.sh list files by git)
     clang-format clang-tidy git
-    # the sanitizer build's runtime (clang only recommends it)
-    libclang-rt-14-dev
     # the open link's reference adapter (robotio/adapters, Python standard library) is run
     # against link-check
     python3
