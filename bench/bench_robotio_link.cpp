@@ -21,6 +21,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <map>
 #include <numeric>
@@ -46,6 +47,46 @@ std::unique_ptr<robotio::GcodeLink> connect_with_retries(robotio::SafetyGuard& g
   }
   throw std::runtime_error("cannot connect: " + why);
 }
+
+// One soak's moves as the link reported them: each confirmed, or failed with its reason.
+struct SoakTally {
+  std::vector<std::vector<long>> target_counts;
+  std::vector<bool> move_confirmed;
+  int confirmed = 0, failed = 0, unexplained = 0;
+  std::map<std::string, int> failure_reasons;
+
+  // Moves to `target` (the controller's `counts` there); after a failure, `recover` puts the
+  // link back in a state to go on (the guard's next path starts from where the robot is).
+  void move(robotio::RobotLink& link, const Eigen::VectorXd& target, std::vector<long> counts,
+            const std::function<void()>& recover) {
+    target_counts.push_back(std::move(counts));
+    move_confirmed.push_back(false);
+    try {
+      const robotio::MoveResult r = link.move_actuators(target, kSpeed);
+      if (r.confirmed) {
+        ++confirmed;
+        move_confirmed.back() = true;
+        return;
+      }
+      ++failed;
+      ++failure_reasons[r.reason];
+      if (r.reason.empty()) ++unexplained;
+    } catch (const std::exception& e) {
+      ++failed;
+      const std::string reason = e.what();
+      if (reason.empty()) ++unexplained;
+      // Group by the problem, not the changing numbers after it.
+      ++failure_reasons[reason.substr(0, reason.find(" (controller said"))];
+      recover();
+    }
+  }
+  void add_to(nlohmann::json& j) const {
+    j["confirmed"] = confirmed;
+    j["failed"] = failed;
+    j["failed_without_reason"] = unexplained;
+    j["failure_reasons"] = failure_reasons;
+  }
+};
 
 // What the simulator's log says of a soak: the faults it injected, its motions, a target reached
 // by more than one motion (duplicated), a move the link confirmed that never ran (lost), a
@@ -113,52 +154,28 @@ nlohmann::json soak(const std::string& wire, int moves, double rate, unsigned se
                            std::to_string(seed), "--slow-ms", "200", "--seed", "3"}));
   auto link = connect_with_retries(guard, model, wire == "tcp" ? sim.tcp() : sim.pty());
   const std::vector<Eigen::VectorXd> targets = test::delta_targets(model, moves, seed + 100);
-  std::vector<std::vector<long>> target_counts;
-  std::vector<bool> move_confirmed;
-  int confirmed = 0, failed = 0, unexplained = 0;
-  std::map<std::string, int> failure_reasons;
+  SoakTally tally;
   const auto t0 = std::chrono::steady_clock::now();
-  for (const Eigen::VectorXd& t : targets) {
-    target_counts.push_back(link->counts_for(t));
-    move_confirmed.push_back(false);
-    try {
-      const robotio::MoveResult r = link->move_actuators(t, kSpeed);
-      if (r.confirmed) {
-        ++confirmed;
-        move_confirmed.back() = true;
-      } else {
-        ++failed;
-        ++failure_reasons[r.reason];
-        if (r.reason.empty()) ++unexplained;
-      }
-    } catch (const std::exception& e) {
-      ++failed;
-      std::string reason = e.what();
-      if (reason.empty()) ++unexplained;
-      // Group by the problem, not the changing numbers after it.
-      ++failure_reasons[reason.substr(0, reason.find(" (controller said"))];
+  for (const Eigen::VectorXd& t : targets)
+    tally.move(*link, t, link->counts_for(t), [&] {
       try {
         if (link->status().state == robotio::LinkState::kDisconnected) link->reconnect();
-        link->read_actuators();  // the guard's next path starts from where the robot is
+        link->read_actuators();
       } catch (const std::exception&) {
         link = connect_with_retries(guard, model, wire == "tcp" ? sim.tcp() : sim.pty());
       }
-    }
-  }
+    });
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const robotio::LinkStatus st = link->status();
   sim.stop();
 
   nlohmann::json j =
-      judge_soak(test::read_sim_log(log), model, guard, target_counts, move_confirmed);
+      judge_soak(test::read_sim_log(log), model, guard, tally.target_counts, tally.move_confirmed);
   j["wire"] = wire;
   j["moves"] = moves;
   j["fault_rate_per_kind"] = rate;
-  j["confirmed"] = confirmed;
-  j["failed"] = failed;
-  j["failed_without_reason"] = unexplained;
-  j["failure_reasons"] = failure_reasons;
+  tally.add_to(j);
   j["link_counters"] = {{"commands", st.commands},     {"resends", st.resends},
                         {"timeouts", st.timeouts},     {"reconnects", st.reconnects},
                         {"busy_lines", st.busy_lines}, {"errors", st.errors},
@@ -210,53 +227,29 @@ nlohmann::json klipper_soak(int moves, double rate, unsigned seed,
   };
   restart_and_home();
   const std::vector<Eigen::VectorXd> targets = test::delta_targets(model, moves, seed + 100);
-  std::vector<std::vector<long>> target_counts;
-  std::vector<bool> move_confirmed;
-  int confirmed = 0, failed = 0, unexplained = 0, restarts = 0;
-  std::map<std::string, int> failure_reasons;
+  SoakTally tally;
+  int restarts = 0;
   const auto t0 = std::chrono::steady_clock::now();
-  for (const Eigen::VectorXd& t : targets) {
-    target_counts.push_back(robotio::delta_counts(*link->native_frame(), t));
-    move_confirmed.push_back(false);
-    try {
-      const robotio::MoveResult r = link->move_actuators(t, kSpeed);
-      if (r.confirmed) {
-        ++confirmed;
-        move_confirmed.back() = true;
-      } else {
-        ++failed;
-        ++failure_reasons[r.reason];
-        if (r.reason.empty()) ++unexplained;
-      }
-    } catch (const std::exception& e) {
-      ++failed;
-      const std::string reason = e.what();
-      if (reason.empty()) ++unexplained;
-      // Group by the problem: the part after the device, before what Klipper said.
-      const std::string problem = reason.substr(0, reason.find(" (controller said"));
-      ++failure_reasons[problem.substr(problem.find(": ") + 2)];
+  for (const Eigen::VectorXd& t : targets)
+    tally.move(*link, t, robotio::delta_counts(*link->native_frame(), t), [&] {
       try {
-        link->read_actuators();  // the guard's next path starts from where the robot is
+        link->read_actuators();
         if (link->status().state == robotio::LinkState::kFault) throw std::runtime_error("fault");
       } catch (const std::exception&) {
         ++restarts;
         restart_and_home();
       }
-    }
-  }
+    });
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const robotio::LinkStatus st = link->status();
   sim.stop();
   nlohmann::json j =
-      judge_soak(test::read_sim_log(log), model, guard, target_counts, move_confirmed);
+      judge_soak(test::read_sim_log(log), model, guard, tally.target_counts, tally.move_confirmed);
   j["wire"] = "moonraker";
   j["moves"] = moves;
   j["fault_rate_per_kind"] = each;
-  j["confirmed"] = confirmed;
-  j["failed"] = failed;
-  j["failed_without_reason"] = unexplained;
-  j["failure_reasons"] = failure_reasons;
+  tally.add_to(j);
   j["restarts_after_shutdown"] = restarts;
   j["link_counters_since_last_restart"] = {{"commands", st.commands},
                                            {"timeouts", st.timeouts},

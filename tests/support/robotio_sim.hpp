@@ -11,9 +11,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -86,6 +88,28 @@ inline std::vector<Eigen::VectorXd> delta_targets(const calib::Mechanism& model,
     if (ik.ok()) out.push_back(ik.actuator_readings);
   }
   return out;
+}
+
+// The box for a delta printer driven in its firmware's own kinematics: up to the homed position
+// (all carriages at the endstops put the effector at z = 0.45 - sqrt(0.27^2 - 0.14^2) = 0.219
+// m), where every motion starts.
+inline robotio::SafetyLimits delta_native_limits() {
+  robotio::SafetyLimits l = delta_limits();
+  l.workspace_max.z() = 0.225;
+  return l;
+}
+
+// X Y Z of a G1 line as sent ("G1 X.. Y.. Z.. F..", or numbered "N.. G1 ...*cs"); NaN where a
+// word is missing.
+inline Eigen::Vector3d g1_xyz(std::string line) {
+  line = line.substr(0, line.find('*'));
+  std::stringstream ss(line);
+  std::string tok;
+  Eigen::Vector3d p = Eigen::Vector3d::Constant(std::nan(""));
+  while (ss >> tok)
+    if (tok.size() > 1 && (tok[0] == 'X' || tok[0] == 'Y' || tok[0] == 'Z'))
+      p[tok[0] - 'X'] = std::stod(tok.substr(1));
+  return p;
 }
 
 inline robotio::GcodeLinkOptions link_options(const calib::Mechanism& model,

@@ -86,27 +86,12 @@ std::vector<std::string> script_lines(const std::vector<nlohmann::json>& log, st
   for (std::size_t k = first; k < rx.size(); ++k) {
     const auto request = nlohmann::json::parse(rx[k].value("line", ""), nullptr, false);
     if (!request.is_object() || request.value("method", "") != "printer.gcode.script") continue;
-    std::stringstream ss(request["params"].value("script", ""));
+    const nlohmann::json params = request.value("params", nlohmann::json::object());
+    std::stringstream ss(params.value("script", std::string()));
     std::string line;
     while (std::getline(ss, line)) out.push_back(line);
   }
   return out;
-}
-
-Eigen::Vector3d g1_target(const std::string& line) {
-  std::stringstream ss(line);
-  std::string tok;
-  Eigen::Vector3d p = Eigen::Vector3d::Constant(std::nan(""));
-  while (ss >> tok)
-    if (tok.size() > 1 && (tok[0] == 'X' || tok[0] == 'Y' || tok[0] == 'Z'))
-      p[tok[0] - 'X'] = std::stod(tok.substr(1));
-  return p;
-}
-
-robotio::SafetyLimits native_limits() {
-  robotio::SafetyLimits l = delta_limits();
-  l.workspace_max.z() = 0.225;
-  return l;
 }
 
 class KlipperLinkTest : public ScratchDirTest {
@@ -117,7 +102,8 @@ class KlipperLinkTest : public ScratchDirTest {
     log_ = file("sim.jsonl");
     sim_ = std::make_unique<SimControllerProcess>(ROBOCAL_BINARY,
                                                   sim_args(log_, klipper_args(std::move(extra))));
-    guard_ = std::make_unique<SafetyGuard>(model_, model_.nominal_parameters(), native_limits());
+    guard_ =
+        std::make_unique<SafetyGuard>(model_, model_.nominal_parameters(), delta_native_limits());
     guard_->arm("test: simulated cell, nothing can be hurt");
   }
   std::string address() const { return "moonraker:" + sim_->tcp().substr(4); }
@@ -162,7 +148,7 @@ TEST_F(KlipperLinkTest, EveryMoveEndsOnTheRequestedStepCountsInTheTruthLog) {
     for (const std::string& line : script_lines(log(), before))
       if (line.rfind("G1 ", 0) == 0) last_g1 = line;
     ASSERT_FALSE(last_g1.empty());
-    EXPECT_EQ(counts_of_cartesian(g1_target(last_g1)), expect) << last_g1;
+    EXPECT_EQ(counts_of_cartesian(g1_xyz(last_g1)), expect) << last_g1;
   }
 }
 

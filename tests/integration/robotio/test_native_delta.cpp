@@ -91,26 +91,6 @@ std::vector<long> counts_of_cartesian(const Eigen::Vector3d& p) {
   return out;
 }
 
-// X Y Z of a received "N.. G1 X.. Y.. Z.. F..*cs" line.
-Eigen::Vector3d g1_target(std::string line) {
-  line = line.substr(0, line.find('*'));
-  std::stringstream ss(line);
-  std::string tok;
-  Eigen::Vector3d p = Eigen::Vector3d::Constant(std::nan(""));
-  while (ss >> tok)
-    if (tok.size() > 1 && (tok[0] == 'X' || tok[0] == 'Y' || tok[0] == 'Z'))
-      p[tok[0] - 'X'] = std::stod(tok.substr(1));
-  return p;
-}
-
-// The box the carriages may move in: the linear delta's test cell, up to the homed position
-// (all carriages at the endstops put the effector at z = 0.45 - sqrt(0.27^2 - 0.14^2) = 0.219 m).
-robotio::SafetyLimits native_limits() {
-  robotio::SafetyLimits l = delta_limits();
-  l.workspace_max.z() = 0.225;
-  return l;
-}
-
 class NativeDeltaTest : public ScratchDirTest, public ::testing::WithParamInterface<Firmware> {
  protected:
   NativeDeltaTest() : ScratchDirTest("native_delta_") {}
@@ -119,7 +99,8 @@ class NativeDeltaTest : public ScratchDirTest, public ::testing::WithParamInterf
     log_ = file("sim.jsonl");
     extra.insert(extra.end(), {"--firmware", GetParam().marlin ? "marlin" : "rrf"});
     sim_ = std::make_unique<SimControllerProcess>(ROBOCAL_BINARY, sim_args(log_, extra));
-    guard_ = std::make_unique<SafetyGuard>(model_, model_.nominal_parameters(), native_limits());
+    guard_ =
+        std::make_unique<SafetyGuard>(model_, model_.nominal_parameters(), delta_native_limits());
     guard_->arm("test: simulated cell, nothing can be hurt");
   }
   std::unique_ptr<GcodeLink> link(bool pty, robotio::GeometryChoice choice) {
@@ -171,7 +152,7 @@ TEST_P(NativeDeltaTest, EveryMoveEndsOnTheRequestedStepCountsInTheTruthLog) {
       if (rx[k]["line"].get<std::string>().find(" G1 ") != std::string::npos)
         last_g1 = rx[k]["line"];
     ASSERT_FALSE(last_g1.empty());
-    EXPECT_EQ(counts_of_cartesian(g1_target(last_g1)), expect) << last_g1;
+    EXPECT_EQ(counts_of_cartesian(g1_xyz(last_g1)), expect) << last_g1;
   }
 }
 
@@ -253,7 +234,7 @@ TEST_P(NativeDeltaTest, AnErrorReplyStopsTheMoveWithWhatTheFirmwareSaidAndNothin
 // before anything is sent.
 TEST_P(NativeDeltaTest, APoseTheFirmwareCannotCommandIsRefusedBeforeAnythingIsSent) {
   start(concat({"--kinematics", "delta"}, firmware_settings()));
-  robotio::SafetyLimits wide = native_limits();
+  robotio::SafetyLimits wide = delta_native_limits();
   wide.workspace_min = Eigen::Vector3d(-0.2, -0.2, 0.0);
   wide.workspace_max = Eigen::Vector3d(0.2, 0.2, 0.225);
   guard_ = std::make_unique<SafetyGuard>(model_, model_.nominal_parameters(), wide);
