@@ -36,7 +36,7 @@ Rendered shifted_view(const rv::TargetBoard& board, double du, unsigned seed) {
 }
 
 std::filesystem::path temp_dir() {
-  const auto d =
+  auto d =
       std::filesystem::temp_directory_path() /
       ("robocal_detect_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
        ::testing::UnitTest::GetInstance()->current_test_info()->name());
@@ -176,7 +176,7 @@ TEST(AprilTagBoardDetection, ImageSeriesDetectFirstAndRefineTheRest) {
   std::vector<Rendered> views;
   const auto file = [&](const std::string& name, double du, unsigned seed) {
     views.push_back(view(du, seed));
-    const auto path = dir / name;
+    auto path = dir / name;
     cv::imwrite(path.string(), views.back().image);
     return path;
   };
