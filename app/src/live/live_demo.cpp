@@ -267,7 +267,7 @@ LiveController start_controller(const LiveDemoOptions& o, const LiveCell& lc,
   // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D", "marlin G-code, raw
   // axes at 127.0.0.1:P" (the address after the protocol's prefix).
   const std::string gcode_note =
-      klipper ? std::string("Klipper through Moonraker, its own delta kinematics")
+      klipper ? std::string("Klipper link (Moonraker), Klipper's own delta kinematics")
               : o.firmware + (c.native ? " G-code, firmware-native delta" : " G-code, raw axes");
   c.link_note = fmt::format("{} at {}",
                             c.protocol == "ur"     ? "Universal Robots link"
