@@ -36,10 +36,9 @@ Rendered shifted_view(const rv::TargetBoard& board, double du, unsigned seed) {
 }
 
 std::filesystem::path temp_dir() {
-  auto d =
-      std::filesystem::temp_directory_path() /
-      ("robocal_detect_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
-       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  auto d = std::filesystem::temp_directory_path() /
+           ("robocal_detect_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+            "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
   std::filesystem::create_directories(d);
   return d;
 }
