@@ -288,13 +288,15 @@ void plan_once(const LiveDemoOptions& o, const LiveCell& lc, const std::string& 
   if (o.resume && fs::exists(plan_file)) return;
   const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
   // The simulated firmware's kinematics is the robot file's drawing (sim-controller
-  // --kinematics delta): a pose it cannot command is left out of the plan.
+  // --kinematics delta): the planner's candidates it cannot command are left out.
   std::function<bool(const Eigen::VectorXd&)> commandable;
   if (controller.native) {
     robotio::CarriageFrame frame;
     const robotio::RobotFileDelta file = robotio::robot_file_delta(lc.cell.model);
-    frame.geometry = robotio::drawing_geometry(
-        file, o.firmware == "klipper" ? robotio::Firmware::kKlipper : robotio::Firmware::kMarlin);
+    const robotio::Firmware firmware = o.firmware == "klipper" ? robotio::Firmware::kKlipper
+                                       : o.firmware == "rrf"   ? robotio::Firmware::kRepRapFirmware
+                                                               : robotio::Firmware::kMarlin;
+    frame.geometry = robotio::drawing_geometry(file, firmware);
     frame.endstop_reading = file.endstop_reading;
     commandable = [frame](const Eigen::VectorXd& q) {
       return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));

@@ -31,9 +31,10 @@ struct LiveDemoOptions {
   bool resume = false;
   double speed = 0.0;  // actuator units/s; 0: 2 rad/s revolute, 0.5 m/s prismatic
   std::string route = "both";
-  // G-code printers (the linear delta): the firmware the simulated printer runs (marlin, rrf) and
-  // how it is driven: raw (one axis per motor) or native (its own delta kinematics; the planner
-  // does not know the firmware's reach yet, so the plan's poses it cannot command are left out).
+  // Printers (the linear delta): the firmware the simulated printer runs (marlin, rrf, klipper)
+  // and how it is driven: raw (one axis per motor) or native (its own delta kinematics; the
+  // candidate poses it cannot command are left out before the planner selects). Klipper is
+  // always native, through Moonraker.
   std::string firmware = "marlin";
   std::string gcode_mode = "raw";
   std::string out;   // demo folder: session/ and setup/ inside

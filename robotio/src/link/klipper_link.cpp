@@ -77,6 +77,7 @@ void KlipperLink::open_and_check() {
   client_ = std::make_unique<MoonrakerClient>(host_, port_);
   client_->open(Clock::now() + options_.identify_timeout);
   const std::string problem = klippy_problem();
+  if (problem.empty()) klippy_said_.clear();  // ready again (after a FIRMWARE_RESTART)
   if (!problem.empty()) {
     status_.state = LinkState::kFault;
     status_.last_error = problem;

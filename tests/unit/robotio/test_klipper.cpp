@@ -154,18 +154,25 @@ TEST(KlipperGetPosition, AMissingOrGarbledFigureIsNotAPosition) {
   EXPECT_EQ(p->stepper, (std::vector<double>{1.25, 2.5, 3.75}));
 }
 
-// Klipper's steps lie on a grid through the endstop coordinate: with the endstop at 452.3679 mm
-// (36189.43 steps at 80 steps/mm) the firmware counts 36189 there; a carriage commanded to 400.0
-// mm is 4189.43 steps below it, so it stops 4189 steps below (count 32000); at 399.992 mm it is
-// 4190.07 below (count 31999). At 400.0075 mm (32000.6 steps from zero) Marlin's grid,
-// round(coordinate * 80), counts 32001; Klipper's, 4188.83 below the endstop, 32000.
-TEST(KlipperGrid, StepsAreCountedFromTheEndstop) {
+// The library linear delta's drawing in Klipper's terms: rods 270 mm, radius 140 mm,
+// position_endstop 221.5 mm, 80 steps/mm.
+CarriageFrame klipper_frame() {
   CarriageFrame f;
   f.geometry.firmware = Firmware::kKlipper;
   f.geometry.diagonal_rod = {270.0, 270.0, 270.0};
   f.geometry.radius = 140.0;
   f.geometry.height = 221.5;
   f.steps_per_mm = 80.0;
+  return f;
+}
+
+// Klipper's steps lie on a grid through the endstop coordinate: with the endstop at 452.3679 mm
+// (36189.43 steps at 80 steps/mm) the firmware counts 36189 there; a carriage commanded to 400.0
+// mm is 4189.43 steps below it, so it stops 4189 steps below (count 32000); at 399.992 mm it is
+// 4190.07 below (count 31999). At 400.0075 mm (32000.6 steps from zero) Marlin's grid,
+// round(coordinate * 80), counts 32001; Klipper's, 4188.83 below the endstop, 32000.
+TEST(KlipperGrid, StepsAreCountedFromTheEndstop) {
+  CarriageFrame f = klipper_frame();
   const double endstop = 221.5 + std::sqrt(270.0 * 270.0 - 140.0 * 140.0);
   ASSERT_NEAR(endstop * 80.0, 36189.43, 0.01);
   EXPECT_EQ(endstop_count(f, 0), 36189);
@@ -180,12 +187,7 @@ TEST(KlipperGrid, StepsAreCountedFromTheEndstop) {
 }
 
 TEST(KlipperGrid, TheMicrocontrollerCountAtTheEndstopFollowsFromAnyHomedPosition) {
-  CarriageFrame f;
-  f.geometry.firmware = Firmware::kKlipper;
-  f.geometry.diagonal_rod = {270.0, 270.0, 270.0};
-  f.geometry.radius = 140.0;
-  f.geometry.height = 221.5;
-  f.steps_per_mm = 80.0;
+  CarriageFrame f = klipper_frame();
   const double endstop = endstop_coordinate(f.geometry, 0);
   // The carriage commanded 10 mm (800 steps) and a fraction below the endstop: the mcu counts
   // 800 fewer than at the endstop.
