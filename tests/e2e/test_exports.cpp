@@ -217,6 +217,7 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
   const std::vector<Eigen::VectorXd> configs = workspace(t, 2000);
   ASSERT_GT(configs.size(), 1000U);
   std::vector<Eigen::Vector3d> errors;
+  std::vector<Eigen::Vector3d> targets;  // in the firmware's frame, for the compensated route
   Stats model;
   for (const Eigen::VectorXd& q : configs) {
     // Where a printer works and the settings were fitted: every rod sloping down from its
@@ -239,6 +240,7 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
     if (!reachable) continue;
     const Eigen::Vector3d reached = t.camera_T_world * true_tool(t, readings).translation();
     errors.push_back(reached - target);
+    targets.push_back(p);
     // Where the identified model (identify's file, camera 0's world) says the nozzle arrives:
     // its own error against the truth is identification's, not the export's.
     const Eigen::Vector3d predicted =
@@ -273,6 +275,60 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
   // What varies over the workspace is the firmware's own residual (its model is smaller), with
   // the calibrated model's error against the truth.
   EXPECT_LT(sent.rms, firmware_rms + 0.1e-3);
+
+  // The same targets through `robocal compensate --firmware klipper --targets` (the firmware's
+  // coordinates it should be sent instead, computed with robocal's full model), then through
+  // Klipper's equations above to the true robot: where the nozzle arrives against the target.
+  // The full model itself, as a controller would run it: the identified model's own error at the
+  // configurations above (`model`).
+  const fs::path target_file = dir / "held_out_targets.csv";
+  std::string csv = "x,y,z\n";
+  for (const auto& p : targets) csv += fmt::format("{:.9f},{:.9f},{:.9f}\n", p.x(), p.y(), p.z());
+  core::write_file_atomic(target_file, csv);
+  const test::CliRun ct =
+      run({"compensate", dir.string(), "--firmware", "klipper", "--targets", target_file.string(),
+           "--out", (dir / "held_out_commands.csv").string(), "--json", "-"});
+  ASSERT_EQ(ct.code, 0) << ct.err;
+  const auto rows = nlohmann::json::parse(ct.out).at("rows");
+  ASSERT_EQ(rows.size(), targets.size());
+  Stats compensated_targets;
+  int refused = 0;
+  for (std::size_t k = 0; k < targets.size(); ++k) {
+    if (!rows[k].contains("commanded")) {
+      ++refused;
+      continue;
+    }
+    const auto& c = rows[k].at("commanded");
+    const Eigen::Vector3d sent_p(c[0].get<double>(), c[1].get<double>(), c[2].get<double>());
+    Eigen::VectorXd readings(3);
+    for (int i = 0; i < 3; ++i) {
+      const KlipperTower& k_i = towers[static_cast<std::size_t>(i)];
+      readings[i] = sent_p.z() +
+                    std::sqrt(std::max(k_i.arm * k_i.arm - std::pow(sent_p.x() - k_i.x, 2) -
+                                           std::pow(sent_p.y() - k_i.y, 2),
+                                       0.0)) -
+                    k_i.offset;
+    }
+    const Eigen::Vector3d reached =
+        Rf * (base_T_camera * t.camera_T_world * true_tool(t, readings).translation()) + tf;
+    compensated_targets.add(reached - targets[k]);
+  }
+  compensated_targets.done();
+  fmt::print(
+      "printer three ways over {} held-out targets (RMS / max, um): Klipper's model with the "
+      "exported settings {:.1f} / {:.1f}; robocal's full model {:.1f} / {:.1f}; the exported "
+      "settings with compensated commands {:.1f} / {:.1f} ({} refused)\n",
+      sent.n, sent.rms * 1e6, sent.max * 1e6, model.rms * 1e6, model.max * 1e6,
+      compensated_targets.rms * 1e6, compensated_targets.max * 1e6, refused);
+  RecordProperty("full_model_rms_um", std::to_string(model.rms * 1e6));
+  RecordProperty("compensated_targets_rms_um", std::to_string(compensated_targets.rms * 1e6));
+  EXPECT_EQ(refused, 0);
+  // Compensation against the full model is exact to its IK tolerance (nanometres) and Klipper's
+  // equations here do not round steps: the compensated commands leave the full model's own
+  // error, whatever the settings' residual (hundreds of µm); 10 µm covers the two sets of
+  // configurations differing by that residual.
+  EXPECT_LT(compensated_targets.rms, model.rms + 10e-6);
+  EXPECT_LT(compensated_targets.rms, sent.rms);
 
   // What the settings leave, `robocal compensate --firmware klipper` carries: a program in the
   // firmware's frame, rewritten, run by Klipper on the true robot (carriage heights by the

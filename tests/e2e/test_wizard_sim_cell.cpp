@@ -296,15 +296,25 @@ TEST(WizardOnSimCell, Ur5WithSimCamerasFromRobotChoiceToExport) {
   stop(cell);
 }
 
-// The linear delta printer: its board hangs on the effector's side (its bed hides a board facing
-// down), seen by an array of cameras; the first served as a GigE Vision camera, the others as
-// sim: cameras where the namespace has no address for them.
-TEST(WizardOnSimCell, LinearDeltaFromRobotChoiceToKlipperExport) {
+// The linear delta printer as its owner runs it: Klipper, reached through Moonraker, in its own
+// delta kinematics. Its board hangs on the effector's side (its bed hides a board facing down),
+// seen by an array of cameras; the first served as a GigE Vision camera, the others as sim:
+// cameras where the namespace has no address for them. The export step proposes the settings for
+// the firmware the link talked to, and Enter takes them.
+TEST(WizardOnSimCell, LinearDeltaOnKlipperFromRobotChoiceToKlipperExport) {
   const fs::path root = fresh("robocal_e2e_wizard_linear_delta");
-  Cell cell = start_cell(root / "cell", "linear_delta", 1, {"--quick"});
+  Cell cell = start_cell(root / "cell", "linear_delta", 1, {"--quick", "--firmware", "klipper"});
   ASSERT_FALSE(cell.answers.empty());
-  if (calibrate(cell, root / "cal1", "linear_delta").code == 0)
+  EXPECT_EQ(cell.answers.at("controller.link").rfind("moonraker:", 0), 0U)
+      << cell.answers.at("controller.link");
+  const WizardRun run = calibrate(cell, root / "cal1", "linear_delta");
+  EXPECT_NE(run.output.find("driven in the firmware's own delta kinematics"), std::string::npos)
+      << run.output;
+  EXPECT_NE(run.output.find("[klipper] (export.format)"), std::string::npos) << run.output;
+  if (run.code == 0) {
+    EXPECT_EQ(kept_values(root / "cal1").at("export.format"), "klipper");
     exports_match_truth(root / "cal1", "linear_delta", "Klipper*");
+  }
   stop(cell);
 }
 

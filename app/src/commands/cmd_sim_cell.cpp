@@ -40,8 +40,15 @@ CommandSpec sim_cell_command() {
             cmd.add_flag(
                 "--in-process", [o](std::int64_t) { o->gige = false; },
                 "Do not serve GigE cameras: every camera is a sim:FILE camera");
-            cmd.add_option("--firmware", o->firmware, "Controller dialect: marlin or rrf")
-                ->check(CLI::IsMember({"marlin", "rrf"}))
+            cmd.add_option("--firmware", o->firmware,
+                           "The G-code controller's firmware: marlin, rrf, or klipper (a delta "
+                           "printer reached through Moonraker)")
+                ->check(CLI::IsMember({"marlin", "rrf", "klipper"}))
+                ->capture_default_str();
+            cmd.add_option("--gcode-mode", o->gcode_mode,
+                           "A delta printer: native (its firmware's own delta kinematics, as "
+                           "printers run) or raw (one G-code axis per motor)")
+                ->check(CLI::IsMember({"native", "raw"}))
                 ->capture_default_str();
             cmd.add_option(
                    "--protocol", o->protocol,

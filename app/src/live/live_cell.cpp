@@ -11,6 +11,7 @@
 #include "robocal/planner/plan.hpp"
 #include "robocal/planner/plan_output.hpp"
 #include "robocal/planner/task_sampling.hpp"
+#include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/safety_guard.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/target_io.hpp"
@@ -125,10 +126,35 @@ Eigen::VectorXd home_readings(const calib::Mechanism& library) {
 
 }  // namespace
 
+bool simulated_native_delta(const calib::Mechanism& model, const std::string& protocol,
+                            const std::string& firmware, const std::string& gcode_mode) {
+  const bool klipper = protocol == "gcode" && firmware == "klipper";
+  const bool native = protocol == "gcode" && (gcode_mode != "raw" || klipper) &&
+                      robotio::robot_file_delta(model).problem.empty();
+  if (klipper && !native)
+    throw InputError("--firmware klipper: robot '" + model.name +
+                     "' is not a linear delta, the only robot Klipper's delta kinematics drives");
+  return native;
+}
+
+Commandable drawing_commandability(const calib::Mechanism& model, const std::string& firmware) {
+  robotio::CarriageFrame frame;
+  const robotio::RobotFileDelta file = robotio::robot_file_delta(model);
+  const robotio::Firmware kind = firmware == "klipper" ? robotio::Firmware::kKlipper
+                                 : firmware == "rrf"   ? robotio::Firmware::kRepRapFirmware
+                                                       : robotio::Firmware::kMarlin;
+  frame.geometry = robotio::drawing_geometry(file, kind);
+  frame.endstop_reading = file.endstop_reading;
+  return [frame](const Eigen::VectorXd& q) {
+    return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));
+  };
+}
+
 std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
                                            const calib::Mechanism& library,
                                            const planner::Cell& pcell, int count, unsigned seed,
-                                           const robotio::MoveSpeed& speed) {
+                                           const robotio::MoveSpeed& speed,
+                                           const Commandable& commandable) {
   CellGuard cell_guard(library, pcell, speed);
   robotio::SafetyGuard& guard = cell_guard.guard;
   guard.set_dry_run(true);
@@ -142,7 +168,8 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
     if (static_cast<int>(out.size()) == count) break;
     const auto fk = calib::forward_kinematics(cell.model, cell.nominal, q, cell.target_frame);
     if (!fk.closure.ok()) continue;
-    if (cameras_seeing_board(cell, fk.pose) < cell.plan_cell.cameras_needed() ||
+    if ((commandable && !commandable(q)) ||
+        cameras_seeing_board(cell, fk.pose) < cell.plan_cell.cameras_needed() ||
         !guard.check_move(from, q, speed).allowed)
       continue;
     out.push_back(q);
@@ -154,7 +181,7 @@ std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
 LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
                          const LiveCellFiles& files, int count, unsigned seed, bool quick,
                          const fs::path& plan_file, const robotio::MoveSpeed& speed, std::FILE* out,
-                         const std::function<bool(const Eigen::VectorXd&)>& commandable) {
+                         const Commandable& commandable) {
   LivePlan plan;
   const calib::Mechanism library = calib::load_robot_file(robot_file);
   std::string why;
@@ -231,7 +258,7 @@ LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_fil
   plan.planner = false;
   try {
     plan.readings = sampled_poses(cell, library, planner::load_cell_file(files.cell.string()),
-                                  count, seed, speed);
+                                  count, seed, speed, commandable);
   } catch (const std::exception& e) {
     throw InputError(fmt::format("{}: no poses to collect: {}", library.name, e.what()));
   }

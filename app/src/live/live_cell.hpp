@@ -29,13 +29,28 @@ struct LiveCellFiles {
 LiveCellFiles write_live_cell(const SimulatedCell& cell, const std::string& robot_file,
                               const std::filesystem::path& dir);
 
+// Whether the controller can command actuator readings (an empty one: every reading).
+using Commandable = std::function<bool(const Eigen::VectorXd&)>;
+
+// Whether the simulated controller runs a delta printer in its firmware's own kinematics: a
+// G-code controller (`protocol` "gcode") of a linear delta, unless `gcode_mode` is "raw"; Klipper
+// always (it drives a delta only in its own kinematics: InputError for another robot).
+bool simulated_native_delta(const calib::Mechanism& model, const std::string& protocol,
+                            const std::string& firmware, const std::string& gcode_mode);
+
+// What a delta firmware ("marlin", "rrf" or "klipper") whose kinematics is the robot file's
+// drawing (sim-controller --kinematics delta) can command: not a carriage below the nozzle.
+Commandable drawing_commandability(const calib::Mechanism& model, const std::string& firmware);
+
 // Poses of the nominal robot where both cameras (two of an array's) see the whole board, chained
 // so that the safety guard (the same one collect builds: limits, workspace, the cell's collision
-// scene) lets every motion through, starting from the controller's home. At most `count`.
+// scene) lets every motion through, starting from the controller's home, and that `commandable`
+// accepts. At most `count`.
 std::vector<Eigen::VectorXd> sampled_poses(const SimulatedCell& cell,
                                            const calib::Mechanism& library,
                                            const planner::Cell& pcell, int count, unsigned seed,
-                                           const robotio::MoveSpeed& speed);
+                                           const robotio::MoveSpeed& speed,
+                                           const Commandable& commandable = {});
 
 // The planned poses: actuator readings in motion order, and how they were chosen.
 struct LivePlan {
@@ -54,7 +69,6 @@ struct LivePlan {
 LivePlan plan_live_poses(const SimulatedCell& cell, const std::string& robot_file,
                          const LiveCellFiles& files, int count, unsigned seed, bool quick,
                          const std::filesystem::path& plan_file, const robotio::MoveSpeed& speed,
-                         std::FILE* out,
-                         const std::function<bool(const Eigen::VectorXd&)>& commandable = {});
+                         std::FILE* out, const Commandable& commandable = {});
 
 }  // namespace robocal::app

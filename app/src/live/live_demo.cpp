@@ -7,7 +7,6 @@
 #include "live/simulated_setup.hpp"
 #include "live/truth_log.hpp"
 #include "robocal/core/files.hpp"
-#include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/sim_process.hpp"
 #include "robocal/robotio/sim_truth.hpp"
 #include "robocal/vision/camera_io.hpp"
@@ -28,7 +27,6 @@
 
 #include <array>
 #include <atomic>
-#include <functional>
 #include <future>
 #include <memory>
 #include <optional>
@@ -236,13 +234,8 @@ LiveController start_controller(const LiveDemoOptions& o, const LiveCell& lc,
   LiveController c;
   c.protocol = natural_protocol(lc.cell.model.name);
   // A delta printer runs its firmware's own kinematics when native mode is asked for.
-  // Klipper drives a delta only in its own kinematics (through Moonraker).
   const bool klipper = c.protocol == "gcode" && o.firmware == "klipper";
-  c.native = c.protocol == "gcode" && (o.gcode_mode != "raw" || klipper) &&
-             robotio::robot_file_delta(lc.cell.model).problem.empty();
-  if (klipper && !c.native)
-    throw InputError("--firmware klipper: robot '" + lc.cell.model.name +
-                     "' is not a linear delta, the only robot Klipper's delta kinematics drives");
+  c.native = simulated_native_delta(lc.cell.model, c.protocol, o.firmware, o.gcode_mode);
   std::vector<std::string> sim_args = {"--robot",
                                        robot_file,
                                        "--seed",
@@ -289,19 +282,8 @@ void plan_once(const LiveDemoOptions& o, const LiveCell& lc, const std::string& 
   const double speed = o.speed > 0 ? o.speed : default_speed(lc.cell.model);
   // The simulated firmware's kinematics is the robot file's drawing (sim-controller
   // --kinematics delta): the planner's candidates it cannot command are left out.
-  std::function<bool(const Eigen::VectorXd&)> commandable;
-  if (controller.native) {
-    robotio::CarriageFrame frame;
-    const robotio::RobotFileDelta file = robotio::robot_file_delta(lc.cell.model);
-    const robotio::Firmware firmware = o.firmware == "klipper" ? robotio::Firmware::kKlipper
-                                       : o.firmware == "rrf"   ? robotio::Firmware::kRepRapFirmware
-                                                               : robotio::Firmware::kMarlin;
-    frame.geometry = robotio::drawing_geometry(file, firmware);
-    frame.endstop_reading = file.endstop_reading;
-    commandable = [frame](const Eigen::VectorXd& q) {
-      return robotio::firmware_can_command(frame, robotio::delta_counts(frame, q));
-    };
-  }
+  const Commandable commandable =
+      controller.native ? drawing_commandability(lc.cell.model, o.firmware) : Commandable{};
   const LivePlan plan = plan_live_poses(lc.cell, robot_file, files, o.poses, o.seed, o.quick,
                                         plan_file, {speed, 10.0 * speed}, log.out, commandable);
   say(log, "plan: {}\n", plan.how);

@@ -82,12 +82,13 @@ bool process_running(pid_t pid) {
 // wizard (whose cameras step checks a frame): the controller homed, then the robot moved to the
 // first pose of the nominal robot where the cell's cameras see the whole board.
 void jog_into_view(const LiveCell& lc, const std::string& robot_file, const LiveCellFiles& files,
-                   const std::string& link_address, unsigned seed, std::FILE* out) {
+                   const std::string& link_address, unsigned seed, const Commandable& commandable,
+                   std::FILE* out) {
   const calib::Mechanism model = calib::load_robot_file(robot_file);
   const double speed = default_speed(model);
   const robotio::MoveSpeed move{speed, 10.0 * speed};
   const planner::Cell pcell = planner::load_cell_file(files.cell.string());
-  const auto poses = sampled_poses(lc.cell, model, pcell, 1, seed, move);
+  const auto poses = sampled_poses(lc.cell, model, pcell, 1, seed, move, commandable);
   if (poses.empty()) {
     fmt::print(out, "  (no pose found where the cameras see the board: the robot stays home)\n");
     return;
@@ -100,7 +101,8 @@ void jog_into_view(const LiveCell& lc, const std::string& robot_file, const Live
   robotio::GcodeLinkOptions lo;
   lo.address = link_address;
   lo.axes = robotio::axes_for_robot(model, 80.0, 100.0);  // sim-controller's defaults
-  // The address names the protocol (open:HOST:PORT or tcp:HOST:PORT).
+  lo.mode = robotio::GcodeMode::kAuto;  // a delta printer in its firmware's own kinematics
+  // The address names the protocol (open:HOST:PORT, tcp:HOST:PORT or moonraker:HOST:PORT).
   const std::unique_ptr<robotio::RobotLink> link = robotio::make_robot_link(guard, lo);
   link->connect();
   link->home();
@@ -180,21 +182,33 @@ int run_sim_cell(const SimCellOptions& o) {
     core::write_file_atomic(at.views() / "done", "ok\n");
   }
 
+  const bool native = simulated_native_delta(lc.cell.model, o.protocol, o.firmware, o.gcode_mode);
+  const bool klipper = native && o.firmware == "klipper";
   std::vector<std::string> args = {
       "--robot",         robot_file,
       "--seed",          std::to_string(o.seed),
       "--perturbation",  truth_txt.string(),
       "--firmware",      o.firmware,
+      "--kinematics",    native ? "delta" : "axes",
       "--protocol",      o.protocol,
       "--tcp-port",      std::to_string(o.tcp_port),
-      "--pty-link",      (at.simulator() / "tty").string(),
       "--log",           (at.simulator() / "sim-controller.jsonl").string(),
       "--busy-interval", "1"};
+  // A Klipper printer is reached through Moonraker on the network, never over a serial line.
+  if (klipper) {
+    args.emplace_back("--no-pty");
+  } else {
+    args.insert(args.end(), {"--pty-link", (at.simulator() / "tty").string()});
+  }
   robotio::SimControllerProcess sim(robocal_binary(), args);
-  // tcp:HOST:PORT as the simulator announces it; the open link's address says its protocol.
-  const std::string link_address =
-      o.protocol == "open" ? "open:" + sim.tcp().substr(sim.tcp().find(':') + 1) : sim.tcp();
-  jog_into_view(lc, robot_file, files, link_address, o.seed, out);
+  // tcp:HOST:PORT as the simulator announces it; the open link's and Moonraker's addresses say
+  // their protocol.
+  const std::string port_address = sim.tcp().substr(sim.tcp().find(':') + 1);
+  const std::string link_address = o.protocol == "open" ? "open:" + port_address
+                                   : klipper            ? "moonraker:" + port_address
+                                                        : sim.tcp();
+  jog_into_view(lc, robot_file, files, link_address, o.seed,
+                native ? drawing_commandability(lc.cell.model, o.firmware) : Commandable{}, out);
   robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
   SaggingBoard seen(truth, lc.cell.elastic_sag);
   LiveCameras cams(specs, lc.cell.ee_board, {&seen}, o.gige, fmt::format("S{}-", ::getpid()));
@@ -218,8 +232,11 @@ int run_sim_cell(const SimCellOptions& o) {
     fmt::print(out,
                "\ncontroller: the open link protocol at {} (read replies carry the flange pose)\n",
                link_address);
+  else if (klipper)
+    fmt::print(out, "\ncontroller: a Klipper delta printer, Moonraker at {}\n", port_address);
   else
-    fmt::print(out, "\ncontroller: {} firmware, G-code at {} (serial: {})\n", o.firmware, sim.tcp(),
+    fmt::print(out, "\ncontroller: {} firmware{}, G-code at {} (serial: {})\n", o.firmware,
+               native ? " in its own delta kinematics" : "", sim.tcp(),
                (at.simulator() / "tty").string());
   for (std::size_t c = 0; c < specs.size(); ++c)
     fmt::print(out, "camera {}: {}\n", specs[c].name,

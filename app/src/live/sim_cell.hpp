@@ -23,7 +23,10 @@ struct SimCellOptions {
   bool gige = true;  // serve the cameras through Aravis' fake camera where possible
   std::string out;   // the cell's folder (created; a folder of an earlier sim-cell of the
                      // same robot and seed is reused)
-  std::string firmware = "marlin";
+  std::string firmware = "marlin";  // or "rrf", or "klipper" (through Moonraker)
+  // A delta printer's G-code: "native" (its firmware's own delta kinematics, as printers are
+  // run) or "raw" (one G-code axis per motor); Klipper is always native.
+  std::string gcode_mode = "native";
   std::string protocol = "gcode";  // or "open": the open link protocol with flange poses
   int tcp_port = 0;                // the controller's TCP port (0: any free one)
   double max_seconds = 0;          // stop after this long (0: at Ctrl-C)

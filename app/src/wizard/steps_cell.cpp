@@ -8,6 +8,7 @@
 #include "robocal/planner/plan.hpp"
 #include "robocal/planner/plan_output.hpp"
 #include "robocal/planner/task_sampling.hpp"
+#include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "session/session_robot.hpp"
 #include "stages/measure_steps.hpp"
@@ -344,6 +345,16 @@ class PlanStep final : public Step {
       // The planner's own lines name its methods and constraints' internals: the operator sees
       // what it does, and the count of candidates each constraint removed below.
       po.progress = [](const std::string& /*line*/) {};
+      // A delta printer's firmware cannot command a carriage below the nozzle: such candidates
+      // are left out before the selection (the counts below say how many).
+      std::size_t not_commandable = 0;
+      if (const auto frame =
+              robotio::carriage_frame_from_text(ctx.state.get("controller.firmware_frame")))
+        po.admissible = [f = *frame, &not_commandable](const Eigen::VectorXd& q) {
+          const bool ok = robotio::firmware_can_command(f, robotio::delta_counts(f, q));
+          if (!ok) ++not_commandable;
+          return ok;
+        };
       fmt::print(ctx.out, "Choosing {} poses among {} candidates...\n", count, pool);
       std::fflush(ctx.out);
       // Where few candidates are feasible, up to four times as many are drawn again (each is
@@ -351,6 +362,11 @@ class PlanStep final : public Step {
       const planner::PlanResult plan = planner::plan_with_enough_candidates(
           model, model.nominal_parameters(), cell, po, po.selection.count, 4 * pool);
       fmt::print(ctx.out, "{}\n", plan.counts.summary(false));
+      if (not_commandable > 0)
+        fmt::print(ctx.out,
+                   "{} feasible candidates left out: the printer's firmware cannot command them "
+                   "(its delta kinematics has no carriage below the nozzle)\n",
+                   not_commandable);
       if (plan.poses.empty() || plan.status == planner::PlanStatus::kBadCell) {
         say_check(ctx, false, "no plan: " + plan.message,
                   "the line above says which constraint removed the candidates: move the cameras "

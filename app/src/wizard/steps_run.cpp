@@ -472,9 +472,13 @@ class ExportStep final : public Step {
     }
     std::string formats;
     for (const auto& f : fit) formats += (formats.empty() ? "" : ", ") + f;
+    // The settings for the firmware the link talked to, when it can take them.
+    const std::string own_firmware = ctx.state.get("controller.export_format");
+    const std::string proposed =
+        std::find(fit.begin(), fit.end(), own_firmware) != fit.end() ? own_firmware : fit.front();
     for (;;) {
       const std::string format =
-          ctx.ask.ask("export.format", "Format (" + formats + ", or none)", fit.front());
+          ctx.ask.ask("export.format", "Format (" + formats + ", or none)", proposed);
       if (format == "none") return true;
       const fs::path out = ctx.state.folder / "export" / ("calibrated." + format);
       fs::create_directories(out.parent_path());

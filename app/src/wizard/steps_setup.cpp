@@ -8,6 +8,7 @@
 #include "robocal/robotio/camera_checks.hpp"
 #include "robocal/robotio/camera_open.hpp"
 #include "robocal/robotio/controller_probe.hpp"
+#include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/gcode_link.hpp"
 #include "robocal/robotio/link_error.hpp"
 #include "robocal/robotio/link_factory.hpp"
@@ -176,6 +177,22 @@ void print_axes(const WizardContext& ctx, const Eigen::VectorXd& values, bool pr
                                    : "rad");
 }
 
+// The export format of a printer's firmware ("" for another controller): the export step
+// proposes the settings for the firmware the link talked to.
+std::string export_format_of(robotio::Firmware firmware) {
+  switch (firmware) {
+    case robotio::Firmware::kKlipper:
+      return "klipper";
+    case robotio::Firmware::kMarlin:
+      return "marlin";
+    case robotio::Firmware::kRepRapFirmware:
+      return "rrf";
+    case robotio::Firmware::kUnknown:
+      break;
+  }
+  return "";
+}
+
 // The network address behind a link address, for the probe: "tcp:H:P" and "open:H:P" -> "H:P",
 // "ur:H" -> "H", "ur:H:R:S:D" -> "H:D" (its dashboard server); "" for a serial device or manual.
 std::string probe_address_of(const std::string& link) {
@@ -289,6 +306,16 @@ class ControllerStep final : public Step {
         print_axes(ctx, readings.values, prismatic, revolute);
         ctx.state.set("controller.link", link);
         ctx.state.set("controller.firmware", fw.name);
+        ctx.state.set("controller.export_format", export_format_of(fw.firmware));
+        // A delta printer in its firmware's own kinematics: the plan keeps to what it can
+        // command (the plan step reads the frame back).
+        const std::optional<robotio::CarriageFrame> frame = robotio::firmware_delta_frame(robot);
+        ctx.state.set("controller.firmware_frame",
+                      frame ? robotio::carriage_frame_text(*frame) : std::string());
+        if (frame)
+          fmt::print(ctx.out,
+                     "The printer is driven in its firmware's own delta kinematics, as it "
+                     "prints.\n");
         say_check(ctx, true, "the controller answers and reports its axes");
         // The hand-eye route trusts the flange pose; without one it falls back to the robot
         // file's nominal model, which the operator should know before anything is recorded.

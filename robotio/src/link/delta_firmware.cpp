@@ -2,6 +2,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
@@ -442,6 +443,85 @@ std::vector<std::string> geometry_disagreements(const DeltaGeometry& firmware,
           fixed(file.angle_tolerance, 2)));
   }
   return out;
+}
+
+namespace {
+
+std::string frame_triple_text(const std::array<double, 3>& v) {
+  return fmt::format("{},{},{}", v[0], v[1], v[2]);
+}
+
+// "A,B,..." into exactly `values.size()` numbers; false when the text holds another count or a
+// word that is not a finite number.
+bool read_frame_numbers(const std::string& text, std::vector<double*> values) {
+  std::size_t at = 0;
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    const std::size_t end = k + 1 == values.size() ? text.size() : text.find(',', at);
+    if (end == std::string::npos) return false;
+    const std::string word = text.substr(at, end - at);
+    char* stop = nullptr;
+    const double v = std::strtod(word.c_str(), &stop);
+    if (word.empty() || *stop != '\0' || !std::isfinite(v)) return false;
+    *values[k] = v;
+    at = end + 1;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::string carriage_frame_text(const CarriageFrame& f) {
+  const DeltaGeometry& g = f.geometry;
+  return fmt::format(
+      "firmware={} rods={} radius={} height={} angle_trim={} endstops={} tilt={},{} "
+      "steps_per_mm={} endstop_reading={}",
+      to_string(g.firmware), frame_triple_text(g.diagonal_rod), g.radius, g.height,
+      frame_triple_text(g.angle_trim), frame_triple_text(g.endstop_adjustment), g.tilt_x, g.tilt_y,
+      f.steps_per_mm, frame_triple_text(f.endstop_reading));
+}
+
+std::optional<CarriageFrame> carriage_frame_from_text(const std::string& text) {
+  CarriageFrame f;
+  DeltaGeometry& g = f.geometry;
+  const auto triple = [](std::array<double, 3>& v) {
+    return std::vector<double*>{v.data(), v.data() + 1, v.data() + 2};
+  };
+  const std::vector<std::pair<std::string, std::vector<double*>>> fields = {
+      {"rods", triple(g.diagonal_rod)},
+      {"radius", {&g.radius}},
+      {"height", {&g.height}},
+      {"angle_trim", triple(g.angle_trim)},
+      {"endstops", triple(g.endstop_adjustment)},
+      {"tilt", {&g.tilt_x, &g.tilt_y}},
+      {"steps_per_mm", {&f.steps_per_mm}},
+      {"endstop_reading", triple(f.endstop_reading)}};
+  std::vector<bool> found(fields.size(), false);
+  bool firmware = false;
+  std::size_t at = 0;
+  while (at < text.size()) {
+    const std::size_t end = std::min(text.find(' ', at), text.size());
+    const std::string item = text.substr(at, end - at);
+    at = end + 1;
+    const std::size_t eq = item.find('=');
+    if (eq == std::string::npos) return std::nullopt;
+    const std::string name = item.substr(0, eq);
+    const std::string value = item.substr(eq + 1);
+    if (name == "firmware") {
+      for (const Firmware kind : {Firmware::kMarlin, Firmware::kRepRapFirmware, Firmware::kKlipper})
+        if (value == to_string(kind)) {
+          g.firmware = kind;
+          firmware = true;
+        }
+      continue;
+    }
+    const auto field = std::find_if(fields.begin(), fields.end(),
+                                    [&](const auto& entry) { return entry.first == name; });
+    if (field == fields.end() || !read_frame_numbers(value, field->second)) return std::nullopt;
+    found[static_cast<std::size_t>(field - fields.begin())] = true;
+  }
+  const bool every = std::all_of(found.begin(), found.end(), [](bool seen) { return seen; });
+  if (!firmware || !every || f.steps_per_mm <= 0.0) return std::nullopt;
+  return f;
 }
 
 }  // namespace robocal::robotio

@@ -29,4 +29,10 @@ std::unique_ptr<RobotLink> make_robot_link(SafetyGuard& guard, const GcodeLinkOp
   return std::make_unique<GcodeLink>(guard, options);
 }
 
+std::optional<CarriageFrame> firmware_delta_frame(const RobotLink& link) {
+  if (const auto* gcode = dynamic_cast<const GcodeLink*>(&link)) return gcode->native_frame();
+  if (const auto* klipper = dynamic_cast<const KlipperLink*>(&link)) return klipper->native_frame();
+  return std::nullopt;
+}
+
 }  // namespace robocal::robotio

@@ -185,5 +185,45 @@ TEST(DeltaFirmware, DeltaSettingsAreSetByNameAndAnUnknownNameIsRefused) {
   EXPECT_THROW(apply_delta_setting(g, "L"), std::invalid_argument);
 }
 
+TEST(DeltaFirmware, AFrameReadsBackFromItsTextExactlyAndBrokenTextIsRefused) {
+  CarriageFrame f;
+  f.geometry.firmware = Firmware::kKlipper;
+  f.geometry.diagonal_rod = {270.1, 269.9, 270.0 + 1.0 / 3.0};
+  f.geometry.radius = 140.0 / 7.0;
+  f.geometry.height = 219.25;
+  f.geometry.angle_trim = {0.1, -0.2, 0.0};
+  f.geometry.endstop_adjustment = {-0.4, -0.1, 0.0};
+  f.geometry.tilt_x = 1e-4;
+  f.geometry.tilt_y = -2e-4;
+  f.steps_per_mm = 80.0;
+  f.endstop_reading = {0.45, 0.45, 0.45 + 1e-9};
+  const std::string text = carriage_frame_text(f);
+  const auto back = carriage_frame_from_text(text);
+  ASSERT_TRUE(back) << text;
+  EXPECT_EQ(back->geometry.firmware, Firmware::kKlipper);
+  EXPECT_EQ(back->geometry.diagonal_rod, f.geometry.diagonal_rod);  // exact, not near
+  EXPECT_EQ(back->geometry.radius, f.geometry.radius);
+  EXPECT_EQ(back->geometry.height, f.geometry.height);
+  EXPECT_EQ(back->geometry.angle_trim, f.geometry.angle_trim);
+  EXPECT_EQ(back->geometry.endstop_adjustment, f.geometry.endstop_adjustment);
+  EXPECT_EQ(back->geometry.tilt_x, f.geometry.tilt_x);
+  EXPECT_EQ(back->geometry.tilt_y, f.geometry.tilt_y);
+  EXPECT_EQ(back->steps_per_mm, f.steps_per_mm);
+  EXPECT_EQ(back->endstop_reading, f.endstop_reading);
+  // A figure missing, one of three numbers missing, a word that is not a number, an unknown
+  // firmware, an empty text: none is a frame.
+  const auto without = [&](const std::string& part, const std::string& with) {
+    std::string t = text;
+    t.replace(t.find(part), part.size(), with);
+    return t;
+  };
+  EXPECT_FALSE(carriage_frame_from_text(without(" height=219.25", "")));
+  EXPECT_FALSE(carriage_frame_from_text(without("angle_trim=0.1,-0.2,0", "angle_trim=0.1,-0.2")));
+  EXPECT_FALSE(carriage_frame_from_text(without("radius=20", "radius=twenty")));
+  EXPECT_FALSE(carriage_frame_from_text(without("firmware=Klipper", "firmware=Smoothie")));
+  EXPECT_FALSE(carriage_frame_from_text(without(" height=219.25", " radius=20")));
+  EXPECT_FALSE(carriage_frame_from_text(""));
+}
+
 }  // namespace
 }  // namespace robocal::robotio

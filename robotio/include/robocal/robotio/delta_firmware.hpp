@@ -112,6 +112,13 @@ std::optional<Eigen::Vector3d> cartesian_for_counts(const CarriageFrame& f,
 std::optional<std::vector<long>> counts_for_cartesian(const CarriageFrame& f,
                                                       const Eigen::Vector3d& xyz);
 
+// A frame as one line of text and back, every figure exact, for a caller that keeps it between
+// runs (the wizard, between connecting and planning): "firmware=Klipper rods=A,B,C radius=R
+// height=H angle_trim=A,B,C endstops=X,Y,Z tilt=A,B steps_per_mm=S endstop_reading=A,B,C" (mm,
+// degrees; the readings in m). nullopt for text that does not hold every figure.
+std::string carriage_frame_text(const CarriageFrame& f);
+std::optional<CarriageFrame> carriage_frame_from_text(const std::string& text);
+
 // Whether the firmware's kinematics can hold the carriages on `counts`: its inverse kinematics
 // puts every carriage above the nozzle (z + sqrt(...)), so a configuration with a rod rising
 // from its carriage to the effector has no Cartesian command; the round trip then fails.
