@@ -284,18 +284,22 @@ ActuatorReadings KlipperLink::do_read() {
   ActuatorReadings r;
   if (!mcu_at_endstop_) return r;  // not homed: the position is unknown
   std::optional<KlipperPosition> p;
+  std::string last;
   for (int attempt = 0; attempt < options_.attempts && !p; ++attempt) {
     try {
       p = get_position();
-    } catch (const LinkError&) {
-      if (client_ && client_->is_open()) throw;
-      reconnect();
+    } catch (const LinkError& e) {
+      // Reading moves nothing, so an error answer is asked again; Klippy shut down is final.
+      if (!klippy_said_.empty()) throw;
+      last = e.what();
+      if (!client_ || !client_->is_open()) reconnect();
     }
   }
   if (!p)
-    throw LinkError(status_.device,
-                    fmt::format("no readable GET_POSITION (mcu: stepper counts) after {} attempts",
-                                options_.attempts));
+    throw LinkError(
+        status_.device,
+        fmt::format("no readable GET_POSITION (mcu: stepper counts) after {} attempts{}",
+                    options_.attempts, last.empty() ? "" : " (the last: " + last + ")"));
   r.counts = klipper_frame_counts(*frame_, *p, *mcu_at_endstop_);
   r.values = delta_readings(*frame_, r.counts);
   return r;
