@@ -25,6 +25,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -454,13 +455,17 @@ class ExportStep final : public Step {
       say_check(ctx, false, std::string("no report page: ") + e.what(),
                 "`robocal report " + session.string() + "` says what is missing");
     }
-    if (!export_to_format(ctx, session)) return StepOutcome::stopped("no export was written");
-    return rewrite_programs(ctx, session) ? StepOutcome::done()
-                                          : StepOutcome::stopped("a G-code program was refused");
+    const std::optional<std::string> format = export_to_format(ctx, session);
+    if (!format) return StepOutcome::stopped("no export was written");
+    return rewrite_programs(ctx, session, *format)
+               ? StepOutcome::done()
+               : StepOutcome::stopped("a G-code program was refused");
   }
 
  private:
-  static bool export_to_format(WizardContext& ctx, const fs::path& session) {
+  // The format written ("none" when the operator wants none or no format fits); nullopt when the
+  // operator stopped.
+  static std::optional<std::string> export_to_format(WizardContext& ctx, const fs::path& session) {
     const std::vector<std::string> fit = formats_for(session);
     const fs::path own = ResultsLayout{session}.calibrated_robot();
     if (fit.empty()) {
@@ -468,7 +473,7 @@ class ExportStep final : public Step {
                 "no controller format (Klipper, Marlin, RepRapFirmware, URDF, DH) describes this "
                 "robot; the calibrated robot file is " +
                     own.string() + ", which `robocal compensate` and `robocal kin` read");
-      return true;
+      return std::string("none");
     }
     std::string formats;
     for (const auto& f : fit) formats += (formats.empty() ? "" : ", ") + f;
@@ -479,25 +484,51 @@ class ExportStep final : public Step {
     for (;;) {
       const std::string format =
           ctx.ask.ask("export.format", "Format (" + formats + ", or none)", proposed);
-      if (format == "none") return true;
+      if (format == "none") return format;
       const fs::path out = ctx.state.folder / "export" / ("calibrated." + format);
       fs::create_directories(out.parent_path());
       try {
-        export_robot({session.string(), format, out.string()});
+        const nlohmann::json written = export_robot({session.string(), format, out.string()});
         say_check(ctx, true, "written to " + out.string());
-        return true;
+        if (written.contains("residual_rms_m"))
+          say_firmware_residual(ctx, written, session, format);
+        return format;
       } catch (const InputError& e) {
         say_check(ctx, false, e.what(), "choose one of: " + formats);
         if (ctx.ask.choose("export.problem", "Another format, or stop here", {"retry", "quit"},
                            "retry") == "quit")
-          return false;
+          return std::nullopt;
       }
     }
   }
 
-  // G-code written for the nominal robot, rewritten so that a controller that knows only the
-  // nominal model puts the tool where the program meant (robocal compensate --gcode).
-  static bool rewrite_programs(WizardContext& ctx, const fs::path& session) {
+  // What the firmware's smaller delta model keeps of the calibration, beside the full model, and
+  // the route that carries the rest.
+  static void say_firmware_residual(const WizardContext& ctx, const nlohmann::json& written,
+                                    const fs::path& session, const std::string& format) {
+    fmt::print(ctx.out,
+               "With these settings the firmware's own delta model is {:.0f} µm RMS ({:.0f} µm at "
+               "worst) from the calibrated robot over the workspace (set to the robot file's "
+               "drawing: {:.0f} µm RMS).\n",
+               written.value("residual_rms_m", 0.0) * 1e6,
+               written.value("residual_max_m", 0.0) * 1e6,
+               written.value("nominal_rms_m", 0.0) * 1e6);
+    if (written.contains("model_fit_rms_m"))
+      fmt::print(ctx.out,
+                 "robocal's full calibrated model follows the measurements to {:.1f} µm RMS.\n",
+                 written.value("model_fit_rms_m", 0.0) * 1e6);
+    fmt::print(ctx.out,
+               "For the rest, G-code programs rewritten for the printer running these settings "
+               "(next question, or `robocal compensate {} --firmware {} --gcode PROGRAM --out "
+               "OUT`) follow the full model.\n",
+               session.string(), format);
+  }
+
+  // G-code programs rewritten so that the controller puts the tool where the program meant
+  // (robocal compensate --gcode): against the firmware settings just exported when they are a
+  // printer's (the printer then runs them), else against the robot file's drawing.
+  static bool rewrite_programs(WizardContext& ctx, const fs::path& session,
+                               const std::string& exported) {
     for (;;) {
       const std::string program = ctx.ask.ask(
           "export.gcode", "A G-code program to rewrite for this robot (empty: none)", "");
@@ -505,6 +536,7 @@ class ExportStep final : public Step {
       CompensateOptions o;
       o.session = session;
       o.gcode = program;
+      if (exported == "klipper" || exported == "marlin" || exported == "rrf") o.firmware = exported;
       o.out =
           ctx.state.folder / "export" / (fs::path(program).stem().string() + ".compensated.gcode");
       fs::create_directories(o.out.parent_path());
