@@ -69,7 +69,11 @@ Isometry3d random_pose(std::mt19937_64& rng, const Vector3d& board_centre, doubl
       (Eigen::AngleAxisd(tilt, Vector3d(std::cos(axis_angle), std::sin(axis_angle), 0)) *
        Eigen::AngleAxisd(spin, Vector3d::UnitZ()))
           .toRotationMatrix();
-  const Vector3d centre(lateral * u(rng), lateral * u(rng), distance + depth_range * u(rng));
+  // One draw a statement, z first (robocal/core/random_draws.hpp says why).
+  const double z = distance + depth_range * u(rng);
+  const double y = lateral * u(rng);
+  const double x = lateral * u(rng);
+  const Vector3d centre(x, y, z);
   pose.translation() = centre - pose.linear() * board_centre;
   return pose;
 }

@@ -25,6 +25,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "board_views.hpp"
+#include "robocal/core/random_draws.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/intrinsic_calibration.hpp"
 #include "robocal/vision/target_detection.hpp"
@@ -320,10 +321,15 @@ json intrinsics_trials(int trials, const std::string& corner_source) {
     std::vector<std::vector<cv::Point2f>> img;
     for (int k = 0; k < 30; ++k) {
       const double tilt = 10.0 + 40.0 * std::abs(u(rng));
-      const rt::BoardView v = rt::render_board_view(
-          board, cam, 0.45 + 0.15 * std::abs(u(rng)), tilt, 180.0 * u(rng), 20.0 * u(rng),
-          cam.cx + 0.3 * cam.width * u(rng), cam.cy + 0.3 * cam.height * u(rng), 0.8, 2.0,
-          static_cast<unsigned>(trial * 100 + k));
+      // One draw a statement, last argument first (robocal/core/random_draws.hpp says why).
+      const double aim_v = cam.cy + 0.3 * cam.height * u(rng);
+      const double aim_u = cam.cx + 0.3 * cam.width * u(rng);
+      const double roll_deg = 20.0 * u(rng);
+      const double axis_deg = 180.0 * u(rng);
+      const double dist = 0.45 + 0.15 * std::abs(u(rng));
+      const rt::BoardView v =
+          rt::render_board_view(board, cam, dist, tilt, axis_deg, roll_deg, aim_u, aim_v, 0.8, 2.0,
+                                static_cast<unsigned>(trial * 100 + k));
       const auto det = rv::detect_apriltag_board(v.image, board, detector);
       if (det.status == rv::DetectionStatus::kRejected || det.pixels.size() < 16) continue;
       views.push_back(rv::to_calibration_view(det, fmt::format("v{}", k)));
@@ -335,8 +341,7 @@ json intrinsics_trials(int trials, const std::string& corner_source) {
           px[c] = truth_px;
           out[c] = outward(board, v.h, det.corner_ids[i + c], det.board_points[i + c]);
           if (corner_source == "truth_iid")
-            views.back().pixels[i + c] =
-                truth_px + Eigen::Vector2d(noise(noise_rng), noise(noise_rng));
+            views.back().pixels[i + c] = truth_px + robocal::core::draw_vector2(noise, noise_rng);
         }
         const Eigen::MatrixXd* cov = nullptr;
         for (const auto& g : det.corner_groups)

@@ -2,6 +2,8 @@
 // k-fold cross-validation, and simulated measurements of a perturbed robot.
 #include "identification_detail.hpp"
 
+#include "robocal/core/random_draws.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -128,15 +130,14 @@ Measurements simulate_measurements(const FramePredictor& model, const Eigen::Vec
     if (options.actuator_sigma.size() == actuators[k].size())
       for (Eigen::Index i = 0; i < m.actuators.size(); ++i)
         m.actuators(i) += noise * options.actuator_sigma(i) * n01(rng);
-    const Eigen::Vector3d dp(n01(rng), n01(rng), n01(rng));
+    const Eigen::Vector3d dp = core::draw_vector3(n01, rng);
     const Eigen::Vector3d p = pred.pose.translation() + noise * options.position_sigma * dp;
     switch (options.kind) {
       case SimulatedObservation::kPoint:
         m.observations.emplace_back(PointObservation::with_sigma(p, options.position_sigma));
         break;
       case SimulatedObservation::kPose: {
-        const Eigen::Vector3d dphi =
-            noise * options.rotation_sigma * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
+        const Eigen::Vector3d dphi = noise * options.rotation_sigma * core::draw_vector3(n01, rng);
         Eigen::Isometry3d T = pred.pose;
         T.translation() = p;
         if (dphi.norm() > 0)

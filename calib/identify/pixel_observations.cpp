@@ -1,5 +1,6 @@
 #include "robocal/calib/pixel_observations.hpp"
 
+#include "robocal/core/random_draws.hpp"
 #include "robocal/vision/camera_parameter_names.hpp"
 
 #include <ceres/jet.h>
@@ -360,7 +361,7 @@ Measurements simulate_pixel_measurements(const CameraRigPredictor& rig,
         const auto px = vision::project(models[cu], camera_T_world[cu] * xw);
         if (!px || !vision::in_image(models[cu], *px, options.image_margin)) continue;
         const Eigen::Vector2d noisy =
-            *px + noise * options.pixel_sigma * Eigen::Vector2d(n01(rng), n01(rng));
+            *px + noise * options.pixel_sigma * core::draw_vector2(n01, rng);
         seen.push_back(PixelObservation::with_sigma(c, static_cast<int>(j), target_points[j], noisy,
                                                     options.pixel_sigma));
       }

@@ -12,6 +12,7 @@
 #include "robocal/calib/measurements_file.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/robot_file.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -62,8 +63,8 @@ void write_measured_session(const fs::path& dir, std::size_t poses, unsigned see
     calib::FramePrediction fp;
     std::string why;
     if (!predictor.predict(truth, q, -1, false, fp, why)) continue;
-    const Eigen::Vector3d turn(unit(rng), unit(rng), unit(rng));
-    const Eigen::Vector3d shift(unit(rng), unit(rng), unit(rng));
+    const Eigen::Vector3d turn = robocal::core::draw_vector3(unit, rng);
+    const Eigen::Vector3d shift = robocal::core::draw_vector3(unit, rng);
     app::MeasuredPoseRecord r;
     r.pose = "pose_" + std::to_string(records.size());
     r.actuators = q;

@@ -83,7 +83,11 @@ inline std::vector<Eigen::VectorXd> delta_targets(const calib::Mechanism& model,
   const Eigen::VectorXd params = model.nominal_parameters();
   while (static_cast<int>(out.size()) < count) {
     calib::TaskTarget t;
-    t.pose.translation() = Eigen::Vector3d(xy(rng), xy(rng), z(rng));
+    // One draw a statement, z first (robocal/core/random_draws.hpp says why).
+    const double height = z(rng);
+    const double y = xy(rng);
+    const double x = xy(rng);
+    t.pose.translation() = Eigen::Vector3d(x, y, height);
     const calib::IkResult ik = calib::solve_ik(model, params, t);
     if (ik.ok()) out.push_back(ik.actuator_readings);
   }

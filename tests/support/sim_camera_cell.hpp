@@ -42,8 +42,11 @@ inline std::vector<Eigen::VectorXd> sim_cell_targets(const calib::Mechanism& mod
   std::vector<Eigen::VectorXd> out;
   for (int i = 0; i < count; ++i) {
     calib::TaskTarget t;
-    t.pose.translation() =
-        kSimCellCentre + Eigen::Vector3d(offset(rng), offset(rng), 0.8 * offset(rng));
+    // One draw a statement, z first (robocal/core/random_draws.hpp says why).
+    const double z = 0.8 * offset(rng);
+    const double y = offset(rng);
+    const double x = offset(rng);
+    t.pose.translation() = kSimCellCentre + Eigen::Vector3d(x, y, z);
     const calib::IkResult ik = calib::solve_ik(model, model.nominal_parameters(), t);
     if (!ik.ok()) {
       throw std::runtime_error("sim cell: target " + std::to_string(i) + " has no IK solution");

@@ -637,8 +637,10 @@ std::vector<Eigen::Isometry3d> intrinsic_view_poses(const SimulatedCell& cell, i
       const double distance = 0.6 + 0.5 * u(rng);
       const Eigen::Vector3d centre = *ray / ray->z() * distance;
       Eigen::Isometry3d camera_T_board = Eigen::Isometry3d::Identity();
-      camera_T_board.linear() =
-          random_tilt((10.0 + 40.0 * u(rng)) * kPi / 180.0, (u(rng) - 0.5) * 0.6, rng);
+      // One draw a statement, yaw first (robocal/core/random_draws.hpp says why).
+      const double yaw = (u(rng) - 0.5) * 0.6;
+      const double tilt = (10.0 + 40.0 * u(rng)) * kPi / 180.0;
+      camera_T_board.linear() = random_tilt(tilt, yaw, rng);
       camera_T_board.translation() =
           centre - camera_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0);
       if (visible_fraction(cam, cell.calibration_board, camera_T_board, cell.options.render) >=
@@ -724,12 +726,15 @@ std::vector<Eigen::Isometry3d> rig_view_poses(const SimulatedCell& cell, int cou
         anchor.station_a != anchor.station_b && anchor.station_a >= 0 ? 0.3 : 0.15;
     for (int attempt = 0; attempt < 200; ++attempt) {
       Eigen::Isometry3d world_T_board = Eigen::Isometry3d::Identity();
-      // Printed face (board -z) towards the cameras, then tilted.
-      world_T_board.linear() =
-          anchor_facing * random_tilt(std::abs(u(rng)) * 35.0 * kPi / 180.0, u(rng) * kPi, rng);
-      const Eigen::Vector3d centre =
-          anchor.at +
-          anchor_facing * Eigen::Vector3d(u(rng) * spread, u(rng) * spread, u(rng) * 0.1);
+      // Printed face (board -z) towards the cameras, then tilted. One draw a statement, in the
+      // order yaw, tilt, z, y, x (robocal/core/random_draws.hpp says why).
+      const double yaw = u(rng) * kPi;
+      const double tilt = std::abs(u(rng)) * 35.0 * kPi / 180.0;
+      world_T_board.linear() = anchor_facing * random_tilt(tilt, yaw, rng);
+      const double dz = u(rng) * 0.1;
+      const double dy = u(rng) * spread;
+      const double dx = u(rng) * spread;
+      const Eigen::Vector3d centre = anchor.at + anchor_facing * Eigen::Vector3d(dx, dy, dz);
       world_T_board.translation() =
           centre - world_T_board.linear() * Eigen::Vector3d(c.x(), c.y(), 0);
       if (accepted(anchor, world_T_board)) {

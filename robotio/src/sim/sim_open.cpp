@@ -4,6 +4,8 @@
 // has (drop, busy, error, stall, lost_ok, slow, garbage).
 #include "sim_internal.hpp"
 
+#include "robocal/core/random_draws.hpp"
+
 #include <fmt/core.h>
 
 #include <unistd.h>
@@ -66,8 +68,8 @@ json SimController::Impl::open_flange_pose() {
       true_flange_pose(robot, true_readings(now_seconds()));
   if (!pose) return nullptr;
   std::normal_distribution<double> unit(0.0, 1.0);
-  const Eigen::Vector3d dp(unit(flange_rng), unit(flange_rng), unit(flange_rng));
-  const Eigen::Vector3d dphi(unit(flange_rng), unit(flange_rng), unit(flange_rng));
+  const Eigen::Vector3d dp = core::draw_vector3(unit, flange_rng);
+  const Eigen::Vector3d dphi = core::draw_vector3(unit, flange_rng);
   const Eigen::Vector3d p = pose->translation() + options.flange_noise_m * dp;
   // The rotation noise is a world-frame rotation vector, as the pose covariances are taken.
   const Eigen::Quaterniond q(Eigen::AngleAxisd(options.flange_noise_rad * dphi.norm(),

@@ -2,6 +2,7 @@
 // covariance scaled by it by default; a stated noise 5x off either way is found (within 10 %),
 // said in words, and the scaled covariance is consistent with the Monte-Carlo spread (NEES).
 #include "printer_scenario.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include <gtest/gtest.h>
 
@@ -29,7 +30,7 @@ struct Noise : ::testing::Test {
       p.id = fmt::format("p{}", k);
       p.actuators = qs[k];
       p.observations.emplace_back(PointObservation::with_sigma(
-          fp.pose.translation() + 20e-6 * Eigen::Vector3d(n01(rng), n01(rng), n01(rng)), stated));
+          fp.pose.translation() + 20e-6 * robocal::core::draw_vector3(n01, rng), stated));
       m.poses.push_back(std::move(p));
     }
     return m;

@@ -6,6 +6,7 @@
 #include "robocal/calib/identification_json.hpp"
 #include "robocal/calib/identification_summary.hpp"
 #include "robocal/calib/measurement_advice.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include <gtest/gtest.h>
 
@@ -469,8 +470,7 @@ TEST_F(Printer, MixedSigmaOverSixOrdersGivesNoFalseOutlier) {
     std::string why;
     ASSERT_TRUE(pred.predict(truth, qs[k], -1, false, fp, why));
     const double sigma = std::pow(10.0, expo(rng));
-    const Eigen::Vector3d p =
-        fp.pose.translation() + sigma * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
+    const Eigen::Vector3d p = fp.pose.translation() + sigma * robocal::core::draw_vector3(n01, rng);
     PoseMeasurement m;
     m.id = fmt::format("m{}", k);
     m.actuators = qs[k];
@@ -504,8 +504,7 @@ TEST_F(Printer, MixedSigmaStillFindsAGrossError) {
     std::string why;
     ASSERT_TRUE(pred.predict(truth, qs[k], -1, false, fp, why));
     const double sigma = k == 7 ? 20e-6 : std::pow(10.0, expo(rng));
-    Eigen::Vector3d p =
-        fp.pose.translation() + sigma * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
+    Eigen::Vector3d p = fp.pose.translation() + sigma * robocal::core::draw_vector3(n01, rng);
     if (k == 7) p.x() += 2e-3;  // 100 σ
     PoseMeasurement m;
     m.id = fmt::format("m{}", k);

@@ -58,12 +58,19 @@ struct Scene {
     const Eigen::Vector3d c(0.5 * (board.extent_min + board.extent_max).x(),
                             0.5 * (board.extent_min + board.extent_max).y(), 0);
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = (Eigen::AngleAxisd(tilt_deg * M_PI / 180 * u(rng),
-                                       Eigen::Vector3d(u(rng), u(rng), 0).normalized()) *
-                     Eigen::AngleAxisd(0.3 * u(rng), Eigen::Vector3d::UnitZ()))
+    // One draw a statement, in the order turn, axis y, axis x, tilt, then z, y, x
+    // (robocal/core/random_draws.hpp says why).
+    const double turn = 0.3 * u(rng);
+    const double axis_y = u(rng);
+    const double axis_x = u(rng);
+    const double tilt = tilt_deg * M_PI / 180 * u(rng);
+    pose.linear() = (Eigen::AngleAxisd(tilt, Eigen::Vector3d(axis_x, axis_y, 0).normalized()) *
+                     Eigen::AngleAxisd(turn, Eigen::Vector3d::UnitZ()))
                         .toRotationMatrix();
-    pose.translation() =
-        Eigen::Vector3d(0.03 * u(rng), 0.03 * u(rng), 0.4 + 0.05 * u(rng)) - pose.linear() * c;
+    const double z = 0.4 + 0.05 * u(rng);
+    const double y = 0.03 * u(rng);
+    const double x = 0.03 * u(rng);
+    pose.translation() = Eigen::Vector3d(x, y, z) - pose.linear() * c;
     return pose;
   }
   void write(const fs::path& dir, const std::string& name, int cam,

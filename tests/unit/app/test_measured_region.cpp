@@ -3,6 +3,8 @@
 // and the inside/outside split of held-out errors that validate reports.
 #include "stages/measured_region.hpp"
 
+#include "robocal/core/random_draws.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -111,9 +113,18 @@ TEST(MeasuredRegion, RandomDesignsSatisfyTheOptimalityCondition) {
   for (int design = 0; design < 5; ++design) {
     // 60 poses in an anisotropic box, like a cell's measured volume (metres).
     std::vector<V> measured;
-    for (int i = 0; i < 60; ++i) measured.emplace_back(0.3 * u(rng), 0.2 * u(rng), 0.1 * u(rng));
+    // One draw a statement, z first (robocal/core/random_draws.hpp says why).
+    for (int i = 0; i < 60; ++i) {
+      const double z = 0.1 * u(rng);
+      const double y = 0.2 * u(rng);
+      const double x = 0.3 * u(rng);
+      measured.emplace_back(x, y, z);
+    }
     for (int q = 0; q < 60; ++q) {
-      const V p(0.5 * u(rng), 0.4 * u(rng), 0.25 * u(rng));
+      const double z = 0.25 * u(rng);
+      const double y = 0.4 * u(rng);
+      const double x = 0.5 * u(rng);
+      const V p(x, y, z);
       const auto r = distance_to_region(measured, p);
       expect_nearest_hull_point(measured, p, r);
       (r.inside ? inside : outside)++;
@@ -133,11 +144,11 @@ TEST(MeasuredRegion, SplitErrorsCombineToTheOverallFigures) {
   std::uniform_real_distribution<double> u(-0.2, 0.4);
   std::normal_distribution<double> noise(0.0, 30e-6);
   std::vector<V> truth = {measured[3], V(2.0, 0.1, 0.1)};  // at a measured pose; 1.8 m away
-  for (int k = 0; k < 98; ++k) truth.emplace_back(u(rng), u(rng), u(rng));
+  for (int k = 0; k < 98; ++k) truth.push_back(robocal::core::draw_vector3(u, rng));
   std::vector<V> calibrated, nominal;
   for (const auto& t : truth) {
-    calibrated.push_back(t + V(noise(rng), noise(rng), noise(rng)));
-    nominal.push_back(t + V(1e-3, 0, 0) + 50 * V(noise(rng), noise(rng), noise(rng)));
+    calibrated.push_back(t + robocal::core::draw_vector3(noise, rng));
+    nominal.push_back(t + V(1e-3, 0, 0) + 50 * robocal::core::draw_vector3(noise, rng));
   }
   calibrated[1] += V(0, 0, 5e-3);  // the far configuration is the worst
   std::vector<bool> inside;

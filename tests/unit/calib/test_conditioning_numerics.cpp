@@ -40,9 +40,10 @@ Case make_case(double ratio, std::mt19937& rng) {
   s[n - 1] = ratio;
   for (Eigen::Index i = 1; i < n - 1; ++i) s[i] = std::pow(ratio, u(rng));
   if (u(rng) < 0.3) s[n - 2] = ratio * (1.0 + 0.05 * u(rng));
-  return {
-      random_orthogonal(n, rng) * (scale * s).asDiagonal() * random_orthogonal(n, rng).transpose(),
-      ratio};
+  // One draw a statement, the right factor first (robocal/core/random_draws.hpp says why).
+  const Eigen::MatrixXd right = random_orthogonal(n, rng);
+  const Eigen::MatrixXd left = random_orthogonal(n, rng);
+  return {left * (scale * s).asDiagonal() * right.transpose(), ratio};
 }
 
 double log_uniform(double lo, double hi, std::mt19937& rng) {

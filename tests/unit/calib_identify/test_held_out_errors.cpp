@@ -2,6 +2,7 @@
 // by a known small transform (a camera's principal point off), with noise on every measured
 // position, is found again from the measured positions and their truth alone.
 #include "robocal/calib/held_out_errors.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include <gtest/gtest.h>
 
@@ -23,8 +24,12 @@ TEST(RealisedFrame, FindsTheTurnAndShiftOfTheMeasuredWorld) {
   world.translation() = Eigen::Vector3d(4e-6, 2e-6, -15e-6);
   std::vector<Eigen::Vector3d> truth, measured;
   for (int k = 0; k < 60; ++k) {
-    truth.emplace_back(spread(rng), spread(rng), 1.0 + 0.5 * spread(rng));
-    measured.push_back(world * truth.back() + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    // One draw a statement, z first (robocal/core/random_draws.hpp says why).
+    const double z = 1.0 + 0.5 * spread(rng);
+    const double y = spread(rng);
+    const double x = spread(rng);
+    truth.emplace_back(x, y, z);
+    measured.push_back(world * truth.back() + robocal::core::draw_vector3(noise, rng));
   }
   const auto found = realised_frame(measured, truth);
   ASSERT_TRUE(found.has_value());

@@ -1,4 +1,5 @@
 #include "robocal/calib/observations.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
@@ -122,7 +123,7 @@ TEST(Observations, PoseRecoveredThroughCeres) {
   ceres::Problem problem;
   const Eigen::Vector3d offsets[] = {{0.1, 0, 0}, {0, 0.1, 0}, {0, 0, 0.1}, {0.05, 0.05, 0}};
   for (const auto& o : offsets) {
-    const Eigen::Vector3d m = truth * o + Eigen::Vector3d(n(rng), n(rng), n(rng));
+    const Eigen::Vector3d m = truth * o + robocal::core::draw_vector3(n, rng);
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<MarkerCost, 3, 6>(
                                  new MarkerCost{o, PointObservation::with_sigma(m, 1e-6)}),
                              nullptr, pose);

@@ -4,6 +4,7 @@
 #include "robocal/calib/closed_form.hpp"
 #include "robocal/calib/mechanism_predictor.hpp"
 #include "robocal/calib/residual_diagnostics.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include <gtest/gtest.h>
 
@@ -52,8 +53,12 @@ Cloud noise_cloud(unsigned seed, std::size_t n) {
   std::normal_distribution<double> noise(0.0, 5e-6);
   Cloud c;
   for (std::size_t k = 0; k < n; ++k) {
-    c.positions.emplace_back(where(rng), where(rng), 0.8 + where(rng));
-    c.residuals.emplace_back(noise(rng), noise(rng), noise(rng));
+    // One draw a statement, z first (robocal/core/random_draws.hpp says why).
+    const double z = 0.8 + where(rng);
+    const double y = where(rng);
+    const double x = where(rng);
+    c.positions.emplace_back(x, y, z);
+    c.residuals.push_back(robocal::core::draw_vector3(noise, rng));
   }
   return c;
 }
@@ -146,11 +151,11 @@ TEST(ReportResidualTrends, AnErrorThatFollowsAnActuatorsLoadIsFlagged) {
   std::vector<Eigen::VectorXd> loads;
   std::vector<Eigen::Vector3d> clean, compliant;
   while (loads.size() < 120) {
-    const Eigen::Vector3d q(angle(rng), angle(rng), angle(rng));
+    const Eigen::Vector3d q = robocal::core::draw_vector3(angle, rng);
     Eigen::VectorXd load;
     if (!tool_weight_loads(predictor, p, q, load)) continue;
     loads.push_back(load);
-    const Eigen::Vector3d n(noise(rng), noise(rng), noise(rng));
+    const Eigen::Vector3d n = robocal::core::draw_vector3(noise, rng);
     clean.push_back(n);
     compliant.emplace_back(n + Eigen::Vector3d(5e-3 * load[1], 0, 0));
   }

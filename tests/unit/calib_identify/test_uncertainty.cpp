@@ -1,6 +1,7 @@
 #include "robocal/calib/noise_estimate.hpp"
 #include "robocal/calib/observations.hpp"
 #include "robocal/calib/uncertainty.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include "planar_fixture.hpp"
 
@@ -147,7 +148,7 @@ TEST(ResidualDiagnostics, FlagsGrossOutliersEvenWithWrongStatedNoise) {
     PoseResidual r;
     r.id = "pose" + std::to_string(k);
     // Stated noise 10× too optimistic: whitened residuals have σ = 10.
-    r.whitened = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)) * 10.0;
+    r.whitened = robocal::core::draw_vector3(n01, rng) * 10.0;
     if (k % 20 == 3) r.whitened(1) += 150.0;  // gross error (15 σ)
     r.position_error = r.whitened.norm() * 1e-5;
     res.push_back(r);

@@ -4,6 +4,7 @@
 #include "planner_test_geometry.hpp"
 
 #include "mode_sweep.hpp"
+#include "robocal/core/random_draws.hpp"
 
 #include <gtest/gtest.h>
 
@@ -249,7 +250,7 @@ TEST(Planner, ReachablePosesAreOnTheIntendedAssemblyMode) {
   int reachable = 0;
   int mode_refusals = 0;
   for (int k = 0; k < 2000; ++k) {
-    const Eigen::Vector3d x(u(rng), u(rng), u(rng));
+    const Eigen::Vector3d x = core::draw_vector3(u, rng);
     const ReachResult r = reach.reach_check(x);
     if (r.verdict == ReachVerdict::kModeChange ||
         (r.verdict == ReachVerdict::kSingular && r.detail.find("ambiguous") != std::string::npos)) {

@@ -54,7 +54,11 @@ inline Eigen::Isometry3d random_target_pose(std::mt19937_64& rng, double distanc
   pose.linear() =
       (Eigen::AngleAxisd(tilt, axis) * Eigen::AngleAxisd(spin, Eigen::Vector3d::UnitZ()))
           .toRotationMatrix();
-  const Eigen::Vector3d centre(0.05 * u(rng), 0.05 * u(rng), distance + 0.05 * u(rng));
+  // One draw a statement, z first (robocal/core/random_draws.hpp says why).
+  const double z = distance + 0.05 * u(rng);
+  const double y = 0.05 * u(rng);
+  const double x = 0.05 * u(rng);
+  const Eigen::Vector3d centre(x, y, z);
   pose.translation() = centre - pose.linear() * Eigen::Vector3d(board_half, board_half, 0.0);
   return pose;
 }

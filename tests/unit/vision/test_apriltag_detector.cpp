@@ -10,6 +10,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "robocal/core/random_draws.hpp"
 #include "robocal/vision/apriltag_detector.hpp"
 #include "robocal/vision/edge_fit.hpp"
 #include "synthetic_tags.hpp"
@@ -170,7 +171,7 @@ TEST(QuadRefinement, ConvergesFromPerturbedCorners) {
   int n = 0;
   for (const auto& tag : truth) {
     std::array<Eigen::Vector2d, 4> start = tag.corners;
-    for (auto& c : start) c += Eigen::Vector2d(jitter(rng), jitter(rng));
+    for (auto& c : start) c += robocal::core::draw_vector2(jitter, rng);
     const auto refined = rv::refine_quad_corners(img, start);
     ASSERT_TRUE(refined.has_value()) << "tag " << tag.id;
     for (size_t k = 0; k < 4; ++k) {

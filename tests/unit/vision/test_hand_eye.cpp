@@ -4,6 +4,7 @@
 // covariance of the truth, and bad data must be refused or named.
 #include "robocal/vision/hand_eye.hpp"
 
+#include "robocal/core/random_draws.hpp"
 #include "robocal/vision/camera_model.hpp"
 #include "robocal/vision/pose.hpp"
 
@@ -48,7 +49,7 @@ rv::CameraModel test_camera() {
 Eigen::Matrix3d random_turn(std::mt19937& rng, double max_angle) {
   std::normal_distribution<double> n(0.0, 1.0);
   std::uniform_real_distribution<double> u(0.3 * max_angle, max_angle);
-  const Eigen::Vector3d axis = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+  const Eigen::Vector3d axis = robocal::core::draw_vector3(n, rng).normalized();
   return Eigen::AngleAxisd(u(rng), axis).toRotationMatrix();
 }
 
@@ -74,7 +75,7 @@ void observe(const rv::CameraModel& camera, const rv::BoardPoints& board, std::m
     const auto px = rv::project(camera, camera_T_target * P);
     if (!px || px->x() < 0 || px->y() < 0 || px->x() > camera.width || px->y() > camera.height)
       return;
-    v.frame.corners.push_back({id, *px + Eigen::Vector2d(noise(rng), noise(rng)), 0.0});
+    v.frame.corners.push_back({id, *px + robocal::core::draw_vector2(noise, rng), 0.0});
   }
   s.views.push_back(v);
 }
@@ -100,7 +101,7 @@ Scene fixed_camera_scene(unsigned seed, int views, double sigma = kPixelSigma) {
   for (int tries = 0; static_cast<int>(s.views.size()) < views && tries < 1000; ++tries) {
     Iso pose = base_T_flange_nominal;
     pose.linear() = random_turn(rng, 0.5) * pose.linear();
-    pose.translation() += Eigen::Vector3d(shift(rng), shift(rng), shift(rng));
+    pose.translation() += robocal::core::draw_vector3(shift, rng);
     observe(camera, board, rng, s, pose, sigma);
   }
   return s;
@@ -127,8 +128,8 @@ Scene camera_on_tool_scene(unsigned seed, int views, double sigma = kPixelSigma)
     const Eigen::Vector3d centre = s.target_pose.translation();
     Iso pose = base_T_flange_nominal;
     pose.linear() = turn * pose.linear();
-    pose.translation() = centre + turn * (pose.translation() - centre) +
-                         Eigen::Vector3d(shift(rng), shift(rng), shift(rng));
+    pose.translation() =
+        centre + turn * (pose.translation() - centre) + robocal::core::draw_vector3(shift, rng);
     observe(camera, board, rng, s, pose, sigma);
   }
   return s;
