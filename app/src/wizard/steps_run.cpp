@@ -484,6 +484,7 @@ class ExportStep final : public Step {
     for (;;) {
       const std::string format =
           ctx.ask.ask("export.format", "Format (" + formats + ", or none)", proposed);
+      ctx.state.set("export.format", format);  // what was exported, for the record
       if (format == "none") return format;
       const fs::path out = ctx.state.folder / "export" / ("calibrated." + format);
       fs::create_directories(out.parent_path());
