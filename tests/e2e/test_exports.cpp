@@ -44,6 +44,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -195,6 +196,18 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
     towers.push_back({R * std::cos(angle), R * std::sin(angle), arm,
                       endstop_height - j.at("endstop_readings_m")[i].get<double>()});
   }
+  // Klipper's inverse kinematics with these settings: the carriage readings for a nozzle target in
+  // the firmware's frame; nullopt where a rod cannot reach it.
+  const auto klipper_readings = [&](const Eigen::Vector3d& p) -> std::optional<Eigen::VectorXd> {
+    Eigen::VectorXd readings(3);
+    for (int i = 0; i < 3; ++i) {
+      const KlipperTower& k = towers[static_cast<std::size_t>(i)];
+      const double d2 = k.arm * k.arm - std::pow(p.x() - k.x, 2) - std::pow(p.y() - k.y, 2);
+      if (d2 <= 0.0) return std::nullopt;
+      readings[i] = p.z() + std::sqrt(d2) - k.offset;
+    }
+    return readings;
+  };
   // The firmware frame in the robot's base frame: p_firmware = Ry(pitch) Rx(roll) p_base + (x, y).
   const auto& f = j.at("firmware_frame");
   const Eigen::Matrix3d Rf =
@@ -229,15 +242,9 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
     if (!printer) continue;
     const Eigen::Vector3d target = t.camera_T_world * true_tool(t, q).translation();
     const Eigen::Vector3d p = Rf * (base_T_camera * target) + tf;  // in the firmware's frame
-    Eigen::VectorXd readings(3);
-    bool reachable = true;
-    for (int i = 0; i < 3; ++i) {
-      const KlipperTower& k = towers[static_cast<std::size_t>(i)];
-      const double d2 = k.arm * k.arm - std::pow(p.x() - k.x, 2) - std::pow(p.y() - k.y, 2);
-      reachable = reachable && d2 > 0.0;
-      readings[i] = p.z() + std::sqrt(std::max(d2, 0.0)) - k.offset;
-    }
-    if (!reachable) continue;
+    const std::optional<Eigen::VectorXd> sent_readings = klipper_readings(p);
+    if (!sent_readings) continue;
+    const Eigen::VectorXd& readings = *sent_readings;
     const Eigen::Vector3d reached = t.camera_T_world * true_tool(t, readings).translation();
     errors.push_back(reached - target);
     targets.push_back(p);
@@ -302,17 +309,10 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
     }
     const auto& c = rows[k].at("commanded");
     const Eigen::Vector3d sent_p(c[0].get<double>(), c[1].get<double>(), c[2].get<double>());
-    Eigen::VectorXd readings(3);
-    for (int i = 0; i < 3; ++i) {
-      const KlipperTower& k_i = towers[static_cast<std::size_t>(i)];
-      readings[i] = sent_p.z() +
-                    std::sqrt(std::max(k_i.arm * k_i.arm - std::pow(sent_p.x() - k_i.x, 2) -
-                                           std::pow(sent_p.y() - k_i.y, 2),
-                                       0.0)) -
-                    k_i.offset;
-    }
+    const std::optional<Eigen::VectorXd> readings = klipper_readings(sent_p);
+    ASSERT_TRUE(readings) << "line " << k + 2 << ": Klipper cannot reach the compensated command";
     const Eigen::Vector3d reached =
-        Rf * (base_T_camera * t.camera_T_world * true_tool(t, readings).translation()) + tf;
+        Rf * (base_T_camera * t.camera_T_world * true_tool(t, *readings).translation()) + tf;
     compensated_targets.add(reached - targets[k]);
   }
   compensated_targets.done();
@@ -360,16 +360,11 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
       const int n = std::max(1, static_cast<int>((commanded[k] - commanded[k - 1]).norm() / 2e-4));
       for (int step = 0; step <= n; ++step) {
         const Eigen::Vector3d p = commanded[k - 1] + (commanded[k] - commanded[k - 1]) * step / n;
-        Eigen::VectorXd readings(3);
-        for (int i = 0; i < 3; ++i) {
-          const KlipperTower& tw = towers[static_cast<std::size_t>(i)];
-          readings[i] =
-              p.z() +
-              std::sqrt(tw.arm * tw.arm - std::pow(p.x() - tw.x, 2) - std::pow(p.y() - tw.y, 2)) -
-              tw.offset;
-        }
+        const std::optional<Eigen::VectorXd> readings = klipper_readings(p);
+        EXPECT_TRUE(readings) << "the program's point " << p.transpose() << " is out of reach";
+        if (!readings) continue;
         nozzle.emplace_back(
-            Rf * (base_T_camera * t.camera_T_world * true_tool(t, readings).translation()) + tf);
+            Rf * (base_T_camera * t.camera_T_world * true_tool(t, *readings).translation()) + tf);
       }
     }
     return nozzle;

@@ -13,6 +13,7 @@
 #include "robocal/planner/task_sampling.hpp"
 #include "robocal/robotio/delta_firmware.hpp"
 #include "robocal/robotio/safety_guard.hpp"
+#include "robocal/robotio/sim_process.hpp"
 #include "robocal/vision/camera_io.hpp"
 #include "robocal/vision/target_io.hpp"
 
@@ -135,6 +136,15 @@ bool simulated_native_delta(const calib::Mechanism& model, const std::string& pr
     throw InputError("--firmware klipper: robot '" + model.name +
                      "' is not a linear delta, the only robot Klipper's delta kinematics drives");
   return native;
+}
+
+std::string simulated_link_address(const robotio::SimControllerProcess& sim,
+                                   const std::string& protocol, bool klipper) {
+  if (protocol == "ur") return sim.ur();
+  // tcp() is "tcp:HOST:PORT"; the open protocol and Moonraker are served on the same port.
+  const std::string port = sim.tcp().substr(sim.tcp().find(':') + 1);
+  if (protocol == "open") return "open:" + port;
+  return klipper ? "moonraker:" + port : sim.tcp();
 }
 
 Commandable drawing_commandability(const calib::Mechanism& model, const std::string& firmware) {

@@ -6,6 +6,7 @@
 // SimulatedCell for the same seed, so the live and the offline demo calibrate the same robot.
 #include "robocal/planner/cell.hpp"
 #include "robocal/robotio/safety_guard.hpp"
+#include "robocal/robotio/sim_process.hpp"
 #include "simcell/simulated_cell.hpp"
 
 #include <Eigen/Core>
@@ -37,6 +38,12 @@ using Commandable = std::function<bool(const Eigen::VectorXd&)>;
 // always (it drives a delta only in its own kinematics: InputError for another robot).
 bool simulated_native_delta(const calib::Mechanism& model, const std::string& protocol,
                             const std::string& firmware, const std::string& gcode_mode);
+
+// The --link address of a simulated controller speaking `protocol`: ur:..., open:HOST:PORT, or for
+// G-code tcp:HOST:PORT, and moonraker:HOST:PORT for a Klipper printer (`klipper`), served on the
+// same port.
+std::string simulated_link_address(const robotio::SimControllerProcess& sim,
+                                   const std::string& protocol, bool klipper);
 
 // What a delta firmware ("marlin", "rrf" or "klipper") whose kinematics is the robot file's
 // drawing (sim-controller --kinematics delta) can command: not a carriage below the nozzle.

@@ -201,13 +201,6 @@ std::string natural_protocol(const std::string& robot_name) {
   return open.count(robot_name) > 0 ? "open" : "gcode";
 }
 
-// The --link address of the simulator's protocol.
-std::string link_address_of(const robotio::SimControllerProcess& sim, const std::string& protocol) {
-  if (protocol == "ur") return sim.ur();
-  // tcp() is "tcp:HOST:PORT"; the open protocol is served on the same port.
-  return protocol == "open" ? "open:" + sim.tcp().substr(4) : sim.tcp();
-}
-
 // The controller's simulated motion time logged since `first` motions (homing left out).
 double motion_seconds_since(const fs::path& log, std::size_t first) {
   const std::vector<double> motions = robotio::simulated_motion_seconds(log);
@@ -255,8 +248,7 @@ LiveController start_controller(const LiveDemoOptions& o, const LiveCell& lc,
     sim_args.insert(sim_args.end(),
                     {"--firmware", o.firmware, "--kinematics", c.native ? "delta" : "axes"});
   c.sim = std::make_unique<robotio::SimControllerProcess>(robocal_binary(), sim_args);
-  c.link_address =
-      klipper ? "moonraker:" + c.sim->tcp().substr(4) : link_address_of(*c.sim, c.protocol);
+  c.link_address = simulated_link_address(*c.sim, c.protocol, klipper);
   // "open link at 127.0.0.1:P", "Universal Robots link at 127.0.0.1:R:S:D", "marlin G-code, raw
   // axes at 127.0.0.1:P" (the address after the protocol's prefix).
   const std::string gcode_note =

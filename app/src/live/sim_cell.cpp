@@ -201,12 +201,7 @@ int run_sim_cell(const SimCellOptions& o) {
     args.insert(args.end(), {"--pty-link", (at.simulator() / "tty").string()});
   }
   robotio::SimControllerProcess sim(robocal_binary(), args);
-  // tcp:HOST:PORT as the simulator announces it; the open link's and Moonraker's addresses say
-  // their protocol.
-  const std::string port_address = sim.tcp().substr(sim.tcp().find(':') + 1);
-  const std::string link_address = o.protocol == "open" ? "open:" + port_address
-                                   : klipper            ? "moonraker:" + port_address
-                                                        : sim.tcp();
+  const std::string link_address = simulated_link_address(sim, o.protocol, klipper);
   jog_into_view(lc, robot_file, files, link_address, o.seed,
                 native ? drawing_commandability(lc.cell.model, o.firmware) : Commandable{}, out);
   robotio::SimControllerTruth truth(sim.pose(), robotio::BoardMounting{});
@@ -233,7 +228,8 @@ int run_sim_cell(const SimCellOptions& o) {
                "\ncontroller: the open link protocol at {} (read replies carry the flange pose)\n",
                link_address);
   else if (klipper)
-    fmt::print(out, "\ncontroller: a Klipper delta printer, Moonraker at {}\n", port_address);
+    fmt::print(out, "\ncontroller: a Klipper delta printer, Moonraker at {}\n",
+               link_address.substr(link_address.find(':') + 1));
   else
     fmt::print(out, "\ncontroller: {} firmware{}, G-code at {} (serial: {})\n", o.firmware,
                native ? " in its own delta kinematics" : "", sim.tcp(),
