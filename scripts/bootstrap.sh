@@ -6,8 +6,8 @@
 #   scripts/bootstrap.sh --tests  that, plus what the test suite, the benchmarks and the CI
 #                                 checks use (scripts/test.sh, .ci/run)
 #
-# The test-only packages are about a third of the download (chromium and clang alone pull in
-# ~95 packages), which a user trying the demo does not need.
+# The test-only packages (chromium, clang-tidy, gtest, ...) are a large part of the download,
+# which a user trying the demo does not need.
 set -euo pipefail
 
 usage() { echo "usage: $0 [--tests]" >&2; exit 2; }
@@ -20,8 +20,10 @@ esac
 [ $# -le 1 ] || usage
 
 packages=(
-  # toolchain
-  build-essential cmake ninja-build pkg-config ccache
+  # toolchain: the release build (demo, test command) compiles with clang, about half GCC's
+  # compile time here (docs/figures.md); GCC (build-essential) builds the sanitizer preset, and
+  # build-essential's dpkg-dev makes the Debian package
+  build-essential clang cmake ninja-build pkg-config ccache
   # the Debian package (cpack): dpkg-shlibdeps (dpkg-dev, from build-essential) reads the
   # dependencies of the files `file` says are ELF programs
   file
