@@ -8,6 +8,13 @@ namespace {
 nlohmann::json num(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
 }
+
+// Probe heights among the fitted observations: the data of a printer's bed.
+bool json_has_probe_heights(const IdentificationResult& r) {
+  for (const auto& t : r.residuals.by_type)
+    if (t.type == "probe height" && t.count > 0) return true;
+  return false;
+}
 }  // namespace
 
 nlohmann::json to_json(const IdentifiabilityReport& r) {
@@ -125,7 +132,8 @@ nlohmann::json to_json(const IdentificationResult& r) {
   j["uncertainty"] = u;
   j["predicted_accuracy"] = {{"position_rms_m", num(r.predicted.position_rms_overall)},
                              {"position_worst_m", num(r.predicted.position_worst)},
-                             {"orientation_rms_rad", num(r.predicted.orientation_rms_overall)}};
+                             {"orientation_rms_rad", num(r.predicted.orientation_rms_overall)},
+                             {"height_rms_m", num(r.predicted.height_rms_overall)}};
   nlohmann::json res{{"scale", num(r.residuals.scale)},
                      {"position_rms_m", num(r.residuals.position_rms)},
                      {"position_max_m", num(r.residuals.position_max)},
@@ -175,6 +183,11 @@ nlohmann::json to_json(const IdentificationResult& r) {
     // measured area beside the 3-D figure.
     j["predicted_bed_height_rms_um"] = num(1e6 * r.estimator.chosen.predicted_height_rms);
     j["predicted_3d_rms_um"] = num(1e6 * r.estimator.chosen.predicted_rms);
+  } else if (r.uncertainty.ok && json_has_probe_heights(r)) {
+    // Enough data to estimate every free parameter: the bed's flatness from the covariance at
+    // the measured poses, beside the 3-D figure there.
+    j["predicted_bed_height_rms_um"] = num(1e6 * r.predicted.height_rms_overall);
+    j["predicted_3d_rms_um"] = num(1e6 * r.predicted.position_rms_overall);
   }
   // A posteriori noise per observation type beside the stated noise (noise_estimate.hpp).
   nlohmann::json noise = nlohmann::json::array();

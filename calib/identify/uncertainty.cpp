@@ -91,6 +91,7 @@ PredictedAccuracy predict_accuracy(const std::vector<Eigen::MatrixXd>& pose_jaco
   PredictedAccuracy out;
   double sum_p = 0.0;
   double sum_o = 0.0;
+  double sum_z = 0.0;
   for (const auto& J : pose_jacobians) {
     if (J.rows() != 3 && J.rows() != 6)
       throw std::invalid_argument("predict_accuracy: pose Jacobians must have 3 or 6 rows");
@@ -102,11 +103,13 @@ PredictedAccuracy predict_accuracy(const std::vector<Eigen::MatrixXd>& pose_jaco
     out.position_worst = std::max(out.position_worst, out.position_rms.back());
     sum_p += tp;
     sum_o += to;
+    sum_z += C(2, 2);
   }
   if (!pose_jacobians.empty()) {
     const auto k = static_cast<double>(pose_jacobians.size());
     out.position_rms_overall = std::sqrt(std::max(sum_p / k, 0.0));
     out.orientation_rms_overall = std::sqrt(std::max(sum_o / k, 0.0));
+    out.height_rms_overall = std::sqrt(std::max(sum_z / k, 0.0));
   }
   return out;
 }

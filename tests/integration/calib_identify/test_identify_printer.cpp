@@ -255,6 +255,18 @@ TEST_F(Printer, HeightsPlusPrintedPartDistancesIdentifyTheNinePrinterParameters)
   EXPECT_NE(summary.find("probe height RMS"), std::string::npos) << summary;
   EXPECT_NE(summary.find("distance RMS"), std::string::npos) << summary;
   EXPECT_EQ(summary.find("Fit residuals: position"), std::string::npos) << summary;
+  // The bed's flatness beside the 3-D figure: the predicted first-layer height error, the
+  // vertical part of the predicted position error, in the summary and the JSON.
+  EXPECT_NE(summary.find("bed height (first layer) RMS"), std::string::npos) << summary;
+  EXPECT_GT(res.predicted.height_rms_overall, 0.0);
+  EXPECT_LT(res.predicted.height_rms_overall, res.predicted.position_rms_overall);
+  const nlohmann::json j = to_json(res);
+  ASSERT_TRUE(j.contains("predicted_bed_height_rms_um")) << j.dump(2);
+  EXPECT_NEAR(j["predicted_bed_height_rms_um"].get<double>(),
+              1e6 * res.predicted.height_rms_overall, 1e-9);
+  EXPECT_NEAR(j["predicted_3d_rms_um"].get<double>(), 1e6 * res.predicted.position_rms_overall,
+              1e-9);
+  EXPECT_GT(j["predicted_accuracy"]["height_rms_m"].get<double>(), 0.0);
   // Held-out 3-D error at the printed-part layer and on the bed, against the truth.
   double before = 0.0;
   double after = 0.0;

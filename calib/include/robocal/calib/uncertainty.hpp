@@ -60,6 +60,9 @@ struct PredictedAccuracy {
   std::vector<double> position_rms;     // per pose: sqrt(trace Σ_pp) = expected 3-D error RMS
   std::vector<double> orientation_rms;  // per pose, rad (0 when only 3 rows)
   double position_rms_overall = 0.0;    // sqrt(mean over poses of trace Σ_pp)
+  // sqrt(mean over poses of Σ_zz): the vertical (world z) part alone; on a printer whose bed is
+  // the world's xy plane, the bed height (first layer).
+  double height_rms_overall = 0.0;
   double position_worst = 0.0;
   double orientation_rms_overall = 0.0;
 };
