@@ -8,13 +8,6 @@ namespace {
 nlohmann::json num(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
 }
-
-// Probe heights among the fitted observations: the data of a printer's bed.
-bool json_has_probe_heights(const IdentificationResult& r) {
-  for (const auto& t : r.residuals.by_type)
-    if (t.type == "probe height" && t.count > 0) return true;
-  return false;
-}
 }  // namespace
 
 nlohmann::json to_json(const IdentifiabilityReport& r) {
@@ -183,7 +176,7 @@ nlohmann::json to_json(const IdentificationResult& r) {
     // measured area beside the 3-D figure.
     j["predicted_bed_height_rms_um"] = num(1e6 * r.estimator.chosen.predicted_height_rms);
     j["predicted_3d_rms_um"] = num(1e6 * r.estimator.chosen.predicted_rms);
-  } else if (r.uncertainty.ok && json_has_probe_heights(r)) {
+  } else if (r.uncertainty.ok && r.residuals.has_probe_heights()) {
     // Enough data to estimate every free parameter: the bed's flatness from the covariance at
     // the measured poses, beside the 3-D figure there.
     j["predicted_bed_height_rms_um"] = num(1e6 * r.predicted.height_rms_overall);

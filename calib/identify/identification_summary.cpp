@@ -9,13 +9,6 @@
 namespace robocal::calib {
 namespace {
 
-// Probe heights among the fitted observations: the data of a printer's bed.
-bool summary_has_probe_heights(const IdentificationResult& r) {
-  return std::any_of(
-      r.residuals.by_type.begin(), r.residuals.by_type.end(),
-      [](const TypeResiduals& t) { return t.type == "probe height" && t.count > 0; });
-}
-
 std::string length(double metres) {
   const double a = std::abs(metres);
   if (a < 1e-3) return fmt::format("{:.3g} µm", metres * 1e6);
@@ -199,7 +192,7 @@ std::string summary_text(const IdentificationResult& r) {
   if (r.uncertainty.ok)
     s += fmt::format("Predicted accuracy at the measured poses: position RMS {}, worst {}{}\n",
                      length(r.predicted.position_rms_overall), length(r.predicted.position_worst),
-                     summary_has_probe_heights(r)
+                     r.residuals.has_probe_heights()
                          ? fmt::format("; bed height (first layer) RMS {}",
                                        length(r.predicted.height_rms_overall))
                          : std::string());

@@ -143,6 +143,12 @@ struct ResidualDiagnostics {
   double orientation_rms = 0.0;
   double orientation_max = 0.0;
   std::size_t outliers = 0;
+  // Probe heights among the fitted observations: the data of a printer's bed.
+  [[nodiscard]] bool has_probe_heights() const {
+    for (const auto& t : by_type)
+      if (t.type == "probe height" && t.count > 0) return true;
+    return false;
+  }
 };
 ResidualDiagnostics diagnose_residuals(const std::vector<PoseResidual>& residuals,
                                        const OutlierOptions& options = {});
