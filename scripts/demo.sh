@@ -6,6 +6,5 @@ cd "$(dirname "$0")/.."
 bash scripts/bootstrap.sh
 # Only the program (each library's sources compiled in batches: ROBOCAL_BATCH_BUILD in
 # CMakeLists.txt).
-cmake --preset release >/dev/null
 bash scripts/build.sh release robocal
 exec ./build/release/app/robocal demo "$@"

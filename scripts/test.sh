@@ -4,6 +4,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/bootstrap.sh --tests
-cmake --preset release >/dev/null
 bash scripts/build.sh release
 ctest --preset release "$@"
