@@ -20,9 +20,9 @@ esac
 [ $# -le 1 ] || usage
 
 packages=(
-  # toolchain: the release build (demo, test command) compiles with clang, about half GCC's
-  # compile time here (docs/figures.md); GCC (build-essential) builds the sanitizer preset, and
-  # build-essential's dpkg-dev makes the Debian package
+  # toolchain: the release build (demo, test command) compiles with clang, quicker than GCC here
+  # (docs/figures.md); GCC (build-essential) builds the sanitizer preset, and build-essential's
+  # dpkg-dev makes the Debian package
   build-essential clang cmake ninja-build pkg-config ccache
   # the Debian package (cpack): dpkg-shlibdeps (dpkg-dev, from build-essential) reads the
   # dependencies of the files `file` says are ELF programs
