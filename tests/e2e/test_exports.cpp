@@ -273,9 +273,10 @@ TEST(ExportsAgainstTruth, KlipperSettingsPutTheTrueNozzleWhereTheyAreSent) {
   RecordProperty("nozzle_error_rms_um", std::to_string(sent.rms * 1e6));
   RecordProperty("firmware_residual_rms_um", std::to_string(firmware_rms * 1e6));
   EXPECT_GT(sent.n, 100);
-  // Where the nozzle and the base are: the constant part (the board taken for the nozzle puts it
-  // 205 mm off, camera 0's frame taken for the base 1.25 m off), beyond the calibrated model's
-  // own constant error (camera 0's frame as its quick calibration realises it: up to 0.1 mm).
+  // Where the nozzle and the base are: the constant part (an export that took the board for the
+  // nozzle would put it 205 mm off, one that took camera 0's frame for the base 1.25 m off),
+  // beyond the calibrated model's own constant error (camera 0's frame as its quick calibration
+  // realises it: up to 0.1 mm).
   // Over 1000 targets the firmware's residual (0.4-0.65 mm RMS, seeds 1-3) averages out to
   // 20-40 um about the mean it has over its own fit's workspace (zero).
   EXPECT_LT((sent.mean - model.mean).norm(), 0.1e-3);
