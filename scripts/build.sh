@@ -16,11 +16,14 @@ cache="build/$preset/CMakeCache.txt"
 fresh=()
 if [ -f "$cache" ]; then
   while IFS='=' read -r name value; do
-    value=${value#\"}
-    value=${value%\"}
     recorded=$(sed -n "s/^$name:[A-Z]*=//p" "$cache")
     case "$name" in
-      CMAKE_C_COMPILER | CMAKE_CXX_COMPILER) value=$(command -v "$value" || echo "$value") ;;
+      # Compared as the programs they name: the cache holds the name the preset gave (clang++)
+      # after a plain configure, the path CMake found (/usr/bin/clang++) after a fresh one.
+      CMAKE_C_COMPILER | CMAKE_CXX_COMPILER)
+        value=$(command -v "$value" || echo "$value")
+        recorded=$(command -v "$recorded" || echo "$recorded")
+        ;;
     esac
     if [ "$value" != "$recorded" ]; then
       echo "build.sh: build/$preset has $name=${recorded:-(unset)}, the preset $value:" \
